@@ -1,0 +1,1 @@
+"""kukaid's command-line front end (installed as the package ``kukaid_cli``)."""

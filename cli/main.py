@@ -1,0 +1,73 @@
+"""The ``kukaid`` command.  Subcommands are the modules ``cli/cmd_<name>.py`` (each defines
+``command``), found without importing them, so ``kukaid --help`` and ``--version`` stay fast:
+heavy libraries are imported inside the commands."""
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import click
+
+from kukaid import __version__
+
+_HERE = Path(__file__).parent
+
+
+def _command_names() -> list[str]:
+    return sorted(p.stem[4:].replace("_", "-") for p in _HERE.glob("cmd_*.py"))
+
+
+class LazyGroup(click.Group):
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return _command_names()
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name not in _command_names():
+            return None
+        import importlib
+
+        mod = importlib.import_module(f"{__package__}.cmd_{name.replace('-', '_')}")
+        return mod.command
+
+    def invoke(self, ctx: click.Context):
+        from kukaid.errors import KukaidError
+
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+            raise
+        except KukaidError as e:
+            _fail(str(e), 1)
+        except KeyboardInterrupt:
+            _fail("interrupted", 130)
+        except OSError as e:
+            where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+            _fail(f"{where}{e.strerror or e}", 1)
+        except Exception as e:  # a bug: still one line, full traceback with KUKAID_DEBUG=1
+            if os.environ.get("KUKAID_DEBUG"):
+                raise
+            _fail(f"internal error ({type(e).__name__}: {e}); rerun with KUKAID_DEBUG=1 for a traceback", 2)
+
+
+def _fail(msg: str, code: int) -> None:
+    click.echo(f"kukaid: error: {msg}", err=True)
+    sys.exit(code)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="kukaid")
+def cli() -> None:
+    """Identify a KUKA robot axis (Yao et al. 2018) and push it by hand without a force sensor.
+
+    Pipeline: excite -> capture (or load) -> fit -> report / diagnose -> run-admittance.
+    Every command that needs a robot uses the built-in virtual KR C4 unless told otherwise.
+    """
+
+
+def main() -> None:
+    cli(prog_name="kukaid")
+
+
+if __name__ == "__main__":
+    main()

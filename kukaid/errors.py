@@ -1,0 +1,25 @@
+"""Errors the toolkit raises on bad input; the CLI prints them as one line, without a traceback."""
+
+
+class KukaidError(Exception):
+    """Base class: a problem the user can fix, described in one line."""
+
+
+class LogFormatError(KukaidError):
+    """An axis log (CSV, HDF5, MAT, Trace) is malformed or inconsistent."""
+
+
+class ParamFileError(KukaidError):
+    """A parameter file is missing a field, has a wrong type or an out-of-range value."""
+
+
+class LimitError(KukaidError):
+    """A trajectory or command breaks a position, velocity, acceleration or torque limit."""
+
+
+class FitError(KukaidError):
+    """Identification could not produce trustworthy parameters (no data, failed solve, ...)."""
+
+
+class ControllerError(KukaidError):
+    """A robot controller (real or virtual) did not answer, answered wrongly, or went stale."""
