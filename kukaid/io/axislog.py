@@ -178,7 +178,9 @@ def _encode_attrs(attrs: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
     for k, v in attrs.items():
         if v is None:
             continue
-        if isinstance(v, (dict, list, tuple)):
+        if isinstance(v, (list, tuple)) and v and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+            plain[k] = np.asarray(v)  # numeric lists (axes, sample counts) stay native HDF5 arrays
+        elif isinstance(v, (dict, list, tuple)):
             plain[k] = json.dumps(v)
             as_json.append(k)
         elif isinstance(v, (bool, np.bool_)):

@@ -1,0 +1,204 @@
+"""Axis logs: HDF5 and CSV round trips, validation, incremental writing, malformed input."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from kukaid.errors import LogFormatError
+from kukaid.io.axislog import AxisLog, AxisLogWriter, read_csv, read_hdf5, read_log, write_csv, write_hdf5
+from kukaid_cli.main import cli
+
+
+def make_log(n: int = 50, axes=(3,), seed: int = 0, extras: bool = True) -> AxisLog:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.012
+    a = len(axes)
+    kw = {}
+    if extras:
+        kw = dict(q_cmd=rng.normal(size=(n, a)), temp=30 + rng.random((n, a)), tau_ext_true=rng.normal(size=(n, a)))
+    return AxisLog(time=t, q=rng.normal(size=(n, a)), tau=10 * rng.normal(size=(n, a)), axes=axes,
+                   attrs={"seed": seed, "experiment": "friction", "trajectory": {"speeds": [0.1, 0.2]}}, **kw)
+
+
+def test_hdf5_round_trip_keeps_everything(tmp_path):
+    log = make_log(axes=(2, 3))
+    write_hdf5(log, tmp_path / "a.h5")
+    back = read_hdf5(tmp_path / "a.h5")
+    for name in ("time", "q", "tau", "q_cmd", "temp", "tau_ext_true"):
+        assert np.array_equal(getattr(back, name), getattr(log, name)), name
+    assert back.axes == (2, 3)
+    assert back.attrs["trajectory"] == {"speeds": [0.1, 0.2]}
+    assert back.attrs["seed"] == 0
+    with h5py.File(tmp_path / "a.h5") as f:
+        assert list(f.attrs["axes"]) == [2, 3]
+        assert "rad" in f.attrs["units"]
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.floats(-1e4, 1e4, allow_nan=False, width=64).filter(lambda x: x == 0 or abs(x) > 1e-290),
+                min_size=2, max_size=40))
+def test_csv_hdf5_csv_round_trip_keeps_every_value(tmp_path_factory, values):
+    d = tmp_path_factory.mktemp("rt")
+    n = len(values)
+    v = np.asarray(values)
+    # a CSV as the KRC gives it: degrees and N·m
+    lines = ["time_s,A3_deg,A3_Nm,A3_cmd_deg,A3_temp_C"]
+    for i in range(n):
+        lines.append(f"{i * 0.012!r},{float(v[i])!r},{float(-v[i])!r},{float(v[i] / 3)!r},{40.0 + i!r}")
+    (d / "in.csv").write_text("\n".join(lines) + "\n")
+    runner = CliRunner()
+    r = runner.invoke(cli, ["load", str(d / "in.csv"), "-o", str(d / "log.h5")])
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(cli, ["load", str(d / "log.h5"), "-o", str(d / "out.csv")])
+    assert r.exit_code == 0, r.output
+    a = np.loadtxt(d / "in.csv", delimiter=",", skiprows=1, ndmin=2)
+    b = np.loadtxt(d / "out.csv", delimiter=",", skiprows=1, ndmin=2)
+    assert (d / "out.csv").read_text().splitlines()[0] == lines[0]
+    # degrees -> rad -> degrees keeps every value to within one unit in the last place (subnormal
+    # magnitudes, below 1e-290, are excluded: their conversion to radians underflows)
+    np.testing.assert_allclose(b, a, rtol=4e-16, atol=0)
+    assert np.array_equal(b[:, [0, 2, 4]], a[:, [0, 2, 4]])
+
+
+def test_csv_radians_and_prismatic(tmp_path):
+    (tmp_path / "p.csv").write_text("time_s,A1_m,A1_N\n0,0.1,5\n0.001,0.2,6\n")
+    log = read_csv(tmp_path / "p.csv")
+    assert log.joint == ("prismatic",)
+    assert np.allclose(log.q[:, 0], [0.1, 0.2])
+    write_csv(log, tmp_path / "p2.csv")
+    assert (tmp_path / "p2.csv").read_text().splitlines()[0] == "time_s,A1_m,A1_N"
+
+
+BAD_CSV = {
+    "missing_column": ("time_s,A3_deg\n0,1\n0.012,2\n", "missing column A3_Nm"),
+    "unknown_unit": ("time_s,A3_grad,A3_Nm\n0,1,2\n0.012,2,3\n", "unknown column 'A3_grad'"),
+    "nan": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,nan,3\n", "not a finite number (NaN or inf) at line 3"),
+    "duplicated_time": ("time_s,A3_deg,A3_Nm\n0,1,2\n0,2,3\n", "duplicated) at line 3"),
+    "decreasing_time": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.02,2,3\n0.01,2,3\n", "decreasing) at line 4"),
+    "empty": ("", "empty file"),
+    "header_only": ("time_s,A3_deg,A3_Nm\n", "no data rows"),
+    "ragged": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2\n", "line 3 has 2 fields"),
+    "text": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,abc,3\n", "line 3: 'abc' is not a number"),
+    "no_time": ("t,A3_deg,A3_Nm\n0,1,2\n", "first column must be 'time_s'"),
+    "mixed_units": ("time_s,A3_deg,A3_N\n0,1,2\n0.1,1,2\n", "mixes revolute and prismatic"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_CSV))
+def test_malformed_csv_gives_one_line_and_no_output(tmp_path, case):
+    text, msg = BAD_CSV[case]
+    src = tmp_path / "bad.csv"
+    src.write_text(text)
+    out = tmp_path / "out.h5"
+    r = CliRunner().invoke(cli, ["load", str(src), "-o", str(out)])
+    assert r.exit_code != 0
+    err = r.stderr if hasattr(r, "stderr") else r.output
+    assert msg in err, err
+    assert err.startswith("kukaid: error: ") and str(src) in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert not out.exists() and list(tmp_path.iterdir()) == [src]
+
+
+def test_truncated_hdf5(tmp_path):
+    write_hdf5(make_log(n=5000), tmp_path / "a.h5")
+    data = (tmp_path / "a.h5").read_bytes()
+    (tmp_path / "cut.h5").write_bytes(data[: len(data) // 3])
+    with pytest.raises(LogFormatError, match="cut.h5: .*(truncated|corrupt)"):
+        read_hdf5(tmp_path / "cut.h5")
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "cut.h5"), "-o", str(tmp_path / "o.csv")])
+    assert r.exit_code == 1 and "truncated" in r.output and not (tmp_path / "o.csv").exists()
+
+
+def test_hdf5_missing_dataset_nan_and_wrong_unit(tmp_path):
+    write_hdf5(make_log(), tmp_path / "a.h5")
+    with h5py.File(tmp_path / "a.h5", "a") as f:
+        del f["tau"]
+    with pytest.raises(LogFormatError, match="missing dataset 'tau'"):
+        read_hdf5(tmp_path / "a.h5")
+    write_hdf5(make_log(), tmp_path / "b.h5")
+    with h5py.File(tmp_path / "b.h5", "a") as f:
+        f["q"][7, 0] = np.nan
+    with pytest.raises(LogFormatError, match="channel 'q' of axis A3 .* row 7"):
+        read_hdf5(tmp_path / "b.h5")
+    write_hdf5(make_log(), tmp_path / "c.h5")
+    with h5py.File(tmp_path / "c.h5", "a") as f:
+        f.attrs["units"] = '{"time": "ms"}'
+    with pytest.raises(LogFormatError, match="time unit is 'ms'"):
+        read_hdf5(tmp_path / "c.h5")
+    (tmp_path / "e.h5").write_bytes(b"")
+    with pytest.raises(LogFormatError, match="empty file"):
+        read_hdf5(tmp_path / "e.h5")
+
+
+def test_unknown_extension(tmp_path):
+    (tmp_path / "x.txt").write_text("hi")
+    with pytest.raises(LogFormatError, match="unknown log format '.txt'"):
+        read_log(tmp_path / "x.txt")
+
+
+def test_writer_survives_sigkill(tmp_path):
+    path = tmp_path / "live.h5"
+    code = textwrap.dedent(f"""
+        import numpy as np, os, sys
+        from kukaid.io.axislog import AxisLogWriter
+        w = AxisLogWriter({str(path)!r}, axes=(3,), attrs={{"experiment": "x"}}, flush_every=10)
+        n = 0
+        while True:
+            t = (n + np.arange(10)) * 0.012
+            w.append(t, q=t[:, None], tau=2 * t[:, None])
+            n += 10
+            if n == 500:
+                print("ready", flush=True)
+    """)
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    assert p.stdout.readline().strip() == "ready"
+    p.kill()
+    p.wait()
+    log = read_hdf5(path)
+    assert log.n_samples >= 500
+    assert np.allclose(log.tau, 2 * log.q) and np.allclose(log.q[:, 0], log.time)
+
+
+def test_writer_rejects_non_increasing_time(tmp_path):
+    with AxisLogWriter(tmp_path / "w.h5", axes=(3,)) as w:
+        w.append([0.0, 0.1], q=np.zeros((2, 1)), tau=np.zeros((2, 1)))
+        with pytest.raises(ValueError):
+            w.append([0.1], q=np.zeros((1, 1)), tau=np.zeros((1, 1)))
+    assert read_hdf5(tmp_path / "w.h5").n_samples == 2
+
+
+def test_axislog_accessors():
+    log = make_log(axes=(3, 6))
+    assert log.index(6) == 1
+    assert np.array_equal(log.channel("tau", 3), log.tau[:, 0])
+    with pytest.raises(LogFormatError, match="axis A1 is not in the log"):
+        log.index(1)
+    part = log.select(slice(10, 20))
+    assert part.n_samples == 10 and part.q_cmd.shape == (10, 2)
+    assert log.sample_time == pytest.approx(0.012)
+
+
+def test_cli_version_and_help():
+    r = CliRunner().invoke(cli, ["--version"])
+    assert r.exit_code == 0 and "0.1.0" in r.output
+    out = subprocess.run([sys.executable, "-c",
+                          "import sys, kukaid_cli.main as m; m.main()", "--help"],
+                         capture_output=True, text=True)
+    assert out.returncode == 0 and "load" in out.stdout
+    # heavy libraries are not imported to answer --help
+    probe = subprocess.run([sys.executable, "-c",
+                            "import sys; sys.argv=['kukaid','--help'];\n"
+                            "import kukaid_cli.main as m\n"
+                            "try:\n m.main()\nexcept SystemExit: pass\n"
+                            "print(sorted(x for x in ('numpy','scipy','casadi','h5py','matplotlib','pandas') if x in sys.modules))"],
+                           capture_output=True, text=True)
+    assert probe.stdout.strip().splitlines()[-1] == "[]"
