@@ -1,6 +1,7 @@
 """Small helpers shared by the commands: progress bars and output checks."""
 from __future__ import annotations
 
+import sys
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable, Iterator
@@ -13,7 +14,7 @@ from kukaid.errors import KukaidError
 @contextmanager
 def progress(total: float, label: str) -> Iterator[Callable[[float], None]]:
     """A progress bar on stderr; yields ``update(done)`` taking the absolute amount done."""
-    with click.progressbar(length=max(int(total * 1000), 1), label=label, file=click.get_text_stream("stderr"),
+    with click.progressbar(length=max(int(total * 1000), 1), label=label, file=sys.stderr,
                            show_eta=True) as bar:
         state = {"pos": 0}
 

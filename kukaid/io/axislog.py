@@ -192,7 +192,7 @@ def _encode_attrs(attrs: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
 
 def _base_attrs(axes: tuple[int, ...], joint: tuple[str, ...], attrs: dict[str, Any]) -> dict[str, Any]:
     units = {"time": "s", **{c: [channel_unit(c, j) for j in joint] for c in CHANNELS}}
-    out = {k: v for k, v in attrs.items() if k != "source_file"}
+    out = {k: v for k, v in attrs.items() if k not in ("source_file", "incremental")}
     out.update(axes=list(axes), joint=list(joint), units=units, format="kukaid.axislog/1")
     out.setdefault("kukaid_version", __version__)
     return out
@@ -257,6 +257,8 @@ def read_hdf5(path: str | Path) -> AxisLog:
                 raise LogFormatError(f"{path}: missing attribute 'axes'")
             data = {n: np.asarray(f[n][()], dtype=float) for n in ("time", *CHANNELS) if n in f}
             raw = dict(f.attrs)
+            # intervals an incremental capture could not sample (AxisLogWriter.mark_gap), as [[t0, t1], ...]
+            gaps = np.asarray(f["gaps"][()], dtype=float).reshape(-1, 2).tolist() if "gaps" in f else []
         except LogFormatError:
             raise
         except (OSError, KeyError, ValueError) as e:
@@ -276,11 +278,15 @@ def read_hdf5(path: str | Path) -> AxisLog:
     axes = tuple(int(a) for a in np.atleast_1d(attrs.pop("axes")))
     joint = tuple(attrs.pop("joint", ())) or ()
     n = data["time"].size
-    # a killed incremental writer may leave channels one block longer than time; keep the common part
+    if attrs.get("incremental"):
+        # a killed incremental writer may leave datasets one block apart; keep the common part
+        n = min(x.shape[0] for x in data.values())
     for k, x in data.items():
-        if x.shape[0] < n:
+        if x.shape[0] != n and not attrs.get("incremental"):
             raise LogFormatError(f"{path}: dataset '{k}' has {x.shape[0]} rows but 'time' has {n}")
         data[k] = x[:n]
+    if gaps:
+        attrs["gaps"] = gaps
     attrs["source_file"] = str(path)
     return AxisLog(axes=axes, joint=joint, attrs=attrs, **data)
 
@@ -334,7 +340,7 @@ class AxisLogWriter:
         for c in self.channels:
             self._d[c] = self._f.create_dataset(c, shape=(0, a), maxshape=(None, a), dtype="f8", chunks=(1024, a))
         self._d["gaps"] = self._f.create_dataset("gaps", shape=(0, 2), maxshape=(None, 2), dtype="f8", chunks=(64, 2))
-        _write_attrs(self._f, _base_attrs(self.axes, self.joint, attrs or {}))
+        _write_attrs(self._f, _base_attrs(self.axes, self.joint, {**(attrs or {}), "incremental": 1}))
         self._f.swmr_mode = True
         self.n = 0
         self._last_t = -np.inf

@@ -1,0 +1,536 @@
+"""A virtual KR C4 that speaks KUKAVARPROXY.
+
+:class:`KvpServer` is a threaded TCP server speaking the KUKAVARPROXY protocol
+(:mod:`kukaid.io.kvp`), bound to loopback by default, accepting up to 10 clients like the real
+proxy.  What it serves comes from a pluggable *variable source* (anything with
+``read(name) -> str | None`` and ``write(name, value) -> bool``):
+
+- :class:`StaticSource`: a dictionary of KRL texts (tests, globals);
+- :class:`SimSource`: the virtual KR C4 (:class:`kukaid.sim.VirtualKRC4`) run in real time by a
+  background thread, serving ``$AXIS_ACT_MEAS``, ``$AXIS_ACT``, ``$TORQUE_AXIS_ACT[i]``,
+  ``$MOT_TEMP[i]``, ``$OV_PRO``, ``$ROB_TIMER``, global variables, and emulating the KRL
+  ring-buffer logger (:mod:`kukaid.io.krl_logger`) sample for sample.
+
+Faults for tests (:class:`Faults`, changeable while running): slow replies, replies split into
+single bytes, a dropped connection, garbage bytes, empty values or status 0 for chosen names, and
+an outage (:meth:`KvpServer.go_down`) during which connections are refused.
+
+Like the real proxy, an unknown variable is answered with success and an empty value.
+"""
+from __future__ import annotations
+
+import math
+import socket
+import struct
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from kukaid.io.kvp import (DEFAULT_PORT, MAX_NAME_BYTES, MAX_VALUE_BYTES, MODE_READ, KvpProtocolError,
+                           decode_request, encode_reply, format_e6axis, format_real, parse_real)
+
+_DEG = 180.0 / math.pi
+
+
+class VariableSource(Protocol):
+    def read(self, name: str) -> str | None: ...
+
+    def write(self, name: str, value: str) -> bool: ...
+
+
+class StaticSource:
+    """Variables from a dictionary of KRL texts; names are case-insensitive, all writable."""
+
+    def __init__(self, values: dict[str, str] | None = None) -> None:
+        self._lock = threading.Lock()
+        self.values = {k.upper(): v for k, v in (values or {}).items()}
+        self.writes: list[tuple[str, str]] = []
+
+    def read(self, name: str) -> str | None:
+        with self._lock:
+            return self.values.get(name.upper())
+
+    def write(self, name: str, value: str) -> bool:
+        with self._lock:
+            self.values[name.upper()] = value
+            self.writes.append((name.upper(), value))
+        return True
+
+
+@dataclass
+class Faults:
+    """Faults the server injects (all off by default); fields may be changed while it runs.
+
+    delay : s added before every reply (slow controller).
+    split : send every reply one byte at a time (tests reassembly).
+    empty : names answered with success and an empty value.
+    fail : names answered with status 0.
+    garbage : number of upcoming replies replaced by garbage bytes.
+    drop : number of upcoming requests answered by closing the connection instead.
+    """
+
+    delay: float = 0.0
+    split: bool = False
+    empty: set[str] = field(default_factory=set)
+    fail: set[str] = field(default_factory=set)
+    garbage: int = 0
+    drop: int = 0
+
+
+class KvpServer:
+    """KUKAVARPROXY server over ``source``.  Use as a context manager or call start()/stop().
+
+    Parameters
+    ----------
+    source : the variable source.
+    host : interface to bind; loopback by default (a real controller network is explicit).
+    port : TCP port; 0 picks a free port (see :attr:`port` after start).
+    max_clients : simultaneous connections (the real proxy accepts 10).
+    faults : fault injection (:class:`Faults`).
+    """
+
+    def __init__(self, source: VariableSource, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
+                 max_clients: int = 10, faults: Faults | None = None) -> None:
+        self.source = source
+        self.host = host
+        self.requested_port = int(port)
+        self.max_clients = int(max_clients)
+        self.faults = faults or Faults()
+        self._lsock: socket.socket | None = None
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._clients: set[socket.socket] = set()
+        self._lock = threading.Lock()
+        self._down_until = 0.0
+        self._bound_port = 0
+        self.n_requests = 0
+        self.n_refused = 0
+        self.n_connections = 0
+
+    # -- lifecycle ----------------------------------------------------------------------------
+    @property
+    def port(self) -> int:
+        return self._bound_port or self.requested_port
+
+    def start(self) -> "KvpServer":
+        s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind((self.host, self.requested_port))
+        except OSError as e:
+            s.close()
+            from kukaid.errors import ControllerError
+            raise ControllerError(f"serve-sim: cannot listen on {self.host}:{self.requested_port} "
+                                  f"({e.strerror or e})") from None
+        s.listen(16)
+        s.settimeout(0.1)
+        self._bound_port = s.getsockname()[1]
+        self._lsock = s
+        t = threading.Thread(target=self._accept_loop, name="kvp-accept", daemon=True)
+        t.start()
+        self._threads.append(t)
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        self.drop_clients()
+        if self._lsock is not None:
+            try:
+                self._lsock.close()
+            except OSError:
+                pass
+        for t in list(self._threads):
+            if t is not threading.current_thread():
+                t.join(timeout=2.0)
+        self._threads.clear()
+
+    def __enter__(self) -> "KvpServer":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def drop_clients(self) -> None:
+        """Close every client connection now (a dropped link)."""
+        with self._lock:
+            clients = list(self._clients)
+            self._clients.clear()
+        for c in clients:
+            try:
+                c.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            try:
+                c.close()
+            except OSError:
+                pass
+
+    def go_down(self, seconds: float) -> None:
+        """Drop every client and refuse connections for ``seconds`` (the controller goes away)."""
+        self._down_until = time.monotonic() + seconds
+        self.drop_clients()
+
+    @property
+    def n_clients(self) -> int:
+        with self._lock:
+            return len(self._clients)
+
+    # -- serving ------------------------------------------------------------------------------
+    def _accept_loop(self) -> None:
+        assert self._lsock is not None
+        while not self._stop.is_set():
+            try:
+                conn, _ = self._lsock.accept()
+            except socket.timeout:
+                continue
+            except OSError:
+                break
+            with self._lock:
+                full = len(self._clients) >= self.max_clients
+            if full or time.monotonic() < self._down_until:
+                self.n_refused += 1
+                conn.close()
+                continue
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            conn.settimeout(0.2)
+            with self._lock:
+                self._clients.add(conn)
+            self.n_connections += 1
+            t = threading.Thread(target=self._serve_client, args=(conn,), name="kvp-client", daemon=True)
+            t.start()
+            self._threads = [x for x in self._threads if x.is_alive()] + [t]
+
+    def _recv_exact(self, conn: socket.socket, n: int) -> bytes | None:
+        buf = bytearray()
+        while len(buf) < n:
+            if self._stop.is_set():
+                return None
+            try:
+                chunk = conn.recv(n - len(buf))
+            except socket.timeout:
+                continue
+            except OSError:
+                return None
+            if not chunk:
+                return None
+            buf += chunk
+        return bytes(buf)
+
+    def _serve_client(self, conn: socket.socket) -> None:
+        try:
+            while not self._stop.is_set():
+                head = self._recv_exact(conn, 4)
+                if head is None:
+                    return
+                msg_id, length = struct.unpack(">HH", head)
+                if length < 4 or length > 3 + MAX_NAME_BYTES + 2 + MAX_VALUE_BYTES:
+                    return  # not a KUKAVARPROXY client: hang up
+                body = self._recv_exact(conn, length)
+                if body is None:
+                    return
+                try:
+                    mode, name, value = decode_request(body)
+                except KvpProtocolError:
+                    return
+                self.n_requests += 1
+                reply = self._answer(msg_id, mode, name.strip(), value)
+                if reply is None:
+                    return
+                if not self._send(conn, reply):
+                    return
+        finally:
+            with self._lock:
+                self._clients.discard(conn)
+            try:
+                conn.close()
+            except OSError:
+                pass
+
+    def _answer(self, msg_id: int, mode: int, name: str, value: str | None) -> bytes | None:
+        f = self.faults
+        if f.drop > 0:
+            f.drop -= 1
+            return None
+        if f.delay > 0:
+            time.sleep(f.delay)
+        if f.garbage > 0:
+            f.garbage -= 1
+            return b"\xde\xad\xff\xff\xff\x13garbage\x00\x01" * 3  # wrong id, impossible length
+        key = name.upper()
+        if key in {n.upper() for n in f.fail}:
+            return encode_reply(msg_id, mode, "", ok=False)
+        if key in {n.upper() for n in f.empty}:
+            return encode_reply(msg_id, mode, "", ok=True)
+        if mode == MODE_READ:
+            if key == "PING":
+                return encode_reply(msg_id, mode, "PONG")
+            try:
+                text = self.source.read(key)
+            except Exception:  # a broken source must not kill the server
+                return encode_reply(msg_id, mode, "", ok=False)
+            if text is None:
+                return encode_reply(msg_id, mode, "", ok=True)  # unknown variable, like the real proxy
+            raw = text.encode("ascii", "replace")[:MAX_VALUE_BYTES]
+            return encode_reply(msg_id, mode, raw, ok=True)
+        assert value is not None
+        try:
+            ok = bool(self.source.write(key, value))
+        except Exception:
+            ok = False
+        return encode_reply(msg_id, mode, value if ok else "", ok=ok)
+
+    def _send(self, conn: socket.socket, data: bytes) -> bool:
+        try:
+            if self.faults.split:
+                for i in range(len(data)):
+                    conn.sendall(data[i:i + 1])
+                    time.sleep(0.0002)
+            else:
+                conn.sendall(data)
+            return True
+        except OSError:
+            return False
+
+
+# -- the virtual KR C4 as a variable source ---------------------------------------------------------
+#: positions (deg) served for the axes that are not simulated (a KR 6 R700 sixx standing)
+HOME_DEG = {1: 0.0, 2: -90.0, 3: 90.0, 4: 0.0, 5: 0.0, 6: 0.0}
+#: $ROB_TIMER value when the simulation starts (ms); any boot time would do
+TIMER0_MS = 1_000_000
+
+
+class SimSource:
+    """The virtual KR C4 served over KUKAVARPROXY, advanced in real time by a background thread.
+
+    Parameters
+    ----------
+    sim : a :class:`kukaid.sim.VirtualKRC4` (or anything with ``advance``, ``command``, ``t``).
+    axis : the simulated axis (KUKA numbering); the other axes stand still at :data:`HOME_DEG`
+        with zero torque.
+    trajectory : optional trajectory to follow from the start (``sim.follow``); otherwise the axis
+        holds its position and follows writes of the global ``KID_TGT`` (REAL, degrees).
+    speed : simulated seconds per wall-clock second (1.0 = real time).
+    ring : optional :class:`kukaid.io.krl_logger.RingLayout`: emulate the KRL ring-buffer logger.
+    temp_kelvin : serve ``$MOT_TEMP`` in kelvin (as KSS does) rather than °C.
+    keep_truth : keep every 12 ms sample (for :meth:`truth`).
+
+    Served: ``$AXIS_ACT_MEAS`` (measured, E6AXIS deg), ``$AXIS_ACT`` (setpoint, E6AXIS deg),
+    ``$TORQUE_AXIS_ACT[i]`` (N·m), ``$MOT_TEMP[i]``, ``$OV_PRO`` (INT, writable), ``$ROB_TIMER``
+    (ms), ``$TIMER[i]``-free globals (any name written once becomes readable), ``KID_TGT``.
+    """
+
+    def __init__(self, sim: Any, axis: int = 3, trajectory: Any = None, speed: float = 1.0,
+                 ring: Any = None, temp_kelvin: bool = True, keep_truth: bool = True,
+                 tick: float = 0.004) -> None:
+        self.sim = sim
+        self.axis = int(axis)
+        self.speed = float(speed)
+        self.tick = float(tick)
+        self.temp_kelvin = temp_kelvin
+        self.keep_truth = keep_truth
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.globals: dict[str, str] = {"$OV_PRO": "100", "KID_TGT": "0.0"}
+        self._latest: dict[str, float] | None = None
+        self._truth: list[dict[str, Any]] = []
+        self.error: BaseException | None = None
+        if trajectory is not None:
+            import numpy as np
+
+            q0 = float(np.asarray(trajectory.q, dtype=float).ravel()[0])
+            if hasattr(sim, "reset"):
+                sim.reset(q0)  # standstill at the start of the trajectory, as VirtualKRC4.run does
+            sim.follow(trajectory)
+        self.t0_sim = float(sim.t)
+        self.ring = ring
+        if ring is not None:
+            from kukaid.io.krl_logger import RingLayout
+
+            if not isinstance(ring, RingLayout):
+                raise TypeError("ring must be a RingLayout")
+            self.globals.update({"KID_CFG": f'"{ring.config_text()}"', "KID_WR": "0", "KID_RD": "0",
+                                 "KID_OVF": "0"})
+            for i in range(1, ring.nb + 1):
+                self.globals[f"KID_B{i}"] = '""'
+            self._ring_cur: list[str] = []
+        self._prime()
+
+    # -- lifecycle ----------------------------------------------------------------------------
+    def _prime(self) -> None:
+        blk = self.sim.advance(0.012)
+        self._ingest(blk)
+
+    def start(self) -> "SimSource":
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name="virtual-krc4", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+
+    def __enter__(self) -> "SimSource":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def _run(self) -> None:
+        wall0 = time.monotonic()
+        sim0 = float(self.sim.t)
+        try:
+            while not self._stop.is_set():
+                target = sim0 + (time.monotonic() - wall0) * self.speed
+                dt = target - float(self.sim.t)
+                if dt > 0:
+                    with self._lock:
+                        blk = self.sim.advance(dt)
+                    self._ingest(blk)
+                self._stop.wait(self.tick)
+        except BaseException as e:  # surfaced by serve-sim
+            self.error = e
+
+    @property
+    def sim_time(self) -> float:
+        """Simulated seconds since the source was created."""
+        return float(self.sim.t) - self.t0_sim
+
+    # -- samples ------------------------------------------------------------------------------
+    def _ingest(self, blk: dict[str, Any]) -> None:
+        import numpy as np
+
+        t = np.atleast_1d(np.asarray(blk.get("time", []), dtype=float))
+        if t.size == 0:
+            return
+        rows = []
+        for i in range(t.size):
+            row = {k: float(np.atleast_1d(blk[k])[i]) for k in ("time", "q", "tau", "q_cmd", "temp", "tau_ext_true")
+                   if k in blk and blk[k] is not None}
+            rows.append(row)
+        with self._lock:
+            self._latest = rows[-1]
+            if self.keep_truth:
+                self._truth.extend(rows)
+            if self.ring is not None:
+                for row in rows:
+                    self._ring_sample(row)
+
+    def _timer_ms(self, t: float) -> int:
+        return TIMER0_MS + int(round((t - self.t0_sim) * 1000.0))
+
+    def _axis_deg(self, row: dict[str, float], key: str) -> dict[str, float]:
+        out = {f"A{a}": v for a, v in HOME_DEG.items()}
+        out[f"A{self.axis}"] = row.get(key, row["q"]) * _DEG
+        return out
+
+    def _temp(self, row: dict[str, float], axis: int) -> float:
+        c = row.get("temp", 25.0) if axis == self.axis else 25.0
+        return c + 273.15 if self.temp_kelvin else c
+
+    def _ring_sample(self, row: dict[str, float]) -> None:
+        from kukaid.io.krl_logger import format_sample
+
+        ring = self.ring
+        q = [self._axis_deg(row, "q")[f"A{a}"] for a in ring.axes]
+        tau = [row["tau"] if a == self.axis else 0.0 for a in ring.axes]
+        temp = [self._temp(row, a) for a in ring.axes]
+        self._ring_cur.append(format_sample(self._timer_ms(row["time"]), q, tau, temp))
+        if len(self._ring_cur) >= ring.bs:
+            wr = int(self.globals["KID_WR"])
+            rd = int(self.globals["KID_RD"])
+            if wr - rd < ring.nb:
+                k = wr + 1
+                self.globals[f"KID_B{(k - 1) % ring.nb + 1}"] = f'"{k}|' + "".join(self._ring_cur) + '"'
+                self.globals["KID_WR"] = str(k)
+            else:
+                self.globals["KID_OVF"] = str(int(self.globals["KID_OVF"]) + 1)
+            self._ring_cur = []
+
+    def truth(self) -> dict[str, Any]:
+        """Every 12 ms sample taken so far: dict of arrays (time, q, tau, ...), SI, sim time."""
+        import numpy as np
+
+        with self._lock:
+            rows = list(self._truth)
+        keys = rows[0].keys() if rows else ("time", "q", "tau")
+        return {k: np.array([r[k] for r in rows], dtype=float) for k in keys}
+
+    # -- variable source ----------------------------------------------------------------------
+    def read(self, name: str) -> str | None:
+        key = name.upper()
+        with self._lock:
+            row = self._latest
+            if key in self.globals:
+                return self.globals[key]
+        if row is None:
+            return None
+        if key == "$AXIS_ACT_MEAS":
+            return format_e6axis(self._axis_deg(row, "q"))
+        if key == "$AXIS_ACT":
+            return format_e6axis(self._axis_deg(row, "q_cmd"))
+        if key == "$ROB_TIMER":
+            return str(self._timer_ms(row["time"]))
+        idx = _index(key, "$TORQUE_AXIS_ACT")
+        if idx is not None:
+            if not 1 <= idx <= 6:
+                return None
+            return format_real(row["tau"] if idx == self.axis else 0.0)
+        idx = _index(key, "$MOT_TEMP")
+        if idx is not None:
+            if not 1 <= idx <= 6:
+                return None
+            return format_real(self._temp(row, idx), 2)
+        return None
+
+    def write(self, name: str, value: str) -> bool:
+        key = name.upper()
+        if key.startswith("$") and key != "$OV_PRO":
+            return False  # system variables are read-only here
+        if key in ("KID_RD", "$OV_PRO"):
+            from kukaid.io.kvp import parse_int
+
+            try:
+                value = str(parse_int(value, key))
+            except Exception:
+                return False
+        if key in ("KID_WR", "KID_OVF", "KID_CFG") and self.ring is not None:
+            return False  # written by the logger only
+        if key == "KID_TGT":
+            try:
+                q = parse_real(value, "KID_TGT") / _DEG
+            except Exception:
+                return False
+            with self._lock:
+                self.sim.command(q)
+        with self._lock:
+            self.globals[key] = value
+        return True
+
+
+def _index(key: str, base: str) -> int | None:
+    if not key.startswith(base + "[") or not key.endswith("]"):
+        return None
+    inner = key[len(base) + 1:-1].strip()
+    return int(inner) if inner.isdigit() else None
+
+
+def serve_sim(sim: Any, host: str = "127.0.0.1", port: int = DEFAULT_PORT, axis: int = 3,
+              trajectory: Any = None, speed: float = 1.0, ring: Any = None,
+              faults: Faults | None = None) -> tuple[KvpServer, SimSource]:
+    """Start a virtual KR C4 on ``host:port``; returns (server, source), both running.
+
+    Stop with ``server.stop(); source.stop()``.
+    """
+    source = SimSource(sim, axis=axis, trajectory=trajectory, speed=speed, ring=ring).start()
+    try:
+        server = KvpServer(source, host=host, port=port, faults=faults).start()
+    except BaseException:
+        source.stop()
+        raise
+    return server, source
+
