@@ -1,0 +1,131 @@
+"""kukaid capture: run a trajectory on the virtual KR C4 (or record a real one) into an axis log."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from kukaid_cli._util import progress as progress_bar
+
+
+@click.command("capture")
+@click.argument("trajectory", required=False, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Axis log to write (HDF5), written incrementally.")
+@click.option("--backend", type=click.Choice(["sim", "kvp"]), default="sim", show_default=True,
+              help="sim: the virtual KR C4; kvp: a KR C4 over KUKAVARPROXY.")
+@click.option("--force", is_flag=True, help="Replace an existing log.")
+# sim
+@click.option("--seed", type=int, default=0, show_default=True, help="sim: seed of noise, vibration and effects.")
+@click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
+              help="sim: JSON overriding the simulator's truth and settings.")
+@click.option("--noise", type=float, help="sim: torque noise sigma, N·m [0.5].")
+@click.option("--effect", "effects", multiple=True, metavar="NAME[=SIZE]",
+              help="sim: hide an effect (gravity_sine, torque_offset, position_ripple, thermal_drift, "
+                   "load_dependent_friction, backlash) of SIZE N·m [drawn: 2 to 5 times the noise sigma]; "
+                   "other parameters drawn from the seed; repeatable.")
+@click.option("--chunk", type=float, default=1.5, show_default=True,
+              help="sim: simulated seconds per block written to the log.")
+@click.option("--settle", type=float, default=0.5, show_default=True,
+              help="sim: seconds recorded after the trajectory ends.")
+# kvp
+@click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
+@click.option("--port", type=int, default=7000, show_default=True, help="kvp: KUKAVARPROXY port.")
+@click.option("--axis", "axes", type=click.IntRange(1, 12), multiple=True, help="kvp: axis to record; repeatable [3].")
+@click.option("--duration", type=float, help="kvp: seconds to record.")
+@click.option("--until-interrupt", is_flag=True, help="kvp: record until Ctrl-C / SIGTERM.")
+@click.option("--mode", type=click.Choice(["poll", "ring"]), default="poll", show_default=True,
+              help="kvp: poll variables, or read kukaid's KRL ring-buffer logger.")
+def command(trajectory: Path | None, output: Path, backend: str, force: bool, seed: int, sim_config: Path | None,
+            noise: float | None, effects: tuple[str, ...], chunk: float, settle: float, host: str, port: int,
+            axes: tuple[int, ...], duration: float | None, until_interrupt: bool, mode: str) -> None:
+    """Run TRAJECTORY (from `kukaid excite`) on a backend and record an axis log.
+
+    The log is written as it is recorded: an interrupted capture (Ctrl-C, a killed process)
+    leaves a readable log of what was recorded.  An existing log is never replaced without
+    --force.  With --backend kvp the robot runs its own program (e.g. the KRL from
+    `kukaid excite --krl`) and capture only records.
+    """
+    import signal
+
+    from kukaid.capture import KvpBackend, SimBackend, capture, check_limits, parse_effect, sim_config as make_config
+    from kukaid.errors import KukaidError
+
+    if output.suffix.lower() not in (".h5", ".hdf5"):
+        raise KukaidError(f"{output}: a capture writes an HDF5 axis log; name it .h5 or .hdf5 "
+                          f"(convert with `kukaid load LOG.h5 -o LOG.csv`)")
+    if output.exists() and not force:
+        raise KukaidError(f"{output}: already exists; choose another name or pass --force to replace it")
+    if backend == "sim":
+        if trajectory is None:
+            raise click.UsageError("the sim backend needs a TRAJECTORY file (from `kukaid excite`)")
+        given = [n for n, v in (("--host", host != "127.0.0.1"), ("--port", port != 7000), ("--axis", axes),
+                                ("--duration", duration is not None), ("--until-interrupt", until_interrupt),
+                                ("--mode", mode != "poll")) if v]
+        if given:
+            raise click.UsageError(f"option {given[0]} is for --backend kvp")
+        from kukaid.excite import Trajectory
+
+        traj = Trajectory.from_json(trajectory)
+        check_limits(traj, where=str(trajectory))
+        parsed = [parse_effect(e) for e in effects]
+        cfg, extra = make_config(sim_config, noise=noise, effects=parsed, seed=seed)
+        extra["trajectory_file"] = str(trajectory)
+        be = SimBackend(traj, config=cfg, seed=seed, chunk=chunk, settle=settle, extra_attrs=extra)
+    else:
+        given = [n for n, v in (("--sim-config", sim_config), ("--noise", noise is not None), ("--effect", effects))
+                 if v]
+        if given:
+            raise click.UsageError(f"option {given[0]} is for --backend sim")
+        attrs = {}
+        if trajectory is not None:
+            from kukaid.excite import Trajectory
+
+            traj = Trajectory.from_json(trajectory)
+            attrs = {"experiment": traj.kind, "trajectory": traj.params, "trajectory_file": str(trajectory)}
+        be = KvpBackend(host=host, port=port, axes=axes or (3,), duration=duration, until_interrupt=until_interrupt,
+                        mode=mode, attrs=attrs)
+
+    # Ctrl-C / SIGTERM end a simulated capture cleanly between blocks (a second one aborts at once);
+    # the kvp backend handles these signals itself
+    import threading
+
+    stop = threading.Event()
+
+    def _stop(signum, frame):  # pragma: no cover - exercised through a subprocess
+        if stop.is_set():
+            raise KeyboardInterrupt
+        stop.set()
+
+    old = {}
+    if backend == "sim":
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            old[sig] = signal.signal(sig, _stop)
+    total = be.total()
+    interrupted = False
+    try:
+        if total is None:
+            result = capture(be, output, force=force, progress=None, stop=stop if backend == "sim" else None)
+        else:
+            with progress_bar(total, f"capture ({backend})") as update:
+                result = capture(be, output, force=force, progress=update, stop=stop if backend == "sim" else None)
+        interrupted = backend == "sim" and not result.complete
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        for sig, h in old.items():
+            signal.signal(sig, h)
+    if interrupted:
+        kept = ""
+        if output.exists():
+            try:
+                from kukaid.io.axislog import read_hdf5
+
+                log = read_hdf5(output)
+                kept = f"; {log.n_samples} samples ({log.duration:.2f} s) kept in {output}"
+            except KukaidError:
+                kept = ""
+        click.echo(f"kukaid: error: capture interrupted{kept}", err=True)
+        raise SystemExit(130)
+    click.echo(f"{result.output}: {result.n_samples} samples, {result.duration:.2f} s "
+               f"({be.name}{', seed ' + str(seed) if backend == 'sim' else ''})", err=True)

@@ -1,0 +1,153 @@
+"""kukaid excite: excitation trajectories of the paper's experiments (JSON) and KRL programs."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+KINDS = ("friction", "inertia", "presliding", "validation")
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        return [float(x) for x in text.replace(" ", "").split(",") if x]
+    except ValueError:
+        raise click.BadParameter(f"'{text}' is not a comma-separated list of numbers") from None
+
+
+# option -> (generator parameter, conversion, kinds it applies to); None kinds = all
+_DEG = 3.141592653589793 / 180.0
+_OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
+    "centre_deg": ("centre", lambda v: v * _DEG, None),
+    "lead": ("lead", float, None),
+    "speeds": ("speeds", _floats, ("friction",)),
+    "v_min": ("v_min", float, ("friction",)),
+    "v_max": ("v_max", float, ("friction",)),
+    "n_speeds": ("n_speeds", int, ("friction",)),
+    "span_deg": ("span", lambda v: v * _DEG, ("friction",)),
+    "plateau": ("plateau", float, ("friction",)),
+    "settle": ("settle", float, ("friction",)),
+    "acc": ("acc", float, ("friction", "validation")),
+    "cycles": ("cycles", int, ("friction",)),
+    "reposition_speed": ("reposition_speed", float, ("friction",)),
+    "period": ("period", float, ("inertia",)),
+    "n_periods": ("n_periods", int, ("inertia",)),
+    "amplitude_deg": ("amplitude", lambda v: v * _DEG, ("inertia", "validation")),
+    "ramp_periods": ("ramp_periods", float, ("inertia",)),
+    "tail": ("tail", float, ("inertia",)),
+    "step_deg": ("step", lambda v: v * _DEG, ("presliding",)),
+    "step_time": ("step_time", float, ("presliding",)),
+    "hold": ("hold", float, ("presliding",)),
+    "reversals_deg": ("reversals", lambda v: [x * _DEG for x in _floats(v)], ("presliding",)),
+    "reversal_time": ("reversal_time", float, ("presliding",)),
+    "dwell": ("dwell", float, ("presliding", "validation")),
+    "final_hold": ("final_hold", float, ("presliding",)),
+    "direction": ("direction", int, ("presliding",)),
+    "periods": ("periods", _floats, ("validation",)),
+    "weights": ("weights", _floats, ("validation",)),
+    "sine_time": ("sine_time", float, ("validation",)),
+    "ramp": ("ramp", float, ("validation",)),
+    "moves_deg": ("moves", lambda v: [x * _DEG for x in _floats(v)], ("validation",)),
+    "move_speeds": ("move_speeds", _floats, ("validation",)),
+}
+
+
+@click.command("excite")
+@click.argument("kind", type=click.Choice(KINDS))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Trajectory file to write (JSON, schema kukaid.trajectory/1).")
+@click.option("--krl", "krl_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Also write a KRL program (<name>.src + <name>.dat) into this folder.")
+@click.option("--krl-name", help="KRL module name (default kukaid_<kind>).")
+@click.option("--krl-tol", type=float, default=0.005, show_default=True,
+              help="Largest deviation of the KRL via-point path from the trajectory, degrees.")
+@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="Axis (KUKA numbering).")
+# limits
+@click.option("--limits", "limits_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="JSON with axis limits (q_min, q_max rad; qd_max rad/s; qdd_max rad/s^2; or *_deg).")
+@click.option("--q-min-deg", type=float, help="Lower position limit, deg [KR 6 R700 sixx A3: -120].")
+@click.option("--q-max-deg", type=float, help="Upper position limit, deg [A3: +156].")
+@click.option("--qd-max-deg", type=float, help="Velocity limit, deg/s [A3: 360].")
+@click.option("--qdd-max-deg", type=float, help="Acceleration limit, deg/s^2 [assumed 573 = 10 rad/s^2].")
+# all kinds
+@click.option("--centre-deg", type=float, help="Centre of the motion, deg [middle of the axis range: 18].")
+@click.option("--lead", type=float, help="Standstill at the start, s [1].")
+# friction
+@click.option("--speeds", help="friction: plateau speeds, rad/s, comma-separated [log-spaced v-min..v-max].")
+@click.option("--v-min", type=float, help="friction: slowest speed, rad/s [0.01].")
+@click.option("--v-max", type=float, help="friction: fastest speed, rad/s [1.0].")
+@click.option("--n-speeds", type=int, help="friction: number of speeds [10].")
+@click.option("--span-deg", type=float, help="friction: widest position window, deg [90].")
+@click.option("--plateau", type=float, help="friction: wanted plateau duration, s [4].")
+@click.option("--settle", type=float, help="friction: standstill after each move, s [1].")
+@click.option("--acc", type=float, help="friction/validation: ramp peak acceleration, rad/s^2 [3].")
+@click.option("--cycles", type=int, help="friction: back-and-forth moves per speed [1].")
+@click.option("--reposition-speed", type=float, help="friction: speed between windows, rad/s [0.3].")
+# inertia
+@click.option("--period", type=float, help="inertia: sine period, s [4].")
+@click.option("--n-periods", type=int, help="inertia: full-amplitude periods, >= 3 [3].")
+@click.option("--amplitude-deg", type=float, help="inertia/validation: amplitude, deg [inertia 45.8, validation 34.4].")
+@click.option("--ramp-periods", type=float, help="inertia: ramp in/out, periods [1].")
+@click.option("--tail", type=float, help="inertia: standstill at the end, s [1].")
+# presliding
+@click.option("--step-deg", type=float, help="presliding: initiation move, deg [1].")
+@click.option("--step-time", type=float, help="presliding: duration of the initiation move, s [1].")
+@click.option("--hold", type=float, help="presliding: standstill after the initiation move, s [5].")
+@click.option("--reversals-deg", help="presliding: reversal amplitudes, deg, comma-separated "
+                                       "[0.03,0.015,0.0075,0.00375]; empty string for none.")
+@click.option("--reversal-time", type=float, help="presliding: duration of each reversal, s [2].")
+@click.option("--dwell", type=float, help="presliding/validation: standstill after each reversal/move, s [1 / 1.5].")
+@click.option("--final-hold", type=float, help="presliding: standstill at the end, s [5].")
+@click.option("--direction", type=click.Choice(["1", "-1"]), help="presliding: direction of the initiation move [1].")
+# validation
+@click.option("--periods", help="validation: multi-sine periods, s, comma-separated [6,2.9,1.3].")
+@click.option("--weights", help="validation: relative amplitudes of the sines [0.6,0.3,0.1].")
+@click.option("--sine-time", type=float, help="validation: multi-sine duration, s [18].")
+@click.option("--ramp", type=float, help="validation: multi-sine ramp in/out, s [3].")
+@click.option("--moves-deg", help="validation: move targets relative to the centre, deg, comma-separated.")
+@click.option("--move-speeds", help="validation: cruise speed of each move, rad/s, comma-separated.")
+def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: float, axis: int,
+            limits_file: Path | None, q_min_deg: float | None, q_max_deg: float | None,
+            qd_max_deg: float | None, qdd_max_deg: float | None, **opts: Any) -> None:
+    """Write the trajectory of experiment KIND (friction, inertia, presliding, validation).
+
+    The trajectory is the commanded position of the axis at the KR C4's 12 ms IPO rate.  It is
+    refused, with nothing written, if it breaks the axis's position, velocity or acceleration
+    limit (A3 of a KR 6 R700 sixx unless overridden).  Defaults in [brackets].
+    """
+    from kukaid.excite import AxisLimits, generate
+
+    limits = AxisLimits.kr6_r700_sixx(axis)
+    if limits_file is not None:
+        limits = AxisLimits.load(limits_file, base=limits)
+    over = {k: v for k, v in (("q_min_deg", q_min_deg), ("q_max_deg", q_max_deg), ("qd_max_deg", qd_max_deg),
+                              ("qdd_max_deg", qdd_max_deg)) if v is not None}
+    if over:
+        limits = AxisLimits.from_dict(over, base=limits, where="limit options")
+    kwargs: dict[str, Any] = {}
+    for name, value in opts.items():
+        if value is None:
+            continue
+        param, conv, kinds = _OPTS[name]
+        if kinds is not None and kind not in kinds:
+            flag = "--" + name.replace("_", "-")
+            raise click.UsageError(f"option {flag} does not apply to '{kind}' (it is for {', '.join(kinds)})")
+        kwargs[param] = conv(value)
+    traj = generate(kind, axis=axis, limits=limits, **kwargs)
+    krl = None
+    if krl_dir is not None:
+        from kukaid.io.krl import krl_program
+
+        krl = krl_program(traj, name=krl_name, limits=limits, tol_deg=krl_tol)
+    traj.to_json(output)
+    msg = f"{output}: {kind} trajectory of A{axis}, {traj.n_samples} samples, {traj.duration:.2f} s"
+    if krl is not None:
+        from kukaid.io.atomic import write_text_atomic
+
+        src, dat, summary = krl
+        krl_dir.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(krl_dir / f"{summary['name']}.src", src)
+        write_text_atomic(krl_dir / f"{summary['name']}.dat", dat)
+        msg += f"; KRL {krl_dir / summary['name']}.src/.dat, {summary['points']} via points"
+    click.echo(msg, err=True)

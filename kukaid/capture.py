@@ -1,0 +1,290 @@
+"""Capture: run a trajectory on a backend and record an axis log, incrementally.
+
+A backend is anything with a ``name`` and a ``capture(output, progress)`` method that writes the
+HDF5 axis log at ``output`` and returns a :class:`CaptureResult`.  Two backends:
+
+:class:`SimBackend`
+    The virtual KR C4 (:mod:`kukaid.sim`).  The simulator runs in chunks of ``chunk`` seconds of
+    simulated time (``VirtualKRC4.advance``); every chunk's samples are appended to the log with
+    :class:`~kukaid.io.axislog.AxisLogWriter` and flushed, so a capture that is interrupted
+    (Ctrl-C, SIGTERM, a killed process) leaves a readable log of everything recorded up to the
+    last chunk.  The log carries the truth of the simulation (``truth``), the seed, the
+    experiment kind, the trajectory's parameters and the simulator configuration.
+:class:`KvpBackend`
+    A real (or virtual) KR C4 over KUKAVARPROXY: delegates to
+    ``kukaid.io.kvp_capture.capture_kvp`` (imported only when used).
+
+:func:`capture` refuses to replace an existing log unless ``force`` (nothing recorded is lost).
+"""
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Protocol
+
+import numpy as np
+
+from kukaid import __version__
+from kukaid.errors import KukaidError
+
+Progress = Callable[[float], None]
+
+
+@dataclass
+class CaptureResult:
+    """What a capture recorded: ``n_samples`` samples over ``duration`` s into ``output``.
+
+    ``complete`` is False when the capture stopped early (the log then holds what was recorded
+    until then); ``info`` holds backend-specific figures (rates, latencies, ...).
+    """
+
+    output: Path
+    n_samples: int
+    duration: float
+    complete: bool = True
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+class Backend(Protocol):
+    """Interface of a capture backend."""
+
+    name: str
+
+    def total(self) -> float | None:
+        """Expected duration of the capture, s (for a progress bar), or None if open-ended."""
+
+    def capture(self, output: Path, progress: Progress | None = None,
+                stop: threading.Event | None = None) -> CaptureResult:
+        """Record the log into ``output`` (created or replaced); flush as it goes; end early,
+        keeping what was recorded, when ``stop`` is set."""
+
+
+def capture(backend: Backend, output: str | Path, force: bool = False, progress: Progress | None = None,
+            stop: threading.Event | None = None) -> CaptureResult:
+    """Run ``backend`` into ``output``; refuse to replace an existing file unless ``force``.
+
+    ``stop`` (a threading.Event, e.g. set by a SIGINT handler) ends the capture cleanly: the log
+    keeps everything recorded and the result has ``complete=False``.
+    """
+    output = Path(output)
+    if output.suffix.lower() not in (".h5", ".hdf5"):
+        raise KukaidError(f"{output}: a capture writes an HDF5 axis log; name it .h5 or .hdf5 "
+                          f"(convert with `kukaid load LOG.h5 -o LOG.csv`)")
+    if output.exists() and not force:
+        raise KukaidError(f"{output}: already exists; choose another name or pass --force to replace it")
+    if output.exists() and output.is_dir():
+        raise KukaidError(f"{output}: is a directory")
+    return backend.capture(output, progress, stop)
+
+
+class SimBackend:
+    """Capture a trajectory on the virtual KR C4.
+
+    Parameters
+    ----------
+    traj : trajectory (``.t`` s, ``.q`` rad, ``.axis``, ``.kind``, ``.params``).
+    config : :class:`kukaid.sim.SimConfig` (default: the paper's A3).
+    seed : seed of the simulator's random streams.
+    chunk : simulated seconds per appended block (1 to 2 s keeps an interrupted log current).
+    settle : simulated seconds recorded after the end of the trajectory.
+    extra_attrs : more attributes for the log (e.g. the effects requested on the command line).
+    """
+
+    name = "sim"
+
+    def __init__(self, traj: Any, config: Any = None, seed: int = 0, chunk: float = 1.5, settle: float = 0.5,
+                 extra_attrs: dict[str, Any] | None = None) -> None:
+        from kukaid.sim import SimConfig
+
+        if not (isinstance(chunk, (int, float)) and math.isfinite(chunk) and chunk > 0):
+            raise KukaidError(f"capture: chunk must be a positive number of seconds, got {chunk!r}")
+        if not (isinstance(settle, (int, float)) and math.isfinite(settle) and settle >= 0):
+            raise KukaidError(f"capture: settle must be >= 0 s, got {settle!r}")
+        self.traj = traj
+        self.config = config if config is not None else SimConfig()
+        self.seed = int(seed)
+        self.chunk = float(chunk)
+        self.settle = float(settle)
+        self.extra_attrs = dict(extra_attrs or {})
+
+    def total(self) -> float:
+        t = np.asarray(self.traj.t, dtype=float)
+        return float(t[-1] - t[0]) + self.settle
+
+    def attrs(self, sim: Any) -> dict[str, Any]:
+        attrs = sim.log_attrs(self.traj)
+        attrs.update(backend="sim", capture_chunk=self.chunk, capture_settle=self.settle,
+                     kukaid_version=__version__)
+        attrs.setdefault("experiment", str(getattr(self.traj, "kind", "unknown")))
+        limits = getattr(self.traj, "limits", None)
+        if limits:
+            attrs["trajectory_limits"] = limits
+        attrs.update(self.extra_attrs)
+        return attrs
+
+    def capture(self, output: Path, progress: Progress | None = None,
+                stop: threading.Event | None = None) -> CaptureResult:
+        from kukaid.io.axislog import AxisLogWriter
+        from kukaid.sim import VirtualKRC4
+
+        axis = int(getattr(self.traj, "axis", self.config.axis))
+        sim = VirtualKRC4(self.config, seed=self.seed, axis=axis)
+        q = np.asarray(self.traj.q, dtype=float)
+        sim.reset(float(q[0]))
+        sim.follow(self.traj)
+        total = self.total()
+        n_chunks = max(1, int(math.ceil(total / self.chunk - 1e-9)))
+        writer = None
+        n = 0
+        t_last = 0.0
+        done = 0.0
+        complete = True
+        try:
+            for k in range(n_chunks):
+                if stop is not None and stop.is_set():
+                    complete = False
+                    break
+                end = min(total, (k + 1) * self.chunk)
+                block = sim.advance(end - done)
+                done = end
+                if writer is None:
+                    channels = [c for c in ("q", "tau", "q_cmd", "temp", "tau_ext_true") if c in block]
+                    writer = AxisLogWriter(output, axes=(axis,), channels=channels, attrs=self.attrs(sim),
+                                           flush_every=10**9)
+                if block["time"].size:
+                    writer.append(block["time"], **{c: block[c] for c in writer.channels})
+                    n += int(block["time"].size)
+                    t_last = float(block["time"][-1])
+                writer.flush()
+                if progress is not None:
+                    progress(done)
+        finally:
+            if writer is not None:
+                writer.close()
+        return CaptureResult(output=output, n_samples=n, duration=t_last, complete=complete,
+                             info={"seed": self.seed, "chunks": n_chunks, "simulated_s": done})
+
+
+class KvpBackend:
+    """Capture from a KR C4 over KUKAVARPROXY (``kukaid.io.kvp_capture.capture_kvp``)."""
+
+    name = "kvp"
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 7000, axes: Iterable[int] = (3,),
+                 duration: float | None = None, until_interrupt: bool = False, mode: str = "poll",
+                 attrs: dict[str, Any] | None = None) -> None:
+        self.host, self.port = host, int(port)
+        self.axes = tuple(int(a) for a in axes)
+        self.duration, self.until_interrupt, self.mode = duration, bool(until_interrupt), mode
+        self.extra_attrs = dict(attrs or {})
+        if duration is None and not until_interrupt:
+            raise KukaidError("capture: the kvp backend needs --duration S or --until-interrupt")
+
+    def total(self) -> float | None:
+        return None if self.until_interrupt and self.duration is None else self.duration
+
+    def capture(self, output: Path, progress: Progress | None = None,
+                stop: threading.Event | None = None) -> CaptureResult:
+        capture_kvp = load_kvp_capture()
+        info = capture_kvp(output, self.host, self.port, self.axes, self.duration, self.until_interrupt,
+                           self.mode, progress, attrs=self.extra_attrs or None, stop_event=stop)
+        info = dict(info or {})
+        return CaptureResult(output=Path(info.get("output", output)), n_samples=int(info.get("n_samples", 0)),
+                             duration=float(info.get("duration_s", 0.0)),
+                             complete=info.get("stopped_by") != "error", info=info)
+
+
+def load_kvp_capture() -> Callable[..., dict]:
+    """``kukaid.io.kvp_capture.capture_kvp``, or a clear error if that module is not available."""
+    try:
+        from kukaid.io.kvp_capture import capture_kvp
+    except ModuleNotFoundError as e:
+        if e.name in ("kukaid.io.kvp_capture",):
+            raise KukaidError("capture: the kvp backend is not available in this installation "
+                              "(module kukaid.io.kvp_capture is missing)") from None
+        raise
+    return capture_kvp
+
+
+def sim_config(path: str | Path | None = None, noise: float | None = None,
+               effects: Iterable[tuple[str, float | None]] = (), seed: int = 0,
+               size_range: tuple[float, float] = (2.0, 5.0)) -> tuple[Any, dict[str, Any]]:
+    """Simulator configuration from a JSON file, a noise level and hidden effects.
+
+    Parameters
+    ----------
+    path : JSON overrides of the simulator configuration (None: the paper's defaults).
+    noise : torque noise sigma, N·m (None: keep the configuration's).
+    effects : (name, size in N·m or None) pairs; parameters drawn with
+        :func:`kukaid.sim.effects.draw_effect` from a generator seeded by ``seed``.  A missing
+        size is drawn uniformly from ``size_range`` times the torque noise sigma (2 to 5 sigma:
+        1 to 2.5 N·m at the default 0.5 N·m; sigma 0.5 N·m is used when the noise is off).
+    seed : the capture's seed (effect parameters use their own stream derived from it).
+
+    Returns
+    -------
+    (SimConfig, attrs) where attrs records the requested effects for the log.
+    """
+    from kukaid.sim import SimConfig, draw_effect, load_sim_config
+
+    cfg = load_sim_config(path) if path is not None else SimConfig()
+    attrs: dict[str, Any] = {}
+    if noise is not None:
+        if not (math.isfinite(noise) and noise >= 0):
+            raise KukaidError(f"capture: --noise must be a number >= 0 N·m, got {noise}")
+        cfg = cfg.replace(noise_sigma=float(noise))
+    effects = list(effects)
+    if effects:
+        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xEFFEC7]))
+        eff = dict(cfg.effects)
+        requested = []
+        sigma = cfg.noise_sigma if cfg.noise_sigma > 0 else 0.5
+        for name, size in effects:
+            s = float(rng.uniform(*size_range)) * sigma if size is None else float(size)
+            eff[name] = draw_effect(name, s, rng)
+            requested.append({"name": name, "size": s})
+        cfg = cfg.replace(effects=eff)
+        attrs["effects_requested"] = requested
+    return cfg, attrs
+
+
+def check_limits(traj: Any, where: str = "trajectory") -> None:
+    """Refuse a trajectory that breaks its axis limits (those stored in it, else the robot's).
+
+    A real KR C4 would refuse it too; the limits stored by ``kukaid excite`` (``traj.limits``)
+    take precedence over the built-in KR 6 R700 sixx figures.
+    """
+    from kukaid.errors import LimitError
+    from kukaid.excite import AxisLimits
+
+    if getattr(traj, "limits", None):
+        limits = AxisLimits.from_dict(traj.limits, where=f"{where}: field 'limits'")
+    elif 1 <= int(getattr(traj, "axis", 3)) <= 6:
+        limits = AxisLimits.kr6_r700_sixx(int(getattr(traj, "axis", 3)))
+    else:
+        return
+    try:
+        limits.check(traj)
+    except LimitError as e:
+        raise LimitError(f"{where}: {e}") from None
+
+
+def parse_effect(spec: str) -> tuple[str, float | None]:
+    """``NAME`` or ``NAME=SIZE`` (SIZE in N·m) -> (name, size or None); clear error otherwise."""
+    from kukaid.sim import EFFECTS
+
+    name, _, size = spec.partition("=")
+    name = name.strip()
+    if name not in EFFECTS:
+        raise KukaidError(f"--effect {spec}: unknown effect '{name}' (known: {', '.join(EFFECTS)})")
+    if not _:
+        return name, None
+    try:
+        s = float(size)
+    except ValueError:
+        raise KukaidError(f"--effect {spec}: size '{size}' is not a number (N·m)") from None
+    if not (math.isfinite(s) and s >= 0):
+        raise KukaidError(f"--effect {spec}: size must be a number >= 0 N·m")
+    return name, s

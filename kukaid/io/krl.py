@@ -1,0 +1,267 @@
+"""Export a trajectory as a KRL program (``.src`` + ``.dat``) that a KR C4 (KSS 8.x) runs.
+
+The program moves one axis alone, axis-specifically, while the other axes stay where they are
+when it starts (their positions are read from ``$AXIS_ACT``):
+
+* the trajectory is reduced to via points: standstills become ``WAIT SEC`` (an exact stop),
+  reversals and starts/stops are kept exactly, and every moving stretch is replaced by the
+  fewest straight pieces that stay within ``tol`` (degrees) of the commanded position;
+* the ``.dat`` holds the via points as ``E6AXIS`` aggregates of the moving axis (degrees) and,
+  per point, the axis velocity (``$VEL_AXIS``, % of the maximum), the program override
+  (``$OV_PRO``, %; used for speeds below 1 % of the maximum, since ``$VEL_AXIS`` is an integer
+  percentage), the acceleration (``$ACC_AXIS``, %) and the dwell after the point (s);
+* the ``.src`` moves to the start with a slow exact ``PTP``, then loops over the points with
+  ``PTP ... C_PTP`` (approximated) inside a moving stretch and an exact ``PTP`` + ``WAIT SEC``
+  at each standstill.  The override only changes at a standstill (after ``WAIT SEC``, an
+  advance-run stop), so a constant-velocity plateau runs at one speed.
+
+The percentages assume that the maximum speed and acceleration of the axis on the controller
+(``$VEL_AXIS_MA``, ``$ACC_AXIS_MA`` machine data) equal the limits used for the export (the
+``.dat`` states them); check them before running, and run in T1 first.  The controller plans
+its own ramps: the robot reproduces the plateaus, standstills and reversals of the trajectory
+and approximates the curved stretches; the capture logs what it really did.
+"""
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kukaid import __version__
+from kukaid.errors import KukaidError
+from kukaid.io.atomic import write_text_atomic
+
+_DEG = math.pi / 180.0
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,23}$")
+
+
+def via_points(t: np.ndarray, q: np.ndarray, tol: float, still: float = 1e-9) -> list[int]:
+    """Indices of the via points: ends of standstills, reversals, and a piecewise-linear fit.
+
+    Parameters
+    ----------
+    t, q : samples (s, rad).   tol : largest position deviation of the straight pieces, rad.
+    still : a sample step smaller than this (rad) counts as standstill.
+    """
+    dq = np.diff(q)
+    moving = np.abs(dq) > still
+    sgn = np.sign(dq) * moving
+    # forced breakpoints: changes between standstill and motion, and direction reversals
+    forced = {0, len(q) - 1}
+    for i in range(1, len(dq)):
+        if moving[i] != moving[i - 1] or (moving[i] and sgn[i] != sgn[i - 1]):
+            forced.add(i)
+    forced_l = sorted(forced)
+    out = [0]
+    for a, b in zip(forced_l[:-1], forced_l[1:]):
+        if not moving[a]:  # standstill stretch: one piece
+            out.append(b)
+            continue
+        i = a
+        while i < b:
+            good, step = i + 1, 1  # a piece of one sample always fits
+            while good < b:
+                cand = min(good + step, b)
+                if _fits(t, q, i, cand, tol):
+                    good, step = cand, step * 2
+                    continue
+                lo, hi = good, cand  # lo fits, hi does not: bisect
+                while hi - lo > 1:
+                    mid = (lo + hi) // 2
+                    if _fits(t, q, i, mid, tol):
+                        lo = mid
+                    else:
+                        hi = mid
+                good = lo
+                break
+            out.append(good)
+            i = good
+    return out
+
+
+def _fits(t: np.ndarray, q: np.ndarray, i: int, j: int, tol: float) -> bool:
+    if j <= i + 1:
+        return True
+    s = (t[i:j + 1] - t[i]) / (t[j] - t[i])
+    line = q[i] + s * (q[j] - q[i])
+    return bool(np.max(np.abs(line - q[i:j + 1])) <= tol)
+
+
+def _speed_split(pct: np.ndarray, dur: np.ndarray) -> tuple[int, np.ndarray]:
+    """One override and integer velocities (both 1..100 %) for speeds ``pct`` (% of the maximum).
+
+    ``$VEL_AXIS`` is an integer percentage, so slow speeds need ``$OV_PRO`` below 100 %, and
+    the override is shared by a whole stretch between standstills.  Chooses the override that
+    minimises the largest timing error of a piece, ``dur * |v / v_programmed - 1|`` (s), so a
+    long constant-velocity plateau keeps its speed and a short ramp piece may run fast.
+    Speeds below 0.01 % of the maximum cannot be programmed and run at 0.01 %.
+    """
+    best = (math.inf, 100, np.clip(np.round(pct), 1, 100))
+    for ovr in range(100, 0, -1):
+        vel = np.clip(np.round(pct * 100.0 / ovr), 1, 100)
+        err = float(np.max(dur * np.abs(pct / (vel * ovr / 100.0) - 1.0)))
+        if err < best[0] - 1e-9:
+            best = (err, ovr, vel)
+    return best[1], best[2].astype(int)
+
+
+def krl_program(traj: Any, name: str | None = None, limits: Any = None, tol_deg: float = 0.005,
+                start_vel_pct: int = 10, apo_pct: int = 100, max_points: int = 5000) -> tuple[str, str, dict]:
+    """Build the ``.src`` and ``.dat`` texts of a trajectory; returns (src, dat, summary).
+
+    Parameters
+    ----------
+    traj : a :class:`kukaid.excite.Trajectory` (axis 1 to 6).
+    name : module name (KRL identifier, at most 24 characters); default ``kukaid_<kind>``.
+    limits : :class:`kukaid.excite.AxisLimits` giving the 100 % speed and acceleration
+        (default: the trajectory's own limits, else KR 6 R700 sixx A3).
+    tol_deg : largest deviation of the via-point path from the trajectory, degrees.
+    start_vel_pct : $VEL_AXIS of the move to the start point, %.   apo_pct : $APO.CPTP, %.
+    max_points : refuse programs with more via points (KRL data memory).
+    """
+    from kukaid.excite import AxisLimits
+
+    axis = int(traj.axis)
+    if not 1 <= axis <= 6:
+        raise KukaidError(f"KRL export: axis A{axis} is not a robot axis (1 to 6)")
+    name = name or f"kukaid_{traj.kind}"
+    if not _NAME.match(name):
+        raise KukaidError(f"KRL export: module name '{name}' is not a KRL name (letter or _, then letters, "
+                          f"digits, _; at most 24 characters)")
+    if limits is None:
+        limits = AxisLimits.from_dict(traj.limits) if traj.limits else AxisLimits.kr6_r700_sixx(axis)
+    if not tol_deg > 0:
+        raise KukaidError(f"KRL export: tolerance must be positive, got {tol_deg}")
+    t, q = np.asarray(traj.t), np.asarray(traj.q)
+    idx = via_points(t, q, tol_deg * _DEG)
+    qdd = np.abs(np.gradient(np.gradient(q, t), t))
+    # build points: each motion piece ends at a point; a standstill adds a dwell to the point before
+    pts: list[dict[str, Any]] = []
+    wait0 = 0.0
+    for a, b in zip(idx[:-1], idx[1:]):
+        dqab = q[b] - q[a]
+        dtab = t[b] - t[a]
+        if abs(dqab) <= 1e-9:
+            if pts:
+                pts[-1]["wait"] += dtab
+            else:
+                wait0 += dtab
+            continue
+        pts.append({"i": b, "q": q[b], "v": abs(dqab) / dtab, "dur": dtab, "acc": float(qdd[a:b + 1].max()),
+                    "wait": 0.0})
+    if not pts:
+        raise KukaidError("KRL export: the trajectory does not move")
+    if len(pts) > max_points:
+        raise KukaidError(f"KRL export: {len(pts)} via points exceed {max_points}; raise the tolerance "
+                          f"(now {tol_deg:g} deg) or shorten the trajectory")
+    pts[-1]["wait"] = max(pts[-1]["wait"], 0.0)
+    # runs: stretches between standstills share one override and one acceleration
+    runs: list[list[int]] = [[]]
+    for k, p in enumerate(pts):
+        runs[-1].append(k)
+        if p["wait"] > 0 and k < len(pts) - 1:
+            runs.append([])
+    errs: list[float] = [0.0]  # speed errors of the pieces of 0.5 s or longer (the plateaus)
+    for run in runs:
+        pct = np.array([pts[k]["v"] / limits.qd_max * 100.0 for k in run])
+        if np.any(pct > 100.0 + 1e-6):
+            k = run[int(np.argmax(pct))]
+            raise KukaidError(f"KRL export: speed {pts[k]['v']:.4g} rad/s at t = {t[pts[k]['i']]:.3f} s is above the "
+                              f"velocity limit {limits.qd_max:.4g} rad/s")
+        ovr, vel = _speed_split(np.clip(pct, 1e-6, 100.0), np.array([pts[k]["dur"] for k in run]))
+        acc_pct = int(min(100, max(1, math.ceil(1.2 * max(pts[k]["acc"] for k in run) / limits.qdd_max * 100))))
+        for k, v in zip(run, vel):
+            pts[k].update(vel=int(v), ovr=ovr, accp=acc_pct, v_real=v * ovr / 1e4 * limits.qd_max)
+        errs += [abs(pts[k]["v_real"] - pts[k]["v"]) / pts[k]["v"] for k in run if pts[k]["dur"] >= 0.5]
+        # approximate inside a run, exact stop at its last point
+    n = len(pts)
+    ax = f"A{axis}"
+    err = max(errs)
+    src = "\n".join([
+        "&ACCESS RVP",
+        "&REL 1",
+        f"DEF {name}( )",
+        f"; generated by kukaid {__version__}: '{traj.kind}' excitation of {ax}, {n} via points, "
+        f"{traj.duration:.2f} s",
+        f"; {ax} moves alone; the other axes stay at their positions at program start.",
+        f"; Assumes {ax} maximum speed {limits.qd_max / _DEG:.1f} deg/s and acceleration "
+        f"{limits.qdd_max / _DEG:.1f} deg/s^2 ($VEL_AXIS_MA/$ACC_AXIS_MA); run in T1 first.",
+        "; Sets $OV_PRO for speeds below 1 % of the maximum.",
+        "  DECL E6AXIS P",
+        "  DECL INT I",
+        "  DECL INT OVR_NOW",
+        "  BAS (#INITMOV, 0)",
+        "  $ADVANCE = 3",
+        f"  $APO.CPTP = {int(apo_pct)}",
+        "  ; move to the start point, exact stop",
+        "  P = $AXIS_ACT",
+        f"  P.{ax} = Q_START.{ax}",
+        f"  $VEL_AXIS[{axis}] = {int(start_vel_pct)}",
+        "  PTP P",
+        "  OVR_NOW = $OV_PRO",
+        "  WAIT SEC WAIT_START",
+        "  FOR I = 1 TO N_PTS",
+        "    IF OVR_PCT[I] <> OVR_NOW THEN",
+        "      WAIT SEC 0 ; advance-run stop: change the override at standstill only",
+        "      $OV_PRO = OVR_PCT[I]",
+        "      OVR_NOW = OVR_PCT[I]",
+        "    ENDIF",
+        f"    $VEL_AXIS[{axis}] = VEL_PCT[I]",
+        f"    $ACC_AXIS[{axis}] = ACC_PCT[I]",
+        f"    P.{ax} = XP[I].{ax}",
+        "    IF WAIT_S[I] > 0.0 THEN",
+        "      PTP P",
+        "      WAIT SEC WAIT_S[I]",
+        "    ELSE",
+        "      PTP P C_PTP",
+        "    ENDIF",
+        "  ENDFOR",
+        "  PTP P",
+        "END",
+        "",
+    ])
+
+    def deg(x: float) -> str:
+        return f"{x / _DEG:.5f}"
+
+    lines = [
+        "&ACCESS RVP",
+        "&REL 1",
+        f"DEFDAT {name}",
+        f"; point data of {name}.src, generated by kukaid {__version__}; {ax} in degrees",
+        f"; limits: {ax} {limits.q_min / _DEG:.2f} .. {limits.q_max / _DEG:.2f} deg, "
+        f"{limits.qd_max / _DEG:.1f} deg/s, {limits.qdd_max / _DEG:.1f} deg/s^2; "
+        f"via-point tolerance {tol_deg:g} deg; largest speed error of a piece of 0.5 s or more {100 * err:.2f} %",
+        f"  DECL INT N_PTS = {n}",
+        f"  DECL REAL WAIT_START = {wait0:.3f}",
+        f"  DECL E6AXIS Q_START = {{{ax} {deg(q[0])}}}",
+        f"  DECL E6AXIS XP[{n}]",
+    ]
+    lines += [f"  XP[{k}] = {{{ax} {deg(p['q'])}}}" for k, p in enumerate(pts, 1)]
+    lines.append(f"  DECL INT VEL_PCT[{n}]")
+    lines += [f"  VEL_PCT[{k}] = {p['vel']}" for k, p in enumerate(pts, 1)]
+    lines.append(f"  DECL INT OVR_PCT[{n}]")
+    lines += [f"  OVR_PCT[{k}] = {p['ovr']}" for k, p in enumerate(pts, 1)]
+    lines.append(f"  DECL INT ACC_PCT[{n}]")
+    lines += [f"  ACC_PCT[{k}] = {p['accp']}" for k, p in enumerate(pts, 1)]
+    lines.append(f"  DECL REAL WAIT_S[{n}]")
+    lines += [f"  WAIT_S[{k}] = {p['wait']:.3f}" for k, p in enumerate(pts, 1)]
+    lines += ["ENDDAT", ""]
+    dat = "\n".join(lines)
+    summary = {"name": name, "points": n, "breakpoints": [int(i) for i in idx], "max_speed_error": err, "tolerance_deg": tol_deg,
+               "q_deg": [p["q"] / _DEG for p in pts], "time": [float(t[p["i"]]) for p in pts]}
+    return src, dat, summary
+
+
+def export_krl(traj: Any, folder: str | Path, name: str | None = None, **options: Any) -> tuple[Path, Path]:
+    """Write ``<name>.src`` and ``<name>.dat`` into ``folder`` (atomically); returns both paths."""
+    src, dat, summary = krl_program(traj, name=name, **options)
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    p_src, p_dat = folder / f"{summary['name']}.src", folder / f"{summary['name']}.dat"
+    write_text_atomic(p_src, src)
+    write_text_atomic(p_dat, dat)
+    return p_src, p_dat
