@@ -1,0 +1,245 @@
+"""The ``kukaid fit`` flow: logs in, a ``kukaid.params/1`` parameter dictionary out.
+
+Logs given by role are used as the paper uses those experiments:
+
+* ``friction`` (constant-velocity sweeps): Stribeck friction, by the ``staged`` method
+  (Γf = (Γ+ - Γ-)/2 at the same positions, eqs. 2-5) or the ``joint`` method (Stribeck and the
+  rigid body fitted together on all dynamic samples, :func:`~kukaid.identify.dynamic.fit_dynamic`);
+* ``inertia`` (sine): Izz, Mx (My, offset) by least squares with that friction compensated,
+  eqs. (6)-(8);
+* ``presliding``: Maxwell-slip elements, eqs. (9)-(10), (12).
+
+Plain ``logs`` are general trajectories: every parameter of the dynamic model is fitted jointly
+on them (together with the friction logs when the method is ``joint``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from kukaid import __version__
+from kukaid.errors import FitError
+from kukaid.identify.dynamic import fit_dynamic
+from kukaid.identify.filtering import preprocess
+from kukaid.identify.least_squares import fit_rigid
+from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
+from kukaid.identify.stribeck_fit import extract_friction, natural_uncertainty, solve_separable
+from kukaid.identify.uncertainty import correlation_factor, covariance
+from kukaid.models.friction import CoulombViscous, Stribeck
+
+METHODS = ("joint", "staged")
+
+
+def _load(x: Any, options: dict) -> Any:
+    if hasattr(x, "tau") and hasattr(x, "time"):
+        return x
+    from kukaid.io.axislog import read_log
+
+    return read_log(x, **options)
+
+
+def _r(x: float, sig: int = 8) -> float:
+    return float(f"{x:.{sig}g}")
+
+
+def staged_friction(preps: Sequence[Any], friction_model: str = "stribeck",
+                    bounds: dict | None = None) -> tuple[dict, dict, float, str, Any]:
+    """Friction by the paper's staged method: returns (params, std, mse, status, points)."""
+    pts = extract_friction(preps)
+    v, y = pts.v, pts.gamma_f
+    A = np.column_stack([np.ones_like(v), v])
+    if friction_model == "stribeck":
+        sr = solve_separable(y, A, v, ["Fc", "Fv"], bounds=bounds, where="staged friction")
+        params, u = natural_uncertainty(sr)
+        res, status = sr.residual, sr.status
+    else:
+        theta = np.linalg.lstsq(A, y, rcond=None)[0]
+        res = y - A @ theta
+        u = covariance(res, A, ["Fc", "Fv"], theta)
+        params, status = {"Fc": float(theta[0]), "Fv": float(theta[1])}, "linear"
+    return params, u.std, float(np.mean(res ** 2)), status, (pts, u)
+
+
+def _friction_model(p: dict, model: str) -> Stribeck | CoulombViscous:
+    if model == "stribeck":
+        return Stribeck(p["Fc"], p["Fs"], p["vs"], p["delta"], p["Fv"])
+    return CoulombViscous(p["Fc"], p["Fv"])
+
+
+def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Sequence[Any] = (),
+             presliding: Any = None, axis: int | None = None, method: str = "joint",
+             friction_model: str = "stribeck", gravity: str = "cos", offset: bool = False,
+             n_elements: int = 3, bounds: dict | None = None, cutoff: float | None = None,
+             order: int | None = None, qd_thr: float | None = None, edge: int | None = None,
+             decimate: int = 1, reversal_window: float | None = None, diff: str | None = None,
+             read_options: dict | None = None) -> dict:
+    """Identify one axis; return the parameter dictionary (schema ``kukaid.params/1``).
+
+    Parameters
+    ----------
+    logs : general logs (AxisLog or paths) fitted jointly.
+    friction, inertia : logs of the paper's friction (sweep) and inertia (sine) experiments.
+    presliding : log of the pre-sliding experiment (Maxwell-slip), optional.
+    axis : KUKA axis number (default: the logs' only axis, or A3).
+    method : "joint" (default) or "staged" (the paper's eqs. 2-5; needs friction sweeps).
+    friction_model : "stribeck" or "coulomb-viscous".   gravity : "cos", "cos+sin", "none".
+    offset : fit a constant torque.   n_elements : Maxwell-slip elements.
+    bounds : {name: (lo, hi)} overriding the data-derived bounds.
+    cutoff, order, qd_thr, edge, decimate, reversal_window, diff : pre-processing
+        (:func:`~kukaid.identify.preprocess`).
+
+    Raises
+    ------
+    FitError : missing data, bad option, failed solve; nothing is written by this function.
+    """
+    if method not in METHODS:
+        raise FitError(f"method must be one of {METHODS}, got '{method}'")
+    ro = dict(read_options or {})
+    pre = dict(axis=axis, cutoff=cutoff, order=order, qd_thr=qd_thr, edge=edge, decimate=decimate,
+               reversal_window=reversal_window, diff=diff)
+    general = [preprocess(_load(x, ro), **pre) for x in logs]
+    fr = [preprocess(_load(x, ro), **pre) for x in friction]
+    ine = [preprocess(_load(x, ro), **pre) for x in inertia]
+    psl = preprocess(_load(presliding, ro), **pre) if presliding is not None else None
+    if not (general or fr or ine):
+        raise FitError("no logs to fit: give general logs, or --friction and/or --inertia logs")
+    all_preps = general + fr + ine + ([psl] if psl is not None else [])
+    axes = {p.axis for p in all_preps}
+    if len(axes) > 1:
+        raise FitError(f"the logs are of different axes {sorted(axes)}; choose one with --axis")
+    ax = axes.pop()
+    qd_thr_used = all_preps[0].qd_thr
+    std: dict[str, float] = {}
+    metrics: dict[str, Any] = {}
+    max_lag = int(math.ceil(2 * all_preps[0].settings["fs"] / all_preps[0].settings["cutoff"]))
+    rigid: dict[str, float] = {}
+    if method == "staged" and not fr:
+        raise FitError("the staged method needs --friction logs (paired constant-velocity sweeps)")
+    if fr and method == "staged":
+        fp, fstd, fmse, status, (pts, u) = staged_friction(fr, friction_model, bounds)
+        std.update(fstd)
+        metrics.update(friction_fit_mse=fmse, ipopt_status=status, friction_pairs=pts.pairs,
+                       friction_condition_number=u.cond)
+        fit_joint = None
+        if general:
+            fit_joint = fit_dynamic(general, friction_model, gravity, offset, bounds=bounds)
+    else:
+        joint_set = fr + general if fr else general
+        fit_joint = fit_dynamic(joint_set, friction_model, gravity, offset, bounds=bounds) if joint_set else None
+        fp = {}
+        if fit_joint is not None:
+            fp = {k: v for k, v in fit_joint.params_.items() if k in ("Fc", "Fs", "vs", "delta", "Fv")}
+            std.update(fit_joint.std_)
+            rigid = {k: v for k, v in fit_joint.params_.items() if k in ("Izz", "Mx", "My", "offset")}
+            resid = np.concatenate([r[m] for r, m in zip(fit_joint.residual_, fit_joint.fitted_)])
+            metrics.update(friction_fit_mse=fit_joint.mse_, torque_prediction_mse=fit_joint.mse_,
+                           ipopt_status=fit_joint.ipopt_status, condition_number=fit_joint.uncertainty_.cond,
+                           correlation={"names": fit_joint.names_,
+                                        "matrix": np.round(fit_joint.uncertainty_.corr, 4).tolist()},
+                           residual_correlation_factor=correlation_factor(resid, max_lag),
+                           n_dynamic_samples=fit_joint.n_samples)
+    if not fp:
+        # inertia logs only, joint method: fit everything on them
+        fit_joint = fit_dynamic(ine, friction_model, gravity, offset, bounds=bounds)
+        fp = {k: v for k, v in fit_joint.params_.items() if k in ("Fc", "Fs", "vs", "delta", "Fv")}
+        rigid = {k: v for k, v in fit_joint.params_.items() if k in ("Izz", "Mx", "My", "offset")}
+        std.update(fit_joint.std_)
+        metrics.update(friction_fit_mse=fit_joint.mse_, torque_prediction_mse=fit_joint.mse_,
+                       ipopt_status=fit_joint.ipopt_status, condition_number=fit_joint.uncertainty_.cond)
+    fmodel = _friction_model(fp, friction_model)
+    if ine and (fr or general):
+        rf = fit_rigid(ine, fmodel, gravity, offset)
+        rigid = dict(rf.params_)
+        for k in ("Izz", "Mx", "My", "offset"):
+            std.pop(k, None)
+        std.update(rf.std_)
+        raw = np.concatenate([(pr.tau_raw - pr.tau + r)[pr.dynamic] for pr, r in zip(ine, rf.residual_)])
+        metrics.update(torque_prediction_mse=rf.mse_, torque_prediction_mse_raw=float(np.mean(raw ** 2)),
+                       inertia_condition_number=rf.uncertainty_.cond)
+    elif method == "staged" and fit_joint is not None:
+        rigid = {k: v for k, v in fit_joint.params_.items() if k in ("Izz", "Mx", "My", "offset")}
+        std.update({k: fit_joint.std_[k] for k in rigid})
+    if "Izz" not in rigid:
+        raise FitError("Izz cannot be identified from these logs: add an --inertia log or a general log "
+                       "with accelerations")
+    if rigid["Izz"] <= 0:
+        raise FitError(f"fitted Izz = {rigid['Izz']:.4g} is not positive: the data do not excite the inertia")
+    out: dict[str, Any] = {"schema": "kukaid.params/1", "axis": int(ax)}
+    out["friction"] = {"model": friction_model, **{k: _r(fp[k]) for k in ("Fc", "Fs", "vs", "delta", "Fv") if k in fp}}
+    out["inertial"] = {k: _r(rigid[k]) for k in ("Izz", "Mx", "My") if k in rigid}
+    if "offset" in rigid:
+        out["offset"] = _r(rigid["offset"])
+    if psl is not None:
+        from kukaid.models.joint import RigidBody
+
+        rb = RigidBody(Izz=rigid["Izz"], Mx=rigid.get("Mx", 0.0), My=rigid.get("My", 0.0))
+        ms = fit_maxwell_slip(psl, n_elements, gravity=rb.gravity)
+        out["maxwell_slip"] = {"k": [_r(x) for x in ms.k], "W": [_r(x) for x in ms.W],
+                               "zeta0": [_r(x) for x in ms.zeta0]}
+        metrics.update(maxwell_slip_rms=ms.rms, maxwell_slip_sum_W=sum(ms.W), maxwell_slip_samples=ms.n_samples)
+    out["mode_switch"] = {"qd_thr": qd_thr_used}
+    values = {**fp, **rigid}
+    out["uncertainty"] = {k: _r(v, 4) for k, v in std.items() if k in values}
+    metrics["relative_std"] = {k: _r(std[k] / abs(values[k]), 4) for k in out["uncertainty"] if values[k] != 0}
+    metrics["std_note"] = ("standard deviations from residual variance and Jacobian assume white residuals; "
+                           "filtered data make them optimistic (see residual_correlation_factor)")
+    out["metrics"] = _jsonable(metrics)
+    out["provenance"] = {
+        "kukaid_version": __version__, "method": method, "friction_model": friction_model, "gravity": gravity,
+        "offset": bool(offset), "joint": all_preps[0].joint,
+        "logs": {"general": [p.source for p in general], "friction": [p.source for p in fr],
+                 "inertia": [p.source for p in ine], "presliding": psl.source if psl is not None else None},
+        "preprocess": _jsonable(all_preps[0].settings),
+    }
+    return out
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def format_table(params: dict) -> str:
+    """A short text table of the parameters with their standard deviations."""
+    unc = params.get("uncertainty", {})
+    rows = []
+    if (params.get("provenance") or {}).get("joint") == "prismatic":
+        units = {"Fc": "N", "Fs": "N", "vs": "m/s", "delta": "-", "Fv": "N*s/m", "Izz": "kg (mass)",
+                 "Mx": "N", "My": "N", "offset": "N"}
+    else:
+        units = {"Fc": "N*m", "Fs": "N*m", "vs": "rad/s", "delta": "-", "Fv": "N*m*s/rad", "Izz": "kg*m^2",
+                 "Mx": "N*m", "My": "N*m", "offset": "N*m"}
+    items = [(k, v) for k, v in params["friction"].items() if k != "model"]
+    items += list(params["inertial"].items())
+    if "offset" in params:
+        items.append(("offset", params["offset"]))
+    for k, v in items:
+        s = unc.get(k)
+        rel = f"{100 * s / abs(v):.2f} %" if s is not None and v else ""
+        rows.append(f"  {k:<7} {v:>12.5g}  +- {s:<10.3g} {rel:>9}  {units.get(k, '')}" if s is not None
+                    else f"  {k:<7} {v:>12.5g}")
+    ms = params.get("maxwell_slip")
+    if ms:
+        rows.append("  Maxwell-slip k = " + ", ".join(f"{x:.4g}" for x in ms["k"]) + " N*m/rad")
+        rows.append("               W = " + ", ".join(f"{x:.4g}" for x in ms["W"]) + " N*m")
+    m = params.get("metrics", {})
+    extra = []
+    for key, label in (("friction_fit_mse", "friction fit MSE"), ("torque_prediction_mse", "torque MSE")):
+        if key in m and m[key] is not None:
+            extra.append(f"{label} {m[key]:.4g} N^2m^2")
+    if "ipopt_status" in m:
+        extra.append(f"IPOPT: {m['ipopt_status']}")
+    return "\n".join([f"axis A{params['axis']}, friction model {params['friction']['model']}", *rows,
+                      "  " + "; ".join(extra)])

@@ -1,0 +1,344 @@
+"""Stribeck friction (eq. 1) by bounded interior-point least squares (CasADi + IPOPT).
+
+The model is *separable*: given the Stribeck velocity ``vs`` and the shape exponent ``delta``,
+every other parameter (Fc, Fs - Fc, Fv, and in the joint fit Izz, Mx, My, offset and any extra
+regressor) enters linearly.  :func:`solve_separable` therefore
+
+1. finds a start by **variable projection**: a grid over (log vs, delta) where, for each grid
+   point, the linear parameters are eliminated by least squares (a QR of the fixed columns makes
+   each grid point one dot product); the best grid point (with Fs - Fc >= 0) is the start, so
+   the local solver does not land in a local minimum of the (vs, delta) valley;
+2. refines all parameters together with IPOPT under bounds (``casadi.nlpsol``), in scaled
+   variables (linear parameters divided by their start magnitude, ``log vs``);
+3. refuses a failed solve (:class:`~kukaid.errors.FitError`) and keeps the better of start and
+   solution.
+
+Default bounds, derived from the data (overridable by ``bounds={name: (lo, hi)}``):
+``Fc`` in [0, F99] and ``Fs - Fc`` in [0, F99] where F99 is the 99th percentile of |torque| over
+the fitted samples; ``Fv`` in [0, inf); ``Izz`` in [0, inf); ``vs`` in [v1 / 2, v99] with v1, v99
+the 1st and 99th percentiles of |qd| over the fitted samples (outside that range the Stribeck
+term is not informed by the data); ``delta`` in [0.5, 2] (the paper); Mx, My, offset and extra
+coefficients free.
+"""
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from kukaid.errors import FitError
+from kukaid.identify.uncertainty import Uncertainty, covariance, transform
+
+INF = float("inf")
+DELTA_BOUNDS = (0.5, 2.0)
+_OK_STATUS = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
+
+def stribeck_column(v: np.ndarray, vs: float, delta: float) -> np.ndarray:
+    """sign(v) exp(-|v/vs|^delta): the column multiplying Fs - Fc in eq. (1)."""
+    v = np.asarray(v, dtype=float)
+    with np.errstate(over="ignore", under="ignore", divide="ignore"):
+        return np.sign(v) * np.exp(-np.power(np.abs(v) / vs, delta))
+
+
+@dataclass
+class SeparableResult:
+    """Solution of a separable Stribeck least-squares problem (natural parameters)."""
+
+    names: list[str]            # linear names, then "dF", "vs", "delta" (dF = Fs - Fc)
+    values: np.ndarray
+    residual: np.ndarray        # y - prediction, (n,)
+    jac: np.ndarray             # d prediction / d parameter, (n, p)
+    cost: float                 # 0.5 * sum(residual**2)
+    status: str
+    start: np.ndarray
+    start_cost: float
+    iterations: int = 0
+    solve_time: float = 0.0
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def default_bounds(y: np.ndarray, v: np.ndarray, lin_names: Sequence[str]) -> dict[str, tuple[float, float]]:
+    """Bounds derived from the data (see the module docstring)."""
+    f99 = float(np.percentile(np.abs(y), 99)) if y.size else 1.0
+    f99 = max(f99, 1e-9)
+    s = np.abs(v)
+    v1, v99 = (float(np.percentile(s, 1)), float(np.percentile(s, 99))) if s.size else (1e-3, 1.0)
+    vlo = max(v1 / 2.0, 1e-9)
+    vhi = max(v99, vlo * 10.0)
+    b = {"Fc": (0.0, f99), "dF": (0.0, f99), "Fv": (0.0, INF), "Izz": (0.0, INF), "vs": (vlo, vhi),
+         "delta": DELTA_BOUNDS}
+    return {k: b.get(k, (-INF, INF)) for k in (*lin_names, "dF", "vs", "delta")}
+
+
+def _merge_bounds(defaults: dict, bounds: dict | None) -> dict[str, tuple[float, float]]:
+    out = dict(defaults)
+    for k, (lo, hi) in (bounds or {}).items():
+        key = "dF" if k in ("Fs-Fc", "dF") else k
+        if key not in out:
+            continue
+        lo = -INF if lo is None else float(lo)
+        hi = INF if hi is None else float(hi)
+        if not lo <= hi:
+            raise FitError(f"bounds for {k}: lower {lo} is above upper {hi}")
+        out[key] = (lo, hi)
+    return out
+
+
+def prediction_and_jac(A: np.ndarray, v: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Prediction and its Jacobian for natural parameters p = [theta (m), dF, vs, delta]."""
+    m = A.shape[1]
+    theta, dF, vs, delta = p[:m], p[m], p[m + 1], p[m + 2]
+    av = np.abs(v)
+    with np.errstate(divide="ignore", under="ignore", over="ignore", invalid="ignore"):
+        ratio = av / vs
+        pw = np.power(ratio, delta)
+        e = np.exp(-pw)
+        s = np.sign(v) * e
+        lr = np.where(ratio > 0, np.log(np.where(ratio > 0, ratio, 1.0)), 0.0)
+        d_vs = dF * np.sign(v) * e * pw * delta / vs
+        d_delta = -dF * np.sign(v) * e * pw * lr
+    pred = A @ theta + dF * s
+    jac = np.column_stack([A, s, d_vs, d_delta])
+    return pred, np.nan_to_num(jac)
+
+
+def vp_start(y: np.ndarray, A: np.ndarray, v: np.ndarray, bnd: dict, n_vs: int = 24,
+             deltas: Sequence[float] | None = None) -> tuple[np.ndarray, float]:
+    """Variable-projection grid search over (vs, delta); returns (natural start p, its cost)."""
+    vlo, vhi = bnd["vs"]
+    dlo, dhi = bnd["delta"]
+    vss = np.geomspace(vlo, vhi, n_vs)
+    if deltas is None:
+        deltas = np.linspace(dlo, dhi, 7) if dhi > dlo else np.array([dlo])
+    Q, _ = np.linalg.qr(A, mode="reduced") if A.shape[1] else (np.zeros((y.size, 0)), None)
+    rB = y - Q @ (Q.T @ y)
+    base = float(rB @ rB)
+    grid = [(a, d) for d in deltas for a in vss]
+    av = np.abs(v)
+    logv = np.log(np.where(av > 0, av, 1e-300))[:, None]
+    lvs = np.log(np.array([a for a, _ in grid]))[None, :]
+    dd = np.array([d for _, d in grid])[None, :]
+    with np.errstate(over="ignore", under="ignore"):
+        C = np.sign(v)[:, None] * np.exp(-np.exp(dd * (logv - lvs)))
+    # projection of each candidate column off the fixed columns, without forming it:
+    # c_B^T r_B = c^T r_B (r_B is orthogonal to Q), |c_B|^2 = |c|^2 - |Q^T c|^2
+    num = C.T @ rB
+    QtC = Q.T @ C
+    den = np.einsum("ij,ij->j", C, C) - np.einsum("ij,ij->j", QtC, QtC)
+    coef = np.where(den > 1e-12 * max(1.0, den.max()), num / np.where(den > 0, den, 1.0), 0.0)
+    dlo_F, dhi_F = bnd["dF"]
+    coef = np.clip(coef, dlo_F, dhi_F)
+    cost = base - 2 * coef * num + coef ** 2 * den
+    k = int(np.argmin(cost))
+    vs0, d0 = grid[k]
+    s = C[:, k]
+    dF = float(coef[k])
+    theta = np.linalg.lstsq(A, y - dF * s, rcond=None)[0] if A.shape[1] else np.zeros(0)
+    p0 = np.r_[theta, dF, vs0, d0]
+    pred, _ = prediction_and_jac(A, v, p0)
+    return p0, 0.5 * float(np.sum((y - pred) ** 2))
+
+
+def _clip_into(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    eps = 1e-6 * np.maximum(span, 1e-12)
+    lo2 = np.where(np.isfinite(lo), lo + eps, lo)
+    hi2 = np.where(np.isfinite(hi), hi - eps, hi)
+    return np.minimum(np.maximum(p, np.minimum(lo2, hi2)), np.maximum(lo2, hi2))
+
+
+def _ipopt(y, A, v, p0, lo, hi, max_iter=300):
+    import casadi as ca
+
+    m = A.shape[1]
+    p = m + 3
+    scale = np.ones(p)
+    scale[: m + 1] = np.maximum(np.abs(p0[: m + 1]), 1e-3 * max(1.0, float(np.max(np.abs(p0[: m + 1]), initial=1.0))))
+    # scaled variables: x_j = p_j / scale_j (linear + dF), x_vs = log(vs), x_delta = delta
+    x = ca.MX.sym("x", p)
+    lin = x[: m + 1] * ca.DM(scale[: m + 1])
+    u = x[m + 1]
+    dl = x[m + 2]
+    av = np.abs(v)
+    logv = np.log(np.where(av > 0, av, 1e-300))
+    s = ca.DM(np.sign(v)) * ca.exp(-ca.exp(dl * (ca.DM(logv) - u)))
+    pred = (ca.mtimes(ca.DM(A), lin[:m]) if m else 0) + lin[m] * s
+    r = ca.DM(y) - pred
+    r0 = y - prediction_and_jac(A, v, p0)[0]
+    norm = max(float(r0 @ r0), 1e-12)
+    f = 0.5 * ca.sumsqr(r) / norm
+    solver = ca.nlpsol("s", "ipopt", {"x": x, "f": f},
+                       {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
+                        "ipopt.max_iter": max_iter, "ipopt.tol": 1e-10,
+                        # the start is the variable-projection optimum, close to the solution:
+                        # a small initial barrier parameter saves most of the iterations
+                        "ipopt.mu_init": 1e-5})
+    def to_x(q):
+        q = np.asarray(q, dtype=float)
+        out = np.empty(p)
+        out[: m + 1] = q[: m + 1] / scale[: m + 1]
+        out[m + 1] = np.log(q[m + 1]) if q[m + 1] > 0 else -INF
+        out[m + 2] = q[m + 2]
+        return out
+    lbx, ubx = to_x(lo), to_x(hi)
+    lbx[m + 1] = np.log(max(lo[m + 1], 1e-300))
+    ubx[m + 1] = np.log(hi[m + 1]) if np.isfinite(hi[m + 1]) else INF
+    t0 = _time.perf_counter()
+    sol = solver(x0=to_x(p0), lbx=np.where(np.isfinite(lbx), lbx, -1e20), ubx=np.where(np.isfinite(ubx), ubx, 1e20))
+    dt = _time.perf_counter() - t0
+    st = solver.stats()
+    xs = np.asarray(sol["x"]).ravel()
+    out = np.empty(p)
+    out[: m + 1] = xs[: m + 1] * scale[: m + 1]
+    out[m + 1] = np.exp(xs[m + 1])
+    out[m + 2] = xs[m + 2]
+    return out, str(st.get("return_status", "")), bool(st.get("success", False)), int(st.get("iter_count", 0)), dt
+
+
+def solve_separable(y: np.ndarray, A: np.ndarray, v: np.ndarray, lin_names: Sequence[str],
+                    bounds: dict | None = None, fixed: dict | None = None, where: str = "fit") -> SeparableResult:
+    """Fit ``y ~ A theta + (Fs - Fc) sign(v) exp(-|v/vs|^delta)`` with bounds (VP start + IPOPT).
+
+    Parameters
+    ----------
+    y : (n,) measured torque (or extracted friction), N·m.
+    A : (n, m) linear regressor columns named ``lin_names``.
+    v : (n,) velocity, rad/s (no zeros).
+    bounds : {name: (lo, hi)} overriding :func:`default_bounds` (names: linear names, "dF" or
+        "Fs-Fc", "vs", "delta").
+    fixed : unused placeholder for fixed parameters (reserved).
+
+    Raises
+    ------
+    FitError : no samples, non-finite data, or IPOPT did not converge.
+    """
+    y = np.asarray(y, dtype=float)
+    A = np.asarray(A, dtype=float).reshape(y.size, -1)
+    v = np.asarray(v, dtype=float)
+    lin_names = list(lin_names)
+    names = [*lin_names, "dF", "vs", "delta"]
+    p = len(names)
+    if y.size < p + 2:
+        raise FitError(f"{where}: {y.size} samples for {p} parameters; not enough data to fit")
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(A)) and np.all(np.isfinite(v))):
+        raise FitError(f"{where}: non-finite values in the data to fit")
+    bnd = _merge_bounds(default_bounds(y, v, lin_names), bounds)
+    lo = np.array([bnd[k][0] for k in names])
+    hi = np.array([bnd[k][1] for k in names])
+    p0, c0 = vp_start(y, A, v, bnd)
+    p0 = _clip_into(p0, lo, hi)
+    c0 = 0.5 * float(np.sum((y - prediction_and_jac(A, v, p0)[0]) ** 2))
+    try:
+        ps, status, ok, iters, dt = _ipopt(y, A, v, p0, lo, hi)
+    except RuntimeError as e:  # CasADi/IPOPT raised
+        raise FitError(f"{where}: IPOPT failed to run: {str(e).splitlines()[0][:160]}") from None
+    if not ok or status not in _OK_STATUS or not np.all(np.isfinite(ps)):
+        raise FitError(f"{where}: IPOPT did not converge (return status '{status}'); no parameters written")
+    pred, jac = prediction_and_jac(A, v, ps)
+    res = y - pred
+    cost = 0.5 * float(res @ res)
+    if cost > c0 * (1 + 1e-9):  # never worse than the variable-projection start
+        ps = p0
+        pred, jac = prediction_and_jac(A, v, ps)
+        res = y - pred
+        cost = c0
+    return SeparableResult(names, ps, res, jac, cost, status, p0, c0, iters, dt,
+                           {"bounds": {k: list(bnd[k]) for k in names}})
+
+
+def natural_uncertainty(sr: SeparableResult) -> tuple[dict[str, float], Uncertainty]:
+    """Parameters with Fs in place of dF (= Fs - Fc), and their covariance."""
+    u = covariance(sr.residual, sr.jac, sr.names, sr.values)
+    names = ["Fs" if k == "dF" else k for k in sr.names]
+    T = np.eye(len(names))
+    vals = sr.values.copy()
+    if "Fc" in sr.names:
+        i, j = sr.names.index("dF"), sr.names.index("Fc")
+        T[i, j] = 1.0
+        vals = T @ sr.values
+    return dict(zip(names, (float(x) for x in vals))), transform(u, names, vals, T)
+
+
+# -- staged method (the paper's eqs. 2-5) -----------------------------------------------------
+@dataclass
+class FrictionPoints:
+    """Friction extracted from paired constant-velocity moves, eqs. (2)-(4).
+
+    v : (k,) speed, rad/s (> 0).   gamma_f : (k,) friction torque (Γ+ - Γ-)/2, N·m.
+    q : (k,) position, rad.   gravity : (k,) (Γ+ + Γ-)/2 = Q(q), N·m.   pairs : moves paired.
+    """
+
+    v: np.ndarray
+    gamma_f: np.ndarray
+    q: np.ndarray
+    gravity: np.ndarray
+    pairs: int
+
+
+def _segments(mask: np.ndarray) -> list[tuple[int, int]]:
+    idx = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
+    return [(int(a), int(b)) for a, b in zip(idx[::2], idx[1::2])]
+
+
+def extract_friction(preps: Sequence[Any], min_samples: int = 5, speed_tol: float = 0.05) -> FrictionPoints:
+    """Γf = (Γ+ - Γ-)/2 and Q = (Γ+ + Γ-)/2 at the same positions and speeds, eqs. (2)-(4).
+
+    Constant-velocity segments (``Prepared.plateau``, one sign) are paired with a segment of the
+    opposite direction whose mean speed is within ``speed_tol`` (relative) and whose position
+    range overlaps; the opposite torque is interpolated at the positions of the first.
+
+    Raises
+    ------
+    FitError : no pair of opposite constant-velocity moves at the same speed.
+    """
+    vs, gf, qs, gr = [], [], [], []
+    pairs = 0
+    for pr in preps:
+        segs = []
+        for a, b in _segments(pr.plateau):
+            if b - a < min_samples:
+                continue
+            sgn = np.sign(pr.qd[a:b])
+            if not np.all(sgn == sgn[0]):
+                continue
+            segs.append((a, b, float(sgn[0]), float(np.median(np.abs(pr.qd[a:b])))))
+        pos = [s for s in segs if s[2] > 0]
+        neg = [s for s in segs if s[2] < 0]
+        used = set()
+        for a, b, _, sp in pos:
+            best = None
+            for j, (c, d, _, sn) in enumerate(neg):
+                if j in used or abs(sn - sp) > speed_tol * max(sp, sn):
+                    continue
+                qlo = max(pr.q[a:b].min(), pr.q[c:d].min())
+                qhi = min(pr.q[a:b].max(), pr.q[c:d].max())
+                if qhi <= qlo:
+                    continue
+                gap = abs(0.5 * (c + d) - 0.5 * (a + b))
+                if best is None or gap < best[0]:
+                    best = (gap, j, qlo, qhi)
+            if best is None:
+                continue
+            _, j, qlo, qhi = best
+            used.add(j)
+            c, d = neg[j][0], neg[j][1]
+            qp, tp, vp = pr.q[a:b], pr.tau[a:b], pr.qd[a:b]
+            qn, tn, vn = pr.q[c:d], pr.tau[c:d], pr.qd[c:d]
+            order = np.argsort(qn)
+            sel = (qp >= qlo) & (qp <= qhi)
+            if sel.sum() < min_samples:
+                continue
+            tn_at = np.interp(qp[sel], qn[order], tn[order])
+            vn_at = np.interp(qp[sel], qn[order], np.abs(vn[order]))
+            vs.append(0.5 * (np.abs(vp[sel]) + vn_at))
+            gf.append(0.5 * (tp[sel] - tn_at))
+            gr.append(0.5 * (tp[sel] + tn_at))
+            qs.append(qp[sel])
+            pairs += 1
+    if not pairs:
+        raise FitError("staged friction: no pair of opposite constant-velocity moves at the same speed "
+                       "(the staged method needs sweep data; use the joint method for general trajectories)")
+    return FrictionPoints(np.concatenate(vs), np.concatenate(gf), np.concatenate(qs), np.concatenate(gr), pairs)

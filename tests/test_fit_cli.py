@@ -1,0 +1,116 @@
+"""`kukaid fit` end to end: parameter file, table, and bad input -> one-line error, no file."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from kukaid import excite
+from kukaid.io.axislog import AxisLog, write_csv, write_hdf5
+from kukaid.io.params import load_params
+from kukaid.sim import SimConfig, VirtualKRC4
+from kukaid_cli.main import cli
+
+TRUTH = dict(Fc=13.4, Fs=16.9, vs=0.05, delta=1.6, Fv=11.8, Izz=2.05, Mx=21.3)
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fitcli")
+    cfg = SimConfig().replace(**TRUTH)
+    paths = {}
+    for kind, opts in (("friction", dict(n_speeds=6)), ("inertia", {}), ("presliding", {})):
+        log = VirtualKRC4(cfg, seed=4).run(excite.generate(kind, **opts))
+        paths[kind] = d / f"{kind}.h5"
+        write_hdf5(log, paths[kind])
+    return d, paths
+
+
+def test_fit_writes_params_and_table(logs):
+    d, p = logs
+    out = d / "params.json"
+    r = CliRunner().invoke(cli, ["fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]),
+                                 "--presliding", str(p["presliding"]), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "Fc" in r.output and "+-" in r.output and "IPOPT" in r.output
+    par = load_params(out)
+    assert par["friction"]["model"] == "stribeck"
+    assert par["inertial"]["Mx"] == pytest.approx(TRUTH["Mx"], rel=0.02)
+    assert len(par["maxwell_slip"]["k"]) <= 3 and "uncertainty" in par and "metrics" in par
+    assert par["metrics"]["ipopt_status"] == "Solve_Succeeded"
+
+
+def test_general_log_coulomb_viscous_with_options(logs):
+    d, p = logs
+    out = d / "cv.json"
+    r = CliRunner().invoke(cli, ["fit", str(p["friction"]), str(p["inertia"]), "--friction-model", "coulomb-viscous",
+                                 "--gravity", "cos+sin", "--offset", "--cutoff", "4", "--order", "2", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    par = json.loads(out.read_text())
+    assert par["friction"]["model"] == "coulomb-viscous" and "My" in par["inertial"] and "offset" in par
+
+
+def test_staged_method_and_bounds(logs):
+    d, p = logs
+    out = d / "staged.json"
+    r = CliRunner().invoke(cli, ["fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]),
+                                 "--method", "staged", "--bound", "delta=0.5:2", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert load_params(out)["provenance"]["method"] == "staged"
+
+
+def _bad(tmp_path, log, name="bad.h5"):
+    path = tmp_path / name
+    write_hdf5(log, path)
+    return path
+
+
+@pytest.mark.parametrize("case", ["standstill", "one_direction", "too_short", "nan", "staged_no_pairs"])
+def test_bad_input_clear_error_no_file(tmp_path, case, logs):
+    t = np.arange(3000) * 0.012
+    if case == "standstill":
+        src = _bad(tmp_path, AxisLog(time=t, q=np.full(t.size, 0.3), tau=np.full(t.size, 4.0), axes=(3,)))
+        args, msg = [str(src)], "no dynamic-mode samples"
+    elif case == "one_direction":
+        q = 0.05 * t
+        src = _bad(tmp_path, AxisLog(time=t, q=q, tau=20 * np.cos(q) + 14, axes=(3,)))
+        args, msg = [str(src)], "one direction"
+    elif case == "too_short":
+        src = _bad(tmp_path, AxisLog(time=t[:50], q=np.sin(t[:50]), tau=np.cos(t[:50]), axes=(3,)))
+        args, msg = [str(src)], "too short"
+    elif case == "nan":
+        src = tmp_path / "nan.csv"
+        src.write_text("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,nan,2\n0.024,1,2\n")
+        args, msg = [str(src)], "not a finite number"
+    else:
+        src = _bad(tmp_path, VirtualKRC4(SimConfig().replace(**TRUTH), seed=2).run(excite.generate("inertia")))
+        args, msg = ["--friction", str(src), "--method", "staged"], "no pair"
+    out = tmp_path / "params.json"
+    r = CliRunner().invoke(cli, ["fit", *args, "-o", str(out)])
+    assert r.exit_code != 0
+    assert "kukaid: error:" in r.output and msg in r.output, r.output
+    assert len(r.output.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_failed_solve_writes_nothing(tmp_path, logs, monkeypatch):
+    import kukaid.identify.stribeck_fit as sf
+
+    monkeypatch.setattr(sf, "_ipopt", lambda y, A, v, p0, lo, hi, max_iter=300: (p0, "Infeasible_Problem_Detected",
+                                                                                   False, 3, 0.0))
+    d, p = logs
+    out = tmp_path / "params.json"
+    r = CliRunner().invoke(cli, ["fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]), "-o", str(out)])
+    assert r.exit_code != 0 and "IPOPT did not converge" in r.output and "Infeasible" in r.output
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("bound,msg", [("vs=0.1", "expected NAME=LO:HI"), ("vs=0.2:0.1", "lower 0.2 is above upper 0.1")])
+def test_bad_bound_option(logs, tmp_path, bound, msg):
+    d, p = logs
+    out = tmp_path / "params.json"
+    r = CliRunner().invoke(cli, ["fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]),
+                                 "--bound", bound, "-o", str(out)])
+    assert r.exit_code != 0 and msg in r.output and not out.exists()
