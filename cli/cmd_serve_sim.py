@@ -1,0 +1,94 @@
+"""kukaid serve-sim: a virtual KR C4 speaking KUKAVARPROXY (loopback by default)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command("serve-sim")
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Interface to listen on (loopback by default; 0.0.0.0 exposes it to the network).")
+@click.option("--port", type=click.IntRange(0, 65535), default=7000, show_default=True,
+              help="TCP port (0 picks a free one; the port is printed on stderr).")
+@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="Simulated axis.")
+@click.option("--trajectory", "traj_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="Trajectory JSON the virtual robot runs from the start (like its KRL program); "
+                   "without it the axis holds still and follows writes of the global KID_TGT (deg).")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--sim-config", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="JSON overrides of the simulator's truth and settings.")
+@click.option("--noise", type=float, help="Torque noise sigma, N·m.")
+@click.option("--duration", type=float, help="Stop after this many seconds (default: until Ctrl-C/SIGTERM).")
+@click.option("--speed", type=float, default=1.0, show_default=True, help="Simulated seconds per second.")
+@click.option("--ring-axes", type=click.IntRange(1, 6), multiple=True,
+              help="Axes recorded by the emulated KRL ring-buffer logger (default: the simulated axis).")
+@click.option("--truth", "truth_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write every 12 ms sample the simulator took (ground truth, sim time) to this HDF5 log on exit.")
+@click.option("--delay", type=float, default=0.0, help="Fault injection: seconds added to every reply.")
+def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, sim_config: Path | None,
+            noise: float | None, duration: float | None, speed: float, ring_axes: tuple[int, ...],
+            truth_path: Path | None, delay: float) -> None:
+    """Serve the virtual KR C4's live variables over KUKAVARPROXY until interrupted.
+
+    Variables: $AXIS_ACT_MEAS, $AXIS_ACT, $TORQUE_AXIS_ACT[i], $MOT_TEMP[i] (K), $OV_PRO,
+    $ROB_TIMER, PING, global variables (KID_TGT commands the axis), and the KRL ring-buffer
+    logger's KID_* globals (see `kukaid krl-logger`).
+    """
+    import signal
+    import threading
+
+    from kukaid.errors import KukaidError
+    from kukaid.io.krl_logger import RingLayout
+    from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
+    from kukaid.sim.kvp_server import Faults, KvpServer, SimSource
+
+    if speed <= 0:
+        raise KukaidError(f"serve-sim: --speed must be positive; got {speed}")
+    cfg = load_sim_config(sim_config) if sim_config else SimConfig()
+    if noise is not None:
+        cfg = cfg.replace(noise_sigma=noise)
+    traj = None
+    if traj_path is not None:
+        from kukaid.excite import Trajectory
+
+        traj = Trajectory.from_json(traj_path)
+        axis = int(getattr(traj, "axis", axis) or axis)
+    sim = VirtualKRC4(cfg, seed=seed, axis=axis)
+    ring = RingLayout(axes=tuple(ring_axes) or (axis,))
+    source = SimSource(sim, axis=axis, trajectory=traj, speed=speed, ring=ring).start()
+    stop = threading.Event()
+    old = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    try:
+        server = KvpServer(source, host=host, port=port, faults=Faults(delay=delay)).start()
+        click.echo(f"serve-sim: virtual KR C4 (A{axis}) listening on {host}:{server.port}", err=True)
+        try:
+            stop.wait(duration) if duration is not None else _wait_forever(stop)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            server.stop()
+    finally:
+        source.stop()
+        signal.signal(signal.SIGTERM, old)
+    if source.error is not None:
+        raise KukaidError(f"serve-sim: the simulation stopped: {source.error}")
+    if truth_path is not None:
+        _write_truth(source, sim, traj, truth_path, axis)
+        click.echo(f"serve-sim: ground truth written to {truth_path}", err=True)
+
+
+def _wait_forever(stop) -> None:
+    while not stop.wait(0.5):
+        pass
+
+
+def _write_truth(source, sim, traj, path: Path, axis: int) -> None:
+    from kukaid.io.axislog import AxisLog, write_hdf5
+
+    d = source.truth()
+    attrs = dict(sim.log_attrs(traj)) if hasattr(sim, "log_attrs") else {}
+    attrs.update(source="virtual-krc4 (serve-sim ground truth)", time_base="simulated time, s")
+    log = AxisLog(time=d["time"], q=d["q"], tau=d["tau"], axes=(axis,), q_cmd=d.get("q_cmd"),
+                  temp=d.get("temp"), tau_ext_true=d.get("tau_ext_true"), attrs=attrs)
+    write_hdf5(log, path)

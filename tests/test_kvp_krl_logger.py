@@ -1,0 +1,56 @@
+"""The KRL ring-buffer logger text and its CLI."""
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import pytest
+
+from kukaid.errors import ControllerError, KukaidError
+from kukaid.io.krl_logger import RingLayout, format_sample, krl_logger_files, parse_block, parse_config
+
+
+def test_logger_text_declares_the_handshake_and_samples_every_ipo_cycle():
+    layout = RingLayout(axes=(2, 3), nb=4, bs=5)
+    files = krl_logger_files(layout)
+    dat, sub = files["KUKAID_LOG.DAT"], files["KUKAID_LOG.SUB"]
+    assert dat.startswith("DEFDAT KUKAID_LOG PUBLIC") and dat.rstrip().endswith("ENDDAT")
+    for g in ("KID_CFG[64]", "KID_WR", "KID_RD", "KID_OVF", "KID_B1[", "KID_B4["):
+        assert f"DECL GLOBAL" in dat and g in dat
+    assert "KID_B5[" not in dat
+    assert 'KID_CFG[]="kukaid-ring/1 axes=2,3 nb=4 bs=5"' in dat
+    assert "$ROB_TIMER-KID_LAST)<12" in sub
+    assert "$AXIS_ACT_MEAS.A2,$AXIS_ACT_MEAS.A3,$TORQUE_AXIS_ACT[2],$TORQUE_AXIS_ACT[3],$MOT_TEMP[2],$MOT_TEMP[3]" in sub
+    assert '"%d,%.4f,%.4f,%.3f,%.3f,%.1f,%.1f;"' in sub
+    assert sub.count("CASE ") == 4 and "KID_OVF=KID_OVF+1" in sub
+    # the only robot-side writes are the logger's own globals
+    import re
+
+    targets = [m.group(1) for ln in sub.splitlines() if (m := re.match(r"^\s*([$\w]+)(?:\[\])?\s*=", ln))]
+    assert targets and all(t.startswith("KID_") for t in targets), targets
+
+
+def test_config_and_block_round_trip():
+    layout = parse_config("kukaid-ring/1 axes=3 nb=8 bs=2")
+    assert layout == RingLayout(axes=(3,), nb=8, bs=2)
+    text = "9|" + format_sample(1000, [12.34567], [-3.2104], [305.14]) + format_sample(1012, [12.4], [-3.0], [305.1])
+    arr = parse_block(text, 9, layout)
+    np.testing.assert_array_equal(arr, [[1000, 12.3457, -3.210, 305.1], [1012, 12.4, -3.0, 305.1]])
+    with pytest.raises(ControllerError, match="not a kukaid-ring/1 layout"):
+        parse_config("hello")
+    with pytest.raises(ControllerError, match="sample 1 has 3 fields, expected 4"):
+        parse_block("9|1,2,3;", 9, layout)
+    with pytest.raises(ControllerError, match="more than bs=2"):
+        parse_block("9|" + "1,2,3,4;" * 3, 9, layout)
+    with pytest.raises(KukaidError, match="axes must be distinct"):
+        RingLayout(axes=(3, 3))
+
+
+def test_cli_writes_files_and_refuses_overwrite(tmp_path):
+    r = subprocess.run(["kukaid", "krl-logger", "--axis", "3", "-o", str(tmp_path)], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "KUKAID_LOG.SUB").read_text().startswith("DEF KUKAID_LOG()")
+    r = subprocess.run(["kukaid", "krl-logger", "--axis", "3", "-o", str(tmp_path)], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 1 and "already exists" in r.stderr
