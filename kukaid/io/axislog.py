@@ -340,7 +340,7 @@ class AxisLogWriter:
         for c in self.channels:
             self._d[c] = self._f.create_dataset(c, shape=(0, a), maxshape=(None, a), dtype="f8", chunks=(1024, a))
         self._d["gaps"] = self._f.create_dataset("gaps", shape=(0, 2), maxshape=(None, 2), dtype="f8", chunks=(64, 2))
-        _write_attrs(self._f, _base_attrs(self.axes, self.joint, {**(attrs or {}), "incremental": 1}))
+        _write_attrs(self._f, {**_base_attrs(self.axes, self.joint, attrs or {}), "incremental": 1})
         self._f.swmr_mode = True
         self.n = 0
         self._last_t = -np.inf
