@@ -202,3 +202,22 @@ def test_cli_version_and_help():
                             "print(sorted(x for x in ('numpy','scipy','casadi','h5py','matplotlib','pandas') if x in sys.modules))"],
                            capture_output=True, text=True)
     assert probe.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_killed_writer_with_uneven_datasets_keeps_common_rows(tmp_path):
+    """SWMR flushes datasets in any order: a kill can leave 'time' ahead of a channel."""
+    w = AxisLogWriter(tmp_path / "k.h5", axes=(3,))
+    t = np.arange(20) * 0.012
+    w.append(t, q=t[:, None], tau=t[:, None])
+    w.close()
+    with h5py.File(tmp_path / "k.h5", "a") as f:
+        f["tau"].resize((15, 1))
+    log = read_hdf5(tmp_path / "k.h5")
+    assert log.n_samples == 15 and np.array_equal(log.tau[:, 0], t[:15])
+    # a file written whole (not incremental) with uneven datasets is corrupt, and says so
+    write_hdf5(log, tmp_path / "whole.h5")
+    with h5py.File(tmp_path / "whole.h5", "a") as f:
+        del f["tau"]
+        f["tau"] = np.zeros((10, 1))
+    with pytest.raises(LogFormatError, match="dataset 'tau' has 10 rows but 'time' has 15"):
+        read_hdf5(tmp_path / "whole.h5")
