@@ -1,0 +1,63 @@
+"""kukaid diagnose: where model and data disagree, which effect is missing, refit, the gap shrinking."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command("diagnose")
+@click.option("--params", "params_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Parameter file (kukaid.params/1) whose model is compared with the logs.")
+@click.option("--log", "logs", type=click.Path(dir_okay=False, path_type=Path), multiple=True, required=True,
+              help="Axis log (HDF5 or CSV); repeat for several experiments.")
+@click.option("--axis", type=int, default=None, help="KUKA axis number (default: the parameter file's).")
+@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
+@click.option("--report", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write PDF pages: residual against each effect's coordinate, spectrum, table of steps.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write the refined parameter file (effects in 'effects').")
+@click.option("--cutoff", type=float, default=None, help="Comparison filter cut-off, Hz (default: the fit's).")
+@click.option("--alpha", type=float, default=0.01, show_default=True,
+              help="False-alarm probability per round (over all candidates).")
+@click.option("--max-steps", type=int, default=4, show_default=True, help="At most this many effects are added.")
+def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json: bool, report: Path | None,
+            output: Path | None, cutoff: float | None, alpha: float, max_steps: int) -> None:
+    """Find the physical effects the model of --params misses in the --log data, add them, refit.
+
+    Candidates: gravity_sine, torque_offset, position_ripple, thermal_drift,
+    load_dependent_friction, backlash.  Prints per step the effect, its parameters, RMSE before ->
+    after and the evidence; says so when nothing is missing or two candidates are ambiguous.
+    """
+    import json
+
+    from kukaid.errors import KukaidError
+    from kukaid.io.axislog import read_log
+    from kukaid.io.params import load_params, save_params
+    from kukaid.diagnose.workflow import diagnose
+
+    if not 0 < alpha < 1:
+        raise click.BadParameter("must be in (0, 1)", param_hint="--alpha")
+    if max_steps < 0:
+        raise click.BadParameter("must be >= 0", param_hint="--max-steps")
+    params = load_params(params_path)
+    data = [read_log(p) for p in logs]
+    if axis is not None:
+        for p, lg in zip(logs, data):
+            if axis not in lg.axes:
+                raise KukaidError(f"{p}: axis A{axis} is not in the log (axes: {list(lg.axes)})")
+    result = diagnose(params, data, axis=axis, cutoff=cutoff, alpha=alpha, max_steps=max_steps)
+    if output is not None:
+        save_params(output, result.params)
+    if report is not None:
+        from kukaid.diagnose.plots import write_report
+
+        write_report(result, report)
+    if as_json:
+        click.echo(json.dumps(result.to_json(), indent=2))
+    else:
+        for line in result.lines():
+            click.echo(line)
+    for path, what in ((output, "refined parameters"), (report, "report")):
+        if path is not None:
+            click.echo(f"{path}: {what} written", err=True)

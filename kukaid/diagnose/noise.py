@@ -1,0 +1,69 @@
+"""Noise floor of a torque comparison, estimated from the data.
+
+The raw torque noise is estimated from the high-frequency content of the measured torque: the
+second difference of a smooth signal is small, that of white noise of standard deviation sigma has
+variance 6 sigma²; a median-absolute-deviation estimate ignores the few large second differences a
+friction jump at a reversal leaves.  The noise floor of the filtered comparison is that sigma times
+the square root of the filter's white-noise power gain: the RMSE a perfect model would reach.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from kukaid.diagnose.signals import LogSignals
+
+_MAD = 1.482602218505602  # MAD -> standard deviation for a normal distribution
+
+
+def raw_noise_sigma(x: np.ndarray) -> float:
+    """Standard deviation of white noise on the samples ``x`` (same unit as x).
+
+    Uses the second difference d2 = x[k+1] - 2 x[k] + x[k-1], var(d2) = 6 sigma² for white
+    noise, with a robust (MAD) scale; falls back to a trimmed RMS when more than half the second
+    differences are exactly equal (coarse quantisation).
+    """
+    x = np.asarray(x, dtype=float)
+    if x.size < 5:
+        return 0.0
+    d2 = np.diff(x, 2)
+    med = np.median(d2)
+    mad = np.median(np.abs(d2 - med))
+    if mad > 0:
+        return float(_MAD * mad / np.sqrt(6.0))
+    a = np.sort(np.abs(d2 - med))
+    a = a[: max(1, int(0.95 * a.size))]
+    return float(np.sqrt(np.mean(a * a) / 6.0))
+
+
+def noise_sigma(sigs: Sequence[LogSignals]) -> float:
+    """Raw torque-noise standard deviation over several logs (pooled by sample count), N·m."""
+    v = [raw_noise_sigma(s.tau_raw) ** 2 for s in sigs]
+    w = [s.n for s in sigs]
+    return float(np.sqrt(np.average(v, weights=w)))
+
+
+def row_noise_gain(sig: LogSignals) -> np.ndarray:
+    """White-noise power gain of the comparison at every compared row (standstill samples are
+    zeroed before filtering, so rows next to a stop get slightly less noise)."""
+    n = 1024
+    imp = np.zeros(2 * n + 1)
+    imp[n] = 1.0
+    h = sig.filt(imp)
+    w = np.ones(sig.n) if sig.weight is None else sig.weight
+    g = np.convolve(w, h * h, mode="same")
+    return g[sig.rows]
+
+
+def noise_floor(sigs: Sequence[LogSignals]) -> float:
+    """RMSE of a perfect model in the filtered comparison over the compared rows, N·m."""
+    num = den = 0.0
+    for s in sigs:
+        sig2 = raw_noise_sigma(s.tau_raw) ** 2
+        k = s.rows.size
+        if k == 0:
+            continue
+        num += sig2 * float(np.sum(row_noise_gain(s)))
+        den += k
+    return float(np.sqrt(num / den)) if den else 0.0

@@ -1,0 +1,113 @@
+"""PDF pages of a diagnosis: the table of steps, the residual against each effect's coordinate
+before and after it was added, and the residual spectrum before and after the whole workflow."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from kukaid.diagnose import candidates as C
+from kukaid.diagnose.model import DiagModel
+from kukaid.diagnose.workflow import Diagnosis
+from kukaid.io.atomic import atomic_path
+
+
+def _binned(x: np.ndarray, y: np.ndarray, bins: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if x.size < 2 or np.ptp(x) == 0:
+        return np.zeros(0), np.zeros(0)
+    edges = np.linspace(x.min(), x.max(), bins + 1)
+    k = np.clip(np.digitize(x, edges) - 1, 0, bins - 1)
+    cnt = np.bincount(k, minlength=bins)
+    s = np.bincount(k, weights=y, minlength=bins)
+    m = cnt > 0
+    return 0.5 * (edges[:-1] + edges[1:])[m], s[m] / cnt[m]
+
+
+def page_table(result: Diagnosis):
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(8.27, 11.69))
+    fig.text(0.05, 0.96, "kukaid diagnose: the gap and the effects found", fontsize=14, weight="bold")
+    lines = result.lines()
+    y = 0.92
+    for ln in lines:
+        fig.text(0.05, y, ln, fontsize=8, family="monospace")
+        y -= 0.022
+    if result.steps:
+        cols = ["step", "effect", "RMSE before", "RMSE after", "gap closed", "Wald", "p (corr.)"]
+        cells = [[str(i + 1), s.name, f"{s.rmse_before:.4g}", f"{s.rmse_after:.4g}", f"{100 * s.gap_closed:.0f} %",
+                  f"{s.test.wald.stat:.1f}", f"{s.test.p_adjusted:.2g}"] for i, s in enumerate(result.steps)]
+        ax = fig.add_axes([0.05, 0.05, 0.9, max(0.05, y - 0.1)])
+        ax.axis("off")
+        ax.table(cellText=cells, colLabels=cols, loc="upper center")
+    return fig
+
+
+def _residual_rows(model: DiagModel, result: Diagnosis):
+    return [model.residual(s) for s in result.sigs]
+
+
+def page_step(result: Diagnosis, k: int):
+    import matplotlib.pyplot as plt
+
+    step = result.steps[k]
+    cand = C.get(step.name)
+    nl = step.test.nl
+    fig, axes = plt.subplots(2, 1, figsize=(8.27, 11.69), sharex=True)
+    for ax, model, label in ((axes[0], step.model_before, "before"), (axes[1], step.model_after, "after")):
+        xs, rs = [], []
+        for s in result.sigs:
+            x, xlabel = cand.coordinate(s, nl)
+            xs.append(x[s.rows])
+            rs.append(model.residual(s))
+        x = np.concatenate(xs)
+        r = np.concatenate(rs)
+        ax.plot(x, r, ".", ms=1.5, alpha=0.4, label="residual (measured - predicted)")
+        bx, by = _binned(x, r)
+        ax.plot(bx, by, "-", lw=2, color="C3", label="binned mean")
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_ylabel("torque residual (N*m)")
+        ax.set_title(f"{label} adding {step.name}: RMSE {np.sqrt(np.mean(r * r)):.4g} N*m")
+        ax.legend(loc="upper right", fontsize=8)
+        ax.set_xlabel(xlabel)
+    fig.suptitle(f"step {k + 1}: {step.name} - {cand.meaning}", fontsize=11)
+    return fig
+
+
+def page_spectrum(result: Diagnosis):
+    import matplotlib.pyplot as plt
+    from scipy.signal import welch
+
+    fig, ax = plt.subplots(figsize=(8.27, 5.8))
+    for model, label in ((result.model_given, "given model"), (result.model_final, "after diagnosis")):
+        ps, f = [], None
+        for s in result.sigs:
+            full = np.zeros(s.n)
+            full[s.rows] = model.residual(s)
+            f, p = welch(full, fs=s.fs, nperseg=min(512, s.n))
+            ps.append(p)
+        ax.semilogy(f, np.mean(ps, axis=0), label=label)
+    ax.axvline(result.sigs[0].cutoff, color="k", ls=":", lw=0.8, label="filter cut-off")
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("residual PSD ((N*m)^2/Hz)")
+    ax.set_title(f"residual spectrum; noise floor {result.noise_floor:.3g} N*m RMS")
+    ax.legend()
+    return fig
+
+
+def write_report(result: Diagnosis, path: str | Path) -> None:
+    """Write the diagnosis pages to ``path`` (PDF, atomically)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    figs = [page_table(result)] + [page_step(result, k) for k in range(len(result.steps))] + [page_spectrum(result)]
+    with atomic_path(path) as tmp:
+        with PdfPages(tmp) as pdf:
+            for fig in figs:
+                pdf.savefig(fig)
+                plt.close(fig)

@@ -1,0 +1,215 @@
+"""Signals of one logged axis as the diagnosis compares them with a model.
+
+The comparison filters *both sides* with the same zero-phase Butterworth filter: the measured
+torque, and every model term (rigid body, friction, candidate effect) evaluated on the full sample
+grid.  A friction jump at a velocity reversal is then smoothed identically in the measurement and
+in the prediction, so the residual of a correct model is filtered measurement noise only, and its
+level (the noise floor) follows from the raw noise and the filter's noise gain.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from kukaid.errors import LogFormatError
+
+
+@dataclass(frozen=True, eq=False)
+class LogSignals:
+    """One axis of one log on its full sample grid, with the filter used for the comparison.
+
+    Attributes
+    ----------
+    time : (N,) s.   q_raw : (N,) rad (m), measured position.   tau_raw : (N,) N·m (N).
+    q, qd, qdd : (N,) filtered position (rad), velocity (rad/s), acceleration (rad/s²).
+    qd_lin, qdd_lin : (N,) unfiltered spectral derivatives of q_raw: the columns of terms linear
+        in velocity or acceleration (filtered once, like the torque, in the comparison).
+    temp : (N,) °C or None.
+    rows : indices of the samples compared (dynamic mode, away from the log's ends).
+    joint : "revolute" or "prismatic".   fs : sample rate, Hz.   cutoff : filter cut-off, Hz.
+    name : label of the log (file name).
+    """
+
+    time: np.ndarray
+    q_raw: np.ndarray
+    tau_raw: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    temp: np.ndarray | None
+    rows: np.ndarray
+    joint: str
+    fs: float
+    cutoff: float
+    order: int
+    name: str = "log"
+    lowpass: Any = field(default=None, repr=False)
+    qd_lin: np.ndarray | None = field(default=None, repr=False)
+    qdd_lin: np.ndarray | None = field(default=None, repr=False)
+    weight: np.ndarray | None = field(default=None, repr=False)
+
+    def filtw(self, x: np.ndarray) -> np.ndarray:
+        """Filter after zeroing the standstill samples (where the sliding model does not apply).
+
+        Both the measured torque and every model column go through this, so a standstill sample
+        contributes nothing to either side and cannot leak a model error into its neighbours.
+        """
+        x = np.asarray(x, dtype=float)
+        return self.filt(x if self.weight is None else x * self.weight)
+
+    def filt(self, x: np.ndarray) -> np.ndarray:
+        """The comparison filter (zero-phase Butterworth) applied to a full-grid signal."""
+        x = np.asarray(x, dtype=float)
+        return x if self.lowpass is None else self.lowpass(x)
+
+    @property
+    def tau(self) -> np.ndarray:
+        """Filtered measured torque (standstill samples zeroed) on the full grid, N·m."""
+        return self.filtw(self.tau_raw)
+
+    @property
+    def n(self) -> int:
+        return int(self.time.size)
+
+    @property
+    def elapsed(self) -> np.ndarray:
+        """Time since the log started, s."""
+        return self.time - self.time[0]
+
+
+def noise_gain(sig: LogSignals) -> float:
+    """Power gain of the comparison filter for white noise (variance out / variance in)."""
+    n = 4096
+    imp = np.zeros(n)
+    imp[n // 2] = 1.0
+    h = sig.filt(imp)
+    return float(np.sum(h * h))
+
+
+def spectral(x: np.ndarray, fs: float, cutoff: float | None, order: int, derivative: int = 0) -> np.ndarray:
+    """Zero-phase Butterworth low-pass (and/or exact spectral derivative) of ``x``.
+
+    The forward-backward Butterworth filter of order N has the zero-phase response
+    |H(f)|² = 1 / (1 + (tan(pi f/fs) / tan(pi fc/fs))^(2N)); it is applied by FFT to the signal
+    extended at both ends by odd reflection, with the straight line through the extended ends
+    removed first (no jump in the periodic extension).  ``derivative`` k multiplies by (j 2 pi f)^k:
+    the exact derivative of the band-limited signal.  ``cutoff=None``: no filtering.
+    """
+    x = np.asarray(x, dtype=float)
+    n = x.size
+    pad = min(n - 1, int(np.ceil(8.0 * fs / (cutoff or fs / 10.0))))
+    if pad > 0:
+        x = np.r_[2 * x[0] - x[pad:0:-1], x, 2 * x[-1] - x[-2:-pad - 2:-1]]
+    m = x.size
+    slope = (x[-1] - x[0]) / (m - 1) if m > 1 else 0.0
+    line = x[0] + slope * np.arange(m)
+    f = np.fft.rfftfreq(m, d=1.0 / fs)
+    X = np.fft.rfft(x - line)
+    if cutoff:
+        ratio = np.tan(np.pi * np.minimum(f, 0.5 * fs * (1 - 1e-12)) / fs) / np.tan(np.pi * cutoff / fs)
+        X = X / (1.0 + ratio ** (2 * int(order)))
+    if derivative:
+        X = X * (2j * np.pi * f) ** derivative
+    y = np.fft.irfft(X, n=m)[pad:pad + n]
+    if derivative == 0:
+        y = y + line[pad:pad + n]
+    elif derivative == 1:
+        y = y + slope * fs
+    return y
+
+
+def filter_defaults(fs: float) -> dict[str, float]:
+    """Filter settings by sample rate, as identification chooses them: order 3 at 5 Hz up to
+    250 Hz (the paper, KR C4 at 83 Hz), else order 4 at fs/10 (the EMPS recipe)."""
+    if fs <= 250.0:
+        return {"order": 3, "cutoff": 5.0}
+    return {"order": 4, "cutoff": fs / 10.0}
+
+
+def reversal_distance(t: np.ndarray, qd: np.ndarray, qd_thr: float) -> np.ndarray:
+    """Time (s) from every sample to the nearest slow sample (|qd| < qd_thr) or velocity sign change."""
+    quasi = np.abs(qd) < qd_thr
+    flip = np.flatnonzero(np.sign(qd[1:]) * np.sign(qd[:-1]) < 0)
+    ev = np.sort(np.r_[t[quasi], 0.5 * (t[flip] + t[flip + 1])])
+    if ev.size == 0:
+        return np.full(t.size, np.inf)
+    j = np.searchsorted(ev, t)
+    left = np.where(j > 0, t - ev[np.maximum(j - 1, 0)], np.inf)
+    right = np.where(j < ev.size, ev[np.minimum(j, ev.size - 1)] - t, np.inf)
+    return np.minimum(np.abs(left), np.abs(right))
+
+
+def _dilate(mask: np.ndarray, k: int) -> np.ndarray:
+    """Boolean mask grown by ``k`` samples on both sides."""
+    if k <= 0 or not mask.any():
+        return mask
+    c = np.convolve(mask.astype(float), np.ones(2 * k + 1), mode="same")
+    return c > 0.5
+
+
+def prepare(log: Any, axis: int | None = None, cutoff: float | None = None, order: int | None = None,
+            qd_thr: float = 0.0017, reversal_window: float | None = None, edge: int | None = None,
+            still_guard: float | None = None, name: str | None = None) -> LogSignals:
+    """Filter one axis of an :class:`~kukaid.io.axislog.AxisLog` for the comparison.
+
+    The samples compared are dynamic-mode samples as identification selects them:
+    ``|qd| >= qd_thr``, ``edge`` samples away from the log's ends, and at least
+    ``reversal_window`` s from any reversal, start or stop (there the joint is in pre-sliding and
+    the filtered friction jump is smeared: the sliding model does not hold).
+
+    Parameters
+    ----------
+    log : AxisLog.   axis : KUKA axis number (default: the log's only or first axis).
+    cutoff : Butterworth cut-off, Hz; order : filter order (default from the sample rate, see
+        :func:`filter_defaults`).
+    qd_thr : velocity threshold of the dynamic mode, rad/s (m/s).
+    reversal_window : s, compared rows keep this distance from standstill samples (default
+        0.5 / cutoff).   edge : samples (default ceil(5 fs / cutoff)).
+    still_guard : s; standstill (|qd| < qd_thr) and velocity sign changes are grown by this much
+        on both sides (pre-sliding) and zeroed before the comparison filter (default 0.25 / cutoff).
+    """
+    import math
+
+    if axis is None:
+        axis = log.axes[0]
+    where = log.attrs.get("source_file", name or "log")
+    j = log.index(axis)
+    t = np.asarray(log.time, dtype=float)
+    q_raw = np.asarray(log.q[:, j], dtype=float)
+    tau_raw = np.asarray(log.tau[:, j], dtype=float)
+    temp = None if log.temp is None else np.asarray(log.temp[:, j], dtype=float)
+    joint = log.joint[j] if log.joint else "revolute"
+    n = t.size
+    fs = 1.0 / float(np.median(np.diff(t)))
+    d = filter_defaults(fs)
+    cutoff = float(d["cutoff"] if cutoff is None else cutoff)
+    order = int(d["order"] if order is None else order)
+    if not 0 < cutoff < 0.9 * fs / 2:
+        raise LogFormatError(f"{where}: filter cut-off {cutoff:g} Hz must be in (0, {0.45 * fs:.4g}) Hz "
+                             f"(0.9 x Nyquist at {fs:.4g} Hz)")
+    edge = int(math.ceil(5.0 * fs / cutoff)) if edge is None else int(edge)
+    if n < max(2 * edge + 32, 64):
+        raise LogFormatError(f"{where}: only {n} samples; the diagnosis needs at least {max(2 * edge + 32, 64)} "
+                             f"at {fs:.4g} Hz with a {cutoff:g} Hz filter")
+    filt = lambda x: spectral(x, fs, cutoff, order)  # noqa: E731
+    qf = filt(q_raw)
+    qd = spectral(q_raw, fs, cutoff, order, 1)
+    qdd = spectral(q_raw, fs, cutoff, order, 2)
+    qd_lin = spectral(q_raw, fs, None, order, 1)
+    qdd_lin = spectral(q_raw, fs, None, order, 2)
+    rw = 0.5 / cutoff if reversal_window is None else float(reversal_window)
+    still_guard = 0.25 / cutoff if still_guard is None else float(still_guard)
+    v_raw = np.convolve(np.gradient(q_raw, t), np.ones(3) / 3.0, mode="same")
+    still = (np.abs(qd) < qd_thr) | (np.abs(v_raw) < qd_thr)
+    flip = np.r_[np.sign(qd[1:]) * np.sign(qd[:-1]) < 0, False]
+    still = _dilate(still | flip | np.r_[False, flip[:-1]], max(1, int(round(still_guard * fs))))
+    weight = (~still).astype(float)
+    keep = np.zeros(n, bool)
+    keep[edge:n - edge] = True
+    keep &= ~still
+    keep &= reversal_distance(t, np.where(still, 0.0, qd), qd_thr) >= rw
+    rows = np.flatnonzero(keep)
+    return LogSignals(t, q_raw, tau_raw, qf, qd, qdd, temp, rows, joint, fs, cutoff, order, name or str(where),
+                      filt, qd_lin, qdd_lin, weight)

@@ -1,0 +1,396 @@
+"""Compare -> find -> add and refit -> repeat: the discrepancy workflow of ``kukaid diagnose``.
+
+1. **Compare**: predict the measured torque of every log with the model of the parameter file
+   (inverse dynamics, both sides through the same zero-phase filter) and measure the gap: RMSE,
+   RMSE against the noise floor estimated from the data, relative error ||tau - tau_hat|| / ||tau||.
+2. **Find**: refit the model as it is, then test the residual against every candidate effect that
+   applies (HAC Wald test on rows decimated to the filter bandwidth, the model's Jacobian
+   partialled out, Bonferroni over a candidate's grid, Holm over the candidates) and require a
+   minimum effect size against the noise.  The significant candidate that removes the most residual
+   is named, unless another significant candidate explains the same thing (each one is no longer
+   significant given the other): then the two are reported as ambiguous and nothing is guessed.
+3. **Add and refit** all parameters jointly with the effect; repeat until nothing is significant.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from kukaid.diagnose import candidates as C
+from kukaid.diagnose import selection as S
+from kukaid.diagnose.model import DiagModel, _finite
+from kukaid.diagnose.noise import noise_floor, noise_sigma
+from kukaid.diagnose.signals import LogSignals, prepare
+from kukaid.errors import FitError, KukaidError
+
+
+@dataclass
+class CandidateTest:
+    """The evidence for one candidate in one round."""
+
+    name: str
+    nl: dict
+    wald: S.WaldResult
+    n_effective: float
+    p_candidate: float          # corrected for the candidate's own grid
+    p_adjusted: float = 1.0     # also corrected for the number of candidates (Holm)
+    effect_rms: float = 0.0     # RMS of the torque of the fitted term, N·m
+    significant: bool = False
+    reason: str = ""
+
+    def evidence(self) -> dict[str, Any]:
+        return _finite({
+            "test": "HAC Wald (Bartlett, Andrews bandwidth), decimated rows",
+            "statistic": float(self.wald.stat), "dof": int(self.wald.dof),
+            "p_value": float(self.p_adjusted), "p_uncorrected": float(self.wald.p_value),
+            "n_effective_options": float(self.n_effective), "bandwidth": int(self.wald.bandwidth),
+            "effect_rms": float(self.effect_rms),
+            "rss_share": float(self.wald.delta_rss / self.wald.rss) if self.wald.rss > 0 else 0.0,
+        })
+
+
+@dataclass
+class Step:
+    """One effect added: its parameters, the gap before and after, the evidence."""
+
+    name: str
+    params: dict
+    rmse_before: float
+    rmse_after: float
+    test: CandidateTest
+    gap_closed: float
+    rel_before: float
+    rel_after: float
+    model_before: DiagModel = field(repr=False, default=None)
+    model_after: DiagModel = field(repr=False, default=None)
+
+    def to_json(self) -> dict[str, Any]:
+        ev = self.test.evidence()
+        ev["share_of_gap_closed"] = float(self.gap_closed)
+        return _finite({"name": self.name, "params": self.params, "rmse_before": float(self.rmse_before),
+                        "rmse_after": float(self.rmse_after), "evidence": ev})
+
+
+@dataclass
+class Diagnosis:
+    """Result of :func:`diagnose`.  ``to_json()`` gives the documented JSON; ``lines()`` the text."""
+
+    steps: list[Step]
+    rmse_before: float
+    rmse_after: float
+    noise_floor: float
+    noise_sigma: float
+    ambiguous: list[dict]
+    params: dict
+    rel_before: float
+    rel_after: float
+    rmse_refit: float
+    last_round: list[CandidateTest]
+    sigs: list[LogSignals] = field(repr=False, default_factory=list)
+    model_given: DiagModel = field(repr=False, default=None)
+    model_final: DiagModel = field(repr=False, default=None)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def names(self) -> list[str]:
+        return [s.name for s in self.steps]
+
+    def __iter__(self):  # unpacks as ``steps, params = diagnose(...)``
+        return iter((self.steps, self.params))
+
+    def to_json(self) -> dict[str, Any]:
+        return _finite({"effects": [s.to_json() for s in self.steps], "rmse_before": float(self.rmse_before),
+                        "rmse_after": float(self.rmse_after), "noise_floor": float(self.noise_floor),
+                        "ambiguous": self.ambiguous})
+
+    def lines(self) -> list[str]:
+        """Human-readable summary, one string per line."""
+        u = "N" if self.sigs and self.sigs[0].joint == "prismatic" else "N*m"
+        out = [f"gap before: RMSE {self.rmse_before:.4g} {u} = {self.rmse_before / self.noise_floor:.2f} x noise "
+               f"floor {self.noise_floor:.4g} {u} (raw torque noise {self.noise_sigma:.4g} {u}); relative error "
+               f"{100 * self.rel_before:.2f} %" if self.noise_floor > 0 else
+               f"gap before: RMSE {self.rmse_before:.4g} {u}; relative error {100 * self.rel_before:.2f} %"]
+        if abs(self.rmse_refit - self.rmse_before) > 1e-3 * max(self.rmse_before, 1e-12):
+            out.append(f"refit without new effects: RMSE {self.rmse_refit:.4g} {u}")
+        for i, s in enumerate(self.steps, 1):
+            ev = s.test
+            par = ", ".join(_fmt_param(k, v, s.params.get("std", {}).get(k)) for k, v in s.params.items()
+                            if k not in ("model", "std", "stored_as", "unit"))
+            out.append(f"step {i}: {s.name} ({C.get(s.name).meaning})")
+            out.append(f"    parameters: {par}")
+            out.append(f"    RMSE {s.rmse_before:.4g} -> {s.rmse_after:.4g} {u}, {100 * s.gap_closed:.0f} % of the "
+                       f"gap to the noise floor closed; relative error {100 * s.rel_before:.2f} % -> "
+                       f"{100 * s.rel_after:.2f} %")
+            out.append(f"    evidence: HAC Wald {ev.wald.stat:.1f} (dof {ev.wald.dof}), corrected p = "
+                       f"{ev.p_adjusted:.2g}, effect RMS {ev.effect_rms:.3g} {u}")
+        for a in self.ambiguous:
+            out.append(f"ambiguous: {' or '.join(a['candidates'])} explain the same residual ({a['reason']}); "
+                       "not guessing")
+        if not self.steps and not self.ambiguous:
+            out.append("no effect is missing: no candidate is significant against the noise")
+        out.append(f"gap after: RMSE {self.rmse_after:.4g} {u}"
+                   + (f" = {self.rmse_after / self.noise_floor:.2f} x noise floor" if self.noise_floor > 0 else "")
+                   + f"; relative error {100 * self.rel_after:.2f} %")
+        out += [f"note: {n}" for n in self.notes]
+        return out
+
+
+def _fmt_param(k: str, v: Any, sd: Any) -> str:
+    if isinstance(v, float):
+        return f"{k} = {v:.4g}" + (f" +/- {sd:.2g}" if isinstance(sd, float) and math.isfinite(sd) else "")
+    return f"{k} = {v}"
+
+
+# -- helpers ---------------------------------------------------------------------------------
+def decimation(sig: LogSignals) -> np.ndarray:
+    """Positions (into the compared rows) kept for the tests: one per ~1/(2.5 cutoff) s."""
+    d = max(1, int(sig.fs / (2.5 * sig.cutoff))) if sig.cutoff > 0 else 1
+    return np.flatnonzero(sig.rows % d == 0)
+
+
+def rmse_of(model: DiagModel, sigs: Sequence[LogSignals]) -> tuple[float, float]:
+    """(RMSE, relative error ||tau - tau_hat|| / ||tau||) of the filtered comparison."""
+    r = np.concatenate([model.residual(s) for s in sigs])
+    y = np.concatenate([s.filtw(s.tau_raw)[s.rows] for s in sigs])
+    ny = float(np.linalg.norm(y))
+    return float(np.sqrt(np.mean(r * r))), (float(np.linalg.norm(r)) / ny if ny > 0 else math.nan)
+
+
+class _Round:
+    """Residual, Jacobian basis and filtered candidate columns on the decimated rows."""
+
+    def __init__(self, model: DiagModel, sigs: Sequence[LogSignals]):
+        self.model, self.sigs = model, sigs
+        self.dec = [decimation(s) for s in sigs]
+        self.r = np.concatenate([model.residual(s)[d] for s, d in zip(sigs, self.dec)])
+        Js = []
+        for s, d in zip(sigs, self.dec):
+            self.names, J = model.design(s)
+            Js.append(J[d])
+        self.J = np.vstack(Js)
+        self.U = S.basis(self.J)
+        self.groups = np.concatenate([np.full(d.size, i) for i, d in enumerate(self.dec)])
+        self.rp = S.partial_out(self.U, self.r[:, None])[:, 0]
+
+    def columns(self, cand: C.Candidate, nl: dict, filtered: bool = True) -> np.ndarray:
+        out = []
+        for s, d in zip(self.sigs, self.dec):
+            Z = cand.columns(s, nl, self.model)
+            if filtered:
+                Z = np.column_stack([s.filtw(Z[:, k]) for k in range(Z.shape[1])])
+            out.append(Z[s.rows][d])
+        return np.vstack(out)
+
+    def delta_rss(self, Z: np.ndarray) -> float:
+        Zp = S.partial_out(self.U, Z)
+        b, *_ = np.linalg.lstsq(Zp, self.rp, rcond=None)
+        f = Zp @ b
+        return float(2 * f @ self.rp - f @ f)
+
+    def best_option(self, cand: C.Candidate) -> tuple[dict, np.ndarray]:
+        opts = cand.options(self.sigs, self.model)
+        if len(opts) > 24:  # prescan without the filter (cheap), refine the best few with it
+            scores = [self.delta_rss(self.columns(cand, o, filtered=False)) for o in opts]
+            top = np.argsort(scores)[::-1][:6]
+            opts_f = [opts[i] for i in top]
+        else:
+            opts_f = opts
+        scored = [(self.delta_rss(Z), o, Z) for o in opts_f for Z in [self.columns(cand, o)]]
+        dr, best, Z = max(scored, key=lambda x: x[0])
+        if "n" in best and len(opts) > 1:  # refine a continuous order by golden-section search
+            step = abs(opts[1]["n"] - opts[0]["n"])
+            best, Z = self._refine_n(cand, best, step, opts[0]["n"], opts[-1]["n"])
+        return best, Z
+
+    def _refine_n(self, cand, best, step, lo, hi):
+        a, b = max(best["n"] - step, lo), min(best["n"] + step, hi)
+        g = (math.sqrt(5) - 1) / 2
+        f = lambda n: -self.delta_rss(self.columns(cand, {**best, "n": n}))  # noqa: E731
+        c, d = b - g * (b - a), a + g * (b - a)
+        fc, fd = f(c), f(d)
+        for _ in range(14):
+            if fc < fd:
+                b, d, fd = d, c, fc
+                c = b - g * (b - a)
+                fc = f(c)
+            else:
+                a, c, fc = c, d, fd
+                d = a + g * (b - a)
+                fd = f(d)
+        n = c if fc < fd else d
+        if -min(fc, fd) < self.delta_rss(self.columns(cand, best)):
+            n = best["n"]
+        nl = {**best, "n": float(n)}
+        return nl, self.columns(cand, nl)
+
+    def test(self, cand: C.Candidate) -> CandidateTest:
+        nl, Z = self.best_option(cand)
+        w = S.wald_test(self.r, Z, self.groups, self.U)
+        m = cand.n_effective(self.sigs, cand.options(self.sigs, self.model))
+        # size of the effect: the torque the fitted term adds (not only its part the model cannot mimic)
+        rms = float(np.sqrt(np.mean((Z @ w.coef) ** 2))) if Z.size else 0.0
+        t = CandidateTest(cand.name, nl, w, m, S.bonferroni(w.p_value, m), effect_rms=rms)
+        t._Z = Z  # kept for the ambiguity check
+        return t
+
+    def conditional_p(self, a: CandidateTest, b: CandidateTest) -> float:
+        """p-value of candidate a given the model and candidate b."""
+        U = S.basis(np.column_stack([self.J, b._Z]))
+        return S.wald_test(self.r, a._Z, self.groups, U).p_value
+
+
+def hac_std(model: DiagModel, sigs: Sequence[LogSignals]) -> dict[str, float]:
+    """HAC standard deviations of every parameter of ``model`` (decimated rows), SI."""
+    rd = _Round(model, sigs)
+    J, e = rd.J, rd.r
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0] = 1.0
+    Js = J / scale
+    A = np.linalg.pinv(Js.T @ Js)
+    scores = Js * e[:, None]
+    L = S.andrews_bandwidth(scores, rd.groups)
+    V = A @ S.hac_meat(scores, rd.groups, L) @ A
+    sd = np.sqrt(np.clip(np.diag(V), 0, None)) / scale
+    return dict(zip(rd.names, (float(x) for x in sd)))
+
+
+# -- the workflow ----------------------------------------------------------------------------
+def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float = 0.01, min_effect: float = 0.15,
+                     max_steps: int = 4, candidates: Sequence[str] | None = None) -> Diagnosis:
+    """Run the workflow on prepared signals (see :func:`diagnose`)."""
+    if not sigs:
+        raise KukaidError("diagnose needs at least one log")
+    if sum(s.rows.size for s in sigs) < 50:
+        raise FitError("fewer than 50 dynamic-mode samples in the logs: the axis barely moves; nothing to diagnose")
+    joint = sigs[0].joint
+    given = DiagModel.from_params(params, joint)
+    rmse0, rel0 = rmse_of(given, sigs)
+    floor = noise_floor(sigs)
+    sigma = noise_sigma(sigs)
+    model = given.refit(sigs)
+    model.std = hac_std(model, sigs)
+    rmse_r, rel_r = rmse_of(model, sigs)
+    names = list(candidates) if candidates is not None else list(C.NAMES)
+    for n in names:
+        C.get(n)
+    steps: list[Step] = []
+    ambiguous: list[dict] = []
+    notes = [f"effect '{n}' in the parameter file is not in the diagnosis format; ignored" for n in given.ignored_effects]
+    added: list[str] = []
+    cur_rmse, cur_rel = rmse_r, rel_r
+    tests: list[CandidateTest] = []
+    for _ in range(max_steps):
+        rd = _Round(model, sigs)
+        tests = []
+        for n in names:
+            cand = C.get(n)
+            ok, why = cand.applies(sigs, model)
+            if not ok or n in added:
+                continue
+            tests.append(rd.test(cand))
+        if not tests:
+            break
+        adj = S.holm({t.name: t.p_candidate for t in tests})
+        for t in tests:
+            t.p_adjusted = adj[t.name]
+            big = t.effect_rms >= min_effect * sigma
+            t.significant = t.p_adjusted < alpha and big
+            t.reason = ("significant" if t.significant else
+                        "not significant" if t.p_adjusted >= alpha else
+                        f"effect RMS below {min_effect:g} x noise")
+        sig_tests = sorted([t for t in tests if t.significant], key=lambda t: -t.wald.delta_rss)
+        if not sig_tests:
+            break
+        best = sig_tests[0]
+        # two significant candidates "explain the same thing" when each loses its significance
+        # given the other; if the best one is in such a pair, nothing is guessed
+        amb = []
+        for i, a in enumerate(sig_tests):
+            for b in sig_tests[i + 1:]:
+                p_ab = rd.conditional_p(a, b)
+                p_ba = rd.conditional_p(b, a)
+                if p_ab >= alpha and p_ba >= alpha:
+                    amb.append({"candidates": [a.name, b.name],
+                                "reason": f"each loses significance given the other (p = {p_ab:.2g}, {p_ba:.2g})"})
+        if any(best.name in x["candidates"] for x in amb):
+            ambiguous += amb
+            break
+        cand = C.get(best.name)
+        coefs = dict(zip(cand.coef_names, best.wald.coef))
+        new = model.with_effect(best.name, best.nl, coefs).refit(sigs)
+        new.std = hac_std(new, sigs)
+        r_after, rel_after = rmse_of(new, sigs)
+        gap = cur_rmse - floor
+        closed = (cur_rmse - r_after) / gap if gap > 0 else 0.0
+        added.append(best.name)
+        if cand.native:
+            coefs_new = {cand.native: new.lin[cand.native]}
+            std = {cand.native: new.std.get(cand.native, math.nan)}
+        else:
+            term = next(e for e in new.effects if e.name == best.name)
+            coefs_new = dict(term.coefs)
+            std = {c: new.std.get(term.key(c), math.nan) for c in term.coefs}
+        best.nl = dict(next((e.nl for e in new.effects if e.name == best.name), best.nl))
+        desc = _finite(cand.describe(best.nl, coefs_new, std, new))
+        steps.append(Step(best.name, desc, cur_rmse, r_after, best, closed, cur_rel, rel_after, model, new))
+        model, cur_rmse, cur_rel = new, r_after, rel_after
+    out_params = model.to_params(params, added)
+    prov = dict(out_params.get("provenance") or {})
+    prov["diagnose"] = {"effects_added": added, "rmse_before": rmse0, "rmse_after": cur_rmse, "noise_floor": floor}
+    out_params["provenance"] = _finite(prov)
+    return Diagnosis(steps, rmse0, cur_rmse, floor, sigma, ambiguous, out_params, rel0, cur_rel, rmse_r, tests,
+                     list(sigs), given, model, notes)
+
+
+def preprocess_settings(params: dict) -> dict:
+    """Filter settings of the fit that produced ``params`` (provenance), else None (defaults by
+    sample rate: the paper's 5 Hz, 3rd order at the KR C4's 83 Hz)."""
+    prov = params.get("provenance") or {}
+    pre = prov.get("preprocess") if isinstance(prov.get("preprocess"), dict) else {}
+    out = {"cutoff": float(pre["cutoff"]) if "cutoff" in pre else None,
+           "order": int(pre["order"]) if "order" in pre else None}
+    out["qd_thr"] = float((params.get("mode_switch") or {}).get("qd_thr", pre.get("qd_thr", 0.0017)))
+    return out
+
+
+def diagnose(params: dict, logs: Sequence[Any], axis: int | None = None, *, cutoff: float | None = None,
+             order: int | None = None, qd_thr: float | None = None, alpha: float = 0.01,
+             min_effect: float = 0.15, max_steps: int = 4, candidates: Sequence[str] | None = None) -> Diagnosis:
+    """Find the effects the model of ``params`` misses in ``logs``, add them, refit.
+
+    Parameters
+    ----------
+    params : a validated ``kukaid.params/1`` dictionary.
+    logs : AxisLog objects (one or several experiments of the same axis).
+    axis : KUKA axis number (default: the parameter file's, else the logs' first).
+    cutoff, order, qd_thr : comparison filter (Hz), its order, dynamic-mode threshold (rad/s);
+        default: the fit's settings from the parameter file, else 5 Hz, 3, 0.0017 rad/s.
+    alpha : family-wise false-alarm probability per round (Holm over candidates).
+    min_effect : smallest effect worth naming, as RMS torque over the raw torque-noise sigma.
+    max_steps : at most this many effects are added.
+    candidates : restrict the library to these names.
+
+    Returns
+    -------
+    Diagnosis, with ``steps``, ``rmse_before``/``rmse_after`` (N·m), ``noise_floor`` (N·m),
+    ``ambiguous`` and the refined ``params``.
+    """
+    pre = preprocess_settings(params)
+    if cutoff is not None:
+        pre["cutoff"] = float(cutoff)
+    if order is not None:
+        pre["order"] = int(order)
+    if qd_thr is not None:
+        pre["qd_thr"] = float(qd_thr)
+    if axis is None:
+        axis = params.get("axis")
+    sigs = []
+    for i, log in enumerate(logs):
+        ax = axis if axis is not None and axis in log.axes else (log.axes[0] if axis is None else axis)
+        sigs.append(prepare(log, ax, cutoff=pre["cutoff"], order=pre["order"], qd_thr=pre["qd_thr"],
+                            name=str(log.attrs.get("source_file", f"log {i + 1}"))))
+    return diagnose_signals(params, sigs, alpha=alpha, min_effect=min_effect, max_steps=max_steps,
+                            candidates=candidates)

@@ -1,0 +1,81 @@
+"""`kukaid diagnose` end to end: JSON schema, refined parameter file, PDF report, errors."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from kukaid_cli.main import cli
+
+
+@pytest.fixture(scope="module")
+def case(tmp_path_factory):
+    from kukaid.diagnose.power import draw_effects, hidden_effect_logs, initial_fit
+    from kukaid.io.axislog import write_hdf5
+    from kukaid.io.params import save_params
+
+    d = tmp_path_factory.mktemp("diag")
+    effects = draw_effects({"position_ripple": 1.5}, np.random.default_rng(8))
+    logs = hidden_effect_logs(effects, seed=8, short=True)
+    paths = []
+    for k, log in enumerate(logs):
+        p = d / f"log{k}.h5"
+        write_hdf5(log, p)
+        paths.append(p)
+    params = d / "p.json"
+    save_params(params, initial_fit(logs))
+    return d, params, paths
+
+
+def args(params, paths, *more):
+    out = ["diagnose", "--params", str(params)]
+    for p in paths:
+        out += ["--log", str(p)]
+    return out + list(more)
+
+
+def test_json_schema_refined_file_and_report(case):
+    d, params, paths = case
+    refined, report = d / "refined.json", d / "diag.pdf"
+    r = CliRunner().invoke(cli, args(params, paths, "--json", "-o", str(refined), "--report", str(report)))
+    assert r.exit_code == 0, r.output
+    js = json.loads(r.stdout)
+    assert set(js) == {"effects", "rmse_before", "rmse_after", "noise_floor", "ambiguous"}
+    assert [e["name"] for e in js["effects"]] == ["position_ripple"]
+    e = js["effects"][0]
+    assert set(e) == {"name", "params", "rmse_before", "rmse_after", "evidence"}
+    assert e["rmse_after"] < e["rmse_before"] and js["rmse_after"] <= 1.15 * js["noise_floor"]
+    assert e["params"]["A"] == pytest.approx(1.5, rel=0.15)
+    assert e["evidence"]["p_value"] < 0.01
+    assert report.read_bytes()[:4] == b"%PDF"
+    # the refined file carries the effect; diagnosing it again finds nothing more
+    p2 = json.loads(refined.read_text())
+    assert p2["effects"]["position_ripple"]["n"] > 0
+    r2 = CliRunner().invoke(cli, args(refined, paths, "--json"))
+    assert r2.exit_code == 0, r2.output
+    js2 = json.loads(r2.stdout)
+    assert js2["effects"] == [] and js2["rmse_before"] <= 1.15 * js2["noise_floor"]
+
+
+def test_text_output(case):
+    d, params, paths = case
+    r = CliRunner().invoke(cli, args(params, paths, "--max-steps", "1"))
+    assert r.exit_code == 0, r.output
+    assert "step 1: position_ripple" in r.output and "gap after" in r.output
+
+
+def test_bad_inputs_give_one_line_errors(case, tmp_path):
+    d, params, paths = case
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"schema": "kukaid.params/1", "friction": {"Fc": 1}}')
+    r = CliRunner().invoke(cli, args(bad, paths))
+    assert r.exit_code == 1 and "kukaid: error:" in r.output and "Traceback" not in r.output
+    r = CliRunner().invoke(cli, args(params, [tmp_path / "missing.h5"]))
+    assert r.exit_code == 1 and "missing.h5" in r.output
+    r = CliRunner().invoke(cli, args(params, paths, "--axis", "5"))
+    assert r.exit_code == 1 and "A5" in r.output
+    out = tmp_path / "never.json"
+    r = CliRunner().invoke(cli, args(params, paths, "--alpha", "2", "-o", str(out)))
+    assert r.exit_code != 0 and not out.exists()
