@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from kukaid.errors import LogFormatError
+from kukaid.identify.filtering import filter_defaults, lowpass, reversal_distance
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,59 +89,6 @@ def noise_gain(sig: LogSignals) -> float:
     return float(np.sum(h * h))
 
 
-def spectral(x: np.ndarray, fs: float, cutoff: float | None, order: int, derivative: int = 0) -> np.ndarray:
-    """Zero-phase Butterworth low-pass (and/or exact spectral derivative) of ``x``.
-
-    The forward-backward Butterworth filter of order N has the zero-phase response
-    |H(f)|² = 1 / (1 + (tan(pi f/fs) / tan(pi fc/fs))^(2N)); it is applied by FFT to the signal
-    extended at both ends by odd reflection, with the straight line through the extended ends
-    removed first (no jump in the periodic extension).  ``derivative`` k multiplies by (j 2 pi f)^k:
-    the exact derivative of the band-limited signal.  ``cutoff=None``: no filtering.
-    """
-    x = np.asarray(x, dtype=float)
-    n = x.size
-    pad = min(n - 1, int(np.ceil(8.0 * fs / (cutoff or fs / 10.0))))
-    if pad > 0:
-        x = np.r_[2 * x[0] - x[pad:0:-1], x, 2 * x[-1] - x[-2:-pad - 2:-1]]
-    m = x.size
-    slope = (x[-1] - x[0]) / (m - 1) if m > 1 else 0.0
-    line = x[0] + slope * np.arange(m)
-    f = np.fft.rfftfreq(m, d=1.0 / fs)
-    X = np.fft.rfft(x - line)
-    if cutoff:
-        ratio = np.tan(np.pi * np.minimum(f, 0.5 * fs * (1 - 1e-12)) / fs) / np.tan(np.pi * cutoff / fs)
-        X = X / (1.0 + ratio ** (2 * int(order)))
-    if derivative:
-        X = X * (2j * np.pi * f) ** derivative
-    y = np.fft.irfft(X, n=m)[pad:pad + n]
-    if derivative == 0:
-        y = y + line[pad:pad + n]
-    elif derivative == 1:
-        y = y + slope * fs
-    return y
-
-
-def filter_defaults(fs: float) -> dict[str, float]:
-    """Filter settings by sample rate, as identification chooses them: order 3 at 5 Hz up to
-    250 Hz (the paper, KR C4 at 83 Hz), else order 4 at fs/10 (the EMPS recipe)."""
-    if fs <= 250.0:
-        return {"order": 3, "cutoff": 5.0}
-    return {"order": 4, "cutoff": fs / 10.0}
-
-
-def reversal_distance(t: np.ndarray, qd: np.ndarray, qd_thr: float) -> np.ndarray:
-    """Time (s) from every sample to the nearest slow sample (|qd| < qd_thr) or velocity sign change."""
-    quasi = np.abs(qd) < qd_thr
-    flip = np.flatnonzero(np.sign(qd[1:]) * np.sign(qd[:-1]) < 0)
-    ev = np.sort(np.r_[t[quasi], 0.5 * (t[flip] + t[flip + 1])])
-    if ev.size == 0:
-        return np.full(t.size, np.inf)
-    j = np.searchsorted(ev, t)
-    left = np.where(j > 0, t - ev[np.maximum(j - 1, 0)], np.inf)
-    right = np.where(j < ev.size, ev[np.minimum(j, ev.size - 1)] - t, np.inf)
-    return np.minimum(np.abs(left), np.abs(right))
-
-
 def _dilate(mask: np.ndarray, k: int) -> np.ndarray:
     """Boolean mask grown by ``k`` samples on both sides."""
     if k <= 0 or not mask.any():
@@ -193,12 +141,10 @@ def prepare(log: Any, axis: int | None = None, cutoff: float | None = None, orde
     if n < max(2 * edge + 32, 64):
         raise LogFormatError(f"{where}: only {n} samples; the diagnosis needs at least {max(2 * edge + 32, 64)} "
                              f"at {fs:.4g} Hz with a {cutoff:g} Hz filter")
-    filt = lambda x: spectral(x, fs, cutoff, order)  # noqa: E731
+    filt = lambda x: lowpass(x, fs, cutoff, order)[0]  # noqa: E731
     qf = filt(q_raw)
-    qd = spectral(q_raw, fs, cutoff, order, 1)
-    qdd = spectral(q_raw, fs, cutoff, order, 2)
-    qd_lin = spectral(q_raw, fs, None, order, 1)
-    qdd_lin = spectral(q_raw, fs, None, order, 2)
+    _, qd, qdd = lowpass(q_raw, fs, cutoff, order, 2)
+    _, qd_lin, qdd_lin = lowpass(q_raw, fs, None, order, 2)
     rw = 0.5 / cutoff if reversal_window is None else float(reversal_window)
     still_guard = 0.25 / cutoff if still_guard is None else float(still_guard)
     v_raw = np.convolve(np.gradient(q_raw, t), np.ones(3) / 3.0, mode="same")

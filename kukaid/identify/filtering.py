@@ -105,7 +105,7 @@ class Prepared:
         return float(self.settings["qd_thr"])
 
 
-def lowpass(x: np.ndarray, fs: float, cutoff: float, order: int, derivatives: int = 0) -> list[np.ndarray]:
+def lowpass(x: np.ndarray, fs: float, cutoff: float | None, order: int, derivatives: int = 0) -> list[np.ndarray]:
     """Zero-phase Butterworth low-pass of ``x`` (the forward-backward filter's response).
 
     A digital Butterworth filter of order N (bilinear transform, cut-off ``cutoff`` Hz) run
@@ -118,19 +118,22 @@ def lowpass(x: np.ndarray, fs: float, cutoff: float, order: int, derivatives: in
     scipy.signal (over a second), which keeps ``kukaid fit`` fast.
 
     Returns ``[filtered, d/dt filtered, ...]`` up to ``derivatives`` exact (spectral)
-    derivatives of the filtered signal, per second.
+    derivatives of the filtered signal, per second.  ``cutoff=None``: no filtering (only the
+    spectral derivatives).
     """
     x = np.asarray(x, dtype=float)
     n = x.size
-    pad = min(n - 1, int(math.ceil(8.0 * fs / cutoff)))
+    pad = min(n - 1, int(math.ceil(8.0 * fs / (cutoff or fs / 10.0))))
     if pad > 0:
         x = np.r_[2 * x[0] - x[pad:0:-1], x, 2 * x[-1] - x[-2:-pad - 2:-1]]
     m = x.size
     slope = (x[-1] - x[0]) / (m - 1) if m > 1 else 0.0
     line = x[0] + slope * np.arange(m)
     f = np.fft.rfftfreq(m, d=1.0 / fs)
-    ratio = np.tan(np.pi * np.minimum(f, 0.5 * fs * (1 - 1e-12)) / fs) / np.tan(np.pi * cutoff / fs)
-    X = np.fft.rfft(x - line) / (1.0 + ratio ** (2 * int(order)))
+    X = np.fft.rfft(x - line)
+    if cutoff:
+        ratio = np.tan(np.pi * np.minimum(f, 0.5 * fs * (1 - 1e-12)) / fs) / np.tan(np.pi * cutoff / fs)
+        X = X / (1.0 + ratio ** (2 * int(order)))
     out = [np.fft.irfft(X, n=m)[pad:pad + n] + line[pad:pad + n]]
     jw = 2j * np.pi * f
     for k in range(1, derivatives + 1):
@@ -142,7 +145,7 @@ def lowpass(x: np.ndarray, fs: float, cutoff: float, order: int, derivatives: in
     return out
 
 
-def _reversal_distance(t: np.ndarray, qd: np.ndarray, qd_thr: float) -> np.ndarray:
+def reversal_distance(t: np.ndarray, qd: np.ndarray, qd_thr: float) -> np.ndarray:
     """Time (s) from every sample to the nearest velocity reversal, start or stop (inf if none).
 
     Events are the quasi-static samples (``|qd| < qd_thr``: stops, starts, slow reversals) and
@@ -236,7 +239,7 @@ def preprocess(log: Any, axis: int | None = None, cutoff: float | None = None, o
     t_k = t[rows]
     qd_k = qd[rows]
     quasi = np.abs(qd_k) < qd_thr
-    dist = _reversal_distance(t, qd, qd_thr)[rows]
+    dist = reversal_distance(t, qd, qd_thr)[rows]
     dynamic = (~quasi) & (dist >= rw)
     plateau = dynamic & (np.abs(qdd[rows]) < qdd_tol)
     settings = {"cutoff": cutoff, "order": order, "edge": edge, "decimate": decimate, "qd_thr": qd_thr,
