@@ -41,6 +41,7 @@ import numpy as np
 from kukaid import __version__
 from kukaid.errors import KukaidError, LimitError
 from kukaid.io.atomic import write_text_atomic
+from kukaid.io.jsonfile import read_json
 
 #: KR C4 interpolation cycle (IPO), s.
 IPO_DT = 0.012
@@ -173,17 +174,7 @@ class Trajectory:
     @classmethod
     def from_json(cls, path: str | Path) -> "Trajectory":
         """Read and validate a trajectory file; one-line :class:`TrajectoryError` when malformed."""
-        path = Path(path)
-        if not path.exists():
-            raise TrajectoryError(f"{path}: no such file")
-        text = path.read_text(errors="replace")
-        if not text.strip():
-            raise TrajectoryError(f"{path}: empty file")
-        try:
-            d = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise TrajectoryError(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
-        return cls.from_dict(d, where=str(path))
+        return cls.from_dict(read_json(path, TrajectoryError), where=str(path))
 
 
 def _check_arrays(t: np.ndarray, q: np.ndarray, where: str) -> None:
@@ -282,14 +273,7 @@ class AxisLimits:
 
     @classmethod
     def load(cls, path: str | Path, base: "AxisLimits | None" = None) -> "AxisLimits":
-        path = Path(path)
-        if not path.exists():
-            raise TrajectoryError(f"{path}: no such file")
-        try:
-            d = json.loads(path.read_text())
-        except json.JSONDecodeError as e:
-            raise TrajectoryError(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
-        return cls.from_dict(d, base=base, where=str(path))
+        return cls.from_dict(read_json(path, TrajectoryError), base=base, where=str(path))
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "q_min": self.q_min, "q_max": self.q_max, "qd_max": self.qd_max,

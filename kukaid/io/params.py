@@ -12,6 +12,7 @@ from typing import Any
 
 from kukaid.errors import ParamFileError
 from kukaid.io.atomic import write_text_atomic
+from kukaid.io.jsonfile import read_json
 from kukaid.models.friction import MaxwellSlip, friction_from_dict
 from kukaid.models.joint import AxisModel, RigidBody
 
@@ -82,18 +83,7 @@ def validate_params(d: Any, where: str = "parameter file") -> dict:
 
 def load_params(path: str | Path) -> dict:
     """Read and validate a parameter file."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ParamFileError(f"{path}: no such file") from None
-    except OSError as e:
-        raise ParamFileError(f"{path}: cannot read: {e.strerror}") from None
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise ParamFileError(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
-    return validate_params(d, str(path))
+    return validate_params(read_json(path, ParamFileError), str(path))
 
 
 def save_params(path: str | Path, d: dict) -> None:

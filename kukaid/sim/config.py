@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from kukaid.errors import ParamFileError
+from kukaid.io.jsonfile import read_json
 
 INF = math.inf
 
@@ -307,15 +308,4 @@ def sim_config_from_dict(d: Any, where: str = "sim config", base: SimConfig | No
 
 def load_sim_config(path: str | Path) -> SimConfig:
     """Read a JSON file of overrides of the paper defaults; validated, errors name file and field."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise SimConfigError(f"{path}: no such file") from None
-    except OSError as e:
-        raise SimConfigError(f"{path}: cannot read: {e.strerror}") from None
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise SimConfigError(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
-    return sim_config_from_dict(d, str(path))
+    return sim_config_from_dict(read_json(path, SimConfigError), str(path))
