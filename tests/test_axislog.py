@@ -1,7 +1,6 @@
 """Axis logs: HDF5 and CSV round trips, validation, incremental writing, malformed input."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 import textwrap

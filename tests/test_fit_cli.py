@@ -8,7 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from kukaid import excite
-from kukaid.io.axislog import AxisLog, write_csv, write_hdf5
+from kukaid.io.axislog import AxisLog, write_hdf5
 from kukaid.io.params import load_params
 from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid_cli.main import cli

@@ -16,7 +16,7 @@ def test_logger_text_declares_the_handshake_and_samples_every_ipo_cycle():
     dat, sub = files["KUKAID_LOG.DAT"], files["KUKAID_LOG.SUB"]
     assert dat.startswith("DEFDAT KUKAID_LOG PUBLIC") and dat.rstrip().endswith("ENDDAT")
     for g in ("KID_CFG[64]", "KID_WR", "KID_RD", "KID_OVF", "KID_B1[", "KID_B4["):
-        assert f"DECL GLOBAL" in dat and g in dat
+        assert "DECL GLOBAL" in dat and g in dat
     assert "KID_B5[" not in dat
     assert 'KID_CFG[]="kukaid-ring/1 axes=2,3 nb=4 bs=5"' in dat
     assert "$ROB_TIMER-KID_LAST)<12" in sub

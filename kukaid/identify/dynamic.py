@@ -18,8 +18,7 @@ import numpy as np
 
 from kukaid.errors import FitError
 from kukaid.identify.least_squares import GRAVITY_OPTIONS, rigid_columns
-from kukaid.identify.stribeck_fit import (INF, _merge_bounds, default_bounds, natural_uncertainty,
-                                          solve_separable, stribeck_column)
+from kukaid.identify.stribeck_fit import _merge_bounds, default_bounds, natural_uncertainty, solve_separable
 from kukaid.identify.uncertainty import Uncertainty, covariance
 from kukaid.models.friction import CoulombViscous, Stribeck
 from kukaid.models.joint import RigidBody

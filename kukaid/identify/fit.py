@@ -15,7 +15,6 @@ on them (together with the friction logs when the method is ``joint``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np

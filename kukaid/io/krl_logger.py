@@ -158,7 +158,7 @@ def krl_logger_files(layout: RingLayout, name: str = "KUKAID_LOG") -> dict[str, 
     slot = layout.block_chars
     dat = [f"DEFDAT {n} PUBLIC",
            ";kukaid ring-buffer logger globals (generated; see kukaid.io.krl_logger)",
-           f"DECL GLOBAL CHAR KID_CFG[64]",
+           "DECL GLOBAL CHAR KID_CFG[64]",
            f'KID_CFG[]="{layout.config_text()}"',
            "DECL GLOBAL INT KID_WR=0",
            "DECL GLOBAL INT KID_RD=0",

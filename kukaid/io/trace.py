@@ -41,11 +41,14 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from kukaid.errors import LogFormatError
+
+if TYPE_CHECKING:
+    from kukaid.io.axislog import AxisLog
 
 _DEG = math.pi / 180.0
 

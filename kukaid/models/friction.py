@@ -1,7 +1,7 @@
 """Friction models of the paper: Stribeck (eq. 1) for sliding, Maxwell-slip (eqs. 9-10) for pre-sliding."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
