@@ -20,8 +20,6 @@ from kukaid.io.krl_logger import RingLayout
 from kukaid.io.kvp_capture import capture_kvp
 from kukaid.sim.kvp_server import KvpServer, SimSource
 
-REPO = Path(__file__).resolve().parents[1]
-
 
 def _excitation(duration: float = 8.0) -> SimpleNamespace:
     """A sine excitation of A3 (4 s period, 0.25 rad) around 0.3 rad, at the IPO rate."""
@@ -223,7 +221,7 @@ def test_sigterm_stops_cleanly(virtual_krc4, tmp_path):
     assert log.attrs["stopped_by"] == "signal" and log.n_samples >= 24
 
 
-def test_serve_sim_subprocess_end_to_end(tmp_path):
+def test_serve_sim_subprocess_end_to_end(tmp_path, kukaid_cmd):
     """`kukaid serve-sim` in the background; capture through the protocol; compare with its truth."""
     from kukaid.excite import Trajectory
 
@@ -231,7 +229,7 @@ def test_serve_sim_subprocess_end_to_end(tmp_path):
     traj = Trajectory(t=ex.t, q=ex.q, axis=3, kind="inertia")
     traj.to_json(tmp_path / "traj.json")
     truth = tmp_path / "truth.h5"
-    server = subprocess.Popen(["kukaid", "serve-sim", "--port", "0", "--trajectory", str(tmp_path / "traj.json"),
+    server = subprocess.Popen([*kukaid_cmd, "serve-sim", "--port", "0", "--trajectory", str(tmp_path / "traj.json"),
                                "--duration", "4", "--seed", "5", "--truth", str(truth)],
                               stderr=subprocess.PIPE, text=True)
     try:
@@ -240,14 +238,10 @@ def test_serve_sim_subprocess_end_to_end(tmp_path):
         assert m, line
         port = int(m.group(1))
         out = tmp_path / "log.h5"
-        cli_capture = REPO / "cli" / "cmd_capture.py"
-        if cli_capture.exists() and "--backend" in cli_capture.read_text():
-            r = subprocess.run(["kukaid", "capture", str(tmp_path / "traj.json"), "-o", str(out), "--backend", "kvp",
-                                "--host", "127.0.0.1", "--port", str(port), "--axis", "3", "--duration", "2"],
-                               capture_output=True, text=True, timeout=60)
-            assert r.returncode == 0, r.stderr
-        else:
-            capture_kvp(out, "127.0.0.1", port, [3], 2.0, False, "poll", None)
+        r = subprocess.run([*kukaid_cmd, "capture", str(tmp_path / "traj.json"), "-o", str(out), "--backend", "kvp",
+                            "--host", "127.0.0.1", "--port", str(port), "--axis", "3", "--duration", "2"],
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0, r.stderr
         server.wait(timeout=30)
         assert server.returncode == 0, server.stderr.read()
     finally:

@@ -46,11 +46,11 @@ def test_config_and_block_round_trip():
         RingLayout(axes=(3, 3))
 
 
-def test_cli_writes_files_and_refuses_overwrite(tmp_path):
-    r = subprocess.run(["kukaid", "krl-logger", "--axis", "3", "-o", str(tmp_path)], capture_output=True, text=True,
+def test_cli_writes_files_and_refuses_overwrite(tmp_path, kukaid_cmd):
+    r = subprocess.run([*kukaid_cmd, "krl-logger", "--axis", "3", "-o", str(tmp_path)], capture_output=True, text=True,
                        timeout=60)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "KUKAID_LOG.SUB").read_text().startswith("DEF KUKAID_LOG()")
-    r = subprocess.run(["kukaid", "krl-logger", "--axis", "3", "-o", str(tmp_path)], capture_output=True, text=True,
+    r = subprocess.run([*kukaid_cmd, "krl-logger", "--axis", "3", "-o", str(tmp_path)], capture_output=True, text=True,
                        timeout=60)
     assert r.returncode == 1 and "already exists" in r.stderr

@@ -89,11 +89,11 @@ def test_multi_module_different_sample_times_on_one_time_base(tmp_path):
         read_trace(tmp_path / "REC_KRCIpo.dat", siblings=False)
 
 
-def test_kukaid_load_converts_a_trace(tmp_path):
+def test_kukaid_load_converts_a_trace(tmp_path, kukaid_cmd):
     t = np.arange(100) * 0.012
     q, tau, _ = _signals(t)
     dat = write_module(tmp_path, "R_Drive", 0.012, t.size, [("Istposition A3", "Grad", q), ("Istmoment A3", "Nm", tau)])
-    r = subprocess.run(["kukaid", "load", str(dat), "-o", str(tmp_path / "log.h5")], capture_output=True, text=True,
+    r = subprocess.run([*kukaid_cmd, "load", str(dat), "-o", str(tmp_path / "log.h5")], capture_output=True, text=True,
                        timeout=60)
     assert r.returncode == 0, r.stderr
     log = read_hdf5(tmp_path / "log.h5")
@@ -121,7 +121,7 @@ def test_malformed_headers_name_line_or_channel(tmp_path, edit, match):
         read_trace(dat)
 
 
-def test_wrong_data_file_size_names_file_and_channel(tmp_path):
+def test_wrong_data_file_size_names_file_and_channel(tmp_path, kukaid_cmd):
     t = np.arange(50) * 0.012
     q, tau, _ = _signals(t)
     dat = write_module(tmp_path, "W_Drive", 0.012, t.size, [("Istposition A3", "Grad", q), ("Istmoment A3", "Nm", tau)])
@@ -130,7 +130,7 @@ def test_wrong_data_file_size_names_file_and_channel(tmp_path):
     with pytest.raises(LogFormatError, match=r"W_Drive.r64: 792 bytes, but channel 'Istposition A3'.*50 values x 2 "
                                              r"columns x 8 bytes = 800 bytes"):
         read_trace(dat)
-    r = subprocess.run(["kukaid", "load", str(dat), "-o", str(tmp_path / "x.h5")], capture_output=True, text=True,
+    r = subprocess.run([*kukaid_cmd, "load", str(dat), "-o", str(tmp_path / "x.h5")], capture_output=True, text=True,
                        timeout=60)
     assert r.returncode != 0 and r.stderr.startswith("kukaid: error: ") and "Traceback" not in r.stderr
     assert not (tmp_path / "x.h5").exists()

@@ -1,0 +1,130 @@
+"""`kukaid report`: the PDF from a small simulated fit, its pages, and bad input -> one-line error, no PDF."""
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from kukaid import excite
+from kukaid.identify import fit_axis
+from kukaid.io.axislog import write_hdf5
+from kukaid.io.params import save_params
+from kukaid.sim import SimConfig, VirtualKRC4
+from kukaid_cli.main import cli
+
+# truth away from the paper's values (Fc 15.70, Fs 17.56, vs 0.04, delta 2, Fv 14.15, Izz 2.28, Mx 18.48)
+TRUTH = dict(Fc=13.4, Fs=16.9, vs=0.05, delta=1.6, Fv=11.8, Izz=2.05, Mx=21.3)
+
+
+def _pages(path) -> int:
+    return len(re.findall(rb"/Type\s*/Page(?![s\w])", path.read_bytes()))
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    d = tmp_path_factory.mktemp("report")
+    cfg = SimConfig().replace(**TRUTH)
+    short = {"friction": dict(n_speeds=5, span=0.6), "inertia": dict(period=3.0, ramp_periods=0.5, amplitude=0.5),
+             "presliding": dict(hold=2.0, final_hold=2.0)}
+    logs, paths = {}, {}
+    for i, (kind, opts) in enumerate(short.items()):
+        logs[kind] = VirtualKRC4(cfg, seed=10 + i).run(excite.generate(kind, **opts))
+        paths[kind] = d / f"{kind}.h5"
+        write_hdf5(logs[kind], paths[kind])
+    params = fit_axis(friction=[paths["friction"]], inertia=[paths["inertia"]], presliding=paths["presliding"])
+    paths["params"] = d / "params.json"
+    save_params(paths["params"], params)
+    return d, paths, logs, params
+
+
+def _run(args):
+    return CliRunner().invoke(cli, ["report", *map(str, args)])
+
+
+def test_full_report_has_every_page(fitted):
+    d, p, _, _ = fitted
+    out = d / "full.pdf"
+    r = _run(["--params", p["params"], "--friction", p["friction"], "--inertia", p["inertia"],
+              "--presliding", p["presliding"], "-o", out])
+    assert r.exit_code == 0, r.output
+    assert out.read_bytes()[:5] == b"%PDF-"
+    # parameters, friction, inertia prediction, pre-sliding, correlation + residuals
+    assert _pages(out) == 5
+    assert not [x for x in d.iterdir() if x.name.endswith(".tmp")]
+
+
+def test_pages_follow_the_data_given(fitted):
+    d, p, _, _ = fitted
+    only = d / "only.pdf"
+    r = _run(["--params", p["params"], "-o", only])
+    assert r.exit_code == 0, r.output
+    assert _pages(only) == 1  # the parameter page always, nothing else without data
+    two = d / "two.pdf"
+    r = _run(["--params", p["params"], "--log", p["inertia"], "--log", p["friction"], "-o", two])
+    assert r.exit_code == 0, r.output
+    assert _pages(two) == 4  # parameters, two predictions, correlation + residuals
+
+
+def test_library_pages_truth_and_caveat(fitted):
+    from kukaid.report import build_report, load_report_data
+    from kukaid.report.fit_report import page_correlation, presliding_replay
+
+    _, p, logs, params = fitted
+    data = load_report_data(params, friction=[logs["friction"]], inertia=[logs["inertia"]],
+                            presliding=logs["presliding"])
+    assert data.truth is not None and data.truth["friction"]["Fc"] == pytest.approx(TRUTH["Fc"])
+    figs = build_report(data)
+    assert len(figs) == 5
+    text = " ".join(t.get_text() for t in figs[0].texts)
+    assert "OPTIMISTIC" in text
+    cf = params["metrics"]["residual_correlation_factor"]
+    assert f"{cf:.2f}" in text
+    cells = " ".join(c.get_text().get_text() for ax in figs[0].axes for tab in ax.tables
+                     for c in tab.get_celld().values())
+    assert "truth" in cells and "0.5249" in cells and "14.59" in cells
+    # the Maxwell-slip model replayed on the fitted path reproduces the hysteresis as the fit reported
+    rp = presliding_replay(data)
+    assert rp["rms"] == pytest.approx(params["metrics"]["maxwell_slip_rms"], rel=0.05, abs=0.02)
+    # without a stored correlation matrix (staged fits) the report computes one from the logs
+    bare = json.loads(json.dumps(params))
+    bare["metrics"].pop("correlation", None)
+    data2 = load_report_data(bare, friction=[logs["friction"]], inertia=[logs["inertia"]])
+    fig = page_correlation(data2)
+    assert fig is not None and "computed by the report" in fig.axes[0].get_title()
+
+
+def test_broken_param_file_gives_one_line_error_and_no_pdf(fitted):
+    d, p, _, _ = fitted
+    bad = d / "bad.json"
+    bad.write_text('{"schema": "kukaid.params/1", "axis": 3, "friction": {"model": "stribeck"')
+    out = d / "bad.pdf"
+    r = _run(["--params", bad, "--inertia", p["inertia"], "-o", out])
+    assert r.exit_code != 0
+    assert r.output.startswith("kukaid: error:") and "bad.json" in r.output and "not valid JSON" in r.output
+    assert len(r.output.strip().splitlines()) == 1
+    assert not out.exists()
+    missing = json.loads(p["params"].read_text())
+    del missing["inertial"]["Izz"]
+    bad.write_text(json.dumps(missing))
+    r = _run(["--params", bad, "-o", out])
+    assert r.exit_code != 0 and "inertial.Izz" in r.output and not out.exists()
+
+
+def test_bad_logs_give_one_line_error_and_no_pdf(fitted):
+    d, p, logs, _ = fitted
+    out = d / "x.pdf"
+    r = _run(["--params", p["params"], "--inertia", d / "nope.h5", "-o", out])
+    assert r.exit_code != 0 and "nope.h5" in r.output and "no such file" in r.output
+    assert len(r.output.strip().splitlines()) == 1 and not out.exists()
+    other = d / "axis1.h5"
+    write_hdf5(replace(logs["inertia"], axes=(1,)), other)
+    r = _run(["--params", p["params"], "--inertia", other, "-o", out])
+    assert r.exit_code != 0 and "A3" in r.output and "axis1.h5" in r.output
+    assert len(r.output.strip().splitlines()) == 1 and not out.exists()
+    r = _run(["--params", p["params"], "--inertia", p["inertia"], "--axis", "2", "-o", out])
+    assert r.exit_code != 0 and "A2" in r.output and not out.exists()
+    assert not [x for x in d.iterdir() if x.name.endswith(".tmp")]
