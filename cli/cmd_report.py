@@ -1,0 +1,33 @@
+"""kukaid report: the identification report (PDF) of a parameter file and the logs behind it."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+_LOG = click.Path(dir_okay=False, path_type=Path)
+
+
+@click.command("report")
+@click.option("--params", "params", type=_LOG, required=True, help="Parameter file (kukaid.params/1 JSON).")
+@click.option("--friction", "friction", multiple=True, type=_LOG,
+              help="Friction experiment log (constant-velocity sweeps): friction page; repeatable.")
+@click.option("--inertia", "inertia", multiple=True, type=_LOG,
+              help="Inertia experiment log (sine): torque-prediction page; repeatable.")
+@click.option("--presliding", type=_LOG, default=None, help="Pre-sliding log: hysteresis / Maxwell-slip page.")
+@click.option("--log", "logs", multiple=True, type=_LOG,
+              help="General log: torque-prediction (validation) page; repeatable.")
+@click.option("--axis", type=int, default=None, help="Axis number (default: the parameter file's axis).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="PDF file to write.")
+def command(params, friction, inertia, presliding, logs, axis, output) -> None:
+    """Write a multi-page PDF: parameters with uncertainties, friction, torque prediction,
+    pre-sliding hysteresis, parameter correlation and residuals (pages for the data given)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from kukaid.report import make_report
+
+    n = make_report(params, output, friction=list(friction), inertia=list(inertia), presliding=presliding,
+                    logs=list(logs), axis=axis)
+    click.echo(f"{output}: report written, {n} pages", err=True)
