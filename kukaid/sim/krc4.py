@@ -74,7 +74,7 @@ class _Spline:
         qo = np.empty(tt.size)
         vo = np.zeros(tt.size)
         ao = np.zeros(tt.size)
-        before = tt <= t[0]
+        before = tt < t[0]  # the knot itself belongs to the segment (velocity feedforward at a new setpoint)
         after = tt >= t[-1]
         qo[before] = q[0]
         qo[after] = q[-1]

@@ -1,0 +1,168 @@
+"""kukaid run-admittance: sensorless admittance control (constant or adaptive damping)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+def _fmt(v):
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, list):
+        return "[" + ", ".join(_fmt(x) for x in v) + "]"
+    return str(v)
+
+
+@click.command("run-admittance")
+@click.option("--params", "params_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Parameter file from `kukaid fit` (the identified model used for Γr).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Run log to write (HDF5: axis log + 'control' group with Γr, σ, σ̇, D, mode, metrics).")
+@click.option("--report", type=click.Path(dir_okay=False, path_type=Path), help="Also write a PDF of the run.")
+@click.option("--json", "as_json", is_flag=True, help="Print the metrics as JSON on stdout.")
+@click.option("--force", is_flag=True, help="Replace an existing run log.")
+@click.option("--damping", type=click.Choice(["constant", "adaptive"]), default="constant", show_default=True,
+              help="constant D, or the RBF-adapted damping (eqs. 17-22) starting from D.")
+@click.option("--D", "D", type=float, default=50.0, show_default=True, help="Damping, N·m·s/rad (> 0).")
+@click.option("--I", "I", type=float, default=20.0, show_default=True, help="Inertia of the admittance, kg·m² (> 0).")
+@click.option("--D-min", "D_min", type=float, help="adaptive: lower bound of D [0.3 D].")
+@click.option("--D-max", "D_max", type=float, help="adaptive: upper bound of D [2 D].")
+@click.option("--threshold", type=float, default=5.0, show_default=True, help="Detection threshold on |Γr|, N·m.")
+@click.option("--release", type=float, help="|Γr| below which a detection ends, N·m [0.6 threshold].")
+@click.option("--duration", type=float, default=10.0, show_default=True,
+              help="Seconds of admittance control (after the 1-degree initiation move and rest).")
+@click.option("--cycle", type=float, default=0.012, show_default=True,
+              help="Control cycle, s (KRC sample time 0.012; the paper's ~0.024 also works).")
+@click.option("--init-move", type=float, default=1.0, show_default=True,
+              help="Initiation move before control, degrees (saturates the Maxwell-slip elements, eq. 12; 0: none).")
+# safety (degrees at the edge)
+@click.option("--q-min", type=float, help="Position window, lower bound, degrees (sim default: q0 - 90).")
+@click.option("--q-max", type=float, help="Position window, upper bound, degrees (sim default: q0 + 90).")
+@click.option("--qd-max", type=float, default=30.0, show_default=True, help="Reference speed limit, deg/s.")
+@click.option("--qdd-max", type=float, default=300.0, show_default=True, help="Reference acceleration limit, deg/s².")
+@click.option("--max-age", type=float, default=0.1, show_default=True,
+              help="Motion stops when the latest measurement is older than this, s.")
+# backends
+@click.option("--backend", type=click.Choice(["sim", "kvp"]), default="sim", show_default=True,
+              help="sim: the virtual KR C4 with a simulated operator; kvp: a real KR C4 over KUKAVARPROXY.")
+@click.option("--operator", type=click.Choice(["push", "pull", "hand", "none"]), default="pull", show_default=True,
+              help="sim: push (smooth 12-18 N·m push, then release) or pull/hand (spring-damper hand dragging "
+                   "the joint 0.25-0.35 rad, then letting go); drawn from --seed.")
+@click.option("--seed", type=int, default=0, show_default=True, help="sim: seed of noise, vibration and operator.")
+@click.option("--q0", type=float, default=30.0, show_default=True, help="sim: start position, degrees.")
+@click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
+              help="sim: JSON overriding the simulator's truth and settings.")
+@click.option("--noise", type=float, help="sim: torque noise sigma, N·m [0.5].")
+@click.option("--enable-motion", is_flag=True, help="kvp: really move the robot (required with --backend kvp).")
+@click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
+@click.option("--port", type=int, default=7000, show_default=True, help="kvp: KUKAVARPROXY port.")
+@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="kvp: axis to control.")
+@click.option("--target", default="KID_TGT", show_default=True,
+              help="kvp: global REAL variable (degrees) the KRL follower program moves the axis to.")
+def command(params_path: Path, output: Path, report: Path | None, as_json: bool, force: bool, damping: str,
+            D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
+            duration: float, cycle: float, init_move: float, q_min: float | None, q_max: float | None,
+            qd_max: float, qdd_max: float, max_age: float, backend: str, operator: str, seed: int, q0: float,
+            sim_config: Path | None, noise: float | None, enable_motion: bool, host: str, port: int, axis: int,
+            target: str) -> None:
+    """Push the axis by hand without a force sensor: estimate the external torque Γr from the
+    identified model (eqs. 12-14) and let an admittance (eqs. 15-16) with constant or adaptive
+    damping (eqs. 17-22) move the reference, bounded and watched (position window, speed,
+    acceleration, measurement age).
+
+    The default backend is the virtual KR C4 with a simulated operator.  A real robot
+    (--backend kvp) moves only with --enable-motion and a finite position window.
+    """
+    import json
+    import math
+
+    from kukaid.control.admittance import check_admittance
+    from kukaid.control.loop import LoopConfig, run_admittance
+    from kukaid.control.rbf import RBFConfig
+    from kukaid.control.runlog import write_run
+    from kukaid.control.safety import SafetyLimits, check_motion_allowed
+    from kukaid.errors import KukaidError
+    from kukaid.io.params import load_params, model_from_params
+
+    if output.suffix.lower() not in (".h5", ".hdf5"):
+        raise KukaidError(f"{output}: the run log is HDF5; name it .h5 or .hdf5")
+    for p in (output, report):
+        if p is not None and p.exists() and not force:
+            raise KukaidError(f"{p}: already exists; choose another name or pass --force to replace it")
+    params = load_params(params_path)
+    model = model_from_params(params)
+    zeta0 = (params.get("maxwell_slip") or {}).get("zeta0")
+    check_admittance(I, D, cycle)
+    rbf = None
+    if damping == "adaptive":
+        dmin = 0.3 * D if D_min is None else D_min
+        dmax = 2.0 * D if D_max is None else D_max
+        if not 0 < dmin <= D <= dmax:
+            raise KukaidError(f"run-admittance: need 0 < --D-min ({dmin}) <= --D ({D}) <= --D-max ({dmax})")
+        check_admittance(I, dmax, cycle)
+        rbf = RBFConfig(D0=D, D_min=dmin, D_max=dmax)
+    elif D_min is not None or D_max is not None:
+        raise click.UsageError("--D-min/--D-max are for --damping adaptive")
+
+    if backend == "sim":
+        lo = math.radians(q0 - 90.0 if q_min is None else q_min)
+        hi = math.radians(q0 + 90.0 if q_max is None else q_max)
+    else:
+        lo = math.radians(q_min) if q_min is not None else -math.inf
+        hi = math.radians(q_max) if q_max is not None else math.inf
+    limits = SafetyLimits(q_min=lo, q_max=hi, qd_max=math.radians(qd_max), qdd_max=math.radians(qdd_max),
+                          max_age=max_age)
+    check_motion_allowed(backend, enable_motion, limits)
+    cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
+                     sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf, limits=limits)
+
+    attrs = {"params_file": str(params_path), "backend": backend}
+    if backend == "sim":
+        from kukaid.control.backends import SimBackend
+        from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
+        from kukaid.sim.operator import make_operator
+
+        scfg = load_sim_config(sim_config) if sim_config else SimConfig()
+        if noise is not None:
+            scfg = scfg.replace(noise_sigma=noise)
+        if abs(scfg.sample_time - 0.012) > 1e-9:
+            cfg = LoopConfig(**{**cfg.__dict__, "sample_time": scfg.sample_time})
+        q0r = math.radians(q0)
+        op = None if operator == "none" else make_operator(operator, seed, q0r + cfg.init_move,
+                                                           t_start=cfg.init_time + cfg.init_rest + 0.8)
+        be = SimBackend(VirtualKRC4(scfg, seed=seed), q0r, op)
+        attrs.update(seed=seed, operator=operator, operator_params=(op.__dict__ if op is not None else None),
+                     sim_config=scfg.to_dict(), truth={**scfg.truth_params(), "axis": scfg.axis})
+        axis_id = scfg.axis
+    else:
+        from kukaid.control.backends import KvpBackend
+        from kukaid.io.kvp import KvpClient
+
+        client = KvpClient(host=host, port=port, timeout=max(0.5, 2 * cycle))
+        client.connect()
+        be = KvpBackend(client, axis=axis, target=target)
+        attrs.update(host=host, port=port, target=target)
+        axis_id = axis
+    run = run_admittance(be, model, cfg, zeta0=zeta0)
+    write_run(output, run, axis=axis_id, attrs=attrs)
+    if report is not None:
+        from kukaid.control.plots import plot_run
+
+        plot_run(run.data, run.metrics, report, title=f"kukaid run-admittance ({damping} damping, {backend})")
+    if as_json:
+        click.echo(json.dumps(run.metrics, default=lambda v: None, allow_nan=False)
+                   if all(not (isinstance(v, float) and math.isnan(v)) for v in run.metrics.values())
+                   else json.dumps({k: (None if isinstance(v, float) and math.isnan(v) else v)
+                                    for k, v in run.metrics.items()}))
+    else:
+        m = run.metrics
+        click.echo(f"run-admittance ({damping} damping, {backend}): {run.status}")
+        for k in ("detection_delay", "residual_rmse", "residual_rmse_dynamic", "residual_rmse_quasi_static",
+                  "false_detections", "mean_sq_dgamma", "mean_cost", "displacement", "peak_speed", "D_range",
+                  "settled", "clipped_cycles"):
+            if k in m:
+                click.echo(f"  {k:28s} {_fmt(m[k])}")
+        click.echo(f"  -> {output}" + (f", {report}" if report else ""))
+    if not run.status.startswith("completed"):
+        raise SystemExit(3)

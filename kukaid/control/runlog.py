@@ -1,0 +1,78 @@
+"""The run log of ``kukaid run-admittance``: an HDF5 axis log plus a ``control`` group.
+
+Top level: the axis-log contract (``time``, ``q``, ``tau``, ``q_cmd``, ``tau_ext_true`` as (N, 1)
+arrays, attribute ``axes``), so ``kukaid.io.axislog.read_hdf5`` reads it.  Group ``control``:
+per-cycle datasets ``gamma_r``, ``gamma_p`` (N·m), ``sigma`` (rad), ``sigma_dot`` (rad/s), ``D``
+(N·m·s/rad), ``dynamic``, ``detected``, ``clipped`` (0/1), ``phase`` (0 initiation move, 1 rest,
+2 admittance, 3 stopped), and attributes ``metrics`` and ``config`` (JSON).
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kukaid.io.atomic import atomic_path
+
+
+def _json(x: Any) -> str:
+    def clean(v):
+        if isinstance(v, dict):
+            return {k: clean(u) for k, u in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(u) for u in v]
+        if isinstance(v, float) and not math.isfinite(v):
+            return None
+        if isinstance(v, np.generic):
+            return clean(v.item())
+        return v
+    return json.dumps(clean(x))
+
+
+def write_run(path: str | Path, run: Any, axis: int = 3, attrs: dict[str, Any] | None = None) -> None:
+    """Write an :class:`~kukaid.control.loop.AdmittanceRun` to ``path`` atomically."""
+    import h5py
+
+    from kukaid.control.loop import config_dict
+    from kukaid.io.axislog import AxisLog, write_hdf5
+
+    d = run.data
+    te = d["tau_ext_true"]
+    # keep the time axis strictly increasing (a stopped run's last row may repeat a measurement)
+    keep = np.concatenate([[True], np.diff(d["time"]) > 0]) if d["time"].size else np.zeros(0, bool)
+    log = AxisLog(time=d["time"][keep], q=d["q"][keep, None], tau=d["tau"][keep, None], axes=(axis,),
+                  q_cmd=d["q_cmd"][keep, None],
+                  tau_ext_true=te[keep, None] if np.all(np.isfinite(te)) else None,
+                  attrs={"source": "kukaid run-admittance", "experiment": "admittance", **(attrs or {})})
+    with atomic_path(path) as tmp:
+        write_hdf5(log, tmp)
+        with h5py.File(tmp, "a") as f:
+            g = f.create_group("control")
+            for k in ("gamma_r", "gamma_p", "sigma", "sigma_dot", "D"):
+                g.create_dataset(k, data=d[k][keep])
+            for k in ("dynamic", "detected", "clipped", "phase"):
+                g.create_dataset(k, data=d[k][keep].astype(np.int8))
+            g.attrs["metrics"] = _json(run.metrics)
+            g.attrs["config"] = _json(config_dict(run.config))
+            g.attrs["units"] = _json({"gamma_r": "N*m", "gamma_p": "N*m", "sigma": "rad", "sigma_dot": "rad/s",
+                                      "D": "N*m*s/rad"})
+
+
+def read_run(path: str | Path) -> tuple[Any, dict[str, np.ndarray], dict[str, Any]]:
+    """Read a run log: (AxisLog, control datasets, metrics)."""
+    import h5py
+
+    from kukaid.errors import LogFormatError
+    from kukaid.io.axislog import read_hdf5
+
+    log = read_hdf5(path)
+    with h5py.File(path, "r") as f:
+        if "control" not in f:
+            raise LogFormatError(f"{path}: not a run-admittance log (no 'control' group)")
+        g = f["control"]
+        data = {k: np.asarray(g[k][()]) for k in g}
+        metrics = json.loads(g.attrs["metrics"])
+    return log, data, metrics

@@ -1,0 +1,134 @@
+"""Safety of the admittance loop: every reference that can move a robot is bounded and watched.
+
+* :class:`SafetyLimits` — position window (rad), velocity (rad/s), acceleration (rad/s²) limits on
+  the reference, and the largest age of a measurement (s) the loop may act on.
+* :class:`ReferenceLimiter` — clips a new reference to the window and to the velocity and
+  acceleration limits relative to the previous reference (so a step never reaches the robot).
+* :class:`Watchdog` — a stale or missing measurement (older than ``max_age``) stops motion: the
+  loop then holds the last reference and ends.
+* :func:`check_motion_allowed` — the real-robot path (KUKAVARPROXY) is off unless explicitly
+  enabled with bounds.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from kukaid.errors import KukaidError, LimitError
+
+
+@dataclass(frozen=True)
+class SafetyLimits:
+    """Bounds on the admittance reference (SI).
+
+    q_min, q_max : position window, rad.   qd_max : reference speed limit, rad/s.
+    qdd_max : reference acceleration limit, rad/s² (a torque limit tau_max on the reference
+        becomes qdd_max = tau_max / Izz, see :meth:`from_torque`).
+    max_age : largest age of the latest measurement, s, before motion stops.
+    """
+
+    q_min: float = -math.inf
+    q_max: float = math.inf
+    qd_max: float = 0.5
+    qdd_max: float = 5.0
+    max_age: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("qd_max", "qdd_max", "max_age"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise LimitError(f"safety: {name} = {v} must be a finite number > 0")
+        if math.isnan(self.q_min) or math.isnan(self.q_max) or not self.q_min < self.q_max:
+            raise LimitError(f"safety: position window [{self.q_min}, {self.q_max}] rad must have q_min < q_max")
+
+    @staticmethod
+    def from_torque(tau_max: float, Izz: float, **kw) -> "SafetyLimits":
+        """Limits whose acceleration bound is the torque bound ``tau_max`` N·m over ``Izz`` kg·m²."""
+        if not (tau_max > 0 and Izz > 0):
+            raise LimitError(f"safety: tau_max = {tau_max} N·m and Izz = {Izz} kg·m² must be > 0")
+        qdd = tau_max / Izz
+        if "qdd_max" in kw:
+            qdd = min(qdd, kw.pop("qdd_max"))
+        return SafetyLimits(qdd_max=qdd, **kw)
+
+    @property
+    def bounded(self) -> bool:
+        """True when the position window is finite (required for a real robot)."""
+        return math.isfinite(self.q_min) and math.isfinite(self.q_max)
+
+
+class ReferenceLimiter:
+    """Clip successive references (one per cycle of ``dt`` s) to :class:`SafetyLimits`."""
+
+    def __init__(self, limits: SafetyLimits, dt: float, q0: float) -> None:
+        if not (dt > 0 and math.isfinite(dt)):
+            raise LimitError(f"safety: cycle time must be > 0 s, got {dt}")
+        if not limits.q_min <= q0 <= limits.q_max:
+            raise LimitError(f"safety: start position {q0:.6g} rad is outside the window "
+                             f"[{limits.q_min:.6g}, {limits.q_max:.6g}] rad")
+        self.limits, self.dt = limits, float(dt)
+        self.q = float(q0)
+        self.v = 0.0
+        self.clipped = 0  # number of references changed by the limiter
+
+    def apply(self, q_ref: float) -> tuple[float, bool]:
+        """The bounded reference for this cycle and whether it was clipped."""
+        q_ref = float(q_ref)
+        if not math.isfinite(q_ref):
+            raise LimitError(f"safety: reference {q_ref} is not a finite angle")
+        L, h = self.limits, self.dt
+        v = (q_ref - self.q) / h
+        v_c = min(max(v, max(-L.qd_max, self.v - L.qdd_max * h)), min(L.qd_max, self.v + L.qdd_max * h))
+        # the window has priority: never approach an edge faster than qdd_max can brake before it
+        room_hi = max(L.q_max - self.q, 0.0)
+        room_lo = max(self.q - L.q_min, 0.0)
+        v_c = min(v_c, math.sqrt(2.0 * L.qdd_max * room_hi), room_hi / h)
+        v_c = max(v_c, -math.sqrt(2.0 * L.qdd_max * room_lo), -room_lo / h)
+        q_new = min(max(self.q + v_c * h, L.q_min), L.q_max)
+        clipped = abs(q_new - q_ref) > 1e-12
+        self.v = (q_new - self.q) / h
+        self.q = q_new
+        self.clipped += int(clipped)
+        return q_new, clipped
+
+
+class Watchdog:
+    """Motion stops when the latest measurement is older than ``max_age`` s (or missing)."""
+
+    def __init__(self, max_age: float) -> None:
+        if not (max_age > 0 and math.isfinite(max_age)):
+            raise LimitError(f"safety: max_age must be > 0 s, got {max_age}")
+        self.max_age = float(max_age)
+        self.t_last: float | None = None
+        self.tripped: str | None = None
+
+    def feed(self, t_measurement: float) -> None:
+        self.t_last = float(t_measurement)
+
+    def check(self, now: float) -> bool:
+        """True while measurements are fresh; once it trips it stays tripped (``tripped`` says why)."""
+        if self.tripped:
+            return False
+        if self.t_last is None:
+            self.tripped = f"no measurement by t = {now:.3f} s"
+        elif now - self.t_last > self.max_age:
+            self.tripped = (f"measurement stale: {1000 * (now - self.t_last):.0f} ms old at t = {now:.3f} s "
+                            f"(limit {1000 * self.max_age:.0f} ms)")
+        return self.tripped is None
+
+
+def check_motion_allowed(backend: str, enable_motion: bool, limits: SafetyLimits | None) -> None:
+    """Refuse to move a real robot unless asked explicitly and bounded.
+
+    ``backend`` "sim" always passes; "kvp" needs ``enable_motion`` and a finite position window.
+    """
+    if backend == "sim":
+        return
+    if backend != "kvp":
+        raise KukaidError(f"run-admittance: unknown backend {backend!r} (sim or kvp)")
+    if not enable_motion:
+        raise KukaidError("run-admittance: refusing to move a real robot: --backend kvp needs --enable-motion "
+                          "and bounds (--q-min/--q-max, --qd-max); check the KRL program that follows KID_TGT first")
+    if limits is None or not limits.bounded:
+        raise KukaidError("run-admittance: --backend kvp --enable-motion needs a finite position window "
+                          "(--q-min and --q-max, degrees)")

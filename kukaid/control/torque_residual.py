@@ -1,0 +1,263 @@
+"""Sensorless external-torque detection, eqs. (12)-(14): the torque residual Γr = Γp - Γm.
+
+Γm is the measured motor torque ($TORQUE_AXIS_ACT), Γp the identified model's prediction::
+
+    |qd| >= qd_thr (dynamic mode, eq. 6):      Γp = Izz qdd + Mx cos q (+ My sin q + offset + effects) + F(qd)
+    |qd| <  qd_thr (quasi-static mode, eq. 11): Γp = Mx cos q (+ ...) + Fp(q) + Γu
+
+with F the Stribeck friction (eq. 1) and Fp the Maxwell-slip pre-sliding torque (eqs. 9-10).
+For a perfect model Γr equals the external torque on the link (a person's push), with the
+paper's sign: pushing the joint towards positive q gives Γr > 0.
+
+Online, causal version (what a controller can do):
+
+* torque, position and the velocity and acceleration obtained by differencing positions all pass
+  through the same causal 3rd-order Butterworth low-pass (5 Hz), so they stay aligned in time;
+* Γu, the unmodelled quasi-static torque, is set to minus the mean raw residual over the first
+  ``u_window`` seconds of every quasi-static phase (and after :meth:`TorqueResidual.reset`);
+  during that window the running mean is used, so Γr starts at zero in quasi-static mode;
+* at every dynamic -> quasi-static transition the Maxwell-slip elements are re-initialised
+  saturated in the direction of the last motion, relative to the stop position (eq. 12);
+* detection: Γr is "detected" when |Γr| >= ``threshold`` and stays so until |Γr| < ``release``
+  (hysteresis), so a residual hovering at the threshold does not chatter.
+
+Effects a diagnosis added to the parameter file are included when they depend on position only
+(``gravity_sine``, ``torque_offset``, ``position_ripple``); others are listed in
+:attr:`TorqueResidual.ignored_effects`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from kukaid.control.filters import CausalButterworth
+from kukaid.errors import KukaidError
+from kukaid.models.joint import AxisModel
+
+DYNAMIC = "dynamic"
+QUASI_STATIC = "quasi-static"
+#: effects of a parameter file that the online residual evaluates
+SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
+
+
+@dataclass(frozen=True)
+class ResidualSample:
+    """One step of the estimator (SI): residual ``gamma_r`` N·m, prediction ``gamma_p`` N·m,
+    filtered torque ``tau_f`` N·m, filtered ``q`` rad, ``qd`` rad/s, ``qdd`` rad/s², ``mode``
+    ("dynamic" or "quasi-static"), ``detected`` (bool), ``gamma_u`` N·m (quasi-static offset)."""
+
+    gamma_r: float
+    gamma_p: float
+    tau_f: float
+    q: float
+    qd: float
+    qdd: float
+    mode: str
+    detected: bool
+    gamma_u: float
+
+
+def _check(name: str, v: float, lo: float, hi: float = math.inf, open_lo: bool = True) -> float:
+    v = float(v)
+    ok = math.isfinite(v) and (v > lo if open_lo else v >= lo) and v <= hi
+    if not ok:
+        rng = f"({lo}, {hi}]" if open_lo else f"[{lo}, {hi}]"
+        raise KukaidError(f"torque residual: {name} = {v} is outside the allowed range {rng}")
+    return v
+
+
+class TorqueResidual:
+    """Online estimator of the external torque from measured position and torque.
+
+    Parameters
+    ----------
+    model : the identified axis model (:func:`kukaid.io.params.model_from_params`).
+    sample_time : measurement interval, s (12 ms on a KR C4).
+    threshold : detection threshold on |Γr|, N·m (paper: 3 quasi-static, 5 mode switching).
+    release : |Γr| below which a detection ends, N·m (default 0.6 * threshold).
+    cutoff, order : causal Butterworth low-pass, Hz and order (paper: 5 Hz, 3).
+    u_window : length of the Γu averaging at the start of each quasi-static phase, s.
+    zeta0 : Maxwell-slip element positions relative to the start position, rad (parameter file's
+        ``maxwell_slip.zeta0``); default zero (Γu absorbs the unknown initial state).
+    qd_thr : mode-switching velocity threshold, rad/s (default the model's).
+    """
+
+    def __init__(self, model: AxisModel, sample_time: float = 0.012, threshold: float = 5.0,
+                 release: float | None = None, cutoff: float = 5.0, order: int = 3, u_window: float = 0.12,
+                 zeta0: Any = None, qd_thr: float | None = None) -> None:
+        self.model = model
+        self.sample_time = _check("sample_time", sample_time, 0.0, 1.0)
+        self.threshold = _check("threshold", threshold, 0.0)
+        self.release = 0.6 * self.threshold if release is None else _check("release", release, 0.0, open_lo=False)
+        if self.release > self.threshold:
+            raise KukaidError(f"torque residual: release = {self.release} N·m must not exceed threshold = "
+                              f"{self.threshold} N·m")
+        self.u_window = _check("u_window", u_window, 0.0, 60.0, open_lo=False)
+        self.qd_thr = _check("qd_thr", model.qd_thr if qd_thr is None else qd_thr, 0.0, open_lo=False)
+        self.cutoff, self.order = float(cutoff), int(order)
+        fs = 1.0 / self.sample_time
+        # q, qd, qdd, tau, predicted torque
+        self._filters = [CausalButterworth(cutoff, fs, order) for _ in range(5)]
+        ms = model.maxwell_slip
+        self._k = np.asarray(ms.k, dtype=float) if ms is not None else np.zeros(0)
+        self._W = np.asarray(ms.W, dtype=float) if ms is not None else np.zeros(0)
+        z0 = np.zeros(self._k.size) if zeta0 is None else np.asarray(zeta0, dtype=float).ravel()
+        if z0.size != self._k.size:
+            raise KukaidError(f"torque residual: zeta0 has {z0.size} values, the Maxwell-slip model {self._k.size} elements")
+        self._zeta0 = z0
+        eff = dict(model.effects or {})
+        self.ignored_effects = sorted(k for k in eff if k not in SUPPORTED_EFFECTS)
+        self._My_extra = float(eff.get("gravity_sine", {}).get("My", 0.0)) if "gravity_sine" in eff else 0.0
+        self._off_extra = float(eff.get("torque_offset", {}).get("offset", 0.0)) if "torque_offset" in eff else 0.0
+        r = eff.get("position_ripple")
+        self._ripple = (float(r["n"]), float(r.get("a", 0.0)), float(r.get("b", 0.0))) if r else None
+        self._started = False
+
+    # -- model pieces ---------------------------------------------------------------------------
+    def static_torque(self, q: float) -> float:
+        """Position-only part of Γp: gravity, offset and supported effects, N·m."""
+        rb = self.model.rigid
+        g = rb.Mx * math.cos(q) + (rb.My + self._My_extra) * math.sin(q) + rb.offset + self._off_extra
+        if self._ripple is not None:
+            n, a, b = self._ripple
+            g += a * math.sin(n * q) + b * math.cos(n * q)
+        return g
+
+    def _maxwell_slip(self, z: float) -> float:
+        if self._k.size == 0:
+            return 0.0
+        lim = self._W / self._k
+        d = z - self._zeta
+        over = np.abs(d) >= lim
+        if over.any():
+            self._zeta = np.where(over, z - np.sign(d) * lim, self._zeta)
+        return float(np.sum(self._k * (z - self._zeta)))
+
+    # -- state ----------------------------------------------------------------------------------
+    def reset(self, q0: float | None = None) -> None:
+        """Start over (filters, mode, Γu); the first :meth:`update` initialises from its sample."""
+        self._started = False
+        self._q0 = q0
+
+    def _start(self, q: float, tau: float) -> None:
+        self._q_prev = q
+        self._qd_prev = 0.0
+        self._zeta = q + self._zeta0
+        fp0 = float(np.sum(self._k * (q - self._zeta))) if self._k.size else 0.0
+        for f, x0 in zip(self._filters, (q, 0.0, 0.0, tau, self.static_torque(q) + fp0)):
+            f.reset(x0)
+        self._mode = QUASI_STATIC
+        self._last_sign = 0.0
+        self._begin_quasi_static()
+        self._detected = False
+        self._started = True
+
+    def _begin_quasi_static(self) -> None:
+        self._u_sum = 0.0
+        self._u_n = 0
+        self._u_need = max(1, int(round(self.u_window / self.sample_time)))
+        self._gamma_u = 0.0
+
+    @property
+    def mode(self) -> str:
+        return self._mode if self._started else QUASI_STATIC
+
+    @property
+    def detected(self) -> bool:
+        return self._detected if self._started else False
+
+    def update(self, q: float, tau: float, dt: float | None = None) -> ResidualSample:
+        """Feed one measurement (position rad, motor torque N·m); return the new residual.
+
+        ``dt`` is the time since the previous measurement, s (default ``sample_time``).
+        """
+        q, tau = float(q), float(tau)
+        if not (math.isfinite(q) and math.isfinite(tau)):
+            raise KukaidError(f"torque residual: measurement must be finite (q = {q}, tau = {tau})")
+        if not self._started:
+            self._start(q, tau)
+        h = self.sample_time if dt is None else float(dt)
+        if not (h > 0 and math.isfinite(h)):
+            raise KukaidError(f"torque residual: time step must be > 0 s, got {h}")
+        qd_raw = (q - self._q_prev) / h
+        qdd_raw = (qd_raw - self._qd_prev) / h
+        self._q_prev, self._qd_prev = q, qd_raw
+        fq, fqd, fqdd, ftau, fpred = self._filters
+        # The prediction is evaluated sample by sample on the raw (differenced) signals, switching
+        # friction model on the raw speed, and then low-passed by the same filter as the torque:
+        # the filter is linear, so predicted and measured torque pass through identical dynamics
+        # (a nonlinear model of low-passed signals is not the low-passed model: friction reversals
+        # and the Maxwell-slip hysteresis would leave spikes).  The mode is chosen on the filtered
+        # speed, as in the paper.
+        fp_raw = self._maxwell_slip(q)
+        fric_raw = float(self.model.friction(qd_raw)) if abs(qd_raw) >= self.qd_thr else fp_raw
+        pred_raw = self.model.rigid.Izz * qdd_raw + self.static_torque(q) + fric_raw
+        q_f, qd_f, qdd_f, tau_f = fq.step(q), fqd.step(qd_raw), fqdd.step(qdd_raw), ftau.step(tau)
+        pred_f = fpred.step(pred_raw)
+
+        if abs(qd_f) >= self.qd_thr:
+            self._mode = DYNAMIC
+            self._last_sign = math.copysign(1.0, qd_f)
+            gamma_p = pred_f
+        else:
+            if self._mode == DYNAMIC:
+                # eq. (12): elements saturated in the direction of the last motion, relative to the
+                # stop position (a no-op when the motion was long enough to saturate them all)
+                self._mode = QUASI_STATIC
+                if self._k.size:
+                    self._zeta = q - self._last_sign * (self._W / self._k)
+                self._begin_quasi_static()
+            raw = pred_f - tau_f
+            if self._u_n < self._u_need:
+                self._u_sum += raw
+                self._u_n += 1
+                self._gamma_u = -self._u_sum / self._u_n
+            gamma_p = pred_f + self._gamma_u
+        gamma_r = gamma_p - tau_f
+        a = abs(gamma_r)
+        if self._detected:
+            self._detected = a >= self.release
+        else:
+            self._detected = a >= self.threshold
+        return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, self._gamma_u)
+
+
+def torque_residual(time: np.ndarray, q: np.ndarray, tau: np.ndarray, model: AxisModel,
+                    **options: Any) -> dict[str, np.ndarray]:
+    """Run :class:`TorqueResidual` over recorded samples (causally, as online).
+
+    Parameters
+    ----------
+    time : (N,) s.   q : (N,) rad.   tau : (N,) N·m (measured motor torque).
+    model : identified axis model.   options : keyword arguments of :class:`TorqueResidual`.
+
+    Returns
+    -------
+    dict of (N,) arrays: ``gamma_r``, ``gamma_p``, ``tau_f``, ``q``, ``qd``, ``qdd`` (filtered),
+    ``dynamic`` (bool), ``detected`` (bool), ``gamma_u``.
+    """
+    time = np.asarray(time, dtype=float).ravel()
+    q = np.asarray(q, dtype=float).ravel()
+    tau = np.asarray(tau, dtype=float).ravel()
+    if not time.size == q.size == tau.size:
+        raise KukaidError(f"torque residual: time, q and tau must have one length (got {time.size}, {q.size}, {tau.size})")
+    if time.size >= 2 and "sample_time" not in options:
+        options["sample_time"] = float(np.median(np.diff(time)))
+    est = TorqueResidual(model, **options)
+    keys = ("gamma_r", "gamma_p", "tau_f", "q", "qd", "qdd", "gamma_u")
+    out = {k: np.empty(time.size) for k in keys}
+    dyn = np.zeros(time.size, dtype=bool)
+    det = np.zeros(time.size, dtype=bool)
+    for i in range(time.size):
+        dt = float(time[i] - time[i - 1]) if i else None
+        s = est.update(q[i], tau[i], dt if dt and dt > 0 else None)
+        for k in keys:
+            out[k][i] = getattr(s, k)
+        dyn[i] = s.mode == DYNAMIC
+        det[i] = s.detected
+    out["dynamic"] = dyn
+    out["detected"] = det
+    return out
