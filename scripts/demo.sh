@@ -32,6 +32,9 @@ fi
 # -- identification
 kukaid fit --friction "$out/friction.h5" --inertia "$out/inertia.h5" --presliding "$out/presliding.h5" \
     -o "$out/params.json"
+# -- report: the paper's figures and tables of the fit (PDF)
+kukaid report --params "$out/params.json" --friction "$out/friction.h5" --inertia "$out/inertia.h5" \
+    --presliding "$out/presliding.h5" --log "$out/validation.h5" -o "$out/report.pdf"
 # -- diagnosis
 #    of the demo's own fit (clean data: expect "no effect is missing"), then of logs with a hidden
 #    gear ripple (capture --effect): the diagnosis names it, refits, and the gap closes to the noise
@@ -43,4 +46,7 @@ done
 kukaid fit --friction "$out/friction_ripple.h5" --inertia "$out/inertia_ripple.h5" -o "$out/params_ripple.json"
 kukaid diagnose --params "$out/params_ripple.json" --log "$out/friction_ripple.h5" --log "$out/inertia_ripple.h5" \
     --report "$out/diagnose_ripple.pdf" -o "$out/params_ripple_diagnosed.json" | tee "$out/diagnose_ripple.txt"
+# -- sensorless admittance control on the virtual KR C4 (a simulated hand drags the axis)
+kukaid run-admittance --params "$out/params.json" --damping adaptive --operator pull --seed 1 --duration 8 \
+    -o "$out/admittance.h5" --report "$out/admittance.pdf" --force | tee "$out/admittance.txt"
 echo "== demo done: $(ls "$out" | tr '\n' ' ')"
