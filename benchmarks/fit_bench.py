@@ -140,7 +140,7 @@ def main() -> None:
         times = []
         for _ in range(a.repeat):
             t0 = time.perf_counter()
-            r = subprocess.run(["kukaid", "fit", "--friction", str(d / "friction.h5"), "--inertia", str(d / "inertia.h5"),
+            r = subprocess.run([sys.executable, "-m", "kukaid_cli.main", "fit", "--friction", str(d / "friction.h5"), "--inertia", str(d / "inertia.h5"),
                                 "--presliding", str(d / "presliding.h5"), "-o", str(d / "params.json")],
                                capture_output=True, text=True)
             times.append(time.perf_counter() - t0)
