@@ -41,6 +41,8 @@ def _fmt(v):
 @click.option("--q-max", type=float, help="Position window, upper bound, degrees (sim default: q0 + 90).")
 @click.option("--qd-max", type=float, default=30.0, show_default=True, help="Reference speed limit, deg/s.")
 @click.option("--qdd-max", type=float, default=300.0, show_default=True, help="Reference acceleration limit, deg/s².")
+@click.option("--tau-max", type=float, default=100.0, show_default=True,
+              help="Motion stops when the measured torque exceeds this, N·m.")
 @click.option("--max-age", type=float, default=0.1, show_default=True,
               help="Motion stops when the latest measurement is older than this, s.")
 # backends
@@ -58,24 +60,25 @@ def _fmt(v):
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
 @click.option("--port", type=int, default=7000, show_default=True, help="kvp: KUKAVARPROXY port.")
 @click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="kvp: axis to control.")
-@click.option("--target", default="KID_TGT", show_default=True,
-              help="kvp: global REAL variable (degrees) the KRL follower program moves the axis to.")
 def command(params_path: Path, output: Path, report: Path | None, as_json: bool, force: bool, damping: str,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
             duration: float, cycle: float, init_move: float, q_min: float | None, q_max: float | None,
-            qd_max: float, qdd_max: float, max_age: float, backend: str, operator: str, seed: int, q0: float,
-            sim_config: Path | None, noise: float | None, enable_motion: bool, host: str, port: int, axis: int,
-            target: str) -> None:
+            qd_max: float, qdd_max: float, tau_max: float, max_age: float, backend: str, operator: str, seed: int,
+            q0: float, sim_config: Path | None, noise: float | None, enable_motion: bool, host: str, port: int,
+            axis: int) -> None:
     """Push the axis by hand without a force sensor: estimate the external torque Γr from the
     identified model (eqs. 12-14) and let an admittance (eqs. 15-16) with constant or adaptive
     damping (eqs. 17-22) move the reference, bounded and watched (position window, speed,
     acceleration, measurement age).
 
     The default backend is the virtual KR C4 with a simulated operator.  A real robot
-    (--backend kvp) moves only with --enable-motion and a finite position window.
+    (--backend kvp) moves only with --enable-motion and a finite position window, through the
+    KRL program of `kukaid krl-follower` (which clamps to its own window and stops when this
+    command's heartbeat stops).  Exit status 3: the run stopped early (the log says why).
     """
     import json
     import math
+    import signal
 
     from kukaid.control.admittance import check_admittance
     from kukaid.control.loop import LoopConfig, run_admittance
@@ -83,7 +86,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.control.runlog import write_run
     from kukaid.control.safety import SafetyLimits, check_motion_allowed
     from kukaid.errors import KukaidError
+    from kukaid.io.jsonfile import jsonable
     from kukaid.io.params import load_params, model_from_params
+    from kukaid_cli._util import progress
 
     if output.suffix.lower() not in (".h5", ".hdf5"):
         raise KukaidError(f"{output}: the run log is HDF5; name it .h5 or .hdf5")
@@ -112,7 +117,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         lo = math.radians(q_min) if q_min is not None else -math.inf
         hi = math.radians(q_max) if q_max is not None else math.inf
     limits = SafetyLimits(q_min=lo, q_max=hi, qd_max=math.radians(qd_max), qdd_max=math.radians(qdd_max),
-                          max_age=max_age)
+                          tau_max=tau_max, max_age=max_age)
     check_motion_allowed(backend, enable_motion, limits)
     cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
                      sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf, limits=limits)
@@ -139,22 +144,28 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         from kukaid.control.backends import KvpBackend
         from kukaid.io.kvp import KvpClient
 
-        client = KvpClient(host=host, port=port, timeout=max(0.5, 2 * cycle))
+        client = KvpClient(host=host, port=port, timeout=max(max_age, 2 * cycle))
         client.connect()
-        be = KvpBackend(client, axis=axis, target=target)
-        attrs.update(host=host, port=port, target=target)
+        be = KvpBackend(client, axis=axis)
+        attrs.update(host=host, port=port)
         axis_id = axis
-    run = run_admittance(be, model, cfg, zeta0=zeta0)
+
+    def on_sigterm(*_):
+        raise KeyboardInterrupt
+
+    old_handler = signal.signal(signal.SIGTERM, on_sigterm)
+    try:
+        with progress(cfg.init_time + cfg.init_rest + cfg.duration, f"run-admittance ({backend})") as update:
+            run = run_admittance(be, model, cfg, zeta0=zeta0, progress=update)
+    finally:
+        signal.signal(signal.SIGTERM, old_handler)
     write_run(output, run, axis=axis_id, attrs=attrs)
     if report is not None:
         from kukaid.control.plots import plot_run
 
         plot_run(run.data, run.metrics, report, title=f"kukaid run-admittance ({damping} damping, {backend})")
     if as_json:
-        click.echo(json.dumps(run.metrics, default=lambda v: None, allow_nan=False)
-                   if all(not (isinstance(v, float) and math.isnan(v)) for v in run.metrics.values())
-                   else json.dumps({k: (None if isinstance(v, float) and math.isnan(v) else v)
-                                    for k, v in run.metrics.items()}))
+        click.echo(json.dumps(jsonable(run.metrics)))
     else:
         m = run.metrics
         click.echo(f"run-admittance ({damping} damping, {backend}): {run.status}")

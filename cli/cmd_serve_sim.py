@@ -26,15 +26,26 @@ import click
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write every 12 ms sample the simulator took (ground truth, sim time) to this HDF5 log on exit.")
 @click.option("--delay", type=float, default=0.0, help="Fault injection: seconds added to every reply.")
+@click.option("--q0", type=float, help="Start position of the axis, degrees (without --trajectory) [0].")
+@click.option("--follower", "follower_window", nargs=2, type=float, metavar="QMIN QMAX",
+              help="Emulate the program of `kukaid krl-follower` with this window (degrees): KID_TGT is "
+                   "followed while KID_RUN is TRUE, clamped, and motion stops when KID_HB goes stale.")
+@click.option("--stale-ms", type=int, default=200, show_default=True, help="--follower: heartbeat timeout, ms.")
+@click.option("--operator", type=click.Choice(["push", "pull"]),
+              help="A simulated hand on the link (external torque, drawn from --seed), as for run-admittance.")
+@click.option("--operator-start", type=float, default=3.0, show_default=True,
+              help="--operator: seconds after the start when the hand begins.")
 def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, sim_config: Path | None,
             noise: float | None, duration: float | None, speed: float, ring_axes: tuple[int, ...],
-            truth_path: Path | None, delay: float) -> None:
+            truth_path: Path | None, delay: float, q0: float | None, follower_window: tuple[float, float] | None,
+            stale_ms: int, operator: str | None, operator_start: float) -> None:
     """Serve the virtual KR C4's live variables over KUKAVARPROXY until interrupted.
 
     Variables: $AXIS_ACT_MEAS, $AXIS_ACT, $TORQUE_AXIS_ACT[i], $MOT_TEMP[i] (K), $OV_PRO,
     $ROB_TIMER, PING, global variables (KID_TGT commands the axis), and the KRL ring-buffer
     logger's KID_* globals (see `kukaid krl-logger`).
     """
+    import math
     import signal
     import threading
 
@@ -55,8 +66,22 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, 
         traj = Trajectory.from_json(traj_path)
         axis = int(getattr(traj, "axis", axis) or axis)
     sim = VirtualKRC4(cfg, seed=seed, axis=axis)
+    if q0 is not None:
+        if traj is not None:
+            raise KukaidError("serve-sim: --q0 is for a robot without --trajectory (it starts where the trajectory does)")
+        sim.reset(math.radians(q0))
+    if operator is not None:
+        from kukaid.sim.operator import make_operator
+
+        sim.set_external_torque(make_operator(operator, seed, sim.q, t_start=sim.t + operator_start))
+    follower = None
+    if follower_window:
+        from kukaid.io.krl_follower import FollowerConfig
+
+        follower = FollowerConfig(axis=axis, q_min_deg=follower_window[0], q_max_deg=follower_window[1],
+                                  stale_ms=stale_ms)
     ring = RingLayout(axes=tuple(ring_axes) or (axis,))
-    source = SimSource(sim, axis=axis, trajectory=traj, speed=speed, ring=ring).start()
+    source = SimSource(sim, axis=axis, trajectory=traj, speed=speed, ring=ring, follower=follower).start()
     stop = threading.Event()
     old = signal.signal(signal.SIGTERM, lambda *_: stop.set())
     try:

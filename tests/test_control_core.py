@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from kukaid.control.admittance import Admittance, check_admittance
-from kukaid.control.backends import Sample, SimBackend
+from kukaid.control.backends import SimBackend
 from kukaid.control.loop import LoopConfig, run_admittance
 from kukaid.control.safety import ReferenceLimiter, SafetyLimits, Watchdog, check_motion_allowed
 from kukaid.control.torque_residual import TorqueResidual

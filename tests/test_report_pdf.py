@@ -5,7 +5,6 @@ import json
 import re
 from dataclasses import replace
 
-import numpy as np
 import pytest
 from click.testing import CliRunner
 

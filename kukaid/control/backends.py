@@ -7,9 +7,10 @@ reference) and ``close()``.
 
 * :class:`SimBackend` — the virtual KR C4 (default), with an optional simulated operator.
 * :class:`KvpBackend` — a KR C4 through KUKAVARPROXY: writes the reference angle (degrees) to the
-  global REAL variable ``KID_TGT`` that a KRL program follows, reads ``$AXIS_ACT_MEAS`` and
-  ``$TORQUE_AXIS_ACT[axis]``.  Only reachable through the CLI's ``--backend kvp --enable-motion``
-  with bounds (see :func:`kukaid.control.safety.check_motion_allowed`).
+  global REAL variable ``KID_TGT`` that the KRL follower program (``kukaid krl-follower``)
+  follows, with a heartbeat, and reads ``$AXIS_ACT_MEAS`` and ``$TORQUE_AXIS_ACT[axis]``.  Only
+  reachable through the CLI's ``--backend kvp --enable-motion`` with bounds (see
+  :func:`kukaid.control.safety.check_motion_allowed`).
 """
 from __future__ import annotations
 
@@ -67,22 +68,35 @@ class SimBackend:
 
 
 class KvpBackend:
-    """A KR C4 over KUKAVARPROXY (``client`` a connected :class:`kukaid.io.kvp.KvpClient`).
+    """A KR C4 over KUKAVARPROXY (``client`` a connected :class:`kukaid.io.kvp.KvpClient`), with the
+    KRL follower program of :mod:`kukaid.io.krl_follower` running on the controller.
 
-    The KRL side must run a program that follows ``target`` (global REAL, degrees) with its own
-    position control (e.g. a loop of short PTP/SPLINE moves, or an RSI/interrupt-driven follower),
-    within the robot's software limit switches.  Timestamps are the host's monotonic clock at the
-    moment a reading returned.
+    Every cycle writes the reference (``KID_TGT``, degrees) and the heartbeat (``KID_HB``), then
+    reads ``$AXIS_ACT_MEAS`` and ``$TORQUE_AXIS_ACT[axis]``; :meth:`start` enables the follower
+    (``KID_RUN`` TRUE) once the first target is where the axis stands, :meth:`hold` disables it.
+    Nothing else on the robot is written.
+
+    The controller updates both variables once per interpolation cycle (``sample_time``, 12 ms)
+    and the PC's cycle is not locked to it: a reading identical to the previous one is the same
+    controller sample read again and is dropped (so a controller that stops updating looks stale
+    to the watchdog), and timestamps are the host's monotonic clock snapped to the controller's
+    sample grid, so the estimator differentiates over whole sample intervals rather than over
+    network jitter.
     """
 
     name = "kvp"
 
-    def __init__(self, client: Any, axis: int = 3, target: str = "KID_TGT") -> None:
+    def __init__(self, client: Any, axis: int = 3, target: str = "KID_TGT", heartbeat: str = "KID_HB",
+                 run: str = "KID_RUN", sample_time: float = 0.012) -> None:
         self.client = client
         self.axis = int(axis)
-        self.target = target
+        self.target, self.heartbeat, self.run = target, heartbeat, run
+        self.sample_time = float(sample_time)
         self._t0 = time.monotonic()
-        self._last_cmd: float | None = None
+        self._beat = 0
+        self._enabled = False
+        self._last: Sample | None = None
+        self._t_next: float | None = None
 
     def now(self) -> float:
         return time.monotonic() - self._t0
@@ -93,37 +107,56 @@ class KvpBackend:
             tau = self.client.read_real(f"$TORQUE_AXIS_ACT[{self.axis}]")
         except ControllerError:
             return []  # a missing reading: the watchdog decides
-        return [Sample(self.now(), math.radians(q_deg), tau)]
+        q = math.radians(q_deg)
+        prev = self._last
+        if prev is not None and q == prev.q and tau == prev.tau:
+            return []  # the same controller sample again
+        h = self.sample_time
+        t = round(self.now() / h) * h
+        if prev is not None and t <= prev.t:
+            t = prev.t + h
+        self._last = Sample(t, q, tau)
+        return [self._last]
+
+    def _send(self, q: float) -> None:
+        from kukaid.io.kvp import format_real
+
+        self.client.write(self.target, format_real(math.degrees(q), 6))
+        self._beat = (self._beat + 1) % 30000
+        self.client.write(self.heartbeat, str(self._beat))
 
     def start(self) -> list[Sample]:
         s = self._read()
         if not s:
             raise ControllerError("kvp: cannot read $AXIS_ACT_MEAS / $TORQUE_AXIS_ACT at start")
-        # start by commanding where the axis stands, so the follower does not jump
-        self._write(s[-1].q)
+        self._send(s[-1].q)  # the first target is where the axis stands: the follower does not jump
+        self.client.write(self.run, "TRUE")
+        self._enabled = True
         return s
 
-    def _write(self, q: float) -> None:
-        from kukaid.io.kvp import format_real
-
-        self.client.write(self.target, format_real(math.degrees(q), 6))
-        self._last_cmd = q
-
     def cycle(self, q_cmd: float, dt: float) -> list[Sample]:
-        t_next = self.now() + dt
-        self._write(q_cmd)
+        # cycles on a fixed grid (not "dt after the last one"), so the PC's mean period is dt and
+        # does not drift against the controller's sample clock; a late cycle resynchronises
+        now = self.now()
+        nxt = (self._t_next if self._t_next is not None else now) + dt
+        self._t_next = nxt if nxt > now else now + dt
+        self._send(q_cmd)
         out = self._read()
-        wait = t_next - self.now()
+        wait = self._t_next - self.now()
         if wait > 0:
             time.sleep(wait)
         return out
 
     def hold(self) -> None:
-        if self._last_cmd is not None:
+        """Stop the follower (``KID_RUN`` FALSE); if that write fails too, the follower's own
+        heartbeat watchdog stops the axis."""
+        if self._enabled:
             try:
-                self._write(self._last_cmd)
+                self.client.write(self.run, "FALSE")
+                self._enabled = False
             except ControllerError:
                 pass
 
     def close(self) -> None:
         self.hold()
+        self.client.close()

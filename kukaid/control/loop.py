@@ -86,96 +86,26 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
                    progress: Callable[[float], None] | None = None) -> AdmittanceRun:
     """Run the loop on ``backend`` (:mod:`kukaid.control.backends`) with the identified ``model``.
 
-    Returns an :class:`AdmittanceRun`; ``status`` is "completed" or the reason motion stopped.
+    Returns an :class:`AdmittanceRun`; ``status`` is "completed" or "stopped: <reason>" (a stale
+    or missing measurement, the torque limit, a controller error, an interrupt).  Whatever ends
+    the run, the backend is told to hold and what was recorded until then is returned.
+    ``progress(t)`` is called with the seconds run so far.
     """
     cfg = config or LoopConfig()
     est = TorqueResidual(model, sample_time=cfg.sample_time, threshold=cfg.threshold, release=cfg.release,
                          zeta0=zeta0, u_window=cfg.u_window)
     samples = backend.start()
-    if not samples:
-        raise KukaidError("run-admittance: no measurement from the backend at start")
-    for s in samples:
-        est.update(s.q, s.tau)
-    dog = Watchdog(cfg.limits.max_age)
-    dog.feed(samples[-1].t)
-    q_start = samples[-1].q
-    t0 = samples[-1].t
-    limiter = ReferenceLimiter(cfg.limits, cfg.cycle, q_start)
-    adm = Admittance(cfg.I, cfg.D, cfg.cycle, sigma0=q_start)
-    rbf = RBFDamping(cfg.rbf) if cfg.damping == "adaptive" else None
-    t_init_end = cfg.init_time if cfg.init_move else 0.0
-    t_adm = t_init_end + (cfg.init_rest if cfg.init_move else cfg.init_rest)
-    t_end = t_adm + cfg.duration
-    keys = ("time", "q", "tau", "tau_ext_true", "gamma_r", "gamma_p", "sigma", "sigma_dot", "q_cmd", "D",
-            "dynamic", "detected", "phase", "clipped")
-    log: dict[str, list] = {k: [] for k in keys}
-    status = "completed"
-    q_cmd = q_start
-    last = samples[-1]
-    r = None
-    D_now = cfg.D
-    n_cycles = int(math.ceil(t_end / cfg.cycle - 1e-9))
-    for k in range(n_cycles):
-        tr = (k + 1) * cfg.cycle  # time since start at the end of this cycle
-        # -- reference for this cycle
-        clipped = False
-        if tr <= t_adm:
-            if tr <= t_init_end and cfg.init_move:
-                x = min(tr / cfg.init_time, 1.0)
-                q_des = q_start + cfg.init_move * x ** 3 * (10 - 15 * x + 6 * x * x)
-            else:
-                q_des = q_start + (cfg.init_move or 0.0)
-            phase = PHASE_INIT if tr <= t_init_end else PHASE_REST
-            q_cmd, clipped = limiter.apply(q_des)
-            adm.reset(q_cmd)
-            sd = 0.0
-        else:
-            phase = PHASE_ADMITTANCE
-            gamma = r.gamma_r if (r is not None and r.detected) else 0.0
-            if rbf is not None:
-                D_now = rbf.step(r.gamma_r if r is not None else 0.0,
-                                 direction=adm.sigma_dot if adm.sigma_dot != 0 else gamma,
-                                 adapt=bool(r is not None and r.detected))
-            sigma, sd = adm.step(gamma, D_now if rbf is not None else None)
-            q_cmd, clipped = limiter.apply(sigma)
-            if clipped:  # no wind-up: the admittance continues from what was sent
-                adm.reset(q_cmd, limiter.v)
-                sd = limiter.v
-        try:
-            new = backend.cycle(q_cmd, cfg.cycle)
-        except KeyboardInterrupt:
-            backend.hold()
-            status = "stopped: interrupted"
-            break
-        for s in new:
-            prev_t = last.t
-            r = est.update(s.q, s.tau, (s.t - prev_t) if s.t > prev_t else None)
-            last = s
-            dog.feed(s.t)
-        if not dog.check(backend.now()):
-            status = f"stopped: {dog.tripped}"
-            backend.hold()
-            phase = PHASE_STOPPED
-        if r is None:
-            r = est.update(last.q, last.tau)
-        log["time"].append(last.t - t0)
-        log["q"].append(last.q)
-        log["tau"].append(last.tau)
-        log["tau_ext_true"].append(last.tau_ext_true)
-        log["gamma_r"].append(r.gamma_r)
-        log["gamma_p"].append(r.gamma_p)
-        log["sigma"].append(adm.sigma)
-        log["sigma_dot"].append(sd)
-        log["q_cmd"].append(q_cmd)
-        log["D"].append(D_now)
-        log["dynamic"].append(r.mode == DYNAMIC)
-        log["detected"].append(r.detected)
-        log["phase"].append(phase)
-        log["clipped"].append(clipped)
-        if phase == PHASE_STOPPED:
-            break
-        if progress is not None and k % 25 == 0:
-            progress(tr)
+    try:
+        if not samples:
+            raise KukaidError("run-admittance: no measurement from the backend at start")
+        for s in samples:
+            r = est.update(s.q, s.tau)
+        limiter = ReferenceLimiter(cfg.limits, cfg.cycle, samples[-1].q)
+        log, status = _loop(backend, est, r, limiter, samples[-1], cfg, progress)
+    except BaseException:
+        backend.hold()
+        backend.close()
+        raise
     backend.close()
     data = {k: np.asarray(v, dtype=bool if k in ("dynamic", "detected", "clipped") else float)
             for k, v in log.items()}
@@ -186,6 +116,76 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     if est.ignored_effects:
         metrics["ignored_effects"] = est.ignored_effects
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
+
+
+_KEYS = ("time", "q", "tau", "tau_ext_true", "gamma_r", "gamma_p", "sigma", "sigma_dot", "q_cmd", "D",
+         "dynamic", "detected", "phase", "clipped")
+
+
+def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, first: Any, cfg: LoopConfig,
+          progress: Callable[[float], None] | None) -> tuple[dict[str, list], str]:
+    """The control cycles from the estimator's latest step ``r`` and measurement ``first``; returns
+    the per-cycle record and the status."""
+    dog = Watchdog(cfg.limits.max_age)
+    dog.feed(first.t)
+    q_start, t0, last = first.q, first.t, first
+    adm = Admittance(cfg.I, cfg.D, cfg.cycle, sigma0=q_start)
+    rbf = RBFDamping(cfg.rbf) if cfg.damping == "adaptive" else None
+    t_init_end = cfg.init_time if cfg.init_move else 0.0
+    t_adm = t_init_end + cfg.init_rest
+    log: dict[str, list] = {k: [] for k in _KEYS}
+    D_now = cfg.D
+    n_cycles = int(math.ceil((t_adm + cfg.duration) / cfg.cycle - 1e-9))
+    for k in range(n_cycles):
+        tr = (k + 1) * cfg.cycle  # time since start at the end of this cycle
+        if tr <= t_adm:  # initiation move (eq. 12), then rest while Γu settles
+            x = min(tr / cfg.init_time, 1.0) if cfg.init_move else 1.0
+            phase = PHASE_INIT if tr <= t_init_end else PHASE_REST
+            q_cmd, clipped = limiter.apply(q_start + cfg.init_move * x ** 3 * (10 - 15 * x + 6 * x * x))
+            adm.reset(q_cmd)
+            sd = 0.0
+        else:
+            phase = PHASE_ADMITTANCE
+            gamma = r.gamma_r if r.detected else 0.0
+            if rbf is not None:
+                D_now = rbf.step(r.gamma_r, direction=adm.sigma_dot if adm.sigma_dot != 0 else gamma,
+                                 adapt=r.detected)
+            sigma, sd = adm.step(gamma, D_now if rbf is not None else None)
+            q_cmd, clipped = limiter.apply(sigma)
+            if clipped:  # no wind-up: the admittance continues from what was sent
+                adm.reset(q_cmd, limiter.v)
+                sd = limiter.v
+        stop = None
+        try:
+            new = backend.cycle(q_cmd, cfg.cycle)
+        except KeyboardInterrupt:
+            new, stop = [], "interrupted"
+        except KukaidError as e:  # the controller stopped answering, refused a write, ...
+            new, stop = [], str(e)
+        for s in new:
+            r = est.update(s.q, s.tau, (s.t - last.t) if s.t > last.t else None)
+            last = s
+            dog.feed(s.t)
+        if stop is None and not dog.check(backend.now()):
+            stop = dog.tripped
+        if stop is None and abs(last.tau) > cfg.limits.tau_max:
+            stop = (f"measured torque {last.tau:.1f} N·m beyond the limit {cfg.limits.tau_max:g} N·m "
+                    f"at t = {last.t - t0:.3f} s")
+        t_row = last.t
+        if stop is not None:
+            backend.hold()
+            phase = PHASE_STOPPED
+            t_row = max(last.t, backend.now())  # a stale measurement: the row is the moment motion stopped
+        for key, v in (("time", t_row - t0), ("q", last.q), ("tau", last.tau), ("tau_ext_true", last.tau_ext_true),
+                       ("gamma_r", r.gamma_r), ("gamma_p", r.gamma_p), ("sigma", adm.sigma), ("sigma_dot", sd),
+                       ("q_cmd", q_cmd), ("D", D_now), ("dynamic", r.mode == DYNAMIC), ("detected", r.detected),
+                       ("phase", phase), ("clipped", clipped)):
+            log[key].append(v)
+        if stop is not None:
+            return log, f"stopped: {stop}"
+        if progress is not None and k % 25 == 0:
+            progress(tr)
+    return log, "completed"
 
 
 def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:

@@ -24,7 +24,6 @@ Choices this module makes where the paper leaves room (stated, not hidden):
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass
 
 import numpy as np

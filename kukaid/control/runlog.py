@@ -9,27 +9,17 @@ per-cycle datasets ``gamma_r``, ``gamma_p`` (N·m), ``sigma`` (rad), ``sigma_dot
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from kukaid.io.atomic import atomic_path
+from kukaid.io.jsonfile import jsonable
 
 
 def _json(x: Any) -> str:
-    def clean(v):
-        if isinstance(v, dict):
-            return {k: clean(u) for k, u in v.items()}
-        if isinstance(v, (list, tuple)):
-            return [clean(u) for u in v]
-        if isinstance(v, float) and not math.isfinite(v):
-            return None
-        if isinstance(v, np.generic):
-            return clean(v.item())
-        return v
-    return json.dumps(clean(x))
+    return json.dumps(jsonable(x))
 
 
 def write_run(path: str | Path, run: Any, axis: int = 3, attrs: dict[str, Any] | None = None) -> None:

@@ -1,7 +1,8 @@
 """Safety of the admittance loop: every reference that can move a robot is bounded and watched.
 
 * :class:`SafetyLimits` — position window (rad), velocity (rad/s), acceleration (rad/s²) limits on
-  the reference, and the largest age of a measurement (s) the loop may act on.
+  the reference, the largest measured torque (N·m) and the largest age of a measurement (s) the
+  loop may act on.
 * :class:`ReferenceLimiter` — clips a new reference to the window and to the velocity and
   acceleration limits relative to the previous reference (so a step never reaches the robot).
 * :class:`Watchdog` — a stale or missing measurement (older than ``max_age``) stops motion: the
@@ -22,8 +23,9 @@ class SafetyLimits:
     """Bounds on the admittance reference (SI).
 
     q_min, q_max : position window, rad.   qd_max : reference speed limit, rad/s.
-    qdd_max : reference acceleration limit, rad/s² (a torque limit tau_max on the reference
-        becomes qdd_max = tau_max / Izz, see :meth:`from_torque`).
+    qdd_max : reference acceleration limit, rad/s².
+    tau_max : largest measured motor torque, N·m: beyond it motion stops (a collision, a jammed
+        axis or a model far off; the KRC's own torque monitoring stays in force).
     max_age : largest age of the latest measurement, s, before motion stops.
     """
 
@@ -31,25 +33,16 @@ class SafetyLimits:
     q_max: float = math.inf
     qd_max: float = 0.5
     qdd_max: float = 5.0
+    tau_max: float = 100.0
     max_age: float = 0.1
 
     def __post_init__(self) -> None:
-        for name in ("qd_max", "qdd_max", "max_age"):
+        for name in ("qd_max", "qdd_max", "tau_max", "max_age"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise LimitError(f"safety: {name} = {v} must be a finite number > 0")
         if math.isnan(self.q_min) or math.isnan(self.q_max) or not self.q_min < self.q_max:
             raise LimitError(f"safety: position window [{self.q_min}, {self.q_max}] rad must have q_min < q_max")
-
-    @staticmethod
-    def from_torque(tau_max: float, Izz: float, **kw) -> "SafetyLimits":
-        """Limits whose acceleration bound is the torque bound ``tau_max`` N·m over ``Izz`` kg·m²."""
-        if not (tau_max > 0 and Izz > 0):
-            raise LimitError(f"safety: tau_max = {tau_max} N·m and Izz = {Izz} kg·m² must be > 0")
-        qdd = tau_max / Izz
-        if "qdd_max" in kw:
-            qdd = min(qdd, kw.pop("qdd_max"))
-        return SafetyLimits(qdd_max=qdd, **kw)
 
     @property
     def bounded(self) -> bool:

@@ -22,6 +22,7 @@ import numpy as np
 from kukaid.diagnose import candidates as C
 from kukaid.diagnose.signals import LogSignals
 from kukaid.errors import FitError, ParamFileError
+from kukaid.io.jsonfile import jsonable
 
 VS_BOUNDS = (1e-4, 2.0)
 DELTA_BOUNDS = (0.5, 2.0)
@@ -341,19 +342,8 @@ class DiagModel:
         for e in self.effects:
             std = {c: self.std.get(e.key(c), math.nan) for c in e.coefs}
             effects[e.name] = C.get(e.name).describe(e.nl, e.coefs, std, self)
-        d["effects"] = _finite(effects)
+        d["effects"] = jsonable(effects)
         return d
-
-
-def _finite(x: Any) -> Any:
-    """JSON cannot hold NaN: replace non-finite floats by None."""
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
 
 
 def effects_torque(params: dict, time: np.ndarray, q: np.ndarray, qd: np.ndarray,

@@ -21,10 +21,11 @@ import numpy as np
 
 from kukaid.diagnose import candidates as C
 from kukaid.diagnose import selection as S
-from kukaid.diagnose.model import DiagModel, _finite
+from kukaid.diagnose.model import DiagModel
 from kukaid.diagnose.noise import noise_floor, noise_sigma
 from kukaid.diagnose.signals import LogSignals, prepare
 from kukaid.errors import FitError, KukaidError
+from kukaid.io.jsonfile import jsonable
 
 
 @dataclass
@@ -42,7 +43,7 @@ class CandidateTest:
     reason: str = ""
 
     def evidence(self) -> dict[str, Any]:
-        return _finite({
+        return jsonable({
             "test": "HAC Wald (Bartlett, Andrews bandwidth), decimated rows",
             "statistic": float(self.wald.stat), "dof": int(self.wald.dof),
             "p_value": float(self.p_adjusted), "p_uncorrected": float(self.wald.p_value),
@@ -70,7 +71,7 @@ class Step:
     def to_json(self) -> dict[str, Any]:
         ev = self.test.evidence()
         ev["share_of_gap_closed"] = float(self.gap_closed)
-        return _finite({"name": self.name, "params": self.params, "rmse_before": float(self.rmse_before),
+        return jsonable({"name": self.name, "params": self.params, "rmse_before": float(self.rmse_before),
                         "rmse_after": float(self.rmse_after), "evidence": ev})
 
 
@@ -102,7 +103,7 @@ class Diagnosis:
         return iter((self.steps, self.params))
 
     def to_json(self) -> dict[str, Any]:
-        return _finite({"effects": [s.to_json() for s in self.steps], "rmse_before": float(self.rmse_before),
+        return jsonable({"effects": [s.to_json() for s in self.steps], "rmse_before": float(self.rmse_before),
                         "rmse_after": float(self.rmse_after), "noise_floor": float(self.noise_floor),
                         "ambiguous": self.ambiguous})
 
@@ -334,13 +335,13 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
             coefs_new = dict(term.coefs)
             std = {c: new.std.get(term.key(c), math.nan) for c in term.coefs}
         best.nl = dict(next((e.nl for e in new.effects if e.name == best.name), best.nl))
-        desc = _finite(cand.describe(best.nl, coefs_new, std, new))
+        desc = jsonable(cand.describe(best.nl, coefs_new, std, new))
         steps.append(Step(best.name, desc, cur_rmse, r_after, best, closed, cur_rel, rel_after, model, new))
         model, cur_rmse, cur_rel = new, r_after, rel_after
     out_params = model.to_params(params, added)
     prov = dict(out_params.get("provenance") or {})
     prov["diagnose"] = {"effects_added": added, "rmse_before": rmse0, "rmse_after": cur_rmse, "noise_floor": floor}
-    out_params["provenance"] = _finite(prov)
+    out_params["provenance"] = jsonable(prov)
     return Diagnosis(steps, rmse0, cur_rmse, floor, sigma, ambiguous, out_params, rel0, cur_rel, rmse_r, tests,
                      list(sigs), given, model, notes)
 

@@ -27,6 +27,7 @@ from kukaid.identify.least_squares import fit_rigid
 from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
 from kukaid.identify.stribeck_fit import extract_friction, natural_uncertainty, solve_separable
 from kukaid.identify.uncertainty import correlation_factor, covariance
+from kukaid.io.jsonfile import jsonable
 from kukaid.models.friction import CoulombViscous, Stribeck
 
 METHODS = ("joint", "staged")
@@ -185,29 +186,15 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     metrics["relative_std"] = {k: _r(std[k] / abs(values[k]), 4) for k in out["uncertainty"] if values[k] != 0}
     metrics["std_note"] = ("standard deviations from residual variance and Jacobian assume white residuals; "
                            "filtered data make them optimistic (see residual_correlation_factor)")
-    out["metrics"] = _jsonable(metrics)
+    out["metrics"] = jsonable(metrics)
     out["provenance"] = {
         "kukaid_version": __version__, "method": method, "friction_model": friction_model, "gravity": gravity,
         "offset": bool(offset), "joint": all_preps[0].joint,
         "logs": {"general": [p.source for p in general], "friction": [p.source for p in fr],
                  "inertia": [p.source for p in ine], "presliding": psl.source if psl is not None else None},
-        "preprocess": _jsonable(all_preps[0].settings),
+        "preprocess": jsonable(all_preps[0].settings),
     }
     return out
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
 
 
 def format_table(params: dict) -> str:

@@ -31,7 +31,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from kukaid.errors import FitError, KukaidError, LogFormatError
+from kukaid.errors import FitError, KukaidError
 
 #: The paper's figures (Yao et al. 2018, a real KR 6 R700 sixx, A3): references, not targets.
 PAPER_FRICTION_MSE = 0.5249
@@ -663,7 +663,7 @@ def residual_stats(data: ReportData, nseg: int = 256, max_lag_s: float = 2.0) ->
     items = data.friction + data.inertia + data.general
     if not items:
         return None
-    res_all, segs_psd, acfs = [], [], []
+    res_all, segs_psd = [], []
     fs = None
     maxrun = 0
     runs_all = []

@@ -27,8 +27,10 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from kukaid.io.krl_follower import STOP_BY_PC, STOP_STALE
 from kukaid.io.kvp import (DEFAULT_PORT, MAX_NAME_BYTES, MAX_VALUE_BYTES, MODE_READ, KvpProtocolError,
-                           decode_request, encode_reply, format_e6axis, format_real, parse_real)
+                           decode_request, encode_reply, format_e6axis, format_real, parse_bool, parse_int,
+                           parse_real)
 
 _DEG = 180.0 / math.pi
 
@@ -298,6 +300,8 @@ class KvpServer:
 HOME_DEG = {1: 0.0, 2: -90.0, 3: 90.0, 4: 0.0, 5: 0.0, 6: 0.0}
 #: $ROB_TIMER value when the simulation starts (ms); any boot time would do
 TIMER0_MS = 1_000_000
+#: bandwidth of the virtual robot program that follows KID_TGT (critically damped), Hz
+FOLLOW_HZ = 3.0
 
 
 class SimSource:
@@ -312,6 +316,10 @@ class SimSource:
         holds its position and follows writes of the global ``KID_TGT`` (REAL, degrees).
     speed : simulated seconds per wall-clock second (1.0 = real time).
     ring : optional :class:`kukaid.io.krl_logger.RingLayout`: emulate the KRL ring-buffer logger.
+    follower : optional :class:`kukaid.io.krl_follower.FollowerConfig`: emulate the KRL follower
+        program of ``kukaid run-admittance --backend kvp`` (``KID_TGT`` is followed only while
+        ``KID_RUN`` is TRUE, clamped to the window; motion stops when ``KID_HB`` goes stale).
+        Without it, every write of ``KID_TGT`` commands the axis directly.
     temp_kelvin : serve ``$MOT_TEMP`` in kelvin (as KSS does) rather than °C.
     keep_truth : keep every 12 ms sample (for :meth:`truth`).
 
@@ -322,7 +330,7 @@ class SimSource:
 
     def __init__(self, sim: Any, axis: int = 3, trajectory: Any = None, speed: float = 1.0,
                  ring: Any = None, temp_kelvin: bool = True, keep_truth: bool = True,
-                 tick: float = 0.004) -> None:
+                 tick: float = 0.004, follower: Any = None) -> None:
         self.sim = sim
         self.axis = int(axis)
         self.speed = float(speed)
@@ -344,6 +352,15 @@ class SimSource:
                 sim.reset(q0)  # standstill at the start of the trajectory, as VirtualKRC4.run does
             sim.follow(trajectory)
         self.t0_sim = float(sim.t)
+        self._clock: tuple[float, float] | None = None  # (wall, sim) at the start of the real-time run
+        self._pending: list[tuple[float, float]] = []  # written targets: (arrival, sim time; q rad)
+        self._goal: float | None = None  # the target the robot program is moving to, rad
+        self._ref, self._ref_v = 0.0, 0.0  # its motion: position rad, velocity rad/s
+        self.follower = follower
+        if follower is not None:
+            self.globals.update({"KID_TGT": format_real(float(sim.q) * _DEG), "KID_HB": "0", "KID_RUN": "FALSE",
+                                 "KID_STOP": "0", "KID_CLAMP": "0"})
+            self._hb_t = float(sim.t)
         self.ring = ring
         if ring is not None:
             from kukaid.io.krl_logger import RingLayout
@@ -383,17 +400,110 @@ class SimSource:
     def _run(self) -> None:
         wall0 = time.monotonic()
         sim0 = float(self.sim.t)
+        self._clock = (wall0, sim0)
+        ipo = float(self.sim.cfg.ipo_period)
+        done = sim0  # simulated time requested so far (the simulator counts whole servo ticks of it)
         try:
             while not self._stop.is_set():
                 target = sim0 + (time.monotonic() - wall0) * self.speed
-                dt = target - float(self.sim.t)
-                if dt > 0:
-                    with self._lock:
-                        blk = self.sim.advance(dt)
+                blocks = []
+                with self._lock:
+                    # advance IPO tick by IPO tick: a written target is taken at the first tick after
+                    # it arrived, as the robot program reads it once per interpolation cycle
+                    while done < target:
+                        tick = (math.floor(done / ipo + 1e-6) + 1) * ipo
+                        end = min(target, tick)
+                        blocks.append(self.sim.advance(end - done))
+                        done = end
+                        if end == tick:
+                            self._ipo_tick(tick)
+                    self._follower_watch()
+                for blk in blocks:
                     self._ingest(blk)
                 self._stop.wait(self.tick)
         except BaseException as e:  # surfaced by serve-sim
             self.error = e
+
+    def _sim_now(self) -> float:
+        """Simulated time corresponding to this moment of the wall clock, s."""
+        if self._clock is None:
+            return float(self.sim.t)
+        wall0, sim0 = self._clock
+        return sim0 + (time.monotonic() - wall0) * self.speed
+
+    def _target(self, q: float) -> None:
+        """A new position target (rad), taken at the next IPO tick (called with the lock held)."""
+        self._pending.append((self._sim_now(), q))
+
+    def _ipo_tick(self, tick: float) -> None:
+        """One interpolation cycle of the virtual robot program that follows ``KID_TGT``.
+
+        It takes the latest target written before the tick and moves towards it as a PTP
+        follower does, smoothly: a critically damped second-order motion (``FOLLOW_HZ``), so a
+        PC whose writes are not locked to the IPO clock (two in one cycle, none in the next) does
+        not make the axis jerk.
+        """
+        due = [q for t, q in self._pending if t <= tick + 1e-9]
+        if due:
+            self._pending = [(t, q) for t, q in self._pending if t > tick + 1e-9]
+            if self._goal is None:
+                self._ref, self._ref_v = float(self.sim.q), 0.0
+            self._goal = due[-1]
+        if self._goal is None:
+            return
+        h = float(self.sim.cfg.ipo_period)
+        w = 2.0 * math.pi * FOLLOW_HZ
+        self._ref_v += h * (w * w * (self._goal - self._ref) - 2.0 * w * self._ref_v)
+        self._ref += h * self._ref_v
+        self.sim.command(self._ref)
+        if abs(self._goal - self._ref) < 1e-9 and abs(self._ref_v) < 1e-9:
+            self._goal = None  # arrived: the robot holds
+
+    def _follower_watch(self) -> None:
+        """The follower program's heartbeat check (called with the lock held)."""
+        f = self.follower
+        if f is None or self.globals["KID_RUN"] != "TRUE":
+            return
+        if (float(self.sim.t) - self._hb_t) * 1000.0 > f.stale_ms:
+            self.globals["KID_RUN"] = "FALSE"
+            self.globals["KID_STOP"] = str(STOP_STALE)
+            self._halt()
+
+    def _halt(self) -> None:
+        """The follower stops: targets still waiting are dropped, the motion brakes (without
+        coming back: the critically damped motion from speed v settles v / w further on)."""
+        self._pending = []
+        if self._goal is not None:
+            self._goal = self._ref + self._ref_v / (2.0 * math.pi * FOLLOW_HZ)
+
+    def _follow(self, key: str, value: str) -> bool:
+        """A write to the follower's globals (called with the lock held); False refuses it."""
+        g = self.globals
+        try:
+            if key == "KID_TGT":
+                q, clamped = self.follower.clamp(parse_real(value, key))
+                if g["KID_RUN"] == "TRUE":
+                    self._target(q / _DEG)
+                    g["KID_CLAMP"] = str(int(g["KID_CLAMP"]) + int(clamped))
+            elif key == "KID_HB":
+                parse_int(value, key)
+                if value != g["KID_HB"]:
+                    self._hb_t = self._sim_now()
+            elif key == "KID_RUN":
+                run = parse_bool(value, key)
+                if run and g["KID_RUN"] != "TRUE":
+                    self._hb_t = self._sim_now()
+                    g["KID_STOP"] = "0"
+                elif not run and g["KID_RUN"] == "TRUE":
+                    g["KID_STOP"] = str(STOP_BY_PC)
+                    self._halt()
+                value = "TRUE" if run else "FALSE"
+            elif key in ("KID_STOP", "KID_CLAMP"):
+                return False  # written by the program only
+        except Exception:
+            return False
+        g[key] = value
+        return True
 
     @property
     def sim_time(self) -> float:
@@ -492,21 +602,22 @@ class SimSource:
         if key.startswith("$") and key != "$OV_PRO":
             return False  # system variables are read-only here
         if key in ("KID_RD", "$OV_PRO"):
-            from kukaid.io.kvp import parse_int
-
             try:
                 value = str(parse_int(value, key))
             except Exception:
                 return False
         if key in ("KID_WR", "KID_OVF", "KID_CFG") and self.ring is not None:
             return False  # written by the logger only
+        if self.follower is not None and key in ("KID_TGT", "KID_HB", "KID_RUN", "KID_STOP", "KID_CLAMP"):
+            with self._lock:
+                return self._follow(key, value)
         if key == "KID_TGT":
             try:
                 q = parse_real(value, "KID_TGT") / _DEG
             except Exception:
                 return False
             with self._lock:
-                self.sim.command(q)
+                self._target(q)
         with self._lock:
             self.globals[key] = value
         return True
@@ -521,12 +632,12 @@ def _index(key: str, base: str) -> int | None:
 
 def serve_sim(sim: Any, host: str = "127.0.0.1", port: int = DEFAULT_PORT, axis: int = 3,
               trajectory: Any = None, speed: float = 1.0, ring: Any = None,
-              faults: Faults | None = None) -> tuple[KvpServer, SimSource]:
+              faults: Faults | None = None, follower: Any = None) -> tuple[KvpServer, SimSource]:
     """Start a virtual KR C4 on ``host:port``; returns (server, source), both running.
 
     Stop with ``server.stop(); source.stop()``.
     """
-    source = SimSource(sim, axis=axis, trajectory=trajectory, speed=speed, ring=ring).start()
+    source = SimSource(sim, axis=axis, trajectory=trajectory, speed=speed, ring=ring, follower=follower).start()
     try:
         server = KvpServer(source, host=host, port=port, faults=faults).start()
     except BaseException:

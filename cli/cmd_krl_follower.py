@@ -1,0 +1,46 @@
+"""kukaid krl-follower: write the KRL program that moves the axis to the admittance reference."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command("krl-follower")
+@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="Axis the program moves.")
+@click.option("--q-min", type=float, required=True, help="Position window, lower bound, degrees (clamped on the KRC).")
+@click.option("--q-max", type=float, required=True, help="Position window, upper bound, degrees (clamped on the KRC).")
+@click.option("--qd-max", type=float, default=30.0, show_default=True, help="Axis speed limit, deg/s.")
+@click.option("--axis-speed", type=float, default=360.0, show_default=True,
+              help="The machine data's maximum speed of the axis, deg/s (A3 of a KR 6 R700 sixx: 360): "
+                   "$VEL_AXIS = 100 qd-max / axis-speed %.")
+@click.option("--acc-pct", type=float, default=30.0, show_default=True, help="$ACC_AXIS of the axis, %.")
+@click.option("--stale-ms", type=int, default=200, show_default=True,
+              help="Motion stops when the PC's heartbeat KID_HB is older than this, ms.")
+@click.option("-o", "--output", "outdir", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Folder to write KUKAID_FOLLOW.SRC and KUKAID_FOLLOW.DAT into.")
+@click.option("--force", is_flag=True, help="Replace existing files.")
+def command(axis: int, q_min: float, q_max: float, qd_max: float, axis_speed: float, acc_pct: float, stale_ms: int,
+            outdir: Path, force: bool) -> None:
+    """Write the KRL program that follows KID_TGT for `kukaid run-admittance --backend kvp`.
+
+    On the controller, independent of the PC: the target is clamped to [--q-min, --q-max], the
+    speed limited by $VEL_AXIS, and motion stops when the PC's heartbeat stops.  Run it in T1
+    first; the KRC's own monitoring stays in force.
+    """
+    from kukaid.errors import KukaidError
+    from kukaid.io.atomic import write_text_atomic
+    from kukaid.io.krl_follower import FollowerConfig, krl_follower_files
+    from kukaid_cli._util import refuse_overwrite
+
+    if not (qd_max > 0 and axis_speed > 0 and qd_max <= axis_speed):
+        raise KukaidError(f"krl-follower: need 0 < --qd-max ({qd_max}) <= --axis-speed ({axis_speed}) deg/s")
+    cfg = FollowerConfig(axis=axis, q_min_deg=q_min, q_max_deg=q_max, vel_pct=100.0 * qd_max / axis_speed,
+                         acc_pct=acc_pct, stale_ms=stale_ms)
+    files = krl_follower_files(cfg)
+    for name in files:
+        refuse_overwrite(outdir / name, force)
+    for name, text in files.items():
+        write_text_atomic(outdir / name, text.replace("\n", "\r\n"))
+    click.echo(f"{outdir}: {', '.join(files)} (A{axis}, window [{q_min:g}, {q_max:g}] deg, "
+               f"$VEL_AXIS {cfg.vel_pct:.2f} %, heartbeat {stale_ms} ms)", err=True)

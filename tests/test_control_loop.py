@@ -1,0 +1,115 @@
+"""The closed admittance loop on the virtual KR C4 (truth away from the paper's values): what a
+person pushing the axis gets, what a standing axis does, and every way a run stops."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from kukaid.control.backends import SimBackend
+from kukaid.control.loop import PHASE_ADMITTANCE, LoopConfig, run_admittance
+from kukaid.control.rbf import RBFConfig
+from kukaid.control.safety import SafetyLimits
+from kukaid.errors import ControllerError
+from kukaid.io.params import model_from_params
+from kukaid.sim import SimConfig, VirtualKRC4
+from kukaid.sim.operator import PushOperator
+
+# paper: Fc 15.70, Fs 17.56, vs 0.04, delta 2, Fv 14.15, Izz 2.28, Mx 18.48
+TRUTH = dict(Fc=12.8, Fs=15.2, vs=0.05, delta=1.5, Fv=11.0, Izz=1.9, Mx=22.5, ms_W=(6.0, 1.0, 5.0))
+Q0 = math.radians(30.0)
+
+
+def _run(operator=None, seed=3, **cfg_kw):
+    cfg = SimConfig().replace(**TRUTH)
+    model = model_from_params(cfg.truth_params())
+    be = SimBackend(VirtualKRC4(cfg, seed=seed), Q0, operator)
+    return run_admittance(be, model, LoopConfig(**cfg_kw))
+
+
+def _push(amplitude, start=2.0, duration=3.5):
+    # the admittance starts after the 0.6 s initiation move and 0.6 s rest
+    return PushOperator(amplitude=amplitude, t_start=start, duration=duration, ramp=0.4)
+
+
+@pytest.mark.parametrize("amplitude", [12.0, -15.0])
+def test_steady_push_moves_the_axis_at_push_over_damping(amplitude):
+    """Sensorless: a steady push of tau N·m gives the reference speed tau / D (eq. 15 in steady
+    state: 10 N·m at D = 50 is 0.2 rad/s), in the push's direction, and the estimated external
+    torque follows the true one."""
+    op = _push(amplitude)
+    run = _run(op, D=50.0, I=20.0, duration=7.0)
+    d = run.data
+    assert run.status == "completed"
+    plateau = (d["time"] > op.t_start + 1.6) & (d["time"] < op.t_end - 0.4)  # after ~3 I/D
+    speed = np.mean(d["sigma_dot"][plateau])
+    assert speed == pytest.approx(amplitude / 50.0, rel=0.10), speed
+    err = d["gamma_r"][plateau] - d["tau_ext_true"][plateau]
+    assert np.sqrt(np.mean(err ** 2)) < 0.1 * abs(amplitude)
+    assert run.metrics["detection_delay"] < 0.15
+    assert np.sign(run.metrics["displacement"]) == np.sign(amplitude)
+    assert run.metrics["settled"] and run.metrics["false_detections"] == 0
+
+
+def test_standing_axis_with_vibration_detects_nothing_and_stays():
+    run = _run(None, duration=5.0)
+    ph = run.data["phase"] == PHASE_ADMITTANCE
+    assert not run.data["detected"][ph].any()
+    assert abs(math.degrees(run.metrics["displacement"])) < 0.01
+    assert np.all(run.data["sigma_dot"][ph] == 0.0)
+
+
+def test_adaptive_damping_gives_way_to_a_steady_push_within_its_bounds():
+    rbf = RBFConfig(D0=50.0, D_min=20.0, D_max=90.0)
+    op = _push(14.0)
+    const = _run(op, duration=8.0)
+    adapt = _run(op, duration=8.0, damping="adaptive", rbf=rbf)
+    D = adapt.data["D"][adapt.data["phase"] == PHASE_ADMITTANCE]
+    assert D.min() >= 20.0 - 1e-9 and D.max() <= 90.0 + 1e-9
+    push = (adapt.data["time"] > op.t_start + 0.5) & (adapt.data["time"] < op.t_end)
+    assert np.mean(adapt.data["D"][push]) < 50.0  # the robot gives way to a steady push ...
+    assert adapt.metrics["displacement"] > const.metrics["displacement"]  # ... and goes further
+    assert adapt.metrics["settled"]
+
+
+def test_position_window_is_never_left():
+    hi = Q0 + math.radians(5.0)
+    run = _run(_push(18.0), duration=6.0, limits=SafetyLimits(q_min=Q0 - 0.5, q_max=hi))
+    assert run.status == "completed" and run.metrics["clipped_cycles"] > 0
+    assert np.max(run.data["q_cmd"]) <= hi + 1e-12
+    assert np.max(run.data["q"]) <= hi + math.radians(0.05)  # the servo's overshoot at the edge
+    v = np.diff(run.data["q_cmd"]) / 0.012
+    assert np.max(np.abs(v)) <= 0.5 + 1e-9  # the default speed limit of SafetyLimits
+
+
+def test_torque_limit_stops_motion():
+    run = _run(_push(15.0), duration=6.0, limits=SafetyLimits(tau_max=25.0))
+    assert run.status.startswith("stopped: measured torque") and "25 N·m" in run.status
+    assert abs(run.data["tau"][-1]) > 25.0
+    assert run.data["phase"][-1] == 3
+
+
+class _Failing(SimBackend):
+    def __init__(self, *a, fail_at: float, exc: BaseException, **kw):
+        super().__init__(*a, **kw)
+        self.fail_at, self.exc, self.holds = fail_at, exc, 0
+
+    def cycle(self, q_cmd, dt):
+        if self.sim.t >= self.fail_at:
+            raise self.exc
+        return super().cycle(q_cmd, dt)
+
+    def hold(self):
+        self.holds += 1
+
+
+@pytest.mark.parametrize("exc, reason", [(ControllerError("kvp: connection lost"), "stopped: kvp: connection lost"),
+                                         (KeyboardInterrupt(), "stopped: interrupted")])
+def test_a_failing_controller_or_ctrl_c_holds_and_keeps_the_record(exc, reason):
+    cfg = SimConfig().replace(**TRUTH)
+    be = _Failing(VirtualKRC4(cfg, seed=1), Q0, _push(12.0), fail_at=3.0, exc=exc)
+    run = run_admittance(be, model_from_params(cfg.truth_params()), LoopConfig(duration=5.0))
+    assert run.status == reason and be.holds >= 1
+    assert run.data["time"][-1] == pytest.approx(3.0, abs=0.03)  # every cycle before the failure is kept
+    assert "detection_delay" in run.metrics

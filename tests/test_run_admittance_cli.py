@@ -1,0 +1,214 @@
+"""`kukaid run-admittance` from the command line: the virtual KR C4, a KR C4 over KUKAVARPROXY
+(the virtual one behind `serve-sim`'s server, running the emulated KRL follower), the safety
+gates, and bad input -> one line, no output."""
+from __future__ import annotations
+
+import json
+import math
+import re
+import subprocess
+import time
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from kukaid.control.runlog import read_run
+from kukaid.io.krl_follower import STOP_BY_PC, STOP_STALE, FollowerConfig
+from kukaid.io.params import save_params
+from kukaid.sim import SimConfig, VirtualKRC4
+from kukaid.sim.kvp_server import SimSource
+from kukaid_cli.main import cli
+
+TRUTH = dict(Fc=12.8, Fs=15.2, vs=0.05, delta=1.5, Fv=11.0, Izz=1.9, Mx=22.5)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("adm")
+    cfg = SimConfig().replace(**TRUTH)
+    save_params(d / "params.json", cfg.truth_params())
+    (d / "truth.json").write_text(json.dumps(TRUTH))
+    return d
+
+
+def _run(args):
+    return CliRunner().invoke(cli, ["run-admittance", *map(str, args)])
+
+
+def test_sim_run_writes_log_report_and_metrics(files, tmp_path):
+    out, pdf = tmp_path / "run.h5", tmp_path / "run.pdf"
+    r = _run(["--params", files / "params.json", "--sim-config", files / "truth.json", "--operator", "push",
+              "--seed", "4", "--duration", "7", "--damping", "adaptive", "-o", out, "--report", pdf, "--json"])
+    assert r.exit_code == 0, r.output
+    m = json.loads(r.output.strip().splitlines()[-1])
+    assert m["status"] == "completed" and m["damping"] == "adaptive"
+    assert 0 <= m["detection_delay"] < 0.2 and m["false_detections"] == 0
+    log, control, metrics = read_run(out)
+    assert metrics == m
+    assert log.has("tau_ext_true") and control["gamma_r"].size == log.n_samples
+    err = control["gamma_r"] - log.tau_ext_true[:, 0]
+    assert np.sqrt(np.mean(err[control["phase"] == 2] ** 2)) < 1.5  # Γr follows the push
+    assert pdf.read_bytes()[:5] == b"%PDF-"
+    # recorded data is never replaced without --force
+    r = _run(["--params", files / "params.json", "--duration", "1", "-o", out])
+    assert r.exit_code == 1 and "already exists" in r.output and read_run(out)[2] == m
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda text: text[:40], "not valid JSON"),
+    (lambda text: text.replace('"Fc": 12.8', '"Fc": "12.8"'), "friction.Fc"),
+    (lambda text: text.replace('"Izz": 1.9', '"Izz": -1.9'), "inertial.Izz"),
+])
+def test_broken_parameter_file_is_one_line_and_no_output(files, tmp_path, edit, message):
+    bad = tmp_path / "bad.json"
+    text = (files / "params.json").read_text()
+    bad.write_text(edit(text))
+    assert bad.read_text() != text
+    out = tmp_path / "run.h5"
+    r = _run(["--params", bad, "--duration", "1", "-o", out, "--report", tmp_path / "run.pdf"])
+    assert r.exit_code == 1 and r.output.startswith("kukaid: error:") and message in r.output, r.output
+    assert len(r.output.strip().splitlines()) == 1
+    assert not out.exists() and not (tmp_path / "run.pdf").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    ([], "--enable-motion"),
+    (["--enable-motion"], "finite position window"),
+    (["--enable-motion", "--q-min", "10", "--q-max", "50", "--tau-max", "-1"], "tau_max"),
+    (["--enable-motion", "--q-min", "10", "--q-max", "50", "--D", "0"], "D = 0"),
+])
+def test_a_real_robot_moves_only_when_asked_and_bounded(files, tmp_path, args, message):
+    # nothing listens on this port: refusals come before any connection
+    r = _run(["--params", files / "params.json", "--backend", "kvp", "--port", "9", "-o", tmp_path / "r.h5", *args])
+    assert r.exit_code == 1 and message in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert not (tmp_path / "r.h5").exists()
+
+
+@pytest.fixture
+def kvp_robot(files, kukaid_cmd, tmp_path):
+    """`kukaid serve-sim` in its own process, as a controller is: a virtual KR C4 at 30 degrees
+    running the emulated KRL follower (window 0..60 degrees, 150 ms heartbeat), a simulated hand
+    pushing from 5 s on (after the run's initiation move and rest: a push already there when the
+    quasi-static offset Γu is taken is absorbed into it, as in the paper).  Yields (port, client,
+    push amplitude N·m)."""
+    from kukaid.io.kvp import KvpClient
+    from kukaid.sim.operator import make_operator
+
+    seed = 6
+    proc = subprocess.Popen([*kukaid_cmd, "serve-sim", "--port", "0", "--q0", "30", "--follower", "0", "60",
+                             "--stale-ms", "150", "--operator", "push", "--operator-start", "5", "--seed", str(seed),
+                             "--sim-config", str(files / "truth.json"), "--duration", "30"],
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        m = re.search(r"listening on 127\.0\.0\.1:(\d+)", proc.stderr.readline())
+        assert m
+        port = int(m.group(1))
+        with KvpClient(port=port, timeout=2.0) as client:
+            yield port, client, make_operator("push", seed, 0.0).amplitude
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+        proc.stderr.close()
+
+
+def _kvp_args(files, port, out):
+    return ["--params", files / "params.json", "--backend", "kvp", "--port", port, "--enable-motion",
+            "--q-min", "10", "--q-max", "55", "--duration", "9", "-o", out]
+
+
+def test_kvp_run_follows_a_push_and_hands_back_control(files, kvp_robot, tmp_path):
+    port, client, amp = kvp_robot
+    out = tmp_path / "kvp.h5"
+    r = _run(_kvp_args(files, port, out))
+    assert r.exit_code == 0, r.output
+    log, control, m = read_run(out)
+    assert m["status"] == "completed" and log.attrs["backend"] == "kvp"
+    assert np.sign(m["displacement"]) == np.sign(amp) and 0.05 < abs(m["displacement"]) < math.radians(25)
+    steps = np.diff(log.time) / 0.012
+    assert np.all(steps > 0.5) and np.allclose(steps, np.round(steps))  # whole controller samples
+    # the robot itself moved, and the follower was switched off at the end
+    q_robot = client.read_axis("$AXIS_ACT_MEAS")["A3"]
+    assert abs(q_robot - 30.0) > 3.0 and q_robot == pytest.approx(math.degrees(log.q[-1, 0]), abs=0.5)
+    assert client.read("KID_RUN") == "FALSE" and client.read("KID_STOP") == str(STOP_BY_PC)
+    push = (control["phase"] == 2) & (control["detected"] == 1)
+    t_push = log.time[push]
+    assert 2.0 < t_push[-1] - t_push[0] < 4.0  # the 2.5-3.5 s push (0.5 s ramps), and nothing else
+    assert np.median(control["gamma_r"][push]) == pytest.approx(amp, abs=1.5)
+
+
+def test_kvp_controller_that_stops_answering_stops_the_run_and_keeps_the_log(files, kvp_robot, tmp_path):
+    port, client, _ = kvp_robot
+    out = tmp_path / "dead.h5"
+
+    class Dead(Exception):
+        pass
+
+    from kukaid.io import kvp
+
+    real_read = kvp.KvpClient.read_real
+    t_dead = time.monotonic() + 2.5
+
+    def read_real(self, name):  # the link goes silent after 2.5 s (the proxy stops answering)
+        if time.monotonic() > t_dead:
+            raise kvp.ControllerError(f"{name}: no reply within the timeout")
+        return real_read(self, name)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(kvp.KvpClient, "read_real", read_real)
+        r = _run(_kvp_args(files, port, out))
+    assert r.exit_code == 3, r.output
+    assert "stopped: measurement stale" in r.output
+    log, control, m = read_run(out)
+    assert m["status"].startswith("stopped: measurement stale") and control["phase"][-1] == 3
+    assert 2.0 < log.time[-1] < 2.8  # everything before the outage is in the log
+    # the PC told the follower to stop
+    assert client.read("KID_RUN") == "FALSE" and client.read("KID_STOP") == str(STOP_BY_PC)
+
+
+def test_kvp_follower_stops_by_itself_when_the_pc_goes_silent(kvp_robot):
+    port, client, _ = kvp_robot
+    client.write("KID_HB", "1")
+    client.write("KID_RUN", "TRUE")
+    q0 = client.read_axis("$AXIS_ACT_MEAS")["A3"]
+    client.write("KID_TGT", str(q0 + 2.0))
+    time.sleep(0.5)  # no heartbeat for 150 ms: the follower stops
+    assert client.read("KID_RUN") == "FALSE" and client.read("KID_STOP") == str(STOP_STALE)
+    client.write("KID_TGT", str(q0 + 10.0))  # no longer followed
+    time.sleep(0.3)
+    assert client.read_axis("$AXIS_ACT_MEAS")["A3"] < q0 + 2.5
+
+
+def test_follower_emulation_clamps_and_needs_run():
+    sim = VirtualKRC4(SimConfig().replace(**TRUTH), seed=2)
+    sim.reset(math.radians(30.0))
+    with SimSource(sim, follower=FollowerConfig(q_min_deg=0.0, q_max_deg=60.0, stale_ms=150)) as src:
+        assert src.write("KID_TGT", "40.0") and not src.write("KID_STOP", "0")
+        time.sleep(0.3)
+        assert abs(math.degrees(sim.q) - 30.0) < 0.05  # KID_RUN is FALSE: not followed
+        assert src.write("KID_RUN", "TRUE") and src.write("KID_HB", "1")
+        assert src.write("KID_TGT", "75.0")  # beyond the window: clamped to 60
+        for hb in range(2, 60):
+            src.write("KID_HB", str(hb))
+            time.sleep(0.02)
+        assert int(src.read("KID_CLAMP")) == 1 and src.read("KID_RUN") == "TRUE"
+        assert 55.0 < math.degrees(sim.q) <= 60.05
+
+
+def test_krl_follower_program(tmp_path):
+    r = CliRunner().invoke(cli, ["krl-follower", "--axis", "3", "--q-min", "-10", "--q-max", "45", "--qd-max", "18",
+                                 "-o", tmp_path])
+    assert r.exit_code == 0, r.output
+    raw = (tmp_path / "KUKAID_FOLLOW.SRC").read_bytes()
+    assert raw.startswith(b"DEF KUKAID_FOLLOW()\r\n")  # KRL files have CR LF line ends
+    src = raw.decode()
+    dat = (tmp_path / "KUKAID_FOLLOW.DAT").read_text()
+    for piece in ("WAIT FOR KID_RUN", "IF KID_Q>45.0000 THEN", "IF KID_Q<-10.0000 THEN", "$VEL_AXIS[3]=5.00",
+                  "KID_GOAL.A3=KID_Q", "PTP KID_GOAL C_PTP", "($ROB_TIMER-KID_HBT)>200"):
+        assert piece in src, piece
+    for g in ("DECL GLOBAL REAL KID_TGT", "DECL GLOBAL INT KID_HB", "DECL GLOBAL BOOL KID_RUN"):
+        assert g in dat
+    r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "-10", "--q-max", "45", "-o", tmp_path])
+    assert r.exit_code == 1 and "already exists" in r.output
+    r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "50", "--q-max", "45", "-o", tmp_path / "x"])
+    assert r.exit_code == 1 and "window" in r.output and not (tmp_path / "x").exists()
