@@ -46,7 +46,9 @@ done
 kukaid fit --friction "$out/friction_ripple.h5" --inertia "$out/inertia_ripple.h5" -o "$out/params_ripple.json"
 kukaid diagnose --params "$out/params_ripple.json" --log "$out/friction_ripple.h5" --log "$out/inertia_ripple.h5" \
     --report "$out/diagnose_ripple.pdf" -o "$out/params_ripple_diagnosed.json" | tee "$out/diagnose_ripple.txt"
-# -- sensorless admittance control on the virtual KR C4 (a simulated hand drags the axis)
+# -- sensorless admittance control on the virtual KR C4 (a simulated hand drags the axis), and the
+#    KRL follower program a real KR C4 would run for `run-admittance --backend kvp`
+kukaid krl-follower --axis 3 --q-min 0 --q-max 60 -o "$out/krl" --force
 kukaid run-admittance --params "$out/params.json" --damping adaptive --operator pull --seed 1 --duration 8 \
     -o "$out/admittance.h5" --report "$out/admittance.pdf" --force | tee "$out/admittance.txt"
 echo "== demo done: $(ls "$out" | tr '\n' ' ')"

@@ -159,20 +159,29 @@ def _ipopt(y, A, v, p0, lo, hi, max_iter=300):
     scale[: m + 1] = np.maximum(np.abs(p0[: m + 1]), 1e-3 * max(1.0, float(np.max(np.abs(p0[: m + 1]), initial=1.0))))
     # scaled variables: x_j = p_j / scale_j (linear + dF), x_vs = log(vs), x_delta = delta
     x = ca.MX.sym("x", p)
-    lin = x[: m + 1] * ca.DM(scale[: m + 1])
+    As = ca.DM(A * scale[:m])  # columns of the scaled linear parameters
+    dF = x[m] * scale[m]
     u = x[m + 1]
     dl = x[m + 2]
     av = np.abs(v)
-    logv = np.log(np.where(av > 0, av, 1e-300))
-    s = ca.DM(np.sign(v)) * ca.exp(-ca.exp(dl * (ca.DM(logv) - u)))
-    pred = (ca.mtimes(ca.DM(A), lin[:m]) if m else 0) + lin[m] * s
+    logv = ca.DM(np.log(np.where(av > 0, av, 1e-300)))
+    w = ca.exp(dl * (logv - u))  # |v / vs|^delta
+    s = ca.DM(np.sign(v)) * ca.exp(-w)
+    pred = (ca.mtimes(As, x[:m]) if m else 0) + dF * s
     r = ca.DM(y) - pred
     r0 = y - prediction_and_jac(A, v, p0)[0]
     norm = max(float(r0 @ r0), 1e-12)
     f = 0.5 * ca.sumsqr(r) / norm
+    # the Gauss-Newton Hessian J^T J (J = d pred / d x, written out): exact at the gradient and
+    # KKT test (IPOPT differentiates f itself), cheaper to build and to evaluate than the full
+    # second derivative, and positive semidefinite
+    J = ca.horzcat(*([As] if m else []), s * scale[m], dF * s * w * dl, -dF * s * w * (logv - u))
+    lam_f = ca.MX.sym("lam_f")
+    hess = ca.Function("hess_lag", [x, ca.MX.sym("p", 0), lam_f, ca.MX.sym("lam_g", 0)],
+                       [ca.triu(lam_f * ca.mtimes(J.T, J) / norm)])
     solver = ca.nlpsol("s", "ipopt", {"x": x, "f": f},
                        {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
-                        "ipopt.max_iter": max_iter, "ipopt.tol": 1e-10,
+                        "ipopt.max_iter": max_iter, "ipopt.tol": 1e-8, "hess_lag": hess,
                         # the start is the variable-projection optimum, close to the solution:
                         # a small initial barrier parameter saves most of the iterations
                         "ipopt.mu_init": 1e-5})
