@@ -4,7 +4,7 @@ from __future__ import annotations
 import sys
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable, Iterable, Iterator
 
 import click
 
@@ -13,7 +13,13 @@ from kukaid.errors import KukaidError
 
 @contextmanager
 def progress(total: float, label: str) -> Iterator[Callable[[float], None]]:
-    """A progress bar on stderr; yields ``update(done)`` taking the absolute amount done."""
+    """A progress bar on stderr; yields ``update(done)`` taking the absolute amount done.
+
+    Only on a terminal: in a pipe or a log file a bar is noise, and stderr keeps to what went
+    wrong (one line)."""
+    if not sys.stderr.isatty():
+        yield lambda done: None
+        return
     with click.progressbar(length=max(int(total * 1000), 1), label=label, file=sys.stderr,
                            show_eta=True) as bar:
         state = {"pos": 0}
@@ -31,3 +37,34 @@ def refuse_overwrite(path: Path, force: bool) -> None:
     """Recorded data is never lost: refuse to replace an existing log unless --force."""
     if path.exists() and not force:
         raise KukaidError(f"{path}: already exists; choose another name or pass --force to replace it")
+
+
+def check_outputs(outputs: Iterable[Path | None], inputs: Iterable[Path | None] = ()) -> None:
+    """Before any work: every output can be a plain file, no two outputs are the same file, and
+    no output is one of the inputs (a command never writes over what it reads)."""
+    from kukaid.io.atomic import check_output
+
+    outs = [Path(o) for o in outputs if o is not None]
+    for k, o in enumerate(outs):
+        check_output(o)
+        if any(_same(o, x) for x in outs[:k]):
+            raise KukaidError(f"{o}: the same file is given for two outputs")
+    for i in (Path(i) for i in inputs if i is not None):
+        for o in outs:
+            if _same(o, i):
+                raise KukaidError(f"{o}: is also an input of this command; write the output elsewhere")
+
+
+def check_suffix(path: Path | None, *suffixes: str) -> None:
+    """Refuse an output whose name does not say its format (``.json``, ``.pdf``, ``.h5`` ...)."""
+    if path is not None and path.suffix.lower() not in suffixes:
+        raise KukaidError(f"{path}: this output is {' or '.join(suffixes)}; name it so")
+
+
+def _same(a: Path, b: Path) -> bool:
+    import os
+
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist yet
+        return a.resolve() == b.resolve()

@@ -16,7 +16,8 @@ from kukaid_cli._util import progress as progress_bar
               help="sim: the virtual KR C4; kvp: a KR C4 over KUKAVARPROXY.")
 @click.option("--force", is_flag=True, help="Replace an existing log.")
 # sim
-@click.option("--seed", type=int, default=0, show_default=True, help="sim: seed of noise, vibration and effects.")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+              help="sim: seed of noise, vibration and effects.")
 @click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
               help="sim: JSON overriding the simulator's truth and settings.")
 @click.option("--noise", type=float, help="sim: torque noise sigma, N·m [0.5].")
@@ -24,15 +25,15 @@ from kukaid_cli._util import progress as progress_bar
               help="sim: hide an effect (gravity_sine, torque_offset, position_ripple, thermal_drift, "
                    "load_dependent_friction, backlash) of SIZE N·m [drawn: 2 to 5 times the noise sigma]; "
                    "other parameters drawn from the seed; repeatable.")
-@click.option("--chunk", type=float, default=1.5, show_default=True,
+@click.option("--chunk", type=click.FloatRange(0.1, 60.0), default=1.5, show_default=True,
               help="sim: simulated seconds per block written to the log.")
-@click.option("--settle", type=float, default=0.5, show_default=True,
+@click.option("--settle", type=click.FloatRange(0.0, 60.0), default=0.5, show_default=True,
               help="sim: seconds recorded after the trajectory ends.")
 # kvp
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
 @click.option("--port", type=int, default=7000, show_default=True, help="kvp: KUKAVARPROXY port.")
 @click.option("--axis", "axes", type=click.IntRange(1, 12), multiple=True, help="kvp: axis to record; repeatable [3].")
-@click.option("--duration", type=float, help="kvp: seconds to record.")
+@click.option("--duration", type=click.FloatRange(0.0, 7 * 86400.0, min_open=True), help="kvp: seconds to record.")
 @click.option("--until-interrupt", is_flag=True, help="kvp: record until Ctrl-C / SIGTERM.")
 @click.option("--mode", type=click.Choice(["poll", "ring"]), default="poll", show_default=True,
               help="kvp: poll variables, or read kukaid's KRL ring-buffer logger.")
@@ -50,12 +51,13 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
 
     from kukaid.capture import KvpBackend, SimBackend, capture, check_limits, parse_effect, sim_config as make_config
     from kukaid.errors import KukaidError
+    from kukaid_cli._util import check_outputs, refuse_overwrite
 
     if output.suffix.lower() not in (".h5", ".hdf5"):
         raise KukaidError(f"{output}: a capture writes an HDF5 axis log; name it .h5 or .hdf5 "
                           f"(convert with `kukaid load LOG.h5 -o LOG.csv`)")
-    if output.exists() and not force:
-        raise KukaidError(f"{output}: already exists; choose another name or pass --force to replace it")
+    check_outputs([output], [trajectory, sim_config])
+    refuse_overwrite(output, force)
     if backend == "sim":
         if trajectory is None:
             raise click.UsageError("the sim backend needs a TRAJECTORY file (from `kukaid excite`)")
@@ -69,6 +71,9 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
         traj = Trajectory.from_json(trajectory)
         check_limits(traj, where=str(trajectory))
         parsed = [parse_effect(e) for e in effects]
+        names = [e[0] for e in parsed]
+        if len(set(names)) != len(names):
+            raise click.UsageError(f"--effect {next(n for n in names if names.count(n) > 1)} is given twice")
         cfg, extra = make_config(sim_config, noise=noise, effects=parsed, seed=seed)
         extra["trajectory_file"] = str(trajectory)
         be = SimBackend(traj, config=cfg, seed=seed, chunk=chunk, settle=settle, extra_attrs=extra)

@@ -32,14 +32,19 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     import json
 
     from kukaid.errors import KukaidError
+    from kukaid.io.atomic import atomic_paths
     from kukaid.io.axislog import read_log
-    from kukaid.io.params import load_params, save_params
+    from kukaid_cli._util import check_outputs, check_suffix
+    from kukaid.io.params import load_params, save_params, validate_params
     from kukaid.diagnose.workflow import diagnose
 
     if not 0 < alpha < 1:
         raise click.BadParameter("must be in (0, 1)", param_hint="--alpha")
     if max_steps < 0:
         raise click.BadParameter("must be >= 0", param_hint="--max-steps")
+    check_suffix(output, ".json")
+    check_suffix(report, ".pdf")
+    check_outputs([output, report], [params_path, *logs])
     params = load_params(params_path)
     data = [read_log(p) for p in logs]
     if axis is not None:
@@ -48,11 +53,15 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
                 raise KukaidError(f"{p}: axis A{axis} is not in the log (axes: {list(lg.axes)})")
     result = diagnose(params, data, axis=axis, cutoff=cutoff, alpha=alpha, max_steps=max_steps)
     if output is not None:
-        save_params(output, result.params)
-    if report is not None:
-        from kukaid.diagnose.plots import write_report
+        validate_params(result.params, str(output))  # a problem names -o, not a temporary file
+    with atomic_paths(*[p for p in (output, report) if p is not None]) as tmps:  # both or neither
+        tmp = iter(tmps)
+        if output is not None:
+            save_params(next(tmp), result.params)
+        if report is not None:
+            from kukaid.diagnose.plots import write_report
 
-        write_report(result, report)
+            write_report(result, next(tmp))
     if as_json:
         click.echo(json.dumps(result.to_json(), indent=2))
     else:

@@ -16,38 +16,45 @@ def _floats(text: str) -> list[float]:
         raise click.BadParameter(f"'{text}' is not a comma-separated list of numbers") from None
 
 
+def _seconds(v: float) -> float:
+    """A duration option: at most an hour (the generators build whole arrays at the IPO rate)."""
+    if not v <= 3600.0:
+        raise click.BadParameter(f"{v} s is longer than an hour")
+    return float(v)
+
+
 # option -> (generator parameter, conversion, kinds it applies to); None kinds = all
 _DEG = 3.141592653589793 / 180.0
 _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
     "centre_deg": ("centre", lambda v: v * _DEG, None),
-    "lead": ("lead", float, None),
+    "lead": ("lead", _seconds, None),
     "speeds": ("speeds", _floats, ("friction",)),
     "v_min": ("v_min", float, ("friction",)),
     "v_max": ("v_max", float, ("friction",)),
     "n_speeds": ("n_speeds", int, ("friction",)),
     "span_deg": ("span", lambda v: v * _DEG, ("friction",)),
-    "plateau": ("plateau", float, ("friction",)),
-    "settle": ("settle", float, ("friction",)),
+    "plateau": ("plateau", _seconds, ("friction",)),
+    "settle": ("settle", _seconds, ("friction",)),
     "acc": ("acc", float, ("friction", "validation")),
     "cycles": ("cycles", int, ("friction",)),
     "reposition_speed": ("reposition_speed", float, ("friction",)),
-    "period": ("period", float, ("inertia",)),
+    "period": ("period", _seconds, ("inertia",)),
     "n_periods": ("n_periods", int, ("inertia",)),
     "amplitude_deg": ("amplitude", lambda v: v * _DEG, ("inertia", "validation")),
     "ramp_periods": ("ramp_periods", float, ("inertia",)),
-    "tail": ("tail", float, ("inertia",)),
+    "tail": ("tail", _seconds, ("inertia",)),
     "step_deg": ("step", lambda v: v * _DEG, ("presliding",)),
-    "step_time": ("step_time", float, ("presliding",)),
-    "hold": ("hold", float, ("presliding",)),
+    "step_time": ("step_time", _seconds, ("presliding",)),
+    "hold": ("hold", _seconds, ("presliding",)),
     "reversals_deg": ("reversals", lambda v: [x * _DEG for x in _floats(v)], ("presliding",)),
-    "reversal_time": ("reversal_time", float, ("presliding",)),
-    "dwell": ("dwell", float, ("presliding", "validation")),
-    "final_hold": ("final_hold", float, ("presliding",)),
+    "reversal_time": ("reversal_time", _seconds, ("presliding",)),
+    "dwell": ("dwell", _seconds, ("presliding", "validation")),
+    "final_hold": ("final_hold", _seconds, ("presliding",)),
     "direction": ("direction", int, ("presliding",)),
     "periods": ("periods", _floats, ("validation",)),
     "weights": ("weights", _floats, ("validation",)),
-    "sine_time": ("sine_time", float, ("validation",)),
-    "ramp": ("ramp", float, ("validation",)),
+    "sine_time": ("sine_time", _seconds, ("validation",)),
+    "ramp": ("ramp", _seconds, ("validation",)),
     "moves_deg": ("moves", lambda v: [x * _DEG for x in _floats(v)], ("validation",)),
     "move_speeds": ("move_speeds", _floats, ("validation",)),
 }
@@ -117,7 +124,11 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     limit (A3 of a KR 6 R700 sixx unless overridden).  Defaults in [brackets].
     """
     from kukaid.excite import AxisLimits, generate
+    from kukaid.io.atomic import write_texts_atomic
+    from kukaid_cli._util import check_outputs, check_suffix
 
+    check_suffix(output, ".json")
+    check_outputs([output], [limits_file])
     limits = AxisLimits.kr6_r700_sixx(axis)
     if limits_file is not None:
         limits = AxisLimits.load(limits_file, base=limits)
@@ -130,24 +141,22 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
         if value is None:
             continue
         param, conv, kinds = _OPTS[name]
+        flag = "--" + name.replace("_", "-")
         if kinds is not None and kind not in kinds:
-            flag = "--" + name.replace("_", "-")
             raise click.UsageError(f"option {flag} does not apply to '{kind}' (it is for {', '.join(kinds)})")
-        kwargs[param] = conv(value)
+        try:
+            kwargs[param] = conv(value)
+        except click.BadParameter as e:
+            raise click.BadParameter(e.message, param_hint=flag) from None
     traj = generate(kind, axis=axis, limits=limits, **kwargs)
-    krl = None
+    files = {output: traj.json_text()}
+    msg = f"{output}: {kind} trajectory of A{axis}, {traj.n_samples} samples, {traj.duration:.2f} s"
     if krl_dir is not None:
         from kukaid.io.krl import krl_program
 
-        krl = krl_program(traj, name=krl_name, limits=limits, tol_deg=krl_tol)
-    traj.to_json(output)
-    msg = f"{output}: {kind} trajectory of A{axis}, {traj.n_samples} samples, {traj.duration:.2f} s"
-    if krl is not None:
-        from kukaid.io.atomic import write_text_atomic
-
-        src, dat, summary = krl
-        krl_dir.mkdir(parents=True, exist_ok=True)
-        write_text_atomic(krl_dir / f"{summary['name']}.src", src)
-        write_text_atomic(krl_dir / f"{summary['name']}.dat", dat)
+        src, dat, summary = krl_program(traj, name=krl_name, limits=limits, tol_deg=krl_tol)
+        files.update({krl_dir / f"{summary['name']}.src": src, krl_dir / f"{summary['name']}.dat": dat})
         msg += f"; KRL {krl_dir / summary['name']}.src/.dat, {summary['points']} via points"
+    check_outputs(files, [limits_file])
+    write_texts_atomic(files)  # all or nothing
     click.echo(msg, err=True)

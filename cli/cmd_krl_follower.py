@@ -29,7 +29,7 @@ def command(axis: int, q_min: float, q_max: float, qd_max: float, axis_speed: fl
     first; the KRC's own monitoring stays in force.
     """
     from kukaid.errors import KukaidError
-    from kukaid.io.atomic import write_text_atomic
+    from kukaid.io.atomic import write_texts_atomic
     from kukaid.io.krl_follower import FollowerConfig, krl_follower_files
     from kukaid_cli._util import refuse_overwrite
 
@@ -40,7 +40,6 @@ def command(axis: int, q_min: float, q_max: float, qd_max: float, axis_speed: fl
     files = krl_follower_files(cfg)
     for name in files:
         refuse_overwrite(outdir / name, force)
-    for name, text in files.items():
-        write_text_atomic(outdir / name, text.replace("\n", "\r\n"))
+    write_texts_atomic({outdir / name: text.replace("\n", "\r\n") for name, text in files.items()})
     click.echo(f"{outdir}: {', '.join(files)} (A{axis}, window [{q_min:g}, {q_max:g}] deg, "
                f"$VEL_AXIS {cfg.vel_pct:.2f} %, heartbeat {stale_ms} ms)", err=True)

@@ -21,7 +21,7 @@ def command(axes: tuple[int, ...], blocks: int, block_samples: int, outdir: Path
     Capture writes only the logger's acknowledgement counter KID_RD; it never writes any other
     robot variable.
     """
-    from kukaid.io.atomic import write_text_atomic
+    from kukaid.io.atomic import write_texts_atomic
     from kukaid.io.krl_logger import RingLayout, krl_logger_files
     from kukaid_cli._util import refuse_overwrite
 
@@ -29,7 +29,6 @@ def command(axes: tuple[int, ...], blocks: int, block_samples: int, outdir: Path
     files = krl_logger_files(layout)
     for name in files:
         refuse_overwrite(outdir / name, force)
-    for name, text in files.items():
-        write_text_atomic(outdir / name, text.replace("\n", "\r\n"))
+    write_texts_atomic({outdir / name: text.replace("\n", "\r\n") for name, text in files.items()})
     click.echo(f"{outdir}: {', '.join(files)} (axes {', '.join(f'A{a}' for a in layout.axes)}, "
                f"{layout.nb} blocks x {layout.bs} samples = {layout.nb * layout.bs * 12} ms of buffer)", err=True)

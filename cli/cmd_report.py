@@ -27,6 +27,10 @@ def command(params, friction, inertia, presliding, logs, axis, output) -> None:
 
     matplotlib.use("Agg")
     from kukaid.report import make_report
+    from kukaid_cli._util import check_outputs, check_suffix
+
+    check_suffix(output, ".pdf")
+    check_outputs([output], [params, *friction, *inertia, presliding, *logs])
 
     n = make_report(params, output, friction=list(friction), inertia=list(inertia), presliding=presliding,
                     logs=list(logs), axis=axis)

@@ -34,7 +34,7 @@ def _fmt(v):
               help="Seconds of admittance control (after the 1-degree initiation move and rest).")
 @click.option("--cycle", type=float, default=0.012, show_default=True,
               help="Control cycle, s (KRC sample time 0.012; the paper's ~0.024 also works).")
-@click.option("--init-move", type=float, default=1.0, show_default=True,
+@click.option("--init-move", type=click.FloatRange(-10.0, 10.0), default=1.0, show_default=True,
               help="Initiation move before control, degrees (saturates the Maxwell-slip elements, eq. 12; 0: none).")
 # safety (degrees at the edge)
 @click.option("--q-min", type=float, help="Position window, lower bound, degrees (sim default: q0 - 90).")
@@ -51,8 +51,10 @@ def _fmt(v):
 @click.option("--operator", type=click.Choice(["push", "pull", "hand", "none"]), default="pull", show_default=True,
               help="sim: push (smooth 12-18 N·m push, then release) or pull/hand (spring-damper hand dragging "
                    "the joint 0.25-0.35 rad, then letting go); drawn from --seed.")
-@click.option("--seed", type=int, default=0, show_default=True, help="sim: seed of noise, vibration and operator.")
-@click.option("--q0", type=float, default=30.0, show_default=True, help="sim: start position, degrees.")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+              help="sim: seed of noise, vibration and operator.")
+@click.option("--q0", type=click.FloatRange(-360.0, 360.0), default=30.0, show_default=True,
+              help="sim: start position, degrees.")
 @click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
               help="sim: JSON overriding the simulator's truth and settings.")
 @click.option("--noise", type=float, help="sim: torque noise sigma, N·m [0.5].")
@@ -88,13 +90,18 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.errors import KukaidError
     from kukaid.io.jsonfile import jsonable
     from kukaid.io.params import load_params, model_from_params
-    from kukaid_cli._util import progress
+    from kukaid.io.atomic import check_writable
+    from kukaid_cli._util import check_outputs, check_suffix, progress, refuse_overwrite
 
-    if output.suffix.lower() not in (".h5", ".hdf5"):
-        raise KukaidError(f"{output}: the run log is HDF5; name it .h5 or .hdf5")
+    check_suffix(output, ".h5", ".hdf5")
+    check_suffix(report, ".pdf")
+    check_outputs([output, report], [params_path, sim_config])
     for p in (output, report):
-        if p is not None and p.exists() and not force:
-            raise KukaidError(f"{p}: already exists; choose another name or pass --force to replace it")
+        if p is not None:
+            refuse_overwrite(p, force)
+            check_writable(p)  # before the robot moves: the record of the run must be writable
+    if backend == "kvp" and (sim_config is not None or noise is not None):
+        raise click.UsageError("--sim-config and --noise are for --backend sim")
     params = load_params(params_path)
     model = model_from_params(params)
     zeta0 = (params.get("maxwell_slip") or {}).get("zeta0")
@@ -176,4 +183,6 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                 click.echo(f"  {k:28s} {_fmt(m[k])}")
         click.echo(f"  -> {output}" + (f", {report}" if report else ""))
     if not run.status.startswith("completed"):
+        click.echo(f"kukaid: error: run-admittance: {run.status} (the run log {output} holds every cycle until then)",
+                   err=True)
         raise SystemExit(3)

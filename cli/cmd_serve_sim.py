@@ -15,29 +15,32 @@ import click
 @click.option("--trajectory", "traj_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Trajectory JSON the virtual robot runs from the start (like its KRL program); "
                    "without it the axis holds still and follows writes of the global KID_TGT (deg).")
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True)
 @click.option("--sim-config", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="JSON overrides of the simulator's truth and settings.")
 @click.option("--noise", type=float, help="Torque noise sigma, N·m.")
-@click.option("--duration", type=float, help="Stop after this many seconds (default: until Ctrl-C/SIGTERM).")
-@click.option("--speed", type=float, default=1.0, show_default=True, help="Simulated seconds per second.")
+@click.option("--duration", type=click.FloatRange(0.0, 7 * 86400.0, min_open=True),
+              help="Stop after this many seconds (default: until Ctrl-C/SIGTERM).")
+@click.option("--speed", type=click.FloatRange(0.01, 100.0), default=1.0, show_default=True,
+              help="Simulated seconds per second.")
 @click.option("--ring-axes", type=click.IntRange(1, 6), multiple=True,
               help="Axes recorded by the emulated KRL ring-buffer logger (default: the simulated axis).")
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write every 12 ms sample the simulator took (ground truth, sim time) to this HDF5 log on exit.")
-@click.option("--delay", type=float, default=0.0, help="Fault injection: seconds added to every reply.")
-@click.option("--q0", type=float, help="Start position of the axis, degrees (without --trajectory) [0].")
+@click.option("--force", is_flag=True, help="Replace an existing --truth log.")
+@click.option("--delay", type=click.FloatRange(0.0, 10.0), default=0.0, help="Fault injection: seconds added to every reply.")
+@click.option("--q0", type=click.FloatRange(-360.0, 360.0), help="Start position of the axis, degrees (without --trajectory) [0].")
 @click.option("--follower", "follower_window", nargs=2, type=float, metavar="QMIN QMAX",
               help="Emulate the program of `kukaid krl-follower` with this window (degrees): KID_TGT is "
                    "followed while KID_RUN is TRUE, clamped, and motion stops when KID_HB goes stale.")
 @click.option("--stale-ms", type=int, default=200, show_default=True, help="--follower: heartbeat timeout, ms.")
 @click.option("--operator", type=click.Choice(["push", "pull"]),
               help="A simulated hand on the link (external torque, drawn from --seed), as for run-admittance.")
-@click.option("--operator-start", type=float, default=3.0, show_default=True,
+@click.option("--operator-start", type=click.FloatRange(0.0, 86400.0), default=3.0, show_default=True,
               help="--operator: seconds after the start when the hand begins.")
 def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, sim_config: Path | None,
             noise: float | None, duration: float | None, speed: float, ring_axes: tuple[int, ...],
-            truth_path: Path | None, delay: float, q0: float | None, follower_window: tuple[float, float] | None,
+            truth_path: Path | None, force: bool, delay: float, q0: float | None, follower_window: tuple[float, float] | None,
             stale_ms: int, operator: str | None, operator_start: float) -> None:
     """Serve the virtual KR C4's live variables over KUKAVARPROXY until interrupted.
 
@@ -54,8 +57,14 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, 
     from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
     from kukaid.sim.kvp_server import Faults, KvpServer, SimSource
 
-    if speed <= 0:
-        raise KukaidError(f"serve-sim: --speed must be positive; got {speed}")
+    from kukaid.io.atomic import check_writable
+    from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite
+
+    if truth_path is not None:  # checked now, not after the session
+        check_suffix(truth_path, ".h5", ".hdf5")
+        check_outputs([truth_path], [traj_path, sim_config])
+        refuse_overwrite(truth_path, force)
+        check_writable(truth_path)
     cfg = load_sim_config(sim_config) if sim_config else SimConfig()
     if noise is not None:
         cfg = cfg.replace(noise_sigma=noise)
@@ -63,7 +72,10 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, 
     if traj_path is not None:
         from kukaid.excite import Trajectory
 
+        from kukaid.capture import check_limits
+
         traj = Trajectory.from_json(traj_path)
+        check_limits(traj, where=str(traj_path))
         axis = int(getattr(traj, "axis", axis) or axis)
     sim = VirtualKRC4(cfg, seed=seed, axis=axis)
     if q0 is not None:

@@ -30,6 +30,21 @@ class LazyGroup(click.Group):
         mod = importlib.import_module(f"{__package__}.cmd_{name.replace('-', '_')}")
         return mod.command
 
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        """Click's main, with its usage errors (a missing option, a value out of range, a folder
+        where a file belongs) as one line, ``kukaid: error: <command>: <what>``, exit status 2."""
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, False, **extra)
+        try:
+            rv = super().main(args, prog_name, complete_var, False, **extra)
+        except click.ClickException as e:
+            ctx = getattr(e, "ctx", None)
+            where = f"{ctx.info_name}: " if ctx is not None and ctx.parent is not None else ""
+            _fail(where + " ".join(e.format_message().split()), e.exit_code)
+        except click.Abort:
+            _fail("interrupted", 130)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
     def invoke(self, ctx: click.Context):
         from kukaid.errors import KukaidError
 

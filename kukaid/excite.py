@@ -46,6 +46,8 @@ from kukaid.io.jsonfile import read_json
 #: KR C4 interpolation cycle (IPO), s.
 IPO_DT = 0.012
 SCHEMA = "kukaid.trajectory/1"
+#: longest trajectory accepted, s
+MAX_DURATION = 86400.0
 KINDS = ("friction", "inertia", "presliding", "validation")
 _DEG = math.pi / 180.0
 
@@ -132,9 +134,13 @@ class Trajectory:
             "q": [float(x) for x in self.q],
         }
 
+    def json_text(self) -> str:
+        """The trajectory file's text (``"schema": "kukaid.trajectory/1"``)."""
+        return json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n"
+
     def to_json(self, path: str | Path) -> None:
-        """Write the trajectory (``"schema": "kukaid.trajectory/1"``) atomically."""
-        write_text_atomic(path, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
+        """Write the trajectory file atomically."""
+        write_text_atomic(path, self.json_text())
 
     @classmethod
     def from_dict(cls, d: Any, where: str = "trajectory") -> "Trajectory":
@@ -198,6 +204,11 @@ def _check_arrays(t: np.ndarray, q: np.ndarray, where: str) -> None:
         i = int(bad[0]) + 1
         raise TrajectoryError(f"{where}: 't' is not uniformly sampled at index {i} (step {dt[i-1]:.6g} s, "
                               f"expected {dt[0]:.6g} s)")
+    if not 1e-4 <= dt[0] <= 1.0:
+        raise TrajectoryError(f"{where}: 't' steps by {dt[0]:.6g} s; a commanded trajectory is sampled every "
+                              f"0.1 ms to 1 s (the KR C4's IPO rate is 12 ms): wrong time unit?")
+    if t[-1] - t[0] > MAX_DURATION:
+        raise TrajectoryError(f"{where}: lasts {t[-1] - t[0]:.6g} s, more than {MAX_DURATION:.0f} s (24 h)")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,6 +1,7 @@
 """Axis logs: HDF5 and CSV round trips, validation, incremental writing, malformed input."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import textwrap
@@ -12,7 +13,7 @@ from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from kukaid.errors import LogFormatError
+from kukaid.errors import KukaidError, LogFormatError
 from kukaid.io.axislog import AxisLog, AxisLogWriter, read_csv, read_hdf5, read_log, write_csv, write_hdf5
 from kukaid_cli.main import cli
 
@@ -43,13 +44,13 @@ def test_hdf5_round_trip_keeps_everything(tmp_path):
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.lists(st.floats(-1e4, 1e4, allow_nan=False, width=64).filter(lambda x: x == 0 or abs(x) > 1e-290),
+@given(st.lists(st.floats(-720, 720, allow_nan=False, width=64).filter(lambda x: x == 0 or abs(x) > 1e-290),
                 min_size=2, max_size=40))
 def test_csv_hdf5_csv_round_trip_keeps_every_value(tmp_path_factory, values):
     d = tmp_path_factory.mktemp("rt")
     n = len(values)
     v = np.asarray(values)
-    # a CSV as the KRC gives it: degrees and N·m
+    # a CSV as the KRC gives it: degrees (up to the plausible +-720) and N·m
     lines = ["time_s,A3_deg,A3_Nm,A3_cmd_deg,A3_temp_C"]
     for i in range(n):
         lines.append(f"{i * 0.012!r},{float(v[i])!r},{float(-v[i])!r},{float(v[i] / 3)!r},{40.0 + i!r}")
@@ -220,3 +221,182 @@ def test_killed_writer_with_uneven_datasets_keeps_common_rows(tmp_path):
         f["tau"] = np.zeros((10, 1))
     with pytest.raises(LogFormatError, match="dataset 'tau' has 10 rows but 'time' has 15"):
         read_hdf5(tmp_path / "whole.h5")
+
+
+# -- audit: malformed HDF5 attributes, implausible units, `kukaid load` outputs, unwritable folders --
+def _one_line_error(r, *names):
+    """A CLI failure: non-zero exit, one line `kukaid: error: ...` naming ``names``, no traceback."""
+    err = r.stderr if hasattr(r, "stderr") else r.output
+    assert r.exit_code != 0, err
+    assert err.startswith("kukaid: error: ") and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    for n in names:
+        assert str(n) in err, (n, err)
+    return err
+
+
+def _edited_h5(tmp_path, edit, name="a.h5", log=None):
+    path = tmp_path / name
+    write_hdf5(log or make_log(), path)
+    with h5py.File(path, "a") as f:
+        edit(f)
+    return path
+
+
+@pytest.mark.parametrize("key, text", [("trajectory", '{"speeds": [0.1, 0.2'), ("truth", "not json"),
+                                       ("_json_attrs", "[trajectory")])
+def test_hdf5_invalid_json_attribute_names_file_and_attribute(tmp_path, key, text):
+    path = _edited_h5(tmp_path, lambda f: f.attrs.__setitem__(key, text))
+    if key == "truth":  # a simulated log's truth, listed as JSON
+        with h5py.File(path, "a") as f:
+            f.attrs["_json_attrs"] = '["trajectory", "units", "joint", "truth"]'
+    with pytest.raises(LogFormatError, match=rf"a.h5: attribute '{key}' is not valid JSON"):
+        read_hdf5(path)
+    out = tmp_path / "o.csv"
+    _one_line_error(CliRunner().invoke(cli, ["load", str(path), "-o", str(out)]), path, f"attribute '{key}'")
+    assert not out.exists()
+
+
+def test_hdf5_wrong_format_marker(tmp_path):
+    path = _edited_h5(tmp_path, lambda f: f.attrs.__setitem__("format", "someone.else/3"))
+    with pytest.raises(LogFormatError, match=r"a.h5: attribute 'format' is 'someone.else/3', expected 'kukaid.axislog/1'"):
+        read_hdf5(path)
+    with h5py.File(tmp_path / "a.h5", "a") as f:  # what the writer sets is accepted, as text or bytes
+        f.attrs["format"] = np.bytes_(b"kukaid.axislog/1")
+    assert read_hdf5(path).n_samples == 50
+
+
+@pytest.mark.parametrize("value", [-0.012, 0.0, np.nan, np.inf, "12 ms"])
+def test_hdf5_bad_sample_time(tmp_path, value):
+    path = _edited_h5(tmp_path, lambda f: f.attrs.__setitem__("sample_time", value))
+    with pytest.raises(LogFormatError, match=r"a.h5: attribute 'sample_time' is"):
+        read_hdf5(path)
+
+
+def test_hdf5_axes_attribute_against_columns(tmp_path):
+    path = _edited_h5(tmp_path, lambda f: f.attrs.__setitem__("axes", [2, 3]))
+    with pytest.raises(LogFormatError, match=r"attribute 'axes' lists 2 axes \[2, 3\] but dataset 'q' has 1 column$"):
+        read_hdf5(path)
+    path = _edited_h5(tmp_path, lambda f: f.attrs.__setitem__("joint", '["revolute"]'), name="b.h5",
+                      log=make_log(axes=(2, 3)))
+    with pytest.raises(LogFormatError, match=r"attribute 'joint' has 1 entry \['revolute'\] but attribute 'axes' lists 2"):
+        read_hdf5(path)
+    path = _edited_h5(tmp_path, lambda f: f.attrs.__setitem__("axes", "A3"), name="c.h5")
+    with pytest.raises(LogFormatError, match=r"attribute 'axes' must list KUKA axis numbers"):
+        read_hdf5(path)
+
+
+UNIT_MISTAKES = {
+    "millidegrees": ("time_s,A3_deg,A3_Nm\n0,45000,1\n0.012,44990,2\n0.024,44980,3\n",
+                     "A3_deg reaches 45000 degrees; beyond +-720 degrees: wrong unit"),
+    "degrees_as_rad": ("time_s,A3_rad,A3_Nm\n0,90,1\n0.012,91,2\n",
+                       "A3_rad reaches 91 rad (5213.92 degrees); beyond +-720 degrees: wrong unit"),
+    "command_millidegrees": ("time_s,A3_deg,A3_Nm,A3_cmd_deg\n0,45,1,-45000\n0.012,45,2,-45000\n",
+                             "A3_cmd_deg reaches -45000 degrees"),
+    "milliseconds": ("time_s,A3_deg,A3_Nm\n0,45,1\n12,45.1,2\n24,45.2,3\n",
+                     "time_s has a median sample interval of 12 s; above 1 s: milliseconds written as seconds?"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(UNIT_MISTAKES))
+def test_csv_implausible_units_refused(tmp_path, case):
+    text, msg = UNIT_MISTAKES[case]
+    src = tmp_path / "log.csv"
+    src.write_text(text)
+    with pytest.raises(LogFormatError, match=re.escape(f"{src}: {msg}")):
+        read_csv(src)
+    out = tmp_path / "o.h5"
+    _one_line_error(CliRunner().invoke(cli, ["load", str(src), "-o", str(out)]), src, msg)
+    assert not out.exists()
+
+
+def test_hdf5_implausible_units_refused(tmp_path):
+    path = _edited_h5(tmp_path, lambda f: f["q"].write_direct(f["q"][()] * 1000))
+    with pytest.raises(LogFormatError, match=r"a.h5: channel 'q' of axis A3 reaches .* rad \(.* degrees\); beyond "
+                                             r"\+-720 degrees: wrong unit"):
+        read_hdf5(path)
+    path = _edited_h5(tmp_path, lambda f: f["time"].write_direct(f["time"][()] * 1000), name="ms.h5")
+    with pytest.raises(LogFormatError, match=r"ms.h5: time has a median sample interval of 12 s"):
+        read_hdf5(path)
+
+
+def test_plausible_units_accepted():
+    t = np.arange(100) * 0.012
+    # two full turns either way of a revolute axis, a long prismatic track (m), 1 s samples
+    AxisLog(time=t, q=np.linspace(-4 * np.pi, 4 * np.pi, t.size), tau=np.zeros(t.size), axes=(6,))
+    AxisLog(time=t, q=np.linspace(0, 30.0, t.size), tau=np.zeros(t.size), axes=(7,), joint=("prismatic",))
+    AxisLog(time=np.arange(10) * 1.0, q=np.zeros(10), tau=np.zeros(10), axes=(3,))
+    with pytest.raises(LogFormatError, match=r"axis log: channel 'q' of axis A6 reaches 12.6 rad"):
+        AxisLog(time=t, q=np.full(t.size, 12.6), tau=np.zeros(t.size), axes=(6,))
+
+
+def test_load_output_suffix_checked_before_reading(tmp_path):
+    src = tmp_path / "in.csv"
+    src.write_text("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2,3\n")
+    for name in ("out.txt", "out", "out.H5.bak"):
+        r = CliRunner().invoke(cli, ["load", str(tmp_path / "missing.csv"), "-o", str(tmp_path / name)])
+        _one_line_error(r, tmp_path / name, ".h5 or .hdf5 or .csv")
+        assert not (tmp_path / name).exists()
+    for name in ("out.HDF5", "out.csv"):  # the suffix decides the format, in any case
+        r = CliRunner().invoke(cli, ["load", str(src), "-o", str(tmp_path / name)])
+        assert r.exit_code == 0, r.output
+    assert read_hdf5(tmp_path / "out.HDF5").n_samples == 2
+    assert read_csv(tmp_path / "out.csv").n_samples == 2
+
+
+def test_load_never_overwrites_input_or_existing_log(tmp_path, monkeypatch):
+    src = tmp_path / "a.csv"
+    src.write_text("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2,3\n")
+    h5 = tmp_path / "a.h5"
+    write_hdf5(make_log(), h5)
+    before = {p: p.read_bytes() for p in (src, h5)}
+    monkeypatch.chdir(tmp_path)
+    for args in (["a.csv", "-o", "a.csv"], ["a.h5", "-o", str(h5)], ["a.h5", "-o", "./sub/../a.h5", "--force"]):
+        _one_line_error(CliRunner().invoke(cli, ["load", *args]), "is also an input")
+    (tmp_path / "link.h5").symlink_to(h5)
+    _one_line_error(CliRunner().invoke(cli, ["load", "link.h5", "-o", "a.h5", "--force"]), "is also an input")
+    # an existing log is replaced only with --force
+    _one_line_error(CliRunner().invoke(cli, ["load", "a.csv", "-o", "a.h5"]), "a.h5: already exists", "--force")
+    assert {p: p.read_bytes() for p in (src, h5)} == before
+    r = CliRunner().invoke(cli, ["load", "a.csv", "-o", "a.h5", "--force"])
+    assert r.exit_code == 0, r.output
+    assert read_hdf5(h5).n_samples == 2 and src.read_bytes() == before[src]
+
+
+def test_load_refuses_mat_options_for_other_sources(tmp_path):
+    src = tmp_path / "a.csv"
+    src.write_text("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2,3\n")
+    r = CliRunner().invoke(cli, ["load", str(src), "--q-scale", "2", "-o", str(tmp_path / "o.h5")])
+    _one_line_error(r, src, "option --q-scale is for MAT (.mat) sources")
+    assert not (tmp_path / "o.h5").exists()
+
+
+def _raise_oserror(errno_, *args, **kwargs):
+    raise OSError(errno_, f"Unable to synchronously create file (unable to open file: name = 'x', errno = {errno_}, "
+                          f"error message = 'Read-only file system', flags = 13, o_flags = 242)")
+
+
+def test_writer_unwritable_path_is_one_line(tmp_path, monkeypatch):
+    (tmp_path / "d.h5").mkdir()
+    with pytest.raises(KukaidError, match=r"d.h5: cannot create: Is a directory$"):
+        AxisLogWriter(tmp_path / "d.h5", axes=(3,))
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(KukaidError, match=r"file/out.h5: cannot create: \S*file is not a folder$"):
+        AxisLogWriter(tmp_path / "file" / "out.h5", axes=(3,))
+    # a read-only file system (the tests may run as root, whom permissions do not stop: simulated)
+    monkeypatch.setattr(h5py, "File", lambda *a, **k: _raise_oserror(30))
+    with pytest.raises(KukaidError, match=r"^\S*out.h5: cannot create: Read-only file system$"):
+        AxisLogWriter(tmp_path / "out.h5", axes=(3,))
+    with pytest.raises(KukaidError, match=r"^\S*out.h5: cannot write: Read-only file system$"):
+        write_hdf5(make_log(), tmp_path / "out.h5")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.h5", "file"]
+
+
+def test_write_csv_unwritable_folder_is_one_line(tmp_path, monkeypatch):
+    import tempfile
+
+    def refuse(*a, **k):
+        raise OSError(30, "Read-only file system")
+
+    monkeypatch.setattr(tempfile, "mkstemp", refuse)
+    with pytest.raises(KukaidError, match=r"o.csv: cannot write: Read-only file system$"):
+        write_csv(make_log(), tmp_path / "o.csv")

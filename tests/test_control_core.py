@@ -91,3 +91,21 @@ def test_residual_quasi_static_truth_away_from_paper():
     assert not a[rest, 3].any()
     push = a[:, 0] > 7.0
     assert np.sqrt(np.mean((a[push, 1] - a[push, 2]) ** 2)) < 1.5
+
+
+def test_residual_takes_each_diagnosed_effect_once_in_either_format():
+    p = SimConfig().truth_params()
+    p["inertial"]["My"] = 0.3
+    p["offset"] = -0.2
+    # diagnose keeps My and the offset in the rigid body and marks the effects stored_as
+    p["effects"] = {"gravity_sine": {"My": 0.3, "stored_as": "inertial.My"},
+                    "torque_offset": {"offset": -0.2, "stored_as": "offset"}}
+    est = TorqueResidual(model_from_params(p))
+    q = 1.1
+    rigid = p["inertial"]["Mx"] * math.cos(q) + 0.3 * math.sin(q) - 0.2
+    assert est.static_torque(q) == pytest.approx(rigid)
+    # a ripple as diagnose writes it (a, b) and as the simulator does (A, phi) is the same torque
+    for ripple in ({"n": 12.0, "a": 0.6, "b": 0.8}, {"n": 12.0, "A": 1.0, "phi": math.atan2(0.8, 0.6)}):
+        p["effects"] = {"position_ripple": ripple}
+        est = TorqueResidual(model_from_params(p))
+        assert est.static_torque(q) - rigid == pytest.approx(0.6 * math.sin(12 * q) + 0.8 * math.cos(12 * q))

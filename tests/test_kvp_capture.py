@@ -24,7 +24,8 @@ from kukaid.sim.kvp_server import KvpServer, SimSource
 def _excitation(duration: float = 8.0) -> SimpleNamespace:
     """A sine excitation of A3 (4 s period, 0.25 rad) around 0.3 rad, at the IPO rate."""
     t = np.arange(0.0, duration, 0.012)
-    q = 0.3 + 0.25 * np.sin(2 * np.pi * t / 4.0) * np.minimum(t / 0.5, 1.0)
+    ramp = 0.5 - 0.5 * np.cos(np.pi * np.minimum(t / 1.0, 1.0))  # smooth start: within the axis limits
+    q = 0.3 + 0.25 * np.sin(2 * np.pi * t / 4.0) * ramp
     return SimpleNamespace(t=t, q=q, axis=3)
 
 

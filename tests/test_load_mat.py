@@ -76,3 +76,129 @@ def test_emps_stribeck_runs(emps, tmp_path):
     assert p["metrics"]["ipopt_status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
     save_params(tmp_path / "emps.json", p)
     assert p["inertial"]["Izz"] == pytest.approx(95.1, rel=0.05)
+
+
+# -- audit: text variables, scales, the torque scale given twice, unit mistakes --------------------
+def _one_line_error(r, *parts):
+    err = r.stderr if hasattr(r, "stderr") else r.output
+    assert r.exit_code != 0 and err.startswith("kukaid: error: "), err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    for p in parts:
+        assert str(p) in err, (p, err)
+    return err
+
+
+@pytest.fixture
+def text_mat(tmp_path):
+    from scipy.io import savemat
+
+    t = np.arange(100) * 0.001
+    path = tmp_path / "txt.mat"
+    savemat(path, {"t": t[:, None], "pos": np.sin(t)[:, None], "u": np.cos(t)[:, None], "label": "measured torque",
+                   "g": "35.15", "cell": np.array([["a"], [1.0]], dtype=object)})
+    return path
+
+
+@pytest.mark.parametrize("opts, var", [(dict(tau="label"), "label"), (dict(tau="u", tau_scale_var="g"), "g"),
+                                       (dict(tau="u", q_cmd="cell"), "cell")])
+def test_text_variable_is_not_numeric(text_mat, opts, var):
+    with pytest.raises(LogFormatError, match=rf"txt.mat: variable '{var}' \(.*\) is not numeric"):
+        read_log(text_mat, time="t", q="pos", **opts)
+
+
+def test_text_variable_cli_one_line(text_mat, tmp_path):
+    out = tmp_path / "o.h5"
+    r = CliRunner().invoke(cli, ["load", str(text_mat), "--q", "pos", "--tau", "label", "-o", str(out)])
+    _one_line_error(r, text_mat, "variable 'label' (torque) is not numeric: it holds text")
+    assert not out.exists()
+
+
+def _write_v73(path, variables):
+    """A MATLAB v7.3 file: HDF5 behind the 128-byte MAT header, classes in attribute MATLAB_class."""
+    import h5py
+
+    with h5py.File(path, "w", userblock_size=512) as f:
+        for name, (cls, data) in variables.items():
+            d = f.create_dataset(name, data=data)
+            d.attrs["MATLAB_class"] = np.bytes_(cls)
+    head = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jan  1 00:00:00 2024 HDF5 schema 1.00 ."
+    with open(path, "r+b") as fh:
+        fh.write(head.ljust(116) + b"\0" * 8 + b"\x00\x02IM")
+
+
+def test_v73_char_variable_is_not_numeric(tmp_path):
+    t = np.arange(100) * 0.001
+    path = tmp_path / "v73.mat"
+    _write_v73(path, {"t": ("double", t[None, :]), "pos": ("double", np.sin(t)[None, :]),
+                      "u": ("double", np.cos(t)[None, :]),
+                      "name": ("char", np.frombuffer("torque".encode("utf-16-le"), dtype="<u2")[:, None])})
+    log = read_log(path, time="t", q="pos", tau="u")  # numeric v7.3 variables are read
+    assert np.allclose(log.tau[:, 0], np.cos(t))
+    with pytest.raises(LogFormatError, match=r"v73.mat: variable 'name' \(torque\) is not numeric: it holds text"):
+        read_log(path, time="t", q="pos", tau="name")
+
+
+@pytest.mark.parametrize("option, value", [("--tau-scale", "0"), ("--tau-scale", "nan"), ("--tau-scale", "inf"),
+                                           ("--q-scale", "0"), ("--q-scale", "-inf"), ("--time-scale", "0"),
+                                           ("--time-scale", "-1")])
+def test_scale_must_be_finite_non_zero(small_mat, tmp_path, option, value):
+    out = tmp_path / "o.h5"
+    r = CliRunner().invoke(cli, ["load", str(small_mat), "--time", "tt", "--q", "pos", "--tau", "u", option, value,
+                                 "-o", str(out)])
+    _one_line_error(r, small_mat, f"({option}) must be a finite")
+    assert not out.exists()
+    with pytest.raises(LogFormatError, match=r"must be a finite (non-zero|positive) number"):
+        read_log(small_mat, time="tt", q="pos", tau="u", **{option[2:].replace("-", "_"): float(value)})
+
+
+def test_scale_variable_must_be_finite_non_zero(tmp_path):
+    from scipy.io import savemat
+
+    t = np.arange(100) * 0.001
+    savemat(tmp_path / "z.mat", {"t": t[:, None], "pos": t[:, None], "u": t[:, None], "g": np.array([[0.0]])})
+    with pytest.raises(LogFormatError, match=r"z.mat: torque scale variable 'g' is 0; a scale must be a finite non-zero"):
+        read_log(tmp_path / "z.mat", time="t", q="pos", tau="u", tau_scale_var="g")
+
+
+def test_tau_scale_and_tau_scale_var_refused_together(small_mat, tmp_path):
+    with pytest.raises(LogFormatError, match=r"x.mat: give the torque scale once, --tau-scale or --tau-scale-var, not both"):
+        read_log(small_mat, time="tt", q="pos", tau="u", tau_scale=2.0, tau_scale_var="g")
+    out = tmp_path / "o.h5"
+    r = CliRunner().invoke(cli, ["load", str(small_mat), "--time", "tt", "--q", "pos", "--tau", "u", "--tau-scale", "2",
+                                 "--tau-scale-var", "g", "-o", str(out)])
+    _one_line_error(r, "not both")
+    assert not out.exists()
+
+
+def test_mat_unit_mistakes_name_the_variable(tmp_path):
+    from scipy.io import savemat
+
+    t = np.arange(200) * 0.012
+    savemat(tmp_path / "u.mat", {"t_ms": 1000 * t[:, None], "t": t[:, None], "deg": (30 + 10 * np.sin(t))[:, None],
+                                 "u": np.cos(t)[:, None]})
+    with pytest.raises(LogFormatError, match=r"u.mat: position variable 'deg' reaches 40 rad \(2291.8\d* degrees\); "
+                                             r"beyond \+-720 degrees: wrong unit"):
+        read_log(tmp_path / "u.mat", time="t", q="deg", tau="u")
+    with pytest.raises(LogFormatError, match=r"u.mat: time variable 't_ms' has a median sample interval of 12 s"):
+        read_log(tmp_path / "u.mat", time="t_ms", q="deg", tau="u", q_scale=np.pi / 180)
+    # the remedies: --q-scale for degrees, --time-scale for milliseconds
+    log = read_log(tmp_path / "u.mat", time="t_ms", q="deg", tau="u", q_scale=np.pi / 180, time_scale=1e-3)
+    assert np.allclose(log.time, t) and np.allclose(np.degrees(log.q[:, 0]), 30 + 10 * np.sin(t))
+    out = tmp_path / "o.h5"
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "u.mat"), "--time", "t_ms", "--q", "deg", "--tau", "u",
+                                 "--q-scale", "0.017453292519943295", "--time-scale", "0.001", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert np.allclose(read_hdf5(out).time, t)
+
+
+def test_sample_time_option_builds_the_time_base(tmp_path):
+    from scipy.io import savemat
+
+    savemat(tmp_path / "n.mat", {"pos": np.zeros((50, 1)), "u": np.ones((50, 1))})
+    out = tmp_path / "o.h5"
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "n.mat"), "--q", "pos", "--tau", "u", "-o", str(out)])
+    _one_line_error(r, "no time variable; name it (--time) or give --sample-time")
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "n.mat"), "--q", "pos", "--tau", "u", "--sample-time", "0.004",
+                                 "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert read_hdf5(out).sample_time == pytest.approx(0.004)

@@ -120,11 +120,12 @@ def _kvp_args(files, port, out):
 def test_kvp_run_follows_a_push_and_hands_back_control(files, kvp_robot, tmp_path):
     port, client, amp = kvp_robot
     out = tmp_path / "kvp.h5"
-    r = _run(_kvp_args(files, port, out))
+    r = _run([*_kvp_args(files, port, out), "--D", "150"])  # about 20 degrees: inside the window
     assert r.exit_code == 0, r.output
     log, control, m = read_run(out)
     assert m["status"] == "completed" and log.attrs["backend"] == "kvp"
     assert np.sign(m["displacement"]) == np.sign(amp) and 0.05 < abs(m["displacement"]) < math.radians(25)
+    assert m["clipped_cycles"] == 0
     steps = np.diff(log.time) / 0.012
     assert np.all(steps > 0.5) and np.allclose(steps, np.round(steps))  # whole controller samples
     # the robot itself moved, and the follower was switched off at the end

@@ -79,7 +79,8 @@ class KvpBackend:
     The controller updates both variables once per interpolation cycle (``sample_time``, 12 ms)
     and the PC's cycle is not locked to it: a reading identical to the previous one is the same
     controller sample read again and is dropped (so a controller that stops updating looks stale
-    to the watchdog), and timestamps are the host's monotonic clock snapped to the controller's
+    to the watchdog) and the cycle is moved a quarter sample later, away from the controller's
+    sample boundary; timestamps are the host's monotonic clock snapped to the controller's
     sample grid, so the estimator differentiates over whole sample intervals rather than over
     network jitter.
     """
@@ -96,6 +97,8 @@ class KvpBackend:
         self._beat = 0
         self._enabled = False
         self._last: Sample | None = None
+        self._k: int | None = None
+        self._repeats = 0  # readings that repeated the previous controller sample
         self._t_next: float | None = None
 
     def now(self) -> float:
@@ -110,12 +113,13 @@ class KvpBackend:
         q = math.radians(q_deg)
         prev = self._last
         if prev is not None and q == prev.q and tau == prev.tau:
+            self._repeats += 1
             return []  # the same controller sample again
-        h = self.sample_time
-        t = round(self.now() / h) * h
-        if prev is not None and t <= prev.t:
-            t = prev.t + h
-        self._last = Sample(t, q, tau)
+        k = round(self.now() / self.sample_time)  # the controller's sample count
+        if self._k is not None and k <= self._k:
+            k = self._k + 1
+        self._k = k
+        self._last = Sample(k * self.sample_time, q, tau)
         return [self._last]
 
     def _send(self, q: float) -> None:
@@ -141,7 +145,12 @@ class KvpBackend:
         nxt = (self._t_next if self._t_next is not None else now) + dt
         self._t_next = nxt if nxt > now else now + dt
         self._send(q_cmd)
+        repeats = self._repeats
         out = self._read()
+        if self._repeats > repeats:
+            # read just before the controller's next sample: move the cycle a quarter sample later,
+            # away from the sample boundary, so reads do not alternate between a repeat and a skip
+            self._t_next += self.sample_time / 4
         wait = self._t_next - self.now()
         if wait > 0:
             time.sleep(wait)

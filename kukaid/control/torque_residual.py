@@ -108,12 +108,19 @@ class TorqueResidual:
         if z0.size != self._k.size:
             raise KukaidError(f"torque residual: zeta0 has {z0.size} values, the Maxwell-slip model {self._k.size} elements")
         self._zeta0 = z0
-        eff = dict(model.effects or {})
+        # effects a diagnosis stored in the rigid body (inertial.My, offset; marked stored_as) are
+        # already in the model
+        eff = {k: v for k, v in (model.effects or {}).items() if "stored_as" not in v}
         self.ignored_effects = sorted(k for k in eff if k not in SUPPORTED_EFFECTS)
-        self._My_extra = float(eff.get("gravity_sine", {}).get("My", 0.0)) if "gravity_sine" in eff else 0.0
-        self._off_extra = float(eff.get("torque_offset", {}).get("offset", 0.0)) if "torque_offset" in eff else 0.0
+        self._My_extra = float(eff["gravity_sine"].get("My", 0.0)) if "gravity_sine" in eff else 0.0
+        self._off_extra = float(eff["torque_offset"].get("offset", 0.0)) if "torque_offset" in eff else 0.0
         r = eff.get("position_ripple")
-        self._ripple = (float(r["n"]), float(r.get("a", 0.0)), float(r.get("b", 0.0))) if r else None
+        self._ripple = None
+        if r:  # a sin(n q) + b cos(n q) as diagnose writes it, or A sin(n q + phi) as the simulator
+            A, phi = float(r.get("A", 0.0)), float(r.get("phi", 0.0))
+            a = float(r["a"]) if "a" in r else A * math.cos(phi)
+            b = float(r["b"]) if "b" in r else A * math.sin(phi)
+            self._ripple = (float(r["n"]), a, b)
         self._started = False
 
     # -- model pieces ---------------------------------------------------------------------------

@@ -317,7 +317,9 @@ class DiagModel:
         fr["Fc"] = max(self.lin["Fc"], 0.0)
         fr["Fv"] = max(self.lin["Fv"], 0.0)
         if self.friction_kind == "stribeck":
-            fr.update(Fs=max(self.lin["Fs"], 0.0), vs=self.vs, delta=self.delta)
+            # the refit leaves Fs free; Fs below Fc (data with no Stribeck rise) is stored as Fs = Fc,
+            # the parameter file's (and the fit's) Stribeck model having Fs >= Fc
+            fr.update(Fs=max(self.lin["Fs"], fr["Fc"]), vs=self.vs, delta=self.delta)
         d["friction"] = fr
         inert = dict(d.get("inertial") or {})
         inert["Izz"] = max(self.lin["Izz"], 1e-12)

@@ -22,6 +22,7 @@ coefficients free.
 """
 from __future__ import annotations
 
+import math
 import time as _time
 from dataclasses import dataclass, field
 from typing import Any, Sequence
@@ -78,11 +79,15 @@ def _merge_bounds(defaults: dict, bounds: dict | None) -> dict[str, tuple[float,
     for k, (lo, hi) in (bounds or {}).items():
         key = "dF" if k in ("Fs-Fc", "dF") else k
         if key not in out:
-            continue
+            continue  # a parameter of another stage of the fit
         lo = -INF if lo is None else float(lo)
         hi = INF if hi is None else float(hi)
+        if math.isnan(lo) or math.isnan(hi):
+            raise FitError(f"bounds for {k}: a bound is not a number")
         if not lo <= hi:
             raise FitError(f"bounds for {k}: lower {lo} is above upper {hi}")
+        if key in ("vs", "delta") and not lo > 0:
+            raise FitError(f"bounds for {k}: the lower bound must be > 0, got {lo}")
         out[key] = (lo, hi)
     return out
 

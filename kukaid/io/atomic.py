@@ -1,4 +1,4 @@
-"""Atomic file output: write to a temporary file beside the target, rename on success."""
+"""Atomic file output: write to temporary files beside the targets, rename them on success."""
 from __future__ import annotations
 
 import contextlib
@@ -7,33 +7,102 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
+from kukaid.errors import KukaidError
+
+
+def check_output(path: str | os.PathLike) -> Path:
+    """Refuse an output path that cannot be a plain file: an existing folder, device or pipe
+    (renaming onto ``/dev/null`` would replace the device), or a parent that is not a folder."""
+    target = Path(path)
+    if target.exists() and not target.is_file():
+        kind = "a folder" if target.is_dir() else "not a regular file"
+        raise KukaidError(f"{target}: is {kind}; give a file name to write")
+    for parent in target.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise KukaidError(f"{target}: {parent} is not a folder")
+            break
+    return target
+
+
+def check_writable(path: str | os.PathLike) -> Path:
+    """Make sure a file can be created beside ``path`` (its folder is created if missing), before
+    work that cannot be repeated (a robot run) produces it."""
+    target = check_output(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".probe", dir=folder)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError as e:
+        raise KukaidError(f"{target}: cannot write: {e.strerror or e}") from None
+    return target
+
+
+@contextlib.contextmanager
+def atomic_paths(*paths: str | os.PathLike) -> Iterator[tuple[Path, ...]]:
+    """Yield one temporary path per target, in the target's folder (created if missing); rename
+    them all onto the targets only when the block succeeds.
+
+    On any exception every temporary file is removed and the targets are left untouched, so a
+    failed command never leaves a half-written output file, nor some of its outputs without the
+    others.  An ``OSError`` about a temporary file is reported as the target's.
+    """
+    targets = [check_output(p) for p in paths]
+    if len({t.resolve() for t in targets}) != len(targets):
+        raise KukaidError(f"{targets[0]}: the same file is given for two outputs")
+    tmps: list[Path] = []
+    umask = os.umask(0)
+    os.umask(umask)
+    for target in targets:
+        folder = target.parent if str(target.parent) else Path(".")
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
+        except OSError as e:
+            _remove(tmps)
+            raise KukaidError(f"{target}: cannot write: {e.strerror or e}") from None
+        os.close(fd)
+        tmps.append(Path(tmp))
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; an output file gets the usual permissions
+    try:
+        yield tuple(tmps)
+        for tmp, target in zip(tmps, targets):
+            os.replace(tmp, target)
+    except OSError as e:
+        _remove(tmps)
+        name = str(e.filename) if e.filename is not None else None
+        for tmp, target in zip(tmps, targets):
+            if name is None or name == str(tmp):
+                raise KukaidError(f"{target}: cannot write: {e.strerror or e}") from None
+        raise
+    except BaseException:
+        _remove(tmps)
+        raise
+
+
+def _remove(paths: list[Path]) -> None:
+    for p in paths:
+        with contextlib.suppress(FileNotFoundError):
+            p.unlink()
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path in the target's folder; rename it onto ``path`` only on success.
-
-    On any exception the temporary file is removed and ``path`` is left untouched, so a failed
-    command never leaves a half-written output file.
-    """
-    target = Path(path)
-    folder = target.parent if str(target.parent) else Path(".")
-    folder.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; an output file gets the usual permissions
-    tmp_path = Path(tmp)
-    try:
-        yield tmp_path
-        os.replace(tmp_path, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp_path.unlink()
-        raise
+    """:func:`atomic_paths` for one target: yields its temporary path."""
+    with atomic_paths(path) as (tmp,):
+        yield tmp
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
     """Write ``text`` to ``path`` atomically."""
     with atomic_path(path) as tmp:
         tmp.write_text(text)
+
+
+def write_texts_atomic(files: dict[str | os.PathLike, str]) -> None:
+    """Write several text files, all or none."""
+    with atomic_paths(*files) as tmps:
+        for tmp, text in zip(tmps, files.values()):
+            tmp.write_text(text)

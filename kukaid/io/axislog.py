@@ -6,22 +6,31 @@ N·m as the KRC gives them).  See ``../shared/DESIGN.md`` "File formats" for the
 """
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Iterator
 
 import numpy as np
 
 from kukaid import __version__
-from kukaid.errors import LogFormatError
+from kukaid.errors import KukaidError, LogFormatError
 from kukaid.io.atomic import atomic_path
 
 #: Per-axis channels, each an (N, A) array.  ``q`` and ``tau`` are required.
 CHANNELS = ("q", "tau", "q_cmd", "temp", "tau_ext_true")
 OPTIONAL_CHANNELS = ("q_cmd", "temp", "tau_ext_true")
 JOINT_TYPES = ("revolute", "prismatic")
+#: Value of the HDF5 attribute ``format`` that marks a kukaid axis log.
+FORMAT = "kukaid.axislog/1"
+#: Largest plausible |position| of a revolute axis, rad (720 degrees).  Beyond it the numbers are
+#: in another unit (millidegrees, degrees stored as radians), not a robot axis.
+MAX_REVOLUTE_RAD = 4 * np.pi
+#: Largest plausible median sample interval, s.  Above it the times are probably milliseconds.
+MAX_SAMPLE_INTERVAL_S = 1.0
 
 
 def channel_unit(channel: str, joint: str) -> str:
@@ -93,6 +102,7 @@ class AxisLog:
                 )
             object.__setattr__(self, name, x)
         check_samples(self.time, {n: getattr(self, n) for n in CHANNELS}, axes, where)
+        check_units(self.time, {n: getattr(self, n) for n in CHANNELS}, axes, joint, where)
 
     # -- access -----------------------------------------------------------------------------
     @property
@@ -169,6 +179,65 @@ def check_samples(time: np.ndarray, channels: dict[str, np.ndarray | None], axes
             )
 
 
+def check_units(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: Iterable[int],
+                joint: Iterable[str], where: str, labels: dict[Any, str] | None = None) -> None:
+    """Refuse values whose size betrays a unit mistake (the values are SI, already converted).
+
+    A revolute position (``q``, ``q_cmd``) beyond +-720 degrees (4 pi rad) is millidegrees or
+    degrees stored as radians; a median sample interval above 1 s is milliseconds stored as
+    seconds.  Prismatic positions are not bounded (linear tracks are long).
+
+    Parameters
+    ----------
+    time : (N,) s.   channels : name -> (N, A) array or None.   axes, joint : per column.
+    where : file or place for the message.
+    labels : names for the message instead of "time" and "channel 'q' of axis A3", keyed by
+        ``"time"`` or ``(channel, axis)``: a reader's column or variable names.  A label ending in
+        "deg" gives the position in degrees only.
+    """
+    labels = labels or {}
+    if time.size >= 2:
+        dt = float(np.median(np.diff(time)))
+        if dt > MAX_SAMPLE_INTERVAL_S:
+            raise LogFormatError(
+                f"{where}: {labels.get('time', 'time')} has a median sample interval of {dt:.6g} s; above "
+                f"{MAX_SAMPLE_INTERVAL_S:g} s: milliseconds written as seconds?"
+            )
+    for name in ("q", "q_cmd"):
+        x = channels.get(name)
+        if x is None or x.size == 0:
+            continue
+        for c, (a, j) in enumerate(zip(axes, joint)):
+            if j != "revolute":
+                continue
+            peak = float(x[np.argmax(np.abs(x[:, c])), c])
+            if abs(peak) > MAX_REVOLUTE_RAD:
+                label = labels.get((name, a), f"channel '{name}' of axis A{a}")
+                deg = np.degrees(peak)
+                value = f"{deg:.6g} degrees" if label.endswith("deg") else f"{peak:.6g} rad ({deg:.6g} degrees)"
+                raise LogFormatError(
+                    f"{where}: {label} reaches {value}; beyond +-720 degrees: wrong unit (millidegrees, or "
+                    f"degrees as radians)?"
+                )
+
+
+def _os_reason(e: OSError) -> str:
+    """The operating system's reason for an OSError (h5py puts its own long text in strerror)."""
+    if e.errno:
+        return os.strerror(e.errno)
+    m = re.search(r"error message = '([^']*)'", str(e))
+    return m.group(1) if m else _short(e)
+
+
+@contextlib.contextmanager
+def _os_errors(path: str | Path, action: str = "cannot write") -> Iterator[None]:
+    """Turn an OSError (read-only folder, no space, ...) into one line naming ``path`` and the reason."""
+    try:
+        yield
+    except OSError as e:
+        raise KukaidError(f"{path}: {action}: {_os_reason(e)}") from None
+
+
 # -- HDF5 ------------------------------------------------------------------------------------
 _JSON_ATTRS = "_json_attrs"
 
@@ -193,7 +262,7 @@ def _encode_attrs(attrs: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
 def _base_attrs(axes: tuple[int, ...], joint: tuple[str, ...], attrs: dict[str, Any]) -> dict[str, Any]:
     units = {"time": "s", **{c: [channel_unit(c, j) for j in joint] for c in CHANNELS}}
     out = {k: v for k, v in attrs.items() if k not in ("source_file", "incremental")}
-    out.update(axes=list(axes), joint=list(joint), units=units, format="kukaid.axislog/1")
+    out.update(axes=list(axes), joint=list(joint), units=units, format=FORMAT)
     out.setdefault("kukaid_version", __version__)
     return out
 
@@ -206,10 +275,14 @@ def _write_attrs(h5obj, attrs: dict[str, Any]) -> None:
 
 
 def write_hdf5(log: AxisLog, path: str | Path) -> None:
-    """Write ``log`` to ``path`` (HDF5) atomically: the file appears whole or not at all."""
+    """Write ``log`` to ``path`` (HDF5) atomically: the file appears whole or not at all.
+
+    A folder that cannot be written (read-only, no space, ...) is a :class:`KukaidError` naming
+    ``path`` and the operating system's reason.
+    """
     import h5py
 
-    with atomic_path(path) as tmp:
+    with atomic_path(path) as tmp, _os_errors(path):  # h5py's OSError text -> the OS's reason
         with h5py.File(tmp, "w") as f:
             f.create_dataset("time", data=log.time)
             for name in CHANNELS:
@@ -250,33 +323,44 @@ def read_hdf5(path: str | Path) -> AxisLog:
         raise LogFormatError(f"{path}: empty file")
     with _open_h5(path) as f:
         try:
+            raw = dict(f.attrs)
+            fmt = _decode(raw.get("format"))
+            if fmt is not None and not (isinstance(fmt, str) and fmt == FORMAT):
+                raise LogFormatError(f"{path}: attribute 'format' is {_show(fmt)}, expected '{FORMAT}' "
+                                     f"(not a kukaid axis log, or another version)")
             for name in ("time", "q", "tau"):
                 if name not in f:
                     raise LogFormatError(f"{path}: missing dataset '{name}'")
             if "axes" not in f.attrs:
                 raise LogFormatError(f"{path}: missing attribute 'axes'")
-            data = {n: np.asarray(f[n][()], dtype=float) for n in ("time", *CHANNELS) if n in f}
-            raw = dict(f.attrs)
+            data = {}
+            for n in ("time", *CHANNELS):
+                if n in f:
+                    if not hasattr(f[n], "dtype") or f[n].dtype.kind not in "biuf":
+                        raise LogFormatError(f"{path}: '{n}' is not a numeric dataset")
+                    data[n] = np.asarray(f[n][()], dtype=float)
             # intervals an incremental capture could not sample (AxisLogWriter.mark_gap), as [[t0, t1], ...]
             gaps = np.asarray(f["gaps"][()], dtype=float).reshape(-1, 2).tolist() if "gaps" in f else []
         except LogFormatError:
             raise
-        except (OSError, KeyError, ValueError) as e:
+        except (OSError, KeyError, ValueError, TypeError) as e:
             raise LogFormatError(f"{path}: HDF5 data unreadable (truncated or corrupt): {_short(e)}") from None
-    as_json = json.loads(_decode(raw.pop(_JSON_ATTRS, "[]")))
+    as_json = _json_attr(path, _JSON_ATTRS, raw.pop(_JSON_ATTRS, "[]"))
+    if not isinstance(as_json, list) or not all(isinstance(k, str) for k in as_json):
+        raise LogFormatError(f"{path}: attribute '{_JSON_ATTRS}' must be a JSON list of attribute names")
     attrs: dict[str, Any] = {}
     for k, v in raw.items():
         v = _decode(v)
         if k in as_json:
-            v = json.loads(v)
+            v = _json_attr(path, k, v)
         elif isinstance(v, np.generic):
             v = v.item()
         elif isinstance(v, np.ndarray):
             v = v.tolist()
         attrs[k] = v
-    _check_units(path, attrs)
-    axes = tuple(int(a) for a in np.atleast_1d(attrs.pop("axes")))
-    joint = tuple(attrs.pop("joint", ())) or ()
+    axes, joint = _axes_and_joint(path, attrs, data["q"])
+    _check_sample_time(path, attrs)
+    _check_units(path, attrs, joint or ("revolute",) * len(axes))
     n = data["time"].size
     if attrs.get("incremental"):
         # a killed incremental writer may leave datasets one block apart; keep the common part
@@ -292,14 +376,69 @@ def read_hdf5(path: str | Path) -> AxisLog:
 
 
 def _decode(v: Any) -> Any:
-    return v.decode() if isinstance(v, bytes) else v
+    return v.decode(errors="replace") if isinstance(v, bytes) else v
 
 
-def _check_units(path: Path, attrs: dict[str, Any]) -> None:
+def _show(v: Any) -> str:
+    """An attribute value for a one-line message (quoted if text, shortened)."""
+    s = repr(v) if isinstance(v, str) else str(v)
+    s = " ".join(s.split())
+    return s if len(s) <= 60 else s[:57] + "..."
+
+
+def _json_attr(path: Path, key: str, text: Any) -> Any:
+    """Parse the attribute ``key`` stored as JSON text; a LogFormatError naming it if it is not."""
+    if not isinstance(text, str):
+        raise LogFormatError(f"{path}: attribute '{key}' should be JSON text, found {type(text).__name__}")
+    try:
+        return json.loads(text)
+    except ValueError as e:
+        raise LogFormatError(f"{path}: attribute '{key}' is not valid JSON ({_short(e)})") from None
+
+
+def _axes_and_joint(path: Path, attrs: dict[str, Any], q: np.ndarray) -> tuple[tuple[int, ...], tuple[str, ...]]:
+    """Pop and check the attributes ``axes`` and ``joint`` against the columns of ``q``."""
+    raw_axes = attrs.pop("axes")
+    axes_list = list(np.atleast_1d(np.asarray(raw_axes, dtype=object)))
+    if not axes_list or not all(isinstance(a, (int, float, np.integer, np.floating)) and not isinstance(a, bool)
+                                and float(a).is_integer() for a in axes_list):
+        raise LogFormatError(f"{path}: attribute 'axes' must list KUKA axis numbers (integers 1 to 12); "
+                             f"got {_show(raw_axes)}")
+    axes = tuple(int(a) for a in axes_list)
+    if q.ndim not in (1, 2):
+        raise LogFormatError(f"{path}: dataset 'q' has shape {q.shape}, expected (samples, axes)")
+    columns = q.shape[1] if q.ndim == 2 else 1
+    if len(axes) != columns:
+        raise LogFormatError(f"{path}: attribute 'axes' lists {len(axes)} ax{'is' if len(axes) == 1 else 'es'} "
+                             f"{list(axes)} but dataset 'q' has {columns} column{'s' if columns != 1 else ''}")
+    joint = attrs.pop("joint", None)
+    if joint is None:
+        return axes, ()
+    joint = [joint] if isinstance(joint, str) else list(np.atleast_1d(np.asarray(joint, dtype=object)))
+    if len(joint) != len(axes):
+        raise LogFormatError(f"{path}: attribute 'joint' has {len(joint)} entr{'y' if len(joint) == 1 else 'ies'} "
+                             f"{joint} but attribute 'axes' lists {len(axes)} axes {list(axes)}")
+    if any(j not in JOINT_TYPES for j in joint):
+        raise LogFormatError(f"{path}: attribute 'joint' must give one of {JOINT_TYPES} per axis; got {joint}")
+    return axes, tuple(str(j) for j in joint)
+
+
+def _check_sample_time(path: Path, attrs: dict[str, Any]) -> None:
+    """The attribute ``sample_time``, when present, is a finite positive number of seconds."""
+    if "sample_time" not in attrs:
+        return
+    v = attrs["sample_time"]
+    if isinstance(v, (bool, str)) or not isinstance(v, (int, float)):
+        raise LogFormatError(f"{path}: attribute 'sample_time' is not a number ({_show(v)})")
+    if not (np.isfinite(v) and v > 0):
+        raise LogFormatError(f"{path}: attribute 'sample_time' is {v!r}; it must be a finite positive "
+                             f"number of seconds")
+
+
+def _check_units(path: Path, attrs: dict[str, Any], joint: tuple[str, ...]) -> None:
     units = attrs.get("units")
     if not isinstance(units, dict):
         return
-    joint = attrs.get("joint") or ["revolute"] * len(np.atleast_1d(attrs.get("axes", [])))
     if units.get("time", "s") != "s":
         raise LogFormatError(f"{path}: time unit is '{units['time']}', expected 's'")
     for c in CHANNELS:
@@ -316,7 +455,9 @@ class AxisLogWriter:
 
     The file is opened in SWMR mode: after every :meth:`flush` (done automatically every
     ``flush_interval`` seconds of log time or on demand) the file on disk is consistent, even if
-    the process is then killed.  :func:`read_hdf5` opens such a file.
+    the process is then killed.  :func:`read_hdf5` opens such a file.  A file that cannot be
+    created (read-only folder, a folder of that name, ...) is a :class:`KukaidError` naming the
+    path and the operating system's reason.
     """
 
     def __init__(self, path: str | Path, axes: Iterable[int], channels: Iterable[str] = ("q", "tau"),
@@ -333,8 +474,14 @@ class AxisLogWriter:
                 raise ValueError(f"unknown channel '{c}'; known: {CHANNELS}")
         if "q" not in self.channels or "tau" not in self.channels:
             raise ValueError("an axis log needs channels 'q' and 'tau'")
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._f = h5py.File(self.path, "w", libver="latest")
+        for parent in self.path.parents:  # mkdir would say "File exists" for a file in the way
+            if parent.exists():
+                if not parent.is_dir():
+                    raise KukaidError(f"{self.path}: cannot create: {parent} is not a folder")
+                break
+        with _os_errors(self.path, "cannot create"):
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._f = h5py.File(self.path, "w", libver="latest")
         a = len(self.axes)
         self._d = {"time": self._f.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", chunks=(1024,))}
         for c in self.channels:
@@ -483,6 +630,8 @@ def read_csv(path: str | Path) -> AxisLog:
     time = arr[:, 0]
     check_samples(time, data, axes, str(path), row_offset=2, row_word="line")
     joint = tuple(joint_of.get(a, "revolute") for a in axes)
+    labels: dict[Any, str] = {(chan, a): header[j] for (a, chan), (j, _) in cols.items()}
+    check_units(time, data, axes, joint, str(path), labels={**labels, "time": "time_s"})
     return AxisLog(time=time, axes=tuple(axes), joint=joint, attrs={"source_file": str(path)}, **data)
 
 
@@ -495,7 +644,10 @@ def _is_float(s: str) -> bool:
 
 
 def write_csv(log: AxisLog, path: str | Path, angle_unit: str = "deg") -> None:
-    """Write ``log`` as CSV (atomically).  Revolute positions in degrees (or ``rad``)."""
+    """Write ``log`` as CSV (atomically).  Revolute positions in degrees (or ``rad``).
+
+    A folder that cannot be written is a :class:`KukaidError` naming ``path`` and the reason.
+    """
     if angle_unit not in ("deg", "rad"):
         raise ValueError("angle_unit must be 'deg' or 'rad'")
     names, cols = ["time_s"], [log.time]
@@ -516,7 +668,7 @@ def write_csv(log: AxisLog, path: str | Path, angle_unit: str = "deg") -> None:
             scale = 1.0 / _DEG if s.endswith("deg") else 1.0
             cols.append(x[:, c] * scale)
     table = np.column_stack(cols)
-    with atomic_path(path) as tmp:
+    with atomic_path(path) as tmp, _os_errors(path):
         with open(tmp, "w") as fh:
             fh.write(",".join(names) + "\n")
             for row in table:

@@ -32,7 +32,7 @@ import numpy as np
 
 from kukaid import __version__
 from kukaid.errors import KukaidError
-from kukaid.io.atomic import write_text_atomic
+from kukaid.io.atomic import write_texts_atomic
 
 _DEG = math.pi / 180.0
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,23}$")
@@ -260,8 +260,6 @@ def export_krl(traj: Any, folder: str | Path, name: str | None = None, **options
     """Write ``<name>.src`` and ``<name>.dat`` into ``folder`` (atomically); returns both paths."""
     src, dat, summary = krl_program(traj, name=name, **options)
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
     p_src, p_dat = folder / f"{summary['name']}.src", folder / f"{summary['name']}.dat"
-    write_text_atomic(p_src, src)
-    write_text_atomic(p_dat, dat)
+    write_texts_atomic({p_src: src, p_dat: dat})
     return p_src, p_dat

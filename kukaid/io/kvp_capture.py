@@ -264,6 +264,13 @@ def _done(stop: _Stop, t0: float, duration: float | None) -> str | None:
     return None
 
 
+def _reconnect_wait(reconnect_wait: float, t0: float, duration: float | None) -> float:
+    """How long to try reconnecting: never past the end of the capture's duration."""
+    if duration is None:
+        return reconnect_wait
+    return min(reconnect_wait, max(t0 + duration - time.monotonic(), 0.0))
+
+
 def _recover(client: KvpClient, rec: _Recorder, writer, gaps: list, stop: _Stop, t0: float,
              reconnect_wait: float, err: KvpError) -> None:
     """The link failed: keep what we have, reconnect with back-off, mark the gap."""
@@ -313,7 +320,7 @@ def _poll_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
             errors += 1
             if errors > max_errors:
                 raise KvpError(f"{errors} consecutive link failures, last: {e}") from None
-            _recover(client, rec, writer, gaps, stop, t0, reconnect_wait, e)
+            _recover(client, rec, writer, gaps, stop, t0, _reconnect_wait(reconnect_wait, t0, duration), e)
             continue
         except (KvpVariableError, KvpValueError) as e:
             raise KvpError(str(e)) from None
@@ -392,7 +399,7 @@ def _ring_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
             # unacknowledged blocks stay in the ring: only an overflow loses samples (seen in the stamps)
             rec.flush()
             client.close()
-            client.reconnect(max_wait=reconnect_wait, should_stop=stop)
+            client.reconnect(max_wait=_reconnect_wait(reconnect_wait, t0, duration), should_stop=stop)
             continue
         except (KvpVariableError, KvpValueError) as e:
             raise KvpError(str(e)) from None

@@ -1,7 +1,10 @@
 """The parameter file (JSON, schema ``kukaid.params/1``): what ``fit`` writes and the rest reads.
 
-Validation is driven by a small table of (field, range) so every error names the field and the
-allowed range.
+Validation is driven by small tables of (field, range) so every error names the field and the
+allowed range: the numbers of the fixed sections (:data:`_FIELDS`), the keys those sections may
+hold (:data:`_KEYS`; a misspelt field is refused), and the parameters of the diagnosed
+``effects`` (:data:`_EFFECT_KEYS`; every other effect parameter is a finite number).  ``metrics``
+and ``provenance`` are free-form objects, ``uncertainty`` maps any name to a standard deviation.
 """
 from __future__ import annotations
 
@@ -32,13 +35,122 @@ _FIELDS: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("mode_switch", "qd_thr"): (0.0, INF, False),
 }
 
+# the keys a section with fixed keys may hold ("" is the top level); metrics, provenance, the
+# keys of uncertainty and the parameters of an effect are free-form
+_KEYS: dict[str, tuple[str, ...]] = {
+    "": ("schema", "axis", "friction", "inertial", "offset", "maxwell_slip", "mode_switch", "effects",
+         "uncertainty", "metrics", "provenance"),
+    "friction": ("model", "Fc", "Fv", "Fs", "vs", "delta"),
+    "inertial": ("Izz", "Mx", "My"),
+    "maxwell_slip": ("k", "W", "zeta0"),
+    "mode_switch": ("qd_thr",),
+}
+
+# Fs >= Fc for Stribeck friction, to within this relative tolerance (written values are rounded,
+# and a fit holding Fs - Fc at its bound 0 may end a rounding step below it)
+_FS_FC_RTOL = 1e-6
+
+# effect parameter -> (kind, range or choices); every other parameter of an effect is a number
+# (-inf, inf), except keys starting with "_" (free comments).  Kinds: "number" (finite, in the
+# range), "number|null" (also null), "text" (a string, one of the choices unless None), "std"
+# ({coefficient: finite number >= 0 or null}), "friction" (a friction object, signed levels).
+_EFFECT_KEYS: dict[str, tuple[str, Any]] = {
+    "model": ("text", None),                                # "kukaid.diagnose/1" or the writer's tag
+    "unit": ("text", None),                                 # thermal_drift: unit of c (description)
+    "stored_as": ("text", ("inertial.My", "offset")),       # native effects held by the rigid body
+    "coordinate": ("text", ("temperature", "time", "energy")),  # thermal_drift
+    "form": ("text", ("coulomb", "friction")),              # thermal_drift
+    "shape": ("text", ("pulse", "decay")),                  # backlash
+    "std": ("std", None),                                   # uncertainty of each coefficient
+    "friction_ref": ("friction", None),                     # thermal_drift: the friction it scales
+    "tau": ("number", (1e-9, INF)),                         # backlash time constant, s
+    "T_ref": ("number|null", (-INF, INF)),                  # simulator truth: null = ambient
+    "mu": ("number|null", (-INF, INF)),                     # derived Fc_load / |Mx| (null: Mx = 0)
+}
+# keys an effect needs in any format (the online torque residual reads them), and the settings a
+# diagnosis-format effect ("model": "kukaid.diagnose/1") needs besides its coefficients
+_EFFECT_NEEDS: dict[str, tuple[str, ...]] = {"position_ripple": ("n",)}
+_EFFECT_SETTINGS: dict[str, tuple[str, ...]] = {
+    "position_ripple": ("n",), "thermal_drift": ("coordinate", "form"), "backlash": ("tau",),
+}
+
+
+def _show(v: Any, limit: int = 60) -> str:
+    """``v`` as JSON for a message, shortened to keep the message one readable line."""
+    t = json.dumps(v, default=repr)
+    return t if len(t) <= limit else t[: limit - 3] + "..."
+
 
 def _number(where: str, v: Any, lo: float, hi: float) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise ParamFileError(f"{where} must be a number, got {json.dumps(v)}")
-    if not math.isfinite(v) or not lo <= v <= hi:
+        raise ParamFileError(f"{where} must be a number, got {_show(v)}")
+    if not math.isfinite(v):
+        raise ParamFileError(f"{where} must be a finite number, got {v}")
+    if not lo <= v <= hi:
         raise ParamFileError(f"{where} = {v} is outside the allowed range [{lo}, {hi}]")
     return float(v)
+
+
+def _object(where: str, name: str, v: Any, what: str = "a JSON object") -> dict:
+    if not isinstance(v, dict):
+        raise ParamFileError(f"{where}: {name} must be {what}, got {_show(v)}")
+    return v
+
+
+def _known_keys(where: str, sec: str, s: dict, allowed: tuple[str, ...]) -> None:
+    for k in s:
+        if k not in allowed:
+            name = f"{sec}.{k}" if sec else k
+            raise ParamFileError(f"{where}: unknown field '{name}' (allowed: {', '.join(allowed)})")
+
+
+def _friction_ref(where: str, name: str, fr: Any) -> None:
+    """A friction object inside an effect: the keys of ``friction``, levels of either sign."""
+    fr = _object(where, name, fr, "a friction object {model, Fc, Fv, Fs, vs, delta}")
+    _known_keys(where, name, fr, _KEYS["friction"])
+    model = fr.get("model", "stribeck")
+    if model not in ("stribeck", "coulomb-viscous"):
+        raise ParamFileError(f"{where}: {name}.model must be 'stribeck' or 'coulomb-viscous', got {_show(model)}")
+    for f in ("Fc", "Fv") + (("Fs", "vs", "delta") if model == "stribeck" else ()):
+        if f not in fr:
+            raise ParamFileError(f"{where}: missing field {name}.{f}")
+    for f in ("Fc", "Fv", "Fs", "vs", "delta"):
+        if f in fr:
+            lo, hi, _ = _FIELDS[("friction", f)]
+            _number(f"{where}: {name}.{f}", fr[f], -INF if f in ("Fc", "Fv", "Fs") else lo, hi)
+
+
+def _effects(where: str, effects: Any) -> None:
+    from kukaid.diagnose.candidates import CANDIDATES, NAMES, TAG  # lazy: keeps the file reader light
+
+    effects = _object(where, "effects", effects, "an object {name: parameters}")
+    for name, e in effects.items():
+        if name not in NAMES:
+            raise ParamFileError(f"{where}: unknown effect 'effects.{name}' (known: {', '.join(NAMES)})")
+        e = _object(where, f"effects.{name}", e, "an object of parameters")
+        for k, v in e.items():
+            field = f"effects.{name}.{k}"
+            if k.startswith("_"):
+                continue
+            kind, rng = _EFFECT_KEYS.get(k, ("number", (-INF, INF)))
+            if kind == "text":
+                if not isinstance(v, str) or (rng is not None and v not in rng):
+                    want = "a string" if rng is None else " or ".join(f"'{c}'" for c in rng)
+                    raise ParamFileError(f"{where}: {field} must be {want}, got {_show(v)}")
+            elif kind == "std":
+                for c, s in _object(where, field, v, "an object {coefficient: standard deviation}").items():
+                    if s is not None:
+                        _number(f"{where}: {field}.{c}", s, 0.0, INF)
+            elif kind == "friction":
+                _friction_ref(where, field, v)
+            elif not (v is None and kind == "number|null"):
+                _number(f"{where}: {field}", v, *rng)
+        need = _EFFECT_NEEDS.get(name, ())
+        if e.get("model") == TAG:  # the diagnosis reads these back (kukaid diagnose, effects_torque)
+            need = CANDIDATES[name].coef_names + _EFFECT_SETTINGS.get(name, ())
+        for k in need:
+            if k not in e:
+                raise ParamFileError(f"{where}: missing field effects.{name}.{k}")
 
 
 def validate_params(d: Any, where: str = "parameter file") -> dict:
@@ -46,13 +158,17 @@ def validate_params(d: Any, where: str = "parameter file") -> dict:
     if not isinstance(d, dict):
         raise ParamFileError(f"{where}: top level must be a JSON object")
     if d.get("schema") != SCHEMA:
-        raise ParamFileError(f"{where}: 'schema' must be \"{SCHEMA}\", got {json.dumps(d.get('schema'))}")
+        raise ParamFileError(f"{where}: 'schema' must be \"{SCHEMA}\", got {_show(d.get('schema'))}")
+    _known_keys(where, "", d, _KEYS[""])
     for sec in ("friction", "inertial"):
-        if not isinstance(d.get(sec), dict):
+        if sec not in d:
             raise ParamFileError(f"{where}: missing section '{sec}'")
+    for sec in ("friction", "inertial", "mode_switch"):
+        if sec in d:
+            _known_keys(where, sec, _object(where, sec, d[sec]), _KEYS[sec])
     model = d["friction"].get("model", "stribeck")
     if model not in ("stribeck", "coulomb-viscous"):
-        raise ParamFileError(f"{where}: friction.model must be 'stribeck' or 'coulomb-viscous', got {json.dumps(model)}")
+        raise ParamFileError(f"{where}: friction.model must be 'stribeck' or 'coulomb-viscous', got {_show(model)}")
     for (sec, name), (lo, hi, required) in _FIELDS.items():
         s = d.get(sec) or {}
         need = required or (sec == "friction" and model == "stribeck" and name in ("Fs", "vs", "delta"))
@@ -61,23 +177,38 @@ def validate_params(d: Any, where: str = "parameter file") -> dict:
                 raise ParamFileError(f"{where}: missing field {sec}.{name}")
             continue
         _number(f"{where}: {sec}.{name}", s[name], lo, hi)
+    fr = d["friction"]
+    if model == "stribeck" and fr["Fs"] < fr["Fc"] - _FS_FC_RTOL * abs(fr["Fc"]):
+        raise ParamFileError(f"{where}: friction.Fs = {fr['Fs']} must not be below friction.Fc = {fr['Fc']} "
+                             f"(Stribeck static friction is at least the Coulomb level)")
     if "offset" in d:
         _number(f"{where}: offset", d["offset"], -INF, INF)
     ms = d.get("maxwell_slip")
     if ms is not None:
         if not isinstance(ms, dict) or not all(isinstance(ms.get(x), list) for x in ("k", "W")):
             raise ParamFileError(f"{where}: maxwell_slip must have lists 'k' and 'W'")
+        _known_keys(where, "maxwell_slip", ms, _KEYS["maxwell_slip"])
         n = len(ms["k"])
-        if n == 0 or len(ms["W"]) != n or len(ms.get("zeta0", [0.0] * n)) != n:
+        zeta0 = ms.get("zeta0", [0.0] * n)
+        if n == 0 or len(ms["W"]) != n or not isinstance(zeta0, list) or len(zeta0) != n:
             raise ParamFileError(f"{where}: maxwell_slip.k, .W and .zeta0 must be non-empty lists of one length")
         for i in range(n):
             _number(f"{where}: maxwell_slip.k[{i}]", ms["k"][i], 1e-12, INF)
             _number(f"{where}: maxwell_slip.W[{i}]", ms["W"][i], 0.0, INF)
+            _number(f"{where}: maxwell_slip.zeta0[{i}]", zeta0[i], -INF, INF)
     ax = d.get("axis")
     if ax is not None and (isinstance(ax, bool) or not isinstance(ax, int) or not 1 <= ax <= 12):
-        raise ParamFileError(f"{where}: axis must be an integer 1 to 12, got {json.dumps(ax)}")
-    if "effects" in d and not isinstance(d["effects"], dict):
-        raise ParamFileError(f"{where}: effects must be an object {{name: parameters}}")
+        raise ParamFileError(f"{where}: axis must be an integer 1 to 12, got {_show(ax)}")
+    if "effects" in d:
+        _effects(where, d["effects"])
+    for sec in ("metrics", "provenance"):
+        if sec in d:
+            _object(where, sec, d[sec])
+    if "uncertainty" in d:
+        unc = _object(where, "uncertainty", d["uncertainty"], "an object {parameter: standard deviation}")
+        for k, v in unc.items():
+            if v is not None:
+                _number(f"{where}: uncertainty.{k}", v, 0.0, INF)
     return d
 
 

@@ -1,0 +1,160 @@
+"""Bad input across the commands: one line on stderr, a non-zero exit, no traceback, no output
+file, and nothing a command reads is ever written over."""
+from __future__ import annotations
+
+import os
+import stat
+import subprocess
+
+import pytest
+from click.testing import CliRunner
+
+from kukaid.errors import KukaidError
+from kukaid.io.atomic import atomic_paths, check_output
+from kukaid_cli.main import cli
+
+
+def _run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def _one_line_error(r, *pieces, code=None):
+    assert r.exit_code != 0 if code is None else r.exit_code == code, r.output
+    lines = r.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("kukaid: error: "), r.output
+    assert "Traceback" not in r.output
+    for p in pieces:
+        assert p in lines[0], (p, lines[0])
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("errs")
+    r = _run("excite", "inertia", "-o", d / "inertia.json", "--period", "2", "--n-periods", "3")
+    assert r.exit_code == 0, r.output
+    r = _run("capture", d / "inertia.json", "-o", d / "inertia.h5", "--seed", "3")
+    assert r.exit_code == 0, r.output
+    r = _run("fit", d / "inertia.h5", "--friction-model", "coulomb-viscous", "-o", d / "params.json")
+    assert r.exit_code == 0, r.output
+    return d
+
+
+@pytest.mark.parametrize("args, pieces", [
+    (["capture", "x.json", "-o", "y.h5", "--axis", "13"], ["capture: Invalid value for '--axis'"]),
+    (["excite", "bogus", "-o", "x.json"], ["excite: Invalid value", "'bogus'"]),
+    (["excite", "friction"], ["excite: Missing option '-o'"]),
+    (["nosuch"], ["No such command 'nosuch'"]),
+    (["capture", "x.json", "-o", "y.h5", "--seed", "-1"], ["capture: Invalid value for '--seed'"]),
+    (["fit", "a.h5", "-o", "p.json", "--order", "60"], ["fit: Invalid value for '--order'"]),
+    (["excite", "inertia", "-o", "x.json", "--lead", "1e9"], ["--lead", "longer than an hour"]),
+])
+def test_usage_errors_are_one_line(args, pieces, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _one_line_error(_run(*args), *pieces, code=2)
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_folder_where_a_file_belongs(files, tmp_path):
+    _one_line_error(_run("report", "--params", tmp_path, "-o", tmp_path / "r.pdf"), "is a directory")
+    _one_line_error(_run("fit", files / "inertia.h5", "-o", tmp_path), "is a directory")
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("make_args", [
+    lambda d: ["fit", d / "inertia.h5", "-o", d / "params.json", "--friction-model", "coulomb-viscous",
+               "--inertia", d / "params.json"],
+    lambda d: ["report", "--params", d / "params.json", "-o", d / "params.json"],
+    lambda d: ["diagnose", "--params", d / "params.json", "--log", d / "inertia.h5", "-o", d / "params.json"],
+    lambda d: ["diagnose", "--params", d / "params.json", "--log", d / "inertia.h5", "-o", d / "x.json",
+               "--report", d / "x.json"],
+    lambda d: ["capture", d / "inertia.json", "-o", d / "inertia.h5", "--force", "--sim-config", d / "inertia.h5"],
+    lambda d: ["excite", "inertia", "-o", d / "limits.json", "--limits", d / "limits.json"],
+    lambda d: ["run-admittance", "--params", d / "params.json", "-o", d / "r.h5", "--report", d / "r.h5"],
+])
+def test_no_command_writes_over_its_inputs_or_twice_into_one_file(files, make_args):
+    (files / "limits.json").write_text('{"q_min_deg": -100, "q_max_deg": 100}')
+    before = {p.name: p.read_bytes() for p in files.iterdir()}
+    r = _run(*make_args(files))
+    _one_line_error(r)
+    assert "input of this command" in r.output or "two outputs" in r.output or "name it so" in r.output
+    assert {p.name: p.read_bytes() for p in files.iterdir()} == before
+
+
+def test_devices_and_folders_are_not_output_files(tmp_path):
+    with pytest.raises(KukaidError, match="not a regular file"):
+        check_output("/dev/null")
+    with pytest.raises(KukaidError, match="is a folder"):
+        check_output(tmp_path)
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(KukaidError, match="is not a folder"):
+        check_output(tmp_path / "f" / "out.json")
+    r = _run("excite", "inertia", "-o", "/dev/null.json", "--krl", "/dev/null")
+    _one_line_error(r)
+    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+
+
+def test_outputs_are_all_or_nothing(tmp_path):
+    a, b = tmp_path / "a.txt", tmp_path / "b.txt"
+    b.write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_paths(a, b) as (ta, tb):
+            ta.write_text("new a")
+            tb.write_text("new b")
+            raise RuntimeError("the second output failed")
+    assert not a.exists() and b.read_text() == "old" and sorted(os.listdir(tmp_path)) == ["b.txt"]
+    with atomic_paths(a, b) as (ta, tb):
+        ta.write_text("A")
+        tb.write_text("B")
+    assert a.read_text() == "A" and b.read_text() == "B" and sorted(os.listdir(tmp_path)) == ["a.txt", "b.txt"]
+
+
+def test_a_write_error_names_the_output_not_its_temporary_file(tmp_path):
+    out = tmp_path / "out.json"
+    with pytest.raises(KukaidError) as e:
+        with atomic_paths(out) as (t,):
+            raise OSError(28, "No space left on device", str(t))
+    assert str(e.value) == f"{out}: cannot write: No space left on device"
+    assert os.listdir(tmp_path) == []
+
+
+def test_diagnose_leaves_neither_output_when_the_report_fails(files, tmp_path, monkeypatch):
+    import kukaid.diagnose.plots as plots
+
+    def broken(result, path):
+        raise KukaidError(f"{path}: the report could not be drawn")
+
+    monkeypatch.setattr(plots, "write_report", broken)
+    r = _run("diagnose", "--params", files / "params.json", "--log", files / "inertia.h5", "-o", tmp_path / "d.json",
+             "--report", tmp_path / "d.pdf")
+    _one_line_error(r, "could not be drawn")
+    assert os.listdir(tmp_path) == []
+
+
+def test_excite_writes_the_trajectory_only_with_its_krl(tmp_path):
+    (tmp_path / "file").write_text("x")
+    r = _run("excite", "inertia", "-o", tmp_path / "t.json", "--krl", tmp_path / "file" / "krl")
+    _one_line_error(r, "is not a folder")
+    assert sorted(os.listdir(tmp_path)) == ["file"]
+
+
+def test_capture_refuses_the_same_effect_twice(files, tmp_path):
+    r = _run("capture", files / "inertia.json", "-o", tmp_path / "x.h5", "--effect", "torque_offset=1",
+             "--effect", "torque_offset=2")
+    _one_line_error(r, "torque_offset is given twice", code=2)
+    assert os.listdir(tmp_path) == []
+
+
+def test_serve_sim_checks_its_truth_file_before_serving(files, tmp_path):
+    r = _run("serve-sim", "--port", "0", "--duration", "60", "--truth", tmp_path / "truth.csv")
+    _one_line_error(r, "truth.csv", ".h5")
+    (tmp_path / "truth.h5").write_text("recorded")
+    r = _run("serve-sim", "--port", "0", "--duration", "60", "--truth", tmp_path / "truth.h5")
+    _one_line_error(r, "already exists")
+    assert (tmp_path / "truth.h5").read_text() == "recorded"
+
+
+def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
+    """stderr of a command that is not on a terminal holds what it says, and no bar."""
+    r = subprocess.run([*kukaid_cmd, "capture", str(files / "inertia.json"), "-o", str(tmp_path / "x.h5"),
+                        "--seed", "4"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stderr.count("\n") == 1 and "samples" in r.stderr, r.stderr
