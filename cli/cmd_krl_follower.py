@@ -8,8 +8,8 @@ import click
 
 @click.command("krl-follower")
 @click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="Axis the program moves.")
-@click.option("--q-min", type=float, required=True, help="Position window, lower bound, degrees (clamped on the KRC).")
-@click.option("--q-max", type=float, required=True, help="Position window, upper bound, degrees (clamped on the KRC).")
+@click.option("--q-min", type=click.FloatRange(-360.0, 360.0), required=True, help="Position window, lower bound, degrees (clamped on the KRC).")
+@click.option("--q-max", type=click.FloatRange(-360.0, 360.0), required=True, help="Position window, upper bound, degrees (clamped on the KRC).")
 @click.option("--qd-max", type=float, default=30.0, show_default=True, help="Axis speed limit, deg/s.")
 @click.option("--axis-speed", type=float, default=360.0, show_default=True,
               help="The machine data's maximum speed of the axis, deg/s (A3 of a KR 6 R700 sixx: 360): "

@@ -271,6 +271,8 @@ class AxisLimits:
             if key not in allowed:
                 raise TrajectoryError(f"{where}: unknown key '{k}' (known: q_min, q_max, qd_max, qdd_max, "
                                       f"optionally with _deg)")
+            if key != k and key in d:
+                raise TrajectoryError(f"{where}: both '{key}' and '{k}' are given; give one")
             if key == "name":
                 kw["name"] = str(v)
                 continue
