@@ -68,3 +68,13 @@ def _same(a: Path, b: Path) -> bool:
         return os.path.samefile(a, b)
     except OSError:  # one of them does not exist yet
         return a.resolve() == b.resolve()
+
+
+def write_krl_files(outdir: Path, files: dict[str, str], force: bool) -> None:
+    """Write KRL files (name -> text) into ``outdir`` with the controller's CR LF line ends, all or
+    none; existing files only with --force (they may have been edited for the robot)."""
+    from kukaid.io.atomic import write_texts_atomic
+
+    for name in files:
+        refuse_overwrite(outdir / name, force)
+    write_texts_atomic({outdir / name: text.replace("\n", "\r\n") for name, text in files.items()})

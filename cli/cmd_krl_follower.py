@@ -29,17 +29,14 @@ def command(axis: int, q_min: float, q_max: float, qd_max: float, axis_speed: fl
     first; the KRC's own monitoring stays in force.
     """
     from kukaid.errors import KukaidError
-    from kukaid.io.atomic import write_texts_atomic
     from kukaid.io.krl_follower import FollowerConfig, krl_follower_files
-    from kukaid_cli._util import refuse_overwrite
+    from kukaid_cli._util import write_krl_files
 
     if not (qd_max > 0 and axis_speed > 0 and qd_max <= axis_speed):
         raise KukaidError(f"krl-follower: need 0 < --qd-max ({qd_max}) <= --axis-speed ({axis_speed}) deg/s")
     cfg = FollowerConfig(axis=axis, q_min_deg=q_min, q_max_deg=q_max, vel_pct=100.0 * qd_max / axis_speed,
                          acc_pct=acc_pct, stale_ms=stale_ms)
     files = krl_follower_files(cfg)
-    for name in files:
-        refuse_overwrite(outdir / name, force)
-    write_texts_atomic({outdir / name: text.replace("\n", "\r\n") for name, text in files.items()})
+    write_krl_files(outdir, files, force)
     click.echo(f"{outdir}: {', '.join(files)} (A{axis}, window [{q_min:g}, {q_max:g}] deg, "
                f"$VEL_AXIS {cfg.vel_pct:.2f} %, heartbeat {stale_ms} ms)", err=True)

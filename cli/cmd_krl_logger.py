@@ -21,14 +21,11 @@ def command(axes: tuple[int, ...], blocks: int, block_samples: int, outdir: Path
     Capture writes only the logger's acknowledgement counter KID_RD; it never writes any other
     robot variable.
     """
-    from kukaid.io.atomic import write_texts_atomic
     from kukaid.io.krl_logger import RingLayout, krl_logger_files
-    from kukaid_cli._util import refuse_overwrite
+    from kukaid_cli._util import write_krl_files
 
     layout = RingLayout(axes=tuple(axes) or (3,), nb=blocks, bs=block_samples)
     files = krl_logger_files(layout)
-    for name in files:
-        refuse_overwrite(outdir / name, force)
-    write_texts_atomic({outdir / name: text.replace("\n", "\r\n") for name, text in files.items()})
+    write_krl_files(outdir, files, force)
     click.echo(f"{outdir}: {', '.join(files)} (axes {', '.join(f'A{a}' for a in layout.axes)}, "
                f"{layout.nb} blocks x {layout.bs} samples = {layout.nb * layout.bs * 12} ms of buffer)", err=True)

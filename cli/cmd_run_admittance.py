@@ -78,11 +78,11 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     KRL program of `kukaid krl-follower` (which clamps to its own window and stops when this
     command's heartbeat stops).  Exit status 3: the run stopped early (the log says why).
     """
+    import dataclasses
     import json
     import math
     import signal
 
-    from kukaid.control.admittance import check_admittance
     from kukaid.control.loop import LoopConfig, run_admittance
     from kukaid.control.rbf import RBFConfig
     from kukaid.control.runlog import write_run
@@ -105,14 +105,12 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     params = load_params(params_path)
     model = model_from_params(params)
     zeta0 = (params.get("maxwell_slip") or {}).get("zeta0")
-    check_admittance(I, D, cycle)
     rbf = None
     if damping == "adaptive":
         dmin = 0.3 * D if D_min is None else D_min
         dmax = 2.0 * D if D_max is None else D_max
         if not 0 < dmin <= D <= dmax:
             raise KukaidError(f"run-admittance: need 0 < --D-min ({dmin}) <= --D ({D}) <= --D-max ({dmax})")
-        check_admittance(I, dmax, cycle)
         rbf = RBFConfig(D0=D, D_min=dmin, D_max=dmax)
     elif D_min is not None or D_max is not None:
         raise click.UsageError("--D-min/--D-max are for --damping adaptive")
@@ -126,7 +124,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     limits = SafetyLimits(q_min=lo, q_max=hi, qd_max=math.radians(qd_max), qdd_max=math.radians(qdd_max),
                           tau_max=tau_max, max_age=max_age)
     check_motion_allowed(backend, enable_motion, limits)
-    cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
+    cfg = LoopConfig(I=I, D=D, damping=damping,  # checks the admittance's stability, also at D-max threshold=threshold, release=release, cycle=cycle,
                      sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf, limits=limits)
 
     attrs = {"params_file": str(params_path), "backend": backend}
@@ -139,7 +137,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if noise is not None:
             scfg = scfg.replace(noise_sigma=noise)
         if abs(scfg.sample_time - 0.012) > 1e-9:
-            cfg = LoopConfig(**{**cfg.__dict__, "sample_time": scfg.sample_time})
+            cfg = dataclasses.replace(cfg, sample_time=scfg.sample_time)
         q0r = math.radians(q0)
         op = None if operator == "none" else make_operator(operator, seed, q0r + cfg.init_move,
                                                            t_start=cfg.init_time + cfg.init_rest + 0.8)

@@ -22,6 +22,7 @@ coefficients free.
 """
 from __future__ import annotations
 
+import functools
 import math
 import time as _time
 from dataclasses import dataclass, field
@@ -155,60 +156,99 @@ def _clip_into(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.minimum(np.maximum(p, np.minimum(lo2, hi2)), np.maximum(lo2, hi2))
 
 
+@functools.lru_cache(maxsize=None)
+def _numpy_function():
+    """A CasADi Function class whose value (and Jacobian, when given) numpy computes."""
+    import casadi as ca
+
+    class NumpyFunction(ca.Callback):
+        def __init__(self, name, sizes_in, sparsity_out, fn, jac=None):
+            ca.Callback.__init__(self)
+            self._sizes_in, self._sparsity_out, self._fn, self._jac = sizes_in, sparsity_out, fn, jac
+            self._jac_fn = None  # kept alive as long as this function
+            self.construct(name, {"enable_fd": False})
+
+        def get_n_in(self):
+            return len(self._sizes_in)
+
+        def get_n_out(self):
+            return len(self._sparsity_out)
+
+        def get_sparsity_in(self, i):
+            return ca.Sparsity.dense(*self._sizes_in[i])
+
+        def get_sparsity_out(self, i):
+            return self._sparsity_out[i]
+
+        def has_jacobian(self):
+            return self._jac is not None
+
+        def get_jacobian(self, name, inames, onames, opts):
+            n = self._sizes_in[0][0]
+            self._jac_fn = NumpyFunction(name, [(n, 1), (1, 1)], [ca.Sparsity.dense(1, n)],
+                                         lambda x, _: [self._jac(x).reshape(1, -1)])
+            return self._jac_fn
+
+        def eval(self, args):
+            return self._fn(np.asarray(args[0], dtype=float).ravel(), *args[1:])
+
+    return NumpyFunction
+
+
 def _ipopt(y, A, v, p0, lo, hi, max_iter=300):
+    """Refine all parameters from ``p0`` with IPOPT (CasADi's ``nlpsol``) under the bounds.
+
+    The least-squares cost, its gradient and the Gauss-Newton Hessian J^T J come from the same
+    numpy model as everywhere else (:func:`prediction_and_jac`) through CasADi callbacks, so no
+    symbolic copy of the model is built per call.  The gradient is exact, so IPOPT's convergence
+    test is on the true optimality conditions; J^T J is positive semidefinite.  Variables are
+    scaled: linear parameters (and Fs - Fc) over their start magnitude, log vs, delta.
+    """
     import casadi as ca
 
     m = A.shape[1]
     p = m + 3
     scale = np.ones(p)
     scale[: m + 1] = np.maximum(np.abs(p0[: m + 1]), 1e-3 * max(1.0, float(np.max(np.abs(p0[: m + 1]), initial=1.0))))
-    # scaled variables: x_j = p_j / scale_j (linear + dF), x_vs = log(vs), x_delta = delta
-    x = ca.MX.sym("x", p)
-    As = ca.DM(A * scale[:m])  # columns of the scaled linear parameters
-    dF = x[m] * scale[m]
-    u = x[m + 1]
-    dl = x[m + 2]
-    av = np.abs(v)
-    logv = ca.DM(np.log(np.where(av > 0, av, 1e-300)))
-    w = ca.exp(dl * (logv - u))  # |v / vs|^delta
-    s = ca.DM(np.sign(v)) * ca.exp(-w)
-    pred = (ca.mtimes(As, x[:m]) if m else 0) + dF * s
-    r = ca.DM(y) - pred
-    r0 = y - prediction_and_jac(A, v, p0)[0]
-    norm = max(float(r0 @ r0), 1e-12)
-    f = 0.5 * ca.sumsqr(r) / norm
-    # the Gauss-Newton Hessian J^T J (J = d pred / d x, written out): exact at the gradient and
-    # KKT test (IPOPT differentiates f itself), cheaper to build and to evaluate than the full
-    # second derivative, and positive semidefinite
-    J = ca.horzcat(*([As] if m else []), s * scale[m], dF * s * w * dl, -dF * s * w * (logv - u))
-    lam_f = ca.MX.sym("lam_f")
-    hess = ca.Function("hess_lag", [x, ca.MX.sym("p", 0), lam_f, ca.MX.sym("lam_g", 0)],
-                       [ca.triu(lam_f * ca.mtimes(J.T, J) / norm)])
-    solver = ca.nlpsol("s", "ipopt", {"x": x, "f": f},
+
+    def to_p(x):
+        return np.r_[x[: m + 1] * scale[: m + 1], np.exp(x[m + 1]), x[m + 2]]
+
+    def to_x(q):
+        with np.errstate(divide="ignore"):
+            return np.r_[q[: m + 1] / scale[: m + 1], np.log(q[m + 1]), q[m + 2]]
+
+    last: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def residual_jac(x):  # residual and d residual / d x, for the latest x (IPOPT asks several times)
+        key = x.tobytes()
+        if key not in last:
+            pred, J = prediction_and_jac(A, v, to_p(x))
+            last.clear()
+            last[key] = (y - pred, -J * np.r_[scale[: m + 1], np.exp(x[m + 1]), 1.0])
+        return last[key]
+
+    x0 = to_x(np.asarray(p0, dtype=float))
+    norm = max(float(residual_jac(x0)[0] @ residual_jac(x0)[0]), 1e-12)  # the cost starts near 0.5
+    Fn = _numpy_function()
+    f = Fn("f", [(p, 1)], [ca.Sparsity.dense(1, 1)],
+           lambda x: [0.5 * float(residual_jac(x)[0] @ residual_jac(x)[0]) / norm],
+           jac=lambda x: residual_jac(x)[1].T @ residual_jac(x)[0] / norm)
+    hess = Fn("hess_lag", [(p, 1), (0, 1), (1, 1), (0, 1)], [ca.Sparsity.upper(p)],
+              lambda x, _p, lam_f, _g: [float(lam_f) * np.triu(residual_jac(x)[1].T @ residual_jac(x)[1]) / norm])
+    xs = ca.MX.sym("x", p)
+    solver = ca.nlpsol("s", "ipopt", {"x": xs, "f": f(xs)},
                        {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                         "ipopt.max_iter": max_iter, "ipopt.tol": 1e-8, "hess_lag": hess,
                         # the start is the variable-projection optimum, close to the solution:
                         # a small initial barrier parameter saves most of the iterations
                         "ipopt.mu_init": 1e-5})
-    def to_x(q):
-        q = np.asarray(q, dtype=float)
-        out = np.empty(p)
-        out[: m + 1] = q[: m + 1] / scale[: m + 1]
-        out[m + 1] = np.log(q[m + 1]) if q[m + 1] > 0 else -INF
-        out[m + 2] = q[m + 2]
-        return out
-    lbx, ubx = to_x(lo), to_x(hi)
-    lbx[m + 1] = np.log(max(lo[m + 1], 1e-300))
-    ubx[m + 1] = np.log(hi[m + 1]) if np.isfinite(hi[m + 1]) else INF
+    lbx, ubx = to_x(np.asarray(lo, dtype=float)), to_x(np.asarray(hi, dtype=float))
     t0 = _time.perf_counter()
-    sol = solver(x0=to_x(p0), lbx=np.where(np.isfinite(lbx), lbx, -1e20), ubx=np.where(np.isfinite(ubx), ubx, 1e20))
+    sol = solver(x0=x0, lbx=np.where(np.isfinite(lbx), lbx, -1e20), ubx=np.where(np.isfinite(ubx), ubx, 1e20))
     dt = _time.perf_counter() - t0
     st = solver.stats()
-    xs = np.asarray(sol["x"]).ravel()
-    out = np.empty(p)
-    out[: m + 1] = xs[: m + 1] * scale[: m + 1]
-    out[m + 1] = np.exp(xs[m + 1])
-    out[m + 2] = xs[m + 2]
+    out = to_p(np.asarray(sol["x"]).ravel())
     return out, str(st.get("return_status", "")), bool(st.get("success", False)), int(st.get("iter_count", 0)), dt
 
 
