@@ -86,6 +86,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.control.loop import LoopConfig, run_admittance
     from kukaid.control.rbf import RBFConfig
     from kukaid.control.runlog import write_run
+    from kukaid.io.axislog import AxisLogWriter
     from kukaid.control.safety import SafetyLimits, check_motion_allowed
     from kukaid.errors import KukaidError
     from kukaid.io.jsonfile import jsonable
@@ -158,12 +159,28 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     def on_sigterm(*_):
         raise KeyboardInterrupt
 
+    # the measured axis log goes to disk while the robot moves (a killed run leaves it readable);
+    # the finished run then replaces it with the whole record (the control group added)
+    channels = ("q", "tau", "q_cmd") + (("tau_ext_true",) if backend == "sim" else ())
     old_handler = signal.signal(signal.SIGTERM, on_sigterm)
+    writer = AxisLogWriter(output, axes=(axis_id,), channels=channels,
+                           attrs={**attrs, "source": "kukaid run-admittance (while running)", "experiment": "admittance"})
+
+    def on_row(row):
+        if row["time"] > writer.last_time:  # a stop repeats the last measurement
+            writer.append(row["time"], **{c: [row[c]] for c in channels})
+
     try:
         with progress(cfg.init_time + cfg.init_rest + cfg.duration, f"run-admittance ({backend})") as update:
-            run = run_admittance(be, model, cfg, zeta0=zeta0, progress=update)
+            run = run_admittance(be, model, cfg, zeta0=zeta0, progress=update, on_row=on_row)
+    except BaseException:
+        writer.close()
+        if writer.n == 0:  # nothing was recorded: no output file
+            output.unlink(missing_ok=True)
+        raise
     finally:
         signal.signal(signal.SIGTERM, old_handler)
+    writer.close()
     write_run(output, run, axis=axis_id, attrs=attrs)
     if report is not None:
         from kukaid.control.plots import plot_run

@@ -213,3 +213,27 @@ def test_krl_follower_program(tmp_path):
     assert r.exit_code == 1 and "already exists" in r.output
     r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "50", "--q-max", "45", "-o", tmp_path / "x"])
     assert r.exit_code == 1 and "window" in r.output and not (tmp_path / "x").exists()
+
+
+def test_a_killed_run_leaves_the_measured_log(files, tmp_path, kukaid_cmd):
+    """SIGKILL while the robot moves: the axis log recorded so far is on disk and readable."""
+    import signal
+
+    from kukaid.io.axislog import read_hdf5
+
+    out = tmp_path / "killed.h5"
+    proc = subprocess.Popen([*kukaid_cmd, "run-admittance", "--params", str(files / "params.json"), "--duration",
+                             "600", "-o", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 200_000):
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.stderr.close()
+    log = read_hdf5(out)
+    assert log.n_samples > 100 and log.has("q_cmd") and log.has("tau_ext_true")
+    assert np.all(np.diff(log.time) > 0)

@@ -83,13 +83,15 @@ class AdmittanceRun:
 
 
 def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, zeta0: Any = None,
-                   progress: Callable[[float], None] | None = None) -> AdmittanceRun:
+                   progress: Callable[[float], None] | None = None,
+                   on_row: Callable[[dict[str, Any]], None] | None = None) -> AdmittanceRun:
     """Run the loop on ``backend`` (:mod:`kukaid.control.backends`) with the identified ``model``.
 
     Returns an :class:`AdmittanceRun`; ``status`` is "completed" or "stopped: <reason>" (a stale
     or missing measurement, the torque limit, a controller error, an interrupt).  Whatever ends
     the run, the backend is told to hold and what was recorded until then is returned.
-    ``progress(t)`` is called with the seconds run so far.
+    ``progress(t)`` is called with the seconds run so far, ``on_row(row)`` with every cycle's
+    record as it is made (to write it to disk while the robot moves).
     """
     cfg = config or LoopConfig()
     est = TorqueResidual(model, sample_time=cfg.sample_time, threshold=cfg.threshold, release=cfg.release,
@@ -101,7 +103,7 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
         for s in samples:
             r = est.update(s.q, s.tau)
         limiter = ReferenceLimiter(cfg.limits, cfg.cycle, samples[-1].q)
-        log, status = _loop(backend, est, r, limiter, samples[-1], cfg, progress)
+        log, status = _loop(backend, est, r, limiter, samples[-1], cfg, progress, on_row)
     except BaseException:
         backend.hold()
         backend.close()
@@ -123,7 +125,8 @@ _KEYS = ("time", "q", "tau", "tau_ext_true", "gamma_r", "gamma_p", "sigma", "sig
 
 
 def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, first: Any, cfg: LoopConfig,
-          progress: Callable[[float], None] | None) -> tuple[dict[str, list], str]:
+          progress: Callable[[float], None] | None,
+          on_row: Callable[[dict[str, Any]], None] | None) -> tuple[dict[str, list], str]:
     """The control cycles from the estimator's latest step ``r`` and measurement ``first``; returns
     the per-cycle record and the status."""
     dog = Watchdog(cfg.limits.max_age)
@@ -176,11 +179,13 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             backend.hold()
             phase = PHASE_STOPPED
             t_row = max(last.t, backend.now())  # a stale measurement: the row is the moment motion stopped
-        for key, v in (("time", t_row - t0), ("q", last.q), ("tau", last.tau), ("tau_ext_true", last.tau_ext_true),
-                       ("gamma_r", r.gamma_r), ("gamma_p", r.gamma_p), ("sigma", adm.sigma), ("sigma_dot", sd),
-                       ("q_cmd", q_cmd), ("D", D_now), ("dynamic", r.mode == DYNAMIC), ("detected", r.detected),
-                       ("phase", phase), ("clipped", clipped)):
+        row = {"time": t_row - t0, "q": last.q, "tau": last.tau, "tau_ext_true": last.tau_ext_true,
+               "gamma_r": r.gamma_r, "gamma_p": r.gamma_p, "sigma": adm.sigma, "sigma_dot": sd, "q_cmd": q_cmd,
+               "D": D_now, "dynamic": r.mode == DYNAMIC, "detected": r.detected, "phase": phase, "clipped": clipped}
+        for key, v in row.items():
             log[key].append(v)
+        if on_row is not None:
+            on_row(row)
         if stop is not None:
             return log, f"stopped: {stop}"
         if progress is not None and k % 25 == 0:

@@ -520,6 +520,11 @@ class AxisLogWriter:
         if self._since_flush >= self.flush_every:
             self.flush()
 
+    @property
+    def last_time(self) -> float:
+        """Time of the last appended sample, s (-inf before the first)."""
+        return float(self._last_t)
+
     def mark_gap(self, t_start: float, t_end: float) -> None:
         """Record that no samples could be taken between ``t_start`` and ``t_end`` (s)."""
         d = self._d["gaps"]
