@@ -51,13 +51,9 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
 
     from kukaid.capture import KvpBackend, SimBackend, capture, check_limits, parse_effect, sim_config as make_config
     from kukaid.errors import KukaidError
-    from kukaid_cli._util import check_outputs, refuse_overwrite
+    from kukaid_cli._util import check_outputs
 
-    if output.suffix.lower() not in (".h5", ".hdf5"):
-        raise KukaidError(f"{output}: a capture writes an HDF5 axis log; name it .h5 or .hdf5 "
-                          f"(convert with `kukaid load LOG.h5 -o LOG.csv`)")
-    check_outputs([output], [trajectory, sim_config])
-    refuse_overwrite(output, force)
+    check_outputs([output], [trajectory, sim_config])  # capture() checks its suffix and --force
     if backend == "sim":
         if trajectory is None:
             raise click.UsageError("the sim backend needs a TRAJECTORY file (from `kukaid excite`)")

@@ -53,11 +53,10 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, 
     import threading
 
     from kukaid.errors import KukaidError
+    from kukaid.io.atomic import check_writable
     from kukaid.io.krl_logger import RingLayout
     from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
     from kukaid.sim.kvp_server import Faults, KvpServer, SimSource
-
-    from kukaid.io.atomic import check_writable
     from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite
 
     if truth_path is not None:  # checked now, not after the session
@@ -70,9 +69,8 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, 
         cfg = cfg.replace(noise_sigma=noise)
     traj = None
     if traj_path is not None:
-        from kukaid.excite import Trajectory
-
         from kukaid.capture import check_limits
+        from kukaid.excite import Trajectory
 
         traj = Trajectory.from_json(traj_path)
         check_limits(traj, where=str(traj_path))
