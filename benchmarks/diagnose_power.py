@@ -14,10 +14,10 @@ Prints
 Usage: python benchmarks/diagnose_power.py [--seeds 20] [--clean-seeds 50] [--sweep-seeds 10]
        [--pair-seeds 5] [--noise 0.5] [--quick]      (about 10 minutes with the defaults)
 
-"In order of size" in table 4 is the order the diagnosis names them: by the residual each
-explains beyond what the refitted base model absorbs (shown as the RMSE drop of each step).
-A load-dependent Coulomb term is mostly absorbed by Fc, so its documented size (the extra
-friction at |cos q| = 1) overstates what is left to find.
+"In order of size" in table 4: the diagnosis lists the effects by their estimated sizes in the
+final joint fit (amplitude or peak, N·m, as the simulator documents sizes), not by the residual
+each explains: a load-dependent Coulomb term is mostly mimicked by Fc, so it explains less than a
+smaller ripple.  Every pair is also run the other way round (sizes swapped).
 """
 from __future__ import annotations
 
@@ -32,6 +32,7 @@ from kukaid.diagnose.power import draw_effects, hidden_effect_logs, initial_fit
 from kukaid.diagnose.workflow import diagnose
 
 PAIRS = [("position_ripple", "torque_offset"), ("gravity_sine", "backlash"), ("load_dependent_friction", "position_ripple")]
+PAIRS += [(b, a) for a, b in PAIRS]
 
 
 def run_one(sizes: dict[str, float], seed: int, noise: float):
@@ -42,36 +43,20 @@ def run_one(sizes: dict[str, float], seed: int, noise: float):
     return diagnose(params, logs), params
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", type=int, default=20)
-    ap.add_argument("--clean-seeds", type=int, default=50)
-    ap.add_argument("--sweep-seeds", type=int, default=10)
-    ap.add_argument("--pair-seeds", type=int, default=5)
-    ap.add_argument("--noise", type=float, default=0.5)
-    ap.add_argument("--quick", action="store_true", help="2 seeds everywhere (smoke run)")
-    a = ap.parse_args(argv)
-    if a.quick:
-        a.seeds = a.clean_seeds = a.sweep_seeds = a.pair_seeds = 2
-    sig = a.noise
-    t0 = time.time()
-    fit_source = None
+def say(*x):
+    print(*x, flush=True)
 
-    def say(*x):
-        print(*x, flush=True)
 
-    say(f"# diagnose power study: torque noise sigma = {sig} N*m; friction sweep + 4 s sine per run")
-    # 1. every effect at 2..5 x noise
+def effects_named(seeds: int, noise: float) -> None:
+    """1. every effect hidden at 2 to 5 x noise."""
     say("\n## 1. hidden effect at 2 to 5 x noise")
     say(f"{'effect':26s} {'runs':>4s} {'right':>6s} {'other':>6s} {'rmse/floor':>11s} {'<=1.15':>6s}  wrong names")
-    rows = {}
     for name in C.NAMES:
         right = other = 0
         ratios, wrong = [], []
-        for seed in range(a.seeds):
-            size = float(np.random.default_rng(seed + 77).uniform(2.0, 5.0)) * sig
-            d, p = run_one({name: size}, seed, a.noise)
-            fit_source = fit_source or (p.get("provenance") or {}).get("source", "kukaid.identify.fit_axis")
+        for seed in range(seeds):
+            size = float(np.random.default_rng(seed + 77).uniform(2.0, 5.0)) * noise
+            d, _ = run_one({name: size}, seed, noise)
             ok = bool(d.names) and d.names[0] == name
             right += ok
             other += any(n != name for n in d.names)
@@ -79,49 +64,76 @@ def main(argv: list[str] | None = None) -> int:
                 wrong.append("+".join(d.names) or ("ambiguous" if d.ambiguous else "none"))
             ratios.append(d.rmse_after / d.noise_floor)
         ratios = np.array(ratios)
-        rows[name] = (right, a.seeds)
-        say(f"{name:26s} {a.seeds:4d} {100 * right / a.seeds:5.0f}% {100 * other / a.seeds:5.0f}% "
+        say(f"{name:26s} {seeds:4d} {100 * right / seeds:5.0f}% {100 * other / seeds:5.0f}% "
             f"{np.median(ratios):11.3f} {100 * np.mean(ratios <= 1.15):5.0f}%  {', '.join(wrong)}")
-    # 2. clean
-    say(f"\n## 2. clean data ({a.clean_seeds} seeds)")
-    if a.clean_seeds <= 0:
-        a.clean_seeds = 0
+
+
+def clean(seeds: int, noise: float) -> None:
+    """2. no effect hidden: false alarms."""
+    say(f"\n## 2. clean data ({seeds} seeds)")
     named, ratios, what = 0, [], []
-    for seed in range(a.clean_seeds):
-        d, _ = run_one({}, 1000 + seed, a.noise)
+    for seed in range(seeds):
+        d, _ = run_one({}, 1000 + seed, noise)
         if d.names or d.ambiguous:
             named += 1
             what.append("+".join(d.names) or "ambiguous")
         ratios.append(d.rmse_after / d.noise_floor)
-    say(f"effect named (false alarm): {named}/{a.clean_seeds} = {100 * named / a.clean_seeds:.1f} %  {', '.join(what)}")
+    say(f"effect named (false alarm): {named}/{seeds} = {100 * named / seeds:.1f} %  {', '.join(what)}")
     say(f"RMSE / noise floor: median {np.median(ratios):.3f}, max {np.max(ratios):.3f}")
-    # 3. detection rate vs size
-    mults = (0.25, 0.5, 1.0, 2.0, 4.0) if a.sweep_seeds > 0 else ()
-    say(f"\n## 3. detection rate (right effect named first) against size, {a.sweep_seeds} seeds per cell")
+
+
+def size_sweep(seeds: int, noise: float) -> None:
+    """3. detection rate against size."""
+    mults = (0.25, 0.5, 1.0, 2.0, 4.0)
+    say(f"\n## 3. detection rate (right effect named first) against size, {seeds} seeds per cell")
     say(f"{'effect':26s} " + " ".join(f"{m:>6g}x" for m in mults))
-    for name in (C.NAMES if mults else ()):
+    for name in C.NAMES:
         cells = []
         for m in mults:
             hit = 0
-            for seed in range(a.sweep_seeds):
-                d, _ = run_one({name: m * sig}, 2000 + 97 * seed + int(m * 4), a.noise)
+            for seed in range(seeds):
+                d, _ = run_one({name: m * noise}, 2000 + 97 * seed + int(m * 4), noise)
                 hit += bool(d.names) and d.names[0] == name
-            cells.append(f"{100 * hit / a.sweep_seeds:6.0f}%")
+            cells.append(f"{100 * hit / seeds:6.0f}%")
         say(f"{name:26s} " + " ".join(cells))
-    # 4. two effects
-    say(f"\n## 4. two effects at once (sizes 4 x and 2 x noise), {a.pair_seeds} seeds per pair; per run: the effects "
-        "named with the RMSE drop of each step (N*m)")
-    for big, small in (PAIRS if a.pair_seeds > 0 else ()):
+
+
+def pairs(seeds: int, noise: float) -> None:
+    """4. two effects at once, both named in order of size."""
+    say(f"\n## 4. two effects at once (sizes 4 x and 2 x noise), {seeds} seeds per pair; per run: the effects "
+        "named with (size in the final fit, RMSE drop of the step), N*m")
+    for big, small in PAIRS:
         both = ordered = 0
         seen = []
-        for seed in range(a.pair_seeds):
-            d, _ = run_one({big: 4 * sig, small: 2 * sig}, 3000 + seed, a.noise)
+        for seed in range(seeds):
+            d, _ = run_one({big: 4 * noise, small: 2 * noise}, 3000 + seed, noise)
             both += big in d.names and small in d.names
             ordered += d.names[:2] == [big, small]
-            seen.append(" + ".join(f"{s.name} (-{s.rmse_before - s.rmse_after:.2f})" for s in d.steps) or "none")
-        say(f"{big} (4x) + {small} (2x): both named {both}/{a.pair_seeds}, in order of size {ordered}/{a.pair_seeds}"
+            seen.append(" + ".join(f"{s.name} ({s.test.size:.2f}, -{s.rmse_before - s.rmse_after:.2f})"
+                                   for s in d.steps) or "none")
+        say(f"{big} (4x) + {small} (2x): both named {both}/{seeds}, in order of size {ordered}/{seeds}"
             f"  [{'; '.join(seen)}]")
-    say(f"\ninitial fit: {fit_source}; total {time.time() - t0:.0f} s")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=20, help="runs per effect in table 1 (0: skip the table)")
+    ap.add_argument("--clean-seeds", type=int, default=50, help="clean runs in table 2 (0: skip)")
+    ap.add_argument("--sweep-seeds", type=int, default=10, help="runs per cell in table 3 (0: skip)")
+    ap.add_argument("--pair-seeds", type=int, default=5, help="runs per pair in table 4 (0: skip)")
+    ap.add_argument("--noise", type=float, default=0.5)
+    ap.add_argument("--quick", action="store_true", help="2 seeds everywhere (smoke run)")
+    a = ap.parse_args(argv)
+    if a.quick:
+        a.seeds = a.clean_seeds = a.sweep_seeds = a.pair_seeds = 2
+    t0 = time.time()
+    say(f"# diagnose power study: torque noise sigma = {a.noise} N*m; friction sweep + 4 s sine per run; "
+        "initial model from kukaid.identify.fit_axis")
+    for table, seeds in ((effects_named, a.seeds), (clean, a.clean_seeds), (size_sweep, a.sweep_seeds),
+                         (pairs, a.pair_seeds)):
+        if seeds > 0:
+            table(seeds, a.noise)
+    say(f"\ntotal {time.time() - t0:.0f} s")
     return 0
 
 

@@ -243,7 +243,7 @@ def sim_config(path: str | Path | None = None, noise: float | None = None,
         sigma = cfg.noise_sigma if cfg.noise_sigma > 0 else 0.5
         for name, size in effects:
             s = float(rng.uniform(*size_range)) * sigma if size is None else float(size)
-            eff[name] = draw_effect(name, s, rng)
+            eff[name] = draw_effect(name, s, rng, mx=cfg.Mx)
             requested.append({"name": name, "size": s})
         cfg = cfg.replace(effects=eff)
         attrs["effects_requested"] = requested

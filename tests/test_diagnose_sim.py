@@ -49,10 +49,21 @@ def test_clean_data_names_nothing():
     assert d.rmse_after <= 1.15 * d.noise_floor
 
 
-def test_two_effects_named_in_order_of_size():
-    d, _ = run({"position_ripple": 4.0 * NOISE, "torque_offset": 2.0 * NOISE}, seed=41)
-    assert d.names[:2] == ["position_ripple", "torque_offset"], d.lines()
+@pytest.mark.parametrize("big, small", [("position_ripple", "torque_offset"),
+                                        ("load_dependent_friction", "position_ripple"),
+                                        ("backlash", "gravity_sine")])
+def test_two_effects_named_in_order_of_size(big, small):
+    """The second pair is found the other way round (Fc mimics most of the load-dependent term, so
+    the smaller ripple explains more residual); the list follows the sizes of the final fit.  In the
+    third, the backlash shape searched before My is known is searched again given My."""
+    d, effects = run({big: 4.0 * NOISE, small: 2.0 * NOISE}, seed=41)
+    assert d.names == [big, small], d.lines()
+    sizes = [s.test.size for s in d.steps]
+    assert sizes[0] == pytest.approx(4.0 * NOISE, rel=0.2) and sizes[1] == pytest.approx(2.0 * NOISE, rel=0.2)
     assert d.rmse_after <= 1.15 * d.noise_floor
+    assert d.steps[0].rmse_before == pytest.approx(d.rmse_refit)  # the chain starts at the refitted model
+    for a, b in zip(d.steps, d.steps[1:]):
+        assert b.rmse_before == a.rmse_after
 
 
 def test_narrow_range_offset_and_gravity_are_reported_ambiguous():

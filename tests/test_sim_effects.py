@@ -129,6 +129,7 @@ def test_draw_effect_sizes(name):
             assert abs(p["kappa"]) * 3 * 20 == pytest.approx(size)
         else:
             assert p["c"] * 18.4789 == pytest.approx(size)
+            assert draw_effect(name, size, rng, mx=-23.7)["c"] * 23.7 == pytest.approx(size)
 
 
 def test_draw_effect_bad_input():

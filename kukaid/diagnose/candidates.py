@@ -76,6 +76,11 @@ class Candidate:
         d["std"] = {k: float(std.get(k, math.nan)) for k in coefs}
         return d
 
+    def size(self, nl: dict, coefs: dict[str, float], sigs: Sequence["LogSignals"], model: "DiagModel") -> float:
+        """The effect's size, N·m: its amplitude or peak, as the simulator documents sizes
+        (:data:`kukaid.sim.effects.EFFECTS`), not only the part of it the base model cannot mimic."""
+        return abs(float(coefs[self.coef_names[0]]))
+
     def freeze(self, nl: dict, model: "DiagModel") -> dict:
         """Settings to store when the effect joins the model (fix what depends on the model)."""
         return nl
@@ -176,6 +181,9 @@ class PositionRipple(Candidate):
     def coordinate(self, sig, nl):
         return np.mod(nl["n"] * sig.q, 2 * math.pi), f"ripple phase n q mod 2 pi (n = {nl['n']:.3g})"
 
+    def size(self, nl, coefs, sigs, model):
+        return float(math.hypot(coefs["a"], coefs["b"]))
+
     def describe(self, nl, coefs, std, model):
         d = super().describe(nl, coefs, std, model)
         a, b = coefs["a"], coefs["b"]
@@ -239,6 +247,16 @@ class ThermalDrift(Candidate):
         if nl["coordinate"] == "energy":
             return sig.elapsed, "elapsed time (s)"
         return sig.elapsed, lab["time"]
+
+    def size(self, nl, coefs, sigs, model):
+        """The change of the friction over the logs (the largest change of the drift coordinate)."""
+        fr = nl.get("friction_ref")
+        out = 0.0
+        for s in sigs:
+            x = self.x(s, nl["coordinate"], model, fr)[s.rows]
+            level = 1.0 if nl["form"] == "coulomb" else float(np.mean(np.abs(model.friction_torque(s, fr)[s.rows])))
+            out = max(out, abs(coefs["c"]) * float(np.ptp(x)) * level if x.size else 0.0)
+        return out
 
     def describe(self, nl, coefs, std, model):
         d = super().describe(nl, coefs, std, model)

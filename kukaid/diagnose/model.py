@@ -104,6 +104,15 @@ class DiagModel:
             m.effects.append(EffectTerm(name, cand.freeze(dict(nl), self), dict(coefs)))
         return m
 
+    def without(self, name: str) -> "DiagModel":
+        """A copy without the effect ``name``."""
+        m = self.copy()
+        native = C.get(name).native
+        if native:
+            m.lin.pop(native, None)
+        m.effects = [e for e in m.effects if e.name != name]
+        return m
+
     def friction_dict(self) -> dict[str, Any]:
         """The friction parameters as the parameter file's ``friction`` object."""
         d: dict[str, Any] = {"model": self.friction_kind, "Fc": self.lin["Fc"], "Fv": self.lin["Fv"]}

@@ -54,7 +54,7 @@ def draw_effects(sizes: dict[str, float], rng: np.random.Generator) -> dict[str,
     """Simulator parameters of each named effect at the given size (N·m)."""
     from kukaid.sim.effects import draw_effect
 
-    out = {name: draw_effect(name, size, rng) for name, size in sizes.items()}
+    out = {name: draw_effect(name, size, rng, mx=TRUTH["Mx"]) for name, size in sizes.items()}
     if "thermal_drift" in out:
         out["thermal_drift"]["T_ref"] = THERMAL_CONDITIONS["T0"]
     return out
@@ -75,32 +75,10 @@ def hidden_effect_logs(effects: dict[str, dict] | None = None, seed: int = 0, no
 
 
 def initial_fit(logs: Sequence[Any]) -> dict:
-    """The model a user has before diagnosing: identification of friction + Izz/Mx on ``logs``.
+    """The model a user has before diagnosing: ``kukaid fit`` (friction + Izz/Mx, joint) on ``logs``
+    (the first the friction experiment, the rest inertia experiments), without effects."""
+    from kukaid.identify import fit_axis
 
-    Uses :func:`kukaid.identify.fit_axis` (joint fit) when it works; otherwise the diagnosis's own
-    refit from a neutral start (every parameter from the data, no truth).
-    """
-    try:
-        from kukaid.identify import fit_axis
-
-        p = fit_axis(friction=[logs[0]], inertia=list(logs[1:]))
-        p.pop("effects", None)
-        return p
-    except Exception:  # noqa: BLE001 - identification still in progress: neutral start instead
-        return neutral_fit(logs)
-
-
-def neutral_fit(logs: Sequence[Any]) -> dict:
-    """Friction + Izz/Mx fitted by the diagnosis's own joint refit from a neutral start."""
-    from kukaid.diagnose.model import DiagModel
-    from kukaid.diagnose.signals import prepare
-
-    sigs = [prepare(log, log.axes[0]) for log in logs]
-    start = {"schema": "kukaid.params/1", "axis": int(logs[0].axes[0]),
-             "friction": {"model": "stribeck", "Fc": 1.0, "Fs": 1.0, "vs": 0.1, "delta": 1.0, "Fv": 1.0},
-             "inertial": {"Izz": 1.0, "Mx": 0.0}, "mode_switch": {"qd_thr": 0.0017},
-             "provenance": {"source": "kukaid.diagnose.power.neutral_fit"}}
-    m = DiagModel.from_params(start, sigs[0].joint).refit(sigs)
-    p = m.to_params(start)
+    p = fit_axis(friction=[logs[0]], inertia=list(logs[1:]))
     p.pop("effects", None)
     return p

@@ -10,6 +10,10 @@
    is named, unless another significant candidate explains the same thing (each one is no longer
    significant given the other): then the two are reported as ambiguous and nothing is guessed.
 3. **Add and refit** all parameters jointly with the effect; repeat until nothing is significant.
+4. **Order by size**: with several effects, each one's discrete settings are searched again given
+   the others, and the steps are listed (and their refits redone) in order of each effect's size
+   in the final joint fit: amplitude or peak in N·m, as the simulator documents sizes.  The search
+   order (most residual explained first) is kept in a note.
 """
 from __future__ import annotations
 
@@ -39,6 +43,7 @@ class CandidateTest:
     p_candidate: float          # corrected for the candidate's own grid
     p_adjusted: float = 1.0     # also corrected for the number of candidates (Holm)
     effect_rms: float = 0.0     # RMS of the torque of the fitted term, N·m
+    size: float = math.nan      # amplitude / peak of the effect in the final joint fit, N·m
     significant: bool = False
     reason: str = ""
 
@@ -48,7 +53,7 @@ class CandidateTest:
             "statistic": float(self.wald.stat), "dof": int(self.wald.dof),
             "p_value": float(self.p_adjusted), "p_uncorrected": float(self.wald.p_value),
             "n_effective_options": float(self.n_effective), "bandwidth": int(self.wald.bandwidth),
-            "effect_rms": float(self.effect_rms),
+            "effect_rms": float(self.effect_rms), "size": float(self.size),
             "rss_share": float(self.wald.delta_rss / self.wald.rss) if self.wald.rss > 0 else 0.0,
         })
 
@@ -120,7 +125,7 @@ class Diagnosis:
             ev = s.test
             par = ", ".join(_fmt_param(k, v, s.params.get("std", {}).get(k)) for k, v in s.params.items()
                             if k not in ("model", "std", "stored_as", "unit"))
-            out.append(f"step {i}: {s.name} ({C.get(s.name).meaning})")
+            out.append(f"step {i}: {s.name} ({C.get(s.name).meaning}); size in the final fit {ev.size:.3g} {u}")
             out.append(f"    parameters: {par}")
             out.append(f"    RMSE {s.rmse_before:.4g} -> {s.rmse_after:.4g} {u}, {100 * s.gap_closed:.0f} % of the "
                        f"gap to the noise floor closed; relative error {100 * s.rel_before:.2f} % -> "
@@ -228,9 +233,16 @@ class _Round:
         return nl, self.columns(cand, nl)
 
     def test(self, cand: C.Candidate) -> CandidateTest:
+        """Search the candidate's options, test the best (its p corrected for the search)."""
         nl, Z = self.best_option(cand)
+        return self._wald(cand, nl, Z, cand.n_effective(self.sigs, cand.options(self.sigs, self.model)))
+
+    def test_fixed(self, cand: C.Candidate, nl: dict, n_effective: float) -> CandidateTest:
+        """Test the candidate at settings ``nl`` found by an earlier search over ``n_effective`` options."""
+        return self._wald(cand, nl, self.columns(cand, nl), n_effective)
+
+    def _wald(self, cand: C.Candidate, nl: dict, Z: np.ndarray, m: float) -> CandidateTest:
         w = S.wald_test(self.r, Z, self.groups, self.U)
-        m = cand.n_effective(self.sigs, cand.options(self.sigs, self.model))
         # size of the effect: the torque the fitted term adds (not only its part the model cannot mimic)
         rms = float(np.sqrt(np.mean((Z @ w.coef) ** 2))) if Z.size else 0.0
         t = CandidateTest(cand.name, nl, w, m, S.bonferroni(w.p_value, m), effect_rms=rms)
@@ -258,6 +270,85 @@ def hac_std(model: DiagModel, sigs: Sequence[LogSignals]) -> dict[str, float]:
     return dict(zip(rd.names, (float(x) for x in sd)))
 
 
+def _add(model: DiagModel, test: CandidateTest, coefs: dict, sigs: Sequence[LogSignals], rmse_before: float,
+         rel_before: float, floor: float) -> Step:
+    """Add the tested effect to ``model`` (start: ``coefs``), refit everything, measure the gap."""
+    cand = C.get(test.name)
+    new = model.with_effect(test.name, test.nl, coefs).refit(sigs)
+    new.std = hac_std(new, sigs)
+    r_after, rel_after = rmse_of(new, sigs)
+    gap = rmse_before - floor
+    closed = (rmse_before - r_after) / gap if gap > 0 else 0.0
+    if cand.native:
+        coefs_new = {cand.native: new.lin[cand.native]}
+        std = {cand.native: new.std.get(cand.native, math.nan)}
+    else:
+        term = next(e for e in new.effects if e.name == test.name)
+        coefs_new = dict(term.coefs)
+        std = {c: new.std.get(term.key(c), math.nan) for c in term.coefs}
+    test.nl = dict(next((e.nl for e in new.effects if e.name == test.name), test.nl))
+    test.size = cand.size(test.nl, coefs_new, sigs, new)
+    desc = jsonable(cand.describe(test.nl, coefs_new, std, new))
+    return Step(test.name, desc, rmse_before, r_after, test, closed, rel_before, rel_after, model, new)
+
+
+def _final_terms(model: DiagModel, sigs: Sequence[LogSignals]) -> dict[str, tuple[float, dict, dict]]:
+    """name -> (size N·m, settings, coefficients) of every effect of ``model``."""
+    out = {}
+    for name, cand in C.CANDIDATES.items():
+        if cand.native and cand.native in model.lin:
+            coefs, nl = {cand.native: model.lin[cand.native]}, {}
+        elif name in model.effect_names:
+            term = next(e for e in model.effects if e.name == name)
+            coefs, nl = dict(term.coefs), dict(term.nl)
+        else:
+            continue
+        out[name] = (cand.size(nl, coefs, sigs, model), nl, coefs)
+    return out
+
+
+def _backfit(model: DiagModel, sigs: Sequence[LogSignals]) -> DiagModel:
+    """Search each effect's discrete settings (backlash shape and time constant, drift coordinate)
+    again given all the other effects: an effect found first was searched while the later ones
+    were still in the residual.  A ripple's order needs no search: every refit refines it."""
+    for term in list(model.effects):
+        cand = C.get(term.name)
+        if "n" in term.nl or len(cand.options(sigs, model)) < 2:
+            continue
+        rest = model.without(term.name)
+        nl, _ = _Round(rest, sigs).best_option(cand)
+        if any(term.nl.get(k) != v for k, v in nl.items()):
+            model = rest.with_effect(term.name, nl, term.coefs).refit(sigs)
+    return model
+
+
+def _in_order_of_size(steps: list[Step], sigs: Sequence[LogSignals], floor: float, n_candidates: int) -> list[Step]:
+    """The steps redone in order of the effects' sizes in the final model (largest first).
+
+    The search adds the effect that explains most residual first; a term the base model partly
+    mimics (load-dependent Coulomb friction inside Fc) can be the larger one and still explain
+    less.  The final joint fit (after :func:`_backfit`) estimates every size; the chain of refits
+    is redone in that order with each step's evidence tested against the steps before it.
+    """
+    final = _backfit(steps[-1].model_after, sigs)
+    terms = _final_terms(final, sigs)
+    order = sorted(steps, key=lambda s: -terms[s.name][0])
+    if [s.name for s in order] != [s.name for s in steps] or final is not steps[-1].model_after:
+        model, rmse, rel = steps[0].model_before, steps[0].rmse_before, steps[0].rel_before
+        out = []
+        for s in order:
+            _, nl, coefs = terms[s.name]
+            t = _Round(model, sigs).test_fixed(C.get(s.name), nl or s.test.nl, s.test.n_effective)
+            t.p_adjusted = S.bonferroni(t.p_candidate, n_candidates)  # Holm's first (strictest) factor
+            t.significant, t.reason = True, "significant when found"
+            out.append(_add(model, t, coefs, sigs, rmse, rel, floor))
+            model, rmse, rel = out[-1].model_after, out[-1].rmse_after, out[-1].rel_after
+        steps = out
+    for s in steps:  # an earlier step's own estimate misses the later effects: report the final size
+        s.test.size = terms[s.name][0]
+    return steps
+
+
 # -- the workflow ----------------------------------------------------------------------------
 def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float = 0.01, min_effect: float = 0.15,
                      max_steps: int = 4, candidates: Sequence[str] | None = None) -> Diagnosis:
@@ -283,6 +374,7 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     added: list[str] = []
     cur_rmse, cur_rel = rmse_r, rel_r
     tests: list[CandidateTest] = []
+    first_round: list[CandidateTest] = []
     for _ in range(max_steps):
         rd = _Round(model, sigs)
         tests = []
@@ -294,6 +386,7 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
             tests.append(rd.test(cand))
         if not tests:
             break
+        first_round = first_round or tests
         adj = S.holm({t.name: t.p_candidate for t in tests})
         for t in tests:
             t.p_adjusted = adj[t.name]
@@ -319,25 +412,19 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
         if any(best.name in x["candidates"] for x in amb):
             ambiguous += amb
             break
-        cand = C.get(best.name)
-        coefs = dict(zip(cand.coef_names, best.wald.coef))
-        new = model.with_effect(best.name, best.nl, coefs).refit(sigs)
-        new.std = hac_std(new, sigs)
-        r_after, rel_after = rmse_of(new, sigs)
-        gap = cur_rmse - floor
-        closed = (cur_rmse - r_after) / gap if gap > 0 else 0.0
+        step = _add(model, best, dict(zip(C.get(best.name).coef_names, best.wald.coef)), sigs, cur_rmse, cur_rel,
+                    floor)
         added.append(best.name)
-        if cand.native:
-            coefs_new = {cand.native: new.lin[cand.native]}
-            std = {cand.native: new.std.get(cand.native, math.nan)}
-        else:
-            term = next(e for e in new.effects if e.name == best.name)
-            coefs_new = dict(term.coefs)
-            std = {c: new.std.get(term.key(c), math.nan) for c in term.coefs}
-        best.nl = dict(next((e.nl for e in new.effects if e.name == best.name), best.nl))
-        desc = jsonable(cand.describe(best.nl, coefs_new, std, new))
-        steps.append(Step(best.name, desc, cur_rmse, r_after, best, closed, cur_rel, rel_after, model, new))
-        model, cur_rmse, cur_rel = new, r_after, rel_after
+        steps.append(step)
+        model, cur_rmse, cur_rel = step.model_after, step.rmse_after, step.rel_after
+    if len(steps) > 1:
+        found = [s.name for s in steps]
+        steps = _in_order_of_size(steps, sigs, floor, n_candidates=len(first_round))
+        if [s.name for s in steps] != found:
+            notes.append(f"effects listed in order of size; found in the order {', '.join(found)} (most residual "
+                         "explained first)")
+        model, cur_rmse, cur_rel = steps[-1].model_after, steps[-1].rmse_after, steps[-1].rel_after
+    added = [s.name for s in steps]
     out_params = model.to_params(params, added)
     prov = dict(out_params.get("provenance") or {})
     prov["diagnose"] = {"effects_added": added, "rmse_before": rmse0, "rmse_after": cur_rmse, "noise_floor": floor}

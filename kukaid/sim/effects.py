@@ -22,8 +22,8 @@ thermal_drift              all friction (Stribeck level, Fv, Maxwell-slip satura
                            is what the default friction experiment (115 s) causes (inertia 22 s:
                            1.9 K; validation 46 s: 1.7 K; a 10-minute friction experiment: 12 K)
 load_dependent_friction    Coulomb level (and Maxwell-slip saturations) grow by ``c |Mx cos q|``;
-                           size = ``c * 18.4789`` (the extra friction at ``|cos q| = 1`` for the
-                           paper's Mx)
+                           size = ``c |Mx|``, the extra friction at ``|cos q| = 1`` (Mx of the
+                           simulation; :func:`draw_effect` takes it, default the paper's 18.4789)
 backlash                   after every reversal of the motion direction (|qd| above ``v_on``,
                            also the first move after standstill in the new direction) the gear
                            teeth cross the dead zone and hit: a smooth pulse
@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-#: Paper values that define the documented sizes (not the truth of any particular simulation).
+#: Reference values of the documented sizes (the paper's Mx is only the default of ``draw_effect``).
 MX_REF = 18.4789
 THERMAL_DT_REF = 3.0  # K (rise during the default 115 s friction experiment)
 THERMAL_F_REF = 20.0  # N·m
@@ -75,8 +75,8 @@ EFFECTS: dict[str, dict[str, Any]] = {
     },
     "load_dependent_friction": {
         "params": {"c": (0.0, 5.0, None, "extra Coulomb friction per N·m of |Mx cos q|, dimensionless")},
-        "size": "c * 18.4789 N·m: extra friction at |cos q| = 1 for the paper's Mx",
-        "draw": "c = size / 18.4789",
+        "size": "c * |Mx| N·m: extra friction at |cos q| = 1 (Mx of the simulation)",
+        "draw": "c = size / |Mx|",
     },
     "backlash": {
         "params": {
@@ -125,7 +125,7 @@ def validate_effects(effects: dict, where: str = "sim config") -> dict:
     return out
 
 
-def draw_effect(name: str, size: float, rng: np.random.Generator | int | None = None) -> dict:
+def draw_effect(name: str, size: float, rng: np.random.Generator | int | None = None, mx: float = MX_REF) -> dict:
     """Parameters of effect ``name`` whose torque size (see :data:`EFFECTS`) is ``size`` N·m.
 
     Parameters
@@ -133,6 +133,7 @@ def draw_effect(name: str, size: float, rng: np.random.Generator | int | None = 
     name : one of :data:`EFFECTS`.
     size : N·m, >= 0; the documented size of the effect (amplitude or peak).
     rng : numpy Generator (or seed) for the parameters not fixed by the size (sign, phase, ...).
+    mx : gravity amplitude Mx of the simulation, N·m (sets the size of load_dependent_friction).
     """
     if name not in EFFECTS:
         raise _err(f"effect: unknown effect '{name}' (known: {', '.join(EFFECTS)})")
@@ -150,6 +151,8 @@ def draw_effect(name: str, size: float, rng: np.random.Generator | int | None = 
     if name == "thermal_drift":
         return {"kappa": -size / (THERMAL_DT_REF * THERMAL_F_REF)}
     if name == "load_dependent_friction":
-        return {"c": size / MX_REF}
+        if not (math.isfinite(mx) and mx != 0):
+            raise _err(f"effect 'load_dependent_friction': needs a gravity load, got Mx = {mx}")
+        return {"c": size / abs(mx)}
     # backlash
     return {"A": size, "tau": float(rng.uniform(0.06, 0.15)), "v_on": 0.01}
