@@ -23,3 +23,7 @@ class FitError(KukaidError):
 
 class ControllerError(KukaidError):
     """A robot controller (real or virtual) did not answer, answered wrongly, or went stale."""
+
+
+class DiskFullError(KukaidError):
+    """The disk (or the file-size limit) leaves too little room to go on recording safely."""

@@ -10,6 +10,7 @@ import contextlib
 import json
 import os
 import re
+import shutil
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Iterable, Iterator
@@ -17,7 +18,7 @@ from typing import Any, Iterable, Iterator
 import numpy as np
 
 from kukaid import __version__
-from kukaid.errors import KukaidError, LogFormatError
+from kukaid.errors import DiskFullError, KukaidError, LogFormatError
 from kukaid.io.atomic import atomic_path
 
 #: Per-axis channels, each an (N, A) array.  ``q`` and ``tau`` are required.
@@ -458,7 +459,14 @@ class AxisLogWriter:
     the process is then killed.  :func:`read_hdf5` opens such a file.  A file that cannot be
     created (read-only folder, a folder of that name, ...) is a :class:`KukaidError` naming the
     path and the operating system's reason.
+
+    HDF5 leaves an unreadable file when a write fails on a full disk, so the writer stops first:
+    an append that would leave less than ``reserve`` bytes of free disk space (or of the process's
+    file-size limit) closes the log cleanly and raises :class:`DiskFullError`; what was recorded
+    stays readable (a log without samples is removed).
     """
+
+    reserve: int = 1 << 20  # bytes kept free for HDF5's metadata and the final flush
 
     def __init__(self, path: str | Path, axes: Iterable[int], channels: Iterable[str] = ("q", "tau"),
                  joint: Iterable[str] = (), attrs: dict[str, Any] | None = None,
@@ -493,6 +501,37 @@ class AxisLogWriter:
         self._last_t = -np.inf
         self._since_flush = 0
         self.flush_every = flush_every
+        self._stopped: DiskFullError | None = None
+
+    def room(self) -> int:
+        """Bytes the log may still grow by: free disk space, and the file-size limit if one is set."""
+        free = shutil.disk_usage(self.path.parent).free
+        try:
+            import resource
+
+            soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+            if soft != resource.RLIM_INFINITY:
+                free = min(free, soft - self.path.stat().st_size)
+        except (ImportError, OSError):  # no resource module (Windows)
+            pass
+        return int(free)
+
+    def _make_room(self, nbytes: int) -> None:
+        if self._stopped is not None:
+            raise self._stopped
+        room = self.room()
+        if room - nbytes >= self.reserve:
+            return
+        self.close()
+        if self.n == 0:
+            self.path.unlink(missing_ok=True)
+            kept = "nothing had been recorded; no log written"
+        else:
+            kept = f"the log keeps the {self.n} samples up to t = {self._last_t:.3f} s"
+        self._stopped = DiskFullError(
+            f"{self.path}: only {max(room, 0) / 2**20:.2f} MiB of disk space (or file-size limit) left, less than "
+            f"the {self.reserve / 2**20:g} MiB kept free: recording stopped; {kept}")
+        raise self._stopped
 
     def append(self, time: np.ndarray | float, **channels: np.ndarray) -> None:
         """Append samples: ``time`` (n,) and each channel (n, A) (or (A,) for one sample)."""
@@ -505,6 +544,7 @@ class AxisLogWriter:
         missing = set(self.channels) - set(channels)
         if missing:
             raise ValueError(f"missing channels {sorted(missing)}")
+        self._make_room(8 * m * (1 + len(self.channels) * len(self.axes)))
         # write channels first, time last: a reader trims every channel to the length of time
         for c in self.channels:
             x = np.asarray(channels[c], dtype=float).reshape(m, len(self.axes))
@@ -527,6 +567,7 @@ class AxisLogWriter:
 
     def mark_gap(self, t_start: float, t_end: float) -> None:
         """Record that no samples could be taken between ``t_start`` and ``t_end`` (s)."""
+        self._make_room(16)
         d = self._d["gaps"]
         k = d.shape[0]
         d.resize((k + 1, 2))
@@ -534,6 +575,8 @@ class AxisLogWriter:
         self.flush()
 
     def flush(self) -> None:
+        if not self._f.id.valid:  # closed (also after a DiskFullError)
+            return
         for d in self._d.values():
             d.flush()
         self._f.flush()
