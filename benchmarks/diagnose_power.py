@@ -31,7 +31,8 @@ from kukaid.diagnose import candidates as C
 from kukaid.diagnose.power import draw_effects, hidden_effect_logs, initial_fit
 from kukaid.diagnose.workflow import diagnose
 
-PAIRS = [("position_ripple", "torque_offset"), ("gravity_sine", "backlash"), ("load_dependent_friction", "position_ripple")]
+PAIRS = [("position_ripple", "torque_offset"), ("gravity_sine", "backlash"), ("load_dependent_friction", "position_ripple"),
+         ("torque_offset", "gravity_sine")]  # the last: two terms the issue names as easily confused
 PAIRS += [(b, a) for a, b in PAIRS]
 
 
@@ -109,8 +110,9 @@ def pairs(seeds: int, noise: float) -> None:
             d, _ = run_one({big: 4 * noise, small: 2 * noise}, 3000 + seed, noise)
             both += big in d.names and small in d.names
             ordered += d.names[:2] == [big, small]
-            seen.append(" + ".join(f"{s.name} ({s.test.size:.2f}, -{s.rmse_before - s.rmse_after:.2f})"
-                                   for s in d.steps) or "none")
+            seen.append(" + ".join([f"{s.name} ({s.test.size:.2f}, -{s.rmse_before - s.rmse_after:.2f})"
+                                    for s in d.steps] + [f"ambiguous: {' or '.join(a['candidates'])}"
+                                                         for a in d.ambiguous]) or "none")
         say(f"{big} (4x) + {small} (2x): both named {both}/{seeds}, in order of size {ordered}/{seeds}"
             f"  [{'; '.join(seen)}]")
 

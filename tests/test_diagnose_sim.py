@@ -51,11 +51,12 @@ def test_clean_data_names_nothing():
 
 @pytest.mark.parametrize("big, small", [("position_ripple", "torque_offset"),
                                         ("load_dependent_friction", "position_ripple"),
-                                        ("backlash", "gravity_sine")])
+                                        ("backlash", "gravity_sine"), ("torque_offset", "gravity_sine")])
 def test_two_effects_named_in_order_of_size(big, small):
     """The second pair is found the other way round (Fc mimics most of the load-dependent term, so
     the smaller ripple explains more residual); the list follows the sizes of the final fit.  In the
-    third, the backlash shape searched before My is known is searched again given My."""
+    third, the backlash shape searched before My is known is searched again given My.  In the last,
+    a slow ripple can stand in for both until they are found; it is then dropped."""
     d, effects = run({big: 4.0 * NOISE, small: 2.0 * NOISE}, seed=41)
     assert d.names == [big, small], d.lines()
     sizes = [s.test.size for s in d.steps]

@@ -149,10 +149,16 @@ class PositionRipple(Candidate):
     def _limits(self, sigs):
         R, v = self._range(sigs)
         fc = min(s.cutoff if s.cutoff > 0 else 0.25 * s.fs for s in sigs)
-        # at least 3/4 of a ripple period over the range; above 1.5/rad on a revolute axis (n = 1 is gravity)
-        n_lo = max(1.5 * math.pi / R, 1.5 if sigs[0].joint == "revolute" else 0.0) if R > 0 else math.inf
+        # at least one full period over the range (the periodogram's resolution: a slower "ripple" is
+        # a smooth function of q that gravity and offset terms mimic); above 1.5/rad on a revolute
+        # axis (n = 1 is gravity)
+        n_lo = max(2 * math.pi / R, 1.5 if sigs[0].joint == "revolute" else 0.0) if R > 0 else math.inf
         n_hi = 2 * math.pi * 0.8 * fc / v if v > 0 else 0.0
         return R, n_lo, n_hi
+
+    def lowest_order(self, sigs) -> float:
+        """The lowest ripple order (1/rad) the logs resolve."""
+        return self._limits(sigs)[1]
 
     def applies(self, sigs, model):
         if "position_ripple" in model.effect_names:

@@ -294,10 +294,11 @@ class DiagModel:
             p0 += [math.log(m.vs), m.delta]
             lb += [math.log(VS_BOUNDS[0]), DELTA_BOUNDS[0]]
             ub += [math.log(VS_BOUNDS[1]), DELTA_BOUNDS[1]]
+        n_lo = C.get("position_ripple").lowest_order(sigs) if free else 0.0
         for k in free:
             n0 = float(m.effects[k].nl["n"])
             p0.append(n0)
-            lb.append(n0 - 0.5)
+            lb.append(max(n0 - 0.5, min(n0, n_lo)))  # not below the search's lowest order
             ub.append(n0 + 0.5)
         if p0:
             lb_a, ub_a = np.array(lb), np.array(ub)

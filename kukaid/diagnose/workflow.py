@@ -10,8 +10,8 @@
    is named, unless another significant candidate explains the same thing (each one is no longer
    significant given the other): then the two are reported as ambiguous and nothing is guessed.
 3. **Add and refit** all parameters jointly with the effect; repeat until nothing is significant.
-4. **Order by size**: with several effects, each one's discrete settings are searched again given
-   the others, and the steps are listed (and their refits redone) in order of each effect's size
+4. **Prune and order by size**: with several effects, an effect the later ones explain is dropped,
+   each one's discrete settings are searched again given the others, and the steps are listed (and their refits redone) in order of each effect's size
    in the final joint fit: amplitude or peak in N·m, as the simulator documents sizes.  The search
    order (most residual explained first) is kept in a note.
 """
@@ -292,6 +292,22 @@ def _add(model: DiagModel, test: CandidateTest, coefs: dict, sigs: Sequence[LogS
     return Step(test.name, desc, rmse_before, r_after, test, closed, rel_before, rel_after, model, new)
 
 
+def term_rms(model: DiagModel, name: str, sigs: Sequence[LogSignals]) -> float:
+    """RMS (compared rows, filtered) of the torque the effect ``name`` of ``model`` adds, N·m."""
+    cand = C.get(name)
+    if cand.native:
+        nl, coefs = {}, {cand.native: model.lin[cand.native]}
+    else:
+        term = next(e for e in model.effects if e.name == name)
+        nl, coefs = term.nl, term.coefs
+    parts = []
+    for s in sigs:
+        Z = cand.columns(s, nl, model)
+        parts.append(s.filtw(Z @ np.array([coefs[c] for c in cand.coef_names]))[s.rows])
+    x = np.concatenate(parts)
+    return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+
+
 def _final_terms(model: DiagModel, sigs: Sequence[LogSignals]) -> dict[str, tuple[float, dict, dict]]:
     """name -> (size N·m, settings, coefficients) of every effect of ``model``."""
     out = {}
@@ -322,19 +338,43 @@ def _backfit(model: DiagModel, sigs: Sequence[LogSignals]) -> DiagModel:
     return model
 
 
-def _in_order_of_size(steps: list[Step], sigs: Sequence[LogSignals], floor: float, n_candidates: int) -> list[Step]:
-    """The steps redone in order of the effects' sizes in the final model (largest first).
+def _prune(steps: list[Step], model: DiagModel, sigs: Sequence[LogSignals], alpha: float,
+           min_rms: float) -> tuple[DiagModel, list[str]]:
+    """Backward step: drop, one at a time (the weakest first), every effect that is no longer
+    significant given all the others or whose refitted torque RMS fell below ``min_rms`` (an
+    effect found early can be made redundant by the ones found after it)."""
+    dropped: list[str] = []
+    while True:
+        weakest, worst_p = None, -1.0
+        for s in steps:
+            if s.name in dropped:
+                continue
+            term = next((e for e in model.effects if e.name == s.name), None)
+            t = _Round(model.without(s.name), sigs).test_fixed(C.get(s.name), term.nl if term else {},
+                                                               s.test.n_effective)
+            p = 1.0 if term_rms(model, s.name, sigs) < min_rms else t.p_candidate
+            if p >= alpha and p > worst_p:
+                weakest, worst_p = s.name, p
+        if weakest is None:
+            return model, dropped
+        dropped.append(weakest)
+        model = model.without(weakest).refit(sigs)
+
+
+def _in_order_of_size(steps: list[Step], base: DiagModel, final: DiagModel, sigs: Sequence[LogSignals],
+                      floor: float, n_candidates: int) -> list[Step]:
+    """The steps redone from ``base`` in order of the effects' sizes in ``final`` (largest first).
 
     The search adds the effect that explains most residual first; a term the base model partly
     mimics (load-dependent Coulomb friction inside Fc) can be the larger one and still explain
     less.  The final joint fit (after :func:`_backfit`) estimates every size; the chain of refits
     is redone in that order with each step's evidence tested against the steps before it.
     """
-    final = _backfit(steps[-1].model_after, sigs)
+    final = _backfit(final, sigs)
     terms = _final_terms(final, sigs)
     order = sorted(steps, key=lambda s: -terms[s.name][0])
     if [s.name for s in order] != [s.name for s in steps] or final is not steps[-1].model_after:
-        model, rmse, rel = steps[0].model_before, steps[0].rmse_before, steps[0].rel_before
+        model, (rmse, rel) = base, rmse_of(base, sigs)
         out = []
         for s in order:
             _, nl, coefs = terms[s.name]
@@ -365,6 +405,7 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     model = given.refit(sigs)
     model.std = hac_std(model, sigs)
     rmse_r, rel_r = rmse_of(model, sigs)
+    found_base = model
     names = list(candidates) if candidates is not None else list(C.NAMES)
     for n in names:
         C.get(n)
@@ -419,8 +460,13 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
         model, cur_rmse, cur_rel = step.model_after, step.rmse_after, step.rel_after
     if len(steps) > 1:
         found = [s.name for s in steps]
-        steps = _in_order_of_size(steps, sigs, floor, n_candidates=len(first_round))
-        if [s.name for s in steps] != found:
+        final, dropped = _prune(steps, model, sigs, alpha, min_effect * sigma)
+        steps = [s for s in steps if s.name not in dropped] or steps[:1]
+        for n in dropped:
+            notes.append(f"{n} was found first but the effects found after it explain it (not significant or "
+                         f"below {min_effect:g} x noise given them): dropped")
+        steps = _in_order_of_size(steps, found_base, final, sigs, floor, n_candidates=len(first_round))
+        if [s.name for s in steps] != [n for n in found if n not in dropped]:
             notes.append(f"effects listed in order of size; found in the order {', '.join(found)} (most residual "
                          "explained first)")
         model, cur_rmse, cur_rel = steps[-1].model_after, steps[-1].rmse_after, steps[-1].rel_after
