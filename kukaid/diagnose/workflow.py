@@ -292,14 +292,19 @@ def _add(model: DiagModel, test: CandidateTest, coefs: dict, sigs: Sequence[LogS
     return Step(test.name, desc, rmse_before, r_after, test, closed, rel_before, rel_after, model, new)
 
 
+def _term(model: DiagModel, name: str) -> tuple[dict, dict] | None:
+    """(settings, coefficients) of the effect ``name`` in ``model``; None when it is not there."""
+    native = C.get(name).native
+    if native:
+        return ({}, {native: model.lin[native]}) if native in model.lin else None
+    term = next((e for e in model.effects if e.name == name), None)
+    return (dict(term.nl), dict(term.coefs)) if term else None
+
+
 def term_rms(model: DiagModel, name: str, sigs: Sequence[LogSignals]) -> float:
     """RMS (compared rows, filtered) of the torque the effect ``name`` of ``model`` adds, N·m."""
     cand = C.get(name)
-    if cand.native:
-        nl, coefs = {}, {cand.native: model.lin[cand.native]}
-    else:
-        term = next(e for e in model.effects if e.name == name)
-        nl, coefs = term.nl, term.coefs
+    nl, coefs = _term(model, name)
     parts = []
     for s in sigs:
         Z = cand.columns(s, nl, model)
@@ -312,14 +317,9 @@ def _final_terms(model: DiagModel, sigs: Sequence[LogSignals]) -> dict[str, tupl
     """name -> (size N·m, settings, coefficients) of every effect of ``model``."""
     out = {}
     for name, cand in C.CANDIDATES.items():
-        if cand.native and cand.native in model.lin:
-            coefs, nl = {cand.native: model.lin[cand.native]}, {}
-        elif name in model.effect_names:
-            term = next(e for e in model.effects if e.name == name)
-            coefs, nl = dict(term.coefs), dict(term.nl)
-        else:
-            continue
-        out[name] = (cand.size(nl, coefs, sigs, model), nl, coefs)
+        t = _term(model, name)
+        if t is not None:
+            out[name] = (cand.size(*t, sigs, model), *t)
     return out
 
 
@@ -349,8 +349,7 @@ def _prune(steps: list[Step], model: DiagModel, sigs: Sequence[LogSignals], alph
         for s in steps:
             if s.name in dropped:
                 continue
-            term = next((e for e in model.effects if e.name == s.name), None)
-            t = _Round(model.without(s.name), sigs).test_fixed(C.get(s.name), term.nl if term else {},
+            t = _Round(model.without(s.name), sigs).test_fixed(C.get(s.name), _term(model, s.name)[0],
                                                                s.test.n_effective)
             p = 1.0 if term_rms(model, s.name, sigs) < min_rms else t.p_candidate
             if p >= alpha and p > worst_p:
