@@ -19,8 +19,7 @@ def _shrinking_disk(monkeypatch, room_at_start: int):
     written = {}
 
     def room(self):
-        written[id(self)] = written.get(id(self), 0)
-        return self.reserve + room_at_start - written[id(self)]
+        return self.reserve + room_at_start - written.get(id(self), 0)
 
     orig = AxisLogWriter._make_room
 

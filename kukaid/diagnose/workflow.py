@@ -11,9 +11,10 @@
    significant given the other): then the two are reported as ambiguous and nothing is guessed.
 3. **Add and refit** all parameters jointly with the effect; repeat until nothing is significant.
 4. **Prune and order by size**: with several effects, an effect the later ones explain is dropped,
-   each one's discrete settings are searched again given the others, and the steps are listed (and their refits redone) in order of each effect's size
-   in the final joint fit: amplitude or peak in N·m, as the simulator documents sizes.  The search
-   order (most residual explained first) is kept in a note.
+   each one's discrete settings are searched again given the others, and the steps are listed
+   (and their refits redone) in order of each effect's size in the final joint fit: amplitude or
+   peak in N·m, as the simulator documents sizes.  The search order (most residual explained
+   first) is kept in a note.
 """
 from __future__ import annotations
 
