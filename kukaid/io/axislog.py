@@ -462,8 +462,9 @@ class AxisLogWriter:
 
     HDF5 leaves an unreadable file when a write fails on a full disk, so the writer stops first:
     an append that would leave less than ``reserve`` bytes of free disk space (or of the process's
-    file-size limit) closes the log cleanly and raises :class:`DiskFullError`; what was recorded
-    stays readable (a log without samples is removed).
+    file-size limit) writes the leading samples that fit, closes the log cleanly and raises
+    :class:`DiskFullError` naming the samples kept; what was recorded stays readable (a log
+    without samples is removed).
     """
 
     reserve: int = 1 << 20  # bytes kept free for HDF5's metadata and the final flush
@@ -516,25 +517,35 @@ class AxisLogWriter:
             pass
         return int(free)
 
-    def _make_room(self, nbytes: int) -> None:
+    def _fits(self, m: int, per_sample: int) -> tuple[int, int]:
+        """How many of ``m`` records of ``per_sample`` bytes fit and keep ``reserve`` bytes free,
+        and the room (bytes) measured.  Raises the stored error once the log has stopped."""
         if self._stopped is not None:
             raise self._stopped
         room = self.room()
-        if room - nbytes >= self.reserve:
-            return
+        return int(min(m, max(0, (room - self.reserve) // per_sample))), room
+
+    def _stop(self, room_left: int, dropped: int) -> DiskFullError:
+        """Close the log (remove it when empty) and return the error that says what it kept."""
         self.close()
         if self.n == 0:
             self.path.unlink(missing_ok=True)
             kept = "nothing had been recorded; no log written"
         else:
             kept = f"the log keeps the {self.n} samples up to t = {self._last_t:.3f} s"
+        if dropped:
+            kept += f" ({dropped} later sample{'s' if dropped != 1 else ''} not written)"
         self._stopped = DiskFullError(
-            f"{self.path}: only {max(room, 0) / 2**20:.2f} MiB of disk space (or file-size limit) left, less than "
-            f"the {self.reserve / 2**20:g} MiB kept free: recording stopped; {kept}")
-        raise self._stopped
+            f"{self.path}: only {max(room_left, 0) / 2**20:.2f} MiB of disk space (or file-size limit) left, less "
+            f"than the {self.reserve / 2**20:g} MiB kept free: recording stopped; {kept}")
+        return self._stopped
 
     def append(self, time: np.ndarray | float, **channels: np.ndarray) -> None:
-        """Append samples: ``time`` (n,) and each channel (n, A) (or (A,) for one sample)."""
+        """Append samples: ``time`` (n,) and each channel (n, A) (or (A,) for one sample).
+
+        When the disk (or file-size limit) has room for only the first k < n samples, those k
+        are written, the log is closed and :class:`DiskFullError` names the samples kept.
+        """
         t = np.atleast_1d(np.asarray(time, dtype=float))
         m = t.size
         if m == 0:
@@ -544,10 +555,18 @@ class AxisLogWriter:
         missing = set(self.channels) - set(channels)
         if missing:
             raise ValueError(f"missing channels {sorted(missing)}")
-        self._make_room(8 * m * (1 + len(self.channels) * len(self.axes)))
+        xs = [np.asarray(channels[c], dtype=float).reshape(m, len(self.axes)) for c in self.channels]
+        per_sample = 8 * (1 + len(self.channels) * len(self.axes))
+        k, room = self._fits(m, per_sample)
+        if k:
+            self._write(t[:k], [x[:k] for x in xs])
+        if k < m:
+            raise self._stop(room - k * per_sample, m - k)
+
+    def _write(self, t: np.ndarray, xs: list[np.ndarray]) -> None:
+        m = t.size
         # write channels first, time last: a reader trims every channel to the length of time
-        for c in self.channels:
-            x = np.asarray(channels[c], dtype=float).reshape(m, len(self.axes))
+        for c, x in zip(self.channels, xs):
             d = self._d[c]
             d.resize((self.n + m, len(self.axes)))
             d[self.n:] = x
@@ -567,7 +586,9 @@ class AxisLogWriter:
 
     def mark_gap(self, t_start: float, t_end: float) -> None:
         """Record that no samples could be taken between ``t_start`` and ``t_end`` (s)."""
-        self._make_room(16)
+        k, room = self._fits(1, 16)
+        if not k:
+            raise self._stop(room, 0)
         d = self._d["gaps"]
         k = d.shape[0]
         d.resize((k + 1, 2))

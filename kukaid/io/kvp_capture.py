@@ -113,9 +113,11 @@ class _Recorder:
             q = np.array([b[1] for b in self.buf]).reshape(-1, self.a)
             tau = np.array([b[2] for b in self.buf]).reshape(-1, self.a)
             temp = np.array([b[3] for b in self.buf]).reshape(-1, self.a)
-            self.writer.append(t, q=q, tau=tau, temp=temp)
-            self.n += len(self.buf)
             self.buf = []
+            try:
+                self.writer.append(t, q=q, tau=tau, temp=temp)
+            finally:  # a full disk keeps the leading samples that fit: count those
+                self.n = self.writer.n
         self.writer.flush()
         self.last_flush = time.monotonic()
 
