@@ -11,6 +11,9 @@ OUTPUT_FORMATS = {".h5": "hdf5", ".hdf5": "hdf5", ".csv": "csv"}
 MAT_OPTIONS = {"time_var": "--time", "q_var": "--q", "tau_var": "--tau", "q_cmd_var": "--q-cmd",
                "tau_scale": "--tau-scale", "tau_scale_var": "--tau-scale-var", "q_scale": "--q-scale",
                "time_scale": "--time-scale", "sample_time": "--sample-time", "joint": "--joint", "axis": "--axis"}
+#: Options that only a KUKA Trace source (.dat/.r64) uses.
+TRACE_OPTIONS = {"gear_ratio": "--gear-ratio", "time_base": "--time-base"}
+TRACE_SUFFIXES = (".dat", ".r64")
 
 
 @click.command("load")
@@ -34,15 +37,27 @@ MAT_OPTIONS = {"time_var": "--time", "q_var": "--q", "tau_var": "--tau", "q_cmd_
               help="MAT: sample interval, s, when the file has no time variable.")
 @click.option("--joint", type=click.Choice(["revolute", "prismatic"]), default="revolute", show_default=True,
               help="MAT: joint type (prismatic: metres and newtons).")
-@click.option("--axis", type=int, default=1, show_default=True, help="MAT: axis number of the log.")
+@click.option("--axis", default="1", show_default=True,
+              help="MAT: axis number of the log, or a list (1,2,3) for (samples, axes) arrays.")
+@click.option("--gear-ratio", default=None,
+              help="Trace: motor turns per axis turn, 'A1=-161,A2=153,...' or a JSON file {\"A1\": -161, ...}; "
+                   "puts the drives' motor-side position and torque on the joint.")
+@click.option("--time-base", type=click.Choice(["position", "finest", "common"]), default="position",
+              show_default=True,
+              help="Trace: position = the measured position's instants (others interpolated linearly), finest = "
+                   "the shortest sample time, common = only instants every channel has (no interpolation).")
 def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q_cmd_var, tau_scale, tau_scale_var,
-            q_scale, time_scale, sample_time, joint, axis) -> None:
-    """Convert SOURCE (CSV, HDF5, MAT, KUKA Trace .dat) to an axis log.
+            q_scale, time_scale, sample_time, joint, axis, gear_ratio, time_base) -> None:
+    """Convert SOURCE (CSV, HDF5, MAT, KUKA Trace .dat/.r64) to an axis log.
 
     The output is never the input file, and an existing output is replaced only with --force.
+    A KUKA Trace source is any file of the recording: every module beside it is read (each
+    NextGenDrive#N, KRCIpo); the time base used is printed on stdout.
 
     MAT example (EMPS): kukaid load DATA_EMPS.mat --time t --q qm --tau vir --tau-scale-var gtau
     --q-cmd qg --joint prismatic --axis 1 -o emps.h5
+
+    Trace example (KR C4): kukaid load Rec_NextGenDrive#1.dat --gear-ratio gear.json -o rec.h5
     """
     from click.core import ParameterSource
 
@@ -55,12 +70,14 @@ def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q
     refuse_overwrite(output, force)
     fmt = OUTPUT_FORMATS[output.suffix.lower()]
     is_mat = source.suffix.lower() == ".mat"
-    if not is_mat:
-        ctx = click.get_current_context()
-        given = [opt for name, opt in MAT_OPTIONS.items()
+    is_trace = source.suffix.lower() in TRACE_SUFFIXES
+    ctx = click.get_current_context()
+    for options, applies, kind in ((MAT_OPTIONS, is_mat, "MAT (.mat)"),
+                                   (TRACE_OPTIONS, is_trace, "KUKA Trace (.dat, .r64)")):
+        given = [opt for name, opt in options.items()
                  if ctx.get_parameter_source(name) not in (None, ParameterSource.DEFAULT)]
-        if given:
-            raise KukaidError(f"{source}: option {given[0]} is for MAT (.mat) sources")
+        if given and not applies:
+            raise KukaidError(f"{source}: option {given[0]} is for {kind} sources")
 
     from kukaid.logs import read_log, write_csv, write_hdf5
 
@@ -68,12 +85,29 @@ def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q
     if is_mat:
         options = dict(time=time_var, q=q_var, tau=tau_var, q_cmd=q_cmd_var, tau_scale=tau_scale,
                        tau_scale_var=tau_scale_var, q_scale=q_scale, time_scale=time_scale, sample_time=sample_time,
-                       joint=joint, axis=axis)
+                       joint=joint, axis=_axes(source, axis))
+    elif is_trace:
+        options = dict(gear_ratio=gear_ratio, time_base=time_base)
     log = read_log(source, **options)
     if fmt == "csv":
         write_csv(log, output)
     else:
         write_hdf5(log, output)
+    if "time_base_note" in log.attrs:
+        click.echo(log.attrs["time_base_note"])
     click.echo(f"{output}: {log.n_samples} samples of axes {', '.join(f'A{a}' for a in log.axes)}, "
                f"{log.duration:.2f} s", err=True)
+
+
+def _axes(source: Path, text: str) -> int | list[int]:
+    """--axis: one axis number, or a comma-separated list of them."""
+    from kukaid.errors import KukaidError
+
+    try:
+        axes = [int(p) for p in str(text).split(",") if p.strip()]
+    except ValueError:
+        raise KukaidError(f"{source}: --axis must be an axis number or a list such as 1,2,3; got {text!r}") from None
+    if not axes:
+        raise KukaidError(f"{source}: --axis must name at least one axis")
+    return axes[0] if len(axes) == 1 and "," not in str(text) else axes
 

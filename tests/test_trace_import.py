@@ -1,6 +1,7 @@
 """KUKA Trace (.dat/.r64) import from files written here from known signals; malformed cases."""
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 from pathlib import Path
@@ -11,26 +12,7 @@ import pytest
 from kukaid.errors import LogFormatError
 from kukaid.logs import read_hdf5, read_log
 from kukaid.logs import read_trace
-
-
-def write_module(folder: Path, stem: str, step: float, n: int, channels: list[tuple[str, str, np.ndarray]],
-                 start: float = 0.0, r64_name: str | None = None, extra_lines: dict | None = None) -> Path:
-    """Write one Trace module: STEM.dat (DIAdem header) + STEM.r64 (interleaved float64)."""
-    r64 = r64_name or f"{stem}.r64"
-    lines = ["DIAEXTENDED  {@:ENGLISH", "", "#BEGINGLOBALHEADER", "1,WINDOWS 32Bit", "101,KRC-Trace",
-             "104,11.22.2026", "#ENDGLOBALHEADER",
-             "#BEGINCHANNELHEADER", "200,Zeit", "202,s", "210,IMPLIZIT", "213,BLOCK", "214,REAL64",
-             f"220,{n}", f"240,{start!r}", f"241,{step!r}", "#ENDCHANNELHEADER"]
-    for j, (name, unit, _) in enumerate(channels, start=1):
-        lines += ["#BEGINCHANNELHEADER", f"200,{name}", "201,", f"202,{unit}", "210,EXPLIZIT", f"211,{r64}",
-                  "213,BLOCK", "214,REAL64", "215,INTEL", f"220,{n}", f"221,{j}", "240,0.0", "241,1.0",
-                  "#ENDCHANNELHEADER"]
-    text = "\n".join(lines) + "\n"
-    for k, v in (extra_lines or {}).items():
-        text = text.replace(k, v)
-    (folder / f"{stem}.dat").write_bytes(text.encode("latin-1"))
-    np.column_stack([c[2] for c in channels]).astype("<f8").tofile(folder / r64)
-    return folder / f"{stem}.dat"
+from trace_set import DEG, GEAR, write_kr_c4_set, write_module
 
 
 def _signals(t):
@@ -148,3 +130,96 @@ def test_nan_in_data_and_no_overlap(tmp_path):
     write_module(tmp_path, "O_Other", 0.012, 50, [("Istmoment A3", "Nm", q)], start=10.0)
     with pytest.raises(LogFormatError, match="do not overlap"):
         read_trace(tmp_path / "O_Drive.dat")
+
+
+# -- a recording as a KR C4 writes it: six NextGenDrive#N modules + KRCIpo ---------------------
+RATIOS = ",".join(f"A{a}={r:g}" for a, r in GEAR.items())
+
+
+@pytest.mark.parametrize("given", ["Rec_NextGenDrive#4.dat", "Rec_KRCIpo.r64", "Rec_NextGenDrive#1.r64"])
+def test_kr_c4_set_loads_every_axis_exactly(tmp_path, given):
+    ts = write_kr_c4_set(tmp_path)
+    log = read_trace(tmp_path / given, gear_ratio=RATIOS)
+    assert log.axes == (1, 2, 3, 4, 5, 6) and log.joint == ("revolute",) * 6
+    assert len(log.attrs["trace_files"]) == 7
+    # time base: the drives' 1 ms instants where the 12 ms setpoints also have data
+    k0, k1 = int(round(ts.t_ipo[0] / 0.001)), int(round(ts.t_ipo[-1] / 0.001))
+    np.testing.assert_allclose(log.time, ts.t_drive[k0:k1 + 1], rtol=0, atol=1e-12)
+    rows = slice(k0, k1 + 1)
+    for c, a in enumerate(log.axes):
+        r = GEAR[a]
+        # exact: the file's raw * factor + offset, degrees -> rad, motor -> joint (q / r, tau * r)
+        np.testing.assert_array_equal(log.q[:, c], ts.value("Istposition", a)[rows] * DEG / r)
+        np.testing.assert_array_equal(log.tau[:, c], ts.value("Istmoment", a)[rows] * r)
+        np.testing.assert_array_equal(log.temp[:, c], ts.value("Motortemperatur", a)[rows])
+        # and it is the joint motion the set was made from (up to the raw numbers' rounding)
+        half_step = {ch: 0.5 * ts.scale[(ch, a)][0] * (1 + 1e-9) for ch in ("Istposition", "Istmoment")}
+        np.testing.assert_allclose(np.degrees(log.q[:, c]), ts.q_joint_deg[a][rows], rtol=0,
+                                   atol=half_step["Istposition"] / abs(r))
+        np.testing.assert_allclose(log.tau[:, c], ts.tau_joint[a][rows], rtol=0, atol=half_step["Istmoment"] * abs(r))
+        # the 12 ms setpoints: as recorded at their own instants, linear in between
+        on = np.isin(np.round(log.time / 0.001).astype(int), np.round(ts.t_ipo / 0.001).astype(int))
+        assert on.sum() == ts.t_ipo.size
+        np.testing.assert_array_equal(log.q_cmd[on, c], ts.value("Sollposition", a) * DEG)
+        np.testing.assert_allclose(log.q_cmd[:, c], np.interp(log.time, ts.t_ipo, ts.value("Sollposition", a) * DEG),
+                                   rtol=0, atol=1e-15)
+    assert log.attrs["time_base"] == "position"
+    assert log.attrs["interpolated"] == [f"q_cmd A{a}" for a in range(1, 7)]
+    assert "Istposition (A1, Rec_NextGenDrive#1), 1 ms" in log.attrs["time_base_note"]
+    assert log.attrs["trace_sample_times"]["Rec_KRCIpo"] == pytest.approx(0.012)
+    assert log.attrs["gear_ratio"] == {f"A{a}": r for a, r in GEAR.items()}
+    assert log.attrs["trace_channels"]["tau A5"] == "Istmoment (Rec_NextGenDrive#5.dat)"
+
+
+def test_kr_c4_set_on_the_common_grid_is_not_interpolated(tmp_path):
+    ts = write_kr_c4_set(tmp_path)
+    log = read_trace(tmp_path / "Rec_KRCIpo.dat", gear_ratio={a: r for a, r in GEAR.items()}, time_base="common")
+    np.testing.assert_allclose(log.time, ts.t_ipo, rtol=0, atol=1e-12)
+    k = np.round(ts.t_ipo / 0.001).astype(int)
+    for c, a in enumerate(log.axes):
+        np.testing.assert_array_equal(log.q[:, c], ts.value("Istposition", a)[k] * DEG / GEAR[a])
+        np.testing.assert_array_equal(log.q_cmd[:, c], ts.value("Sollposition", a) * DEG)
+    assert log.attrs["interpolated"] == [] and "no interpolation" in log.attrs["time_base_note"]
+
+
+def test_kr_c4_set_without_gear_ratios_says_the_positions_are_motor_side(tmp_path):
+    write_kr_c4_set(tmp_path)
+    with pytest.raises(LogFormatError, match=r"Rec_NextGenDrive#1.dat: line \d+: channel 'Istposition': reaches "
+                                             r"[\d.]+ degrees.*motor-side position; give the gear ratios"):
+        read_trace(tmp_path / "Rec_KRCIpo.dat")
+    with pytest.raises(LogFormatError, match=r"channel 'Istposition'.*no gear ratio for A3 \(given for A1, A2\)"):
+        read_trace(tmp_path / "Rec_KRCIpo.dat", gear_ratio="A1=2,A2=3")
+
+
+@pytest.mark.parametrize("spec, match", [("A1=0", "gear ratio of A1 must be finite and non-zero"),
+                                         ("A1:3", "'A1:3' is not AXIS=RATIO"), ("A13=2", "'A13' is not an axis"),
+                                         ("A1=x", "gear ratio of A1 is not a number")])
+def test_bad_gear_ratios(tmp_path, spec, match):
+    write_kr_c4_set(tmp_path, duration=0.1)
+    with pytest.raises(LogFormatError, match=match):
+        read_trace(tmp_path / "Rec_KRCIpo.dat", gear_ratio=spec)
+
+
+def test_kukaid_load_reads_the_set_with_a_gear_ratio_file(tmp_path, kukaid_cmd):
+    ts = write_kr_c4_set(tmp_path, duration=0.5)
+    ratios = tmp_path / "gear.json"
+    ratios.write_text(json.dumps({f"A{a}": r for a, r in GEAR.items()}))
+    out = tmp_path / "rec.h5"
+    r = subprocess.run([*kukaid_cmd, "load", str(tmp_path / "Rec_NextGenDrive#3.dat"), "--gear-ratio", str(ratios),
+                        "-o", str(out)], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert "time base: the sample instants of Istposition (A1, Rec_NextGenDrive#1), 1 ms" in r.stdout
+    assert "linearly interpolated onto it: q_cmd A1" in r.stdout and "gear ratios A1=-161" in r.stdout
+    log = read_hdf5(out)
+    assert log.axes == (1, 2, 3, 4, 5, 6) and log.attrs["time_base"] == "position"
+    k0 = int(round(ts.t_ipo[0] / 0.001))
+    np.testing.assert_array_equal(log.tau[:, 2], ts.value("Istmoment", 3)[k0:k0 + log.n_samples] * GEAR[3])
+    r = subprocess.run([*kukaid_cmd, "load", str(tmp_path / "Rec_KRCIpo.dat"), "--gear-ratio", RATIOS,
+                        "--time-base", "common", "-o", str(tmp_path / "c.h5")], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert read_hdf5(tmp_path / "c.h5").n_samples == ts.t_ipo.size
+    r = subprocess.run([*kukaid_cmd, "load", str(tmp_path / "Rec_KRCIpo.dat"), "-o", str(tmp_path / "m.h5")],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and r.stderr.startswith("kukaid: error: ") and "--gear-ratio" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "m.h5").exists()

@@ -18,11 +18,12 @@ READERS: dict[str, Callable[..., AxisLog]] = {
     ".csv": lambda path, **_: read_csv(path),
     ".mat": read_mat,
     ".dat": read_trace,
+    ".r64": read_trace,  # a Trace data file: its .dat header beside it
 }
 
 
 def read_log(path: str | Path, **options: Any) -> AxisLog:
-    """Read an axis log, choosing the reader by file suffix (.h5/.hdf5, .csv, .mat, .dat)."""
+    """Read an axis log, choosing the reader by file suffix (.h5/.hdf5, .csv, .mat, .dat/.r64)."""
     path = Path(path)
     reader = READERS.get(path.suffix.lower())
     if reader is None:
