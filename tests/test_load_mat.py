@@ -202,3 +202,79 @@ def test_sample_time_option_builds_the_time_base(tmp_path):
                                  "-o", str(out)])
     assert r.exit_code == 0, r.output
     assert read_hdf5(out).sample_time == pytest.approx(0.004)
+
+
+# -- struct fields and (samples, axes) arrays, v5 and v7.3 ------------------------------------------
+def _recording(n=300):
+    t = np.arange(n) * 0.004
+    q_deg = np.column_stack([10 * a + 5 * np.sin(t * a) for a in (1, 2, 3)])
+    tau = np.column_stack([100 * a * np.cos(t * a) for a in (1, 2, 3)])
+    return t, q_deg, tau
+
+
+def test_v5_struct_fields_nested_and_multi_axis(tmp_path):
+    from scipy.io import savemat
+
+    t, q_deg, tau = _recording()
+    path = tmp_path / "rec.mat"
+    savemat(path, {"rec": {"time": t[:, None], "act_pos_mot_deg": q_deg, "drive": {"tau": tau.T, "temp": 40 + 0 * tau}}})
+    log = read_log(path, time="rec.time", q="rec.act_pos_mot_deg", tau="rec.drive.tau", temp="rec.drive.temp",
+                   q_scale=np.pi / 180, axis=[1, 2, 3])
+    assert log.axes == (1, 2, 3)
+    np.testing.assert_array_equal(log.q, q_deg * (np.pi / 180))
+    np.testing.assert_array_equal(log.tau, tau)  # stored (axes, samples): taken column-wise all the same
+    np.testing.assert_array_equal(log.temp, 40 + 0 * tau)
+    one = read_log(path, time="rec.time", q="rec.act_pos_mot_deg", tau="rec.drive.tau", q_scale=np.pi / 180,
+                   axis=[4, 5, 6])
+    assert one.axes == (4, 5, 6)
+    with pytest.raises(LogFormatError, match=r"struct 'rec.drive' has no field 'torque' for torque \(fields: tau, temp\)"):
+        read_log(path, time="rec.time", q="rec.act_pos_mot_deg", tau="rec.drive.torque", axis=[1, 2, 3])
+    with pytest.raises(LogFormatError, match=r"variable 'rec.drive' \(torque\) is not numeric: it holds a struct with "
+                                             r"fields tau, temp; name one as rec.drive.<field>"):
+        read_log(path, time="rec.time", q="rec.act_pos_mot_deg", tau="rec.drive", axis=[1, 2, 3])
+    with pytest.raises(LogFormatError, match=r"'rec.act_pos_mot_deg' \(position\) has shape \(300, 3\): 3 axes, but "
+                                             r"--axis lists 2 \(1, 2\)"):
+        read_log(path, time="rec.time", q="rec.act_pos_mot_deg", tau="rec.drive.tau", axis=[1, 2])
+    with pytest.raises(LogFormatError, match=r"position variable 'rec.act_pos_mot_deg' \(column 1\) reaches"):
+        read_log(path, time="rec.time", q="rec.act_pos_mot_deg", tau="rec.drive.tau", axis=[1, 2, 3])
+
+
+def test_v73_struct_fields_and_multi_axis(tmp_path):
+    import h5py
+
+    t, q_deg, tau = _recording()
+    path = tmp_path / "rec73.mat"
+    _write_v73(path, {"gtau": ("double", np.array([[2.0]]))})
+    with h5py.File(path, "a") as f:  # MATLAB stores column-major: an (N, A) array is an (A, N) dataset
+        rec = f.create_group("rec")
+        rec.attrs["MATLAB_class"] = np.bytes_("struct")
+        for name, data in (("t", t[None, :]), ("act_pos_mot_deg", q_deg.T)):
+            rec.create_dataset(name, data=data).attrs["MATLAB_class"] = np.bytes_("double")
+        sub = rec.create_group("x")
+        sub.attrs["MATLAB_class"] = np.bytes_("struct")
+        sub.create_dataset("y", data=tau.T).attrs["MATLAB_class"] = np.bytes_("double")
+    log = read_log(path, time="rec.t", q="rec.act_pos_mot_deg", tau="rec.x.y", tau_scale_var="gtau",
+                   q_scale=np.pi / 180, axis=[1, 2, 3])
+    assert log.axes == (1, 2, 3)
+    np.testing.assert_array_equal(log.q, q_deg * (np.pi / 180))
+    np.testing.assert_array_equal(log.tau, 2 * tau)
+    with pytest.raises(LogFormatError, match=r"variable 'rec.act_pos_mot_deg' \(position\) has shape \(300, 3\)"):
+        read_log(path, time="rec.t", q="rec.act_pos_mot_deg", tau="rec.x.y", q_scale=np.pi / 180)
+
+
+def test_cli_load_struct_field_with_an_axis_list(tmp_path):
+    from scipy.io import savemat
+
+    t, q_deg, tau = _recording()
+    savemat(tmp_path / "rec.mat", {"rec": {"t": t[:, None], "act_pos_mot_deg": q_deg, "tau": tau}})
+    out = tmp_path / "o.h5"
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "rec.mat"), "--time", "rec.t", "--q", "rec.act_pos_mot_deg",
+                                 "--tau", "rec.tau", "--q-scale", str(np.pi / 180), "--axis", "1,2,3", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    log = read_hdf5(out)
+    assert log.axes == (1, 2, 3) and np.allclose(np.degrees(log.q), q_deg, rtol=0, atol=1e-12)
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "rec.mat"), "--time", "rec.t", "--q", "rec.act_pos_mot_deg",
+                                 "--tau", "rec.tau", "--axis", "1,x", "-o", str(tmp_path / "b.h5")])
+    _one_line_error(r, "--axis must be an axis number or a list such as 1,2,3")
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "rec.mat"), "--gear-ratio", "A1=2", "-o", str(tmp_path / "g.h5")])
+    _one_line_error(r, "option --gear-ratio is for KUKA Trace (.dat, .r64) sources")

@@ -8,12 +8,15 @@ Example, the EMPS benchmark (prismatic drive, metres, force = gtau * vir)::
 Each channel value is ``variable * scale``; ``q_scale`` converts the position to SI (e.g.
 ``pi/180`` for degrees).  The torque scale is given once: a number (``tau_scale``) or a scalar
 variable of the file (``tau_scale_var``), not both.  MATLAB v7.3 files (HDF5) are read with h5py.
+
+A struct field is a variable named with dots (``rec.act_pos_mot_deg``, ``rec.x.y``); a
+(samples, axes) array is several axes at once (``axis=[1, 2, 3]``, ``--axis 1,2,3``).
 """
 from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 import numpy as np
 
@@ -38,14 +41,56 @@ def _kind(x: np.ndarray) -> str | None:
     return "a cell array or object"
 
 
+def _flatten(name: str, x: Any, v: dict[str, Any], other: dict[str, str]) -> None:
+    """Add variable ``name`` to ``v``; a struct's fields too, as ``name.field`` (nested: ``a.b.c``)."""
+    arr = np.asarray(x)
+    v[name] = arr
+    if arr.dtype.names:  # a MATLAB struct (scipy: a record array, each field an object cell)
+        if arr.size != 1:
+            other[name] = f"a struct array of {arr.size} elements"
+            return
+        other[name] = f"a struct with fields {', '.join(arr.dtype.names)}; name one as {name}.<field>"
+        for f in arr.dtype.names:
+            _flatten(f"{name}.{f}", arr[f].reshape(-1)[0], v, other)
+    elif (kind := _kind(arr)) is not None:
+        other[name] = kind
+
+
+def _h5_flatten(name: str, obj, v: dict[str, Any], other: dict[str, str]) -> None:
+    """v7.3: datasets are variables (MATLAB_class names the class), groups are structs."""
+    cls = obj.attrs.get("MATLAB_class", b"double" if hasattr(obj, "shape") else b"struct")
+    cls = cls.decode(errors="replace") if isinstance(cls, bytes) else str(cls)
+    if not hasattr(obj, "shape"):
+        if cls != "struct":
+            other[name] = f"a MATLAB {cls}"
+            v[name] = np.zeros(0)
+            return
+        fields = [k for k in obj.keys() if not k.startswith("#")]
+        v[name] = np.zeros(0)
+        other[name] = f"a struct with fields {', '.join(fields)}; name one as {name}.<field>"
+        for k in fields:
+            _h5_flatten(f"{name}.{k}", obj[k], v, other)
+        return
+    v[name] = np.asarray(obj[()]).T  # MATLAB stores column-major
+    if cls not in _NUMERIC_CLASSES:
+        other[name] = "text" if cls in ("char", "string") else f"a MATLAB {cls}"
+    elif (kind := _kind(v[name])) is not None:
+        other[name] = kind
+
+
 def _load_vars(path: Path) -> tuple[dict[str, np.ndarray], dict[str, str]]:
-    """The variables of a MAT file, and for each non-numeric one what it holds."""
+    """The variables of a MAT file (struct fields as ``rec.field``), and for each non-numeric one
+    what it holds."""
     try:
         from scipy.io import loadmat
 
         d = loadmat(str(path))
-        v = {k: x for k, x in d.items() if not k.startswith("__")}
-        return v, {k: kind for k, x in v.items() if (kind := _kind(x)) is not None}
+        v: dict[str, Any] = {}
+        other: dict[str, str] = {}
+        for k, x in d.items():
+            if not k.startswith("__"):
+                _flatten(k, x, v, other)
+        return v, other
     except NotImplementedError:  # v7.3: HDF5
         pass
     except Exception as e:  # noqa: BLE001 - any parse failure is a format error
@@ -56,15 +101,8 @@ def _load_vars(path: Path) -> tuple[dict[str, np.ndarray], dict[str, str]]:
         v, other = {}, {}
         with h5py.File(path, "r") as f:
             for k in f.keys():
-                if not hasattr(f[k], "shape"):
-                    continue  # groups: structs, and the '#refs#' of cell arrays
-                cls = f[k].attrs.get("MATLAB_class", b"double")
-                cls = cls.decode(errors="replace") if isinstance(cls, bytes) else str(cls)
-                v[k] = np.asarray(f[k][()]).T
-                if cls not in _NUMERIC_CLASSES:
-                    other[k] = "text" if cls in ("char", "string") else f"a MATLAB {cls}"
-                elif (kind := _kind(v[k])) is not None:
-                    other[k] = kind
+                if not k.startswith("#"):  # '#refs#' holds the cells of cell arrays
+                    _h5_flatten(k, f[k], v, other)
         return v, other
     except Exception as e:  # noqa: BLE001 - any parse failure is a format error
         raise LogFormatError(f"{path}: not a readable MAT file (v7.3): {(str(e).splitlines() or [''])[0][:160]}") \
@@ -88,28 +126,34 @@ def _scale(path: Path, value: Any, what: str, positive: bool = False) -> float |
 def read_mat(path: str | Path, time: str | None = None, q: str | None = None, tau: str | None = None,
              q_cmd: str | None = None, temp: str | None = None, tau_scale: float | None = None,
              tau_scale_var: str | None = None, q_scale: float = 1.0, time_scale: float = 1.0,
-             joint: str = "revolute", axis: int = 1, sample_time: float | None = None, **_ignored: Any):
-    """Read a MAT file as a one-axis :class:`~kukaid.logs.axislog.AxisLog` (SI units).
+             joint: str = "revolute", axis: int | Iterable[int] = 1, sample_time: float | None = None,
+             **_ignored: Any):
+    """Read a MAT file as an :class:`~kukaid.logs.axislog.AxisLog` of one or more axes (SI units).
 
     Parameters
     ----------
     time, q, tau, q_cmd, temp : names of the MAT variables (defaults: ``time``/``t``, ``q``,
-        ``tau``; optional channels only when named).  Each must be numeric (not text, a cell
-        array or a struct).
+        ``tau``; optional channels only when named).  A struct field is named with dots
+        (``rec.act_pos_mot_deg``, nested ``rec.x.y``), in v5 and v7.3 (HDF5) files alike.  Each
+        must be numeric (not text, a cell array or a struct): a vector for one axis, or a
+        (samples, axes) array (or its transpose) with one column per number in ``axis``.
     tau_scale : torque (force) scale, e.g. 35.15 N/V; or ``tau_scale_var``: a scalar variable in
         the file holding it (``gtau`` in EMPS); not both.   q_scale : position (and q_cmd) scale
         to rad or m.  Every scale must be a finite non-zero number.
     time_scale : to seconds (positive).   sample_time : build the time base when the file has
         none (s, positive).
-    joint : "revolute" or "prismatic".   axis : axis number to give the log.
+    joint : "revolute" or "prismatic" (every axis).   axis : the axis number of the log, or a list
+        of them, one per column of the (samples, axes) arrays.
 
     Raises
     ------
     LogFormatError : one line naming the file and the variable or option that is wrong.
     """
-    from kukaid.logs.axislog import AxisLog
+    from kukaid.logs.axislog import AxisLog, check_samples, check_units
 
     path = Path(path)
+    axes = tuple(int(a) for a in np.atleast_1d(axis))
+    n_ax = len(axes)
     if tau_scale is not None and tau_scale_var is not None:
         raise LogFormatError(f"{path}: give the torque scale once, --tau-scale or --tau-scale-var, not both")
     tau_scale = _scale(path, tau_scale, "the torque scale (--tau-scale)")
@@ -120,30 +164,51 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
     v, not_numeric = _load_vars(path)
-    names = sorted(v)
+    names = sorted(k for k in v if "." not in k)
 
-    def get(name: str | None, role: str, required: bool) -> np.ndarray | None:
-        if name is None:
-            return None
+    def lookup(name: str, role: str) -> np.ndarray:
         if name not in v:
-            if required:
-                raise LogFormatError(f"{path}: no variable '{name}' for {role} (variables: {', '.join(names)})")
-            return None
+            head, _, field = name.rpartition(".")
+            if head in v and head in not_numeric and "struct with fields" in not_numeric[head]:
+                fields = sorted(k[len(head) + 1:] for k in v if k.startswith(head + ".") and "." not in k[len(head) + 1:])
+                raise LogFormatError(f"{path}: struct '{head}' has no field '{field}' for {role} "
+                                     f"(fields: {', '.join(fields)})")
+            raise LogFormatError(f"{path}: no variable '{name}' for {role} (variables: {', '.join(names)})")
         if name in not_numeric:
             raise LogFormatError(f"{path}: variable '{name}' ({role}) is not numeric: it holds {not_numeric[name]}")
-        x = np.atleast_1d(np.asarray(v[name], dtype=float).squeeze())
+        return np.asarray(v[name], dtype=float)
+
+    def vector(name: str, role: str) -> np.ndarray:
+        x = np.atleast_1d(lookup(name, role).squeeze())
         if x.ndim != 1:
             raise LogFormatError(f"{path}: variable '{name}' ({role}) has shape {np.shape(v[name])}, expected a vector")
         return x
+
+    def per_axis(name: str, role: str) -> np.ndarray:
+        """(samples, axes) from a vector (one axis) or a 2-D array with one column (or row) per axis."""
+        x = lookup(name, role)
+        x = x.reshape(x.shape[0], -1) if x.ndim > 2 and x.size else x
+        if x.ndim <= 1 or 1 in x.shape:
+            if n_ax == 1:
+                return np.atleast_1d(x.squeeze()).reshape(-1, 1)
+            raise LogFormatError(f"{path}: variable '{name}' ({role}) is a vector but --axis lists {n_ax} axes "
+                                 f"{list(axes)}; give a (samples, {n_ax}) array")
+        if x.ndim == 2 and x.shape[1] == n_ax:
+            return x
+        if x.ndim == 2 and x.shape[0] == n_ax:
+            return x.T
+        cols = min(x.shape) if x.ndim == 2 else x.shape
+        raise LogFormatError(f"{path}: variable '{name}' ({role}) has shape {np.shape(v[name])}: {cols} axes, but "
+                             f"--axis lists {n_ax} ({', '.join(map(str, axes))}); give one axis number per column")
 
     qn = q or ("q" if "q" in v else None)
     tn = tau or ("tau" if "tau" in v else None)
     if qn is None or tn is None:
         raise LogFormatError(f"{path}: name the position and torque variables (--q, --tau); variables: {', '.join(names)}")
-    qa = get(qn, "position", True) * q_scale
-    ta = get(tn, "torque", True)
+    qa = per_axis(qn, "position") * q_scale
+    ta = per_axis(tn, "torque")
     if tau_scale_var is not None:
-        s = get(tau_scale_var, "torque scale", True)
+        s = vector(tau_scale_var, "torque scale")
         if s.size != 1:
             raise LogFormatError(f"{path}: torque scale variable '{tau_scale_var}' is not a scalar")
         if not (np.isfinite(s[0]) and s[0] != 0):
@@ -154,31 +219,29 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
         ta = ta * tau_scale
     tn_name = time or ("time" if "time" in v else ("t" if "t" in v else None))
     if tn_name is not None:
-        t = get(tn_name, "time", True) * time_scale
+        t = vector(tn_name, "time") * time_scale
     elif sample_time is not None:
-        t = np.arange(qa.size) * sample_time
+        t = np.arange(qa.shape[0]) * sample_time
     else:
         raise LogFormatError(f"{path}: no time variable; name it (--time) or give --sample-time")
-    for nm, x in ((tn, ta), (qn, qa)):
-        if x.size != t.size:
-            raise LogFormatError(f"{path}: variable '{nm}' has {x.size} samples but time has {t.size}")
     extra = {}
     for ch, nm, sc in (("q_cmd", q_cmd, q_scale), ("temp", temp, 1.0)):
-        x = get(nm, ch, True)
-        if x is not None:
-            if x.size != t.size:
-                raise LogFormatError(f"{path}: variable '{nm}' has {x.size} samples but time has {t.size}")
-            extra[ch] = x * sc
+        if nm is not None:
+            extra[ch] = per_axis(nm, ch) * sc
+    for nm, x in ((tn, ta), (qn, qa), *((n, extra[c]) for c, n in (("q_cmd", q_cmd), ("temp", temp)) if n)):
+        if x.shape[0] != t.size:
+            raise LogFormatError(f"{path}: variable '{nm}' has {x.shape[0]} samples but time has {t.size}")
     # unit mistakes (milliseconds as seconds, degrees without --q-scale) name the variables
-    from kukaid.logs.axislog import check_samples, check_units
-
-    labels = {"time": f"time variable '{tn_name}'" if tn_name else "the time base (--sample-time)",
-              ("q", int(axis)): f"position variable '{qn}'"}
-    if q_cmd:
-        labels[("q_cmd", int(axis))] = f"commanded position variable '{q_cmd}'"
-    chans = {"q": qa[:, None], "tau": ta[:, None], **{k: x[:, None] for k, x in extra.items()}}
-    check_samples(t, chans, (int(axis),), str(path))
-    check_units(t, chans, (int(axis),), (joint,), str(path), labels=labels)
+    col = (lambda c: "") if n_ax == 1 else (lambda c: f" (column {c + 1})")
+    labels: dict[Any, str] = {"time": f"time variable '{tn_name}'" if tn_name else "the time base (--sample-time)"}
+    for c, a in enumerate(axes):
+        labels[("q", a)] = f"position variable '{qn}'{col(c)}"
+        if q_cmd:
+            labels[("q_cmd", a)] = f"commanded position variable '{q_cmd}'{col(c)}"
+    chans = {"q": qa, "tau": ta, **extra}
+    joints = (joint,) * n_ax
+    check_samples(t, chans, axes, str(path))
+    check_units(t, chans, axes, joints, str(path), labels=labels)
     attrs = {"source_file": str(path), "source": "mat", "mat_variables": {"time": tn_name, "q": qn, "tau": tn, **{
         k: n for k, n in (("q_cmd", q_cmd), ("temp", temp)) if n}}}
-    return AxisLog(time=t, q=qa, tau=ta, axes=(int(axis),), joint=(joint,), attrs=attrs, **extra)
+    return AxisLog(time=t, q=qa, tau=ta, axes=axes, joint=joints, attrs=attrs, **extra)
