@@ -7,7 +7,6 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -19,6 +18,7 @@ from kukaid.logs import read_hdf5
 from kukaid.krc.krl_logger import RingLayout
 from kukaid.krc.kvp_capture import capture_kvp
 from kukaid.krc.server import KvpServer, SimSource
+from live_helpers import CountingSource, wait_for_samples
 
 
 def _excitation(duration: float = 8.0) -> SimpleNamespace:
@@ -35,10 +35,13 @@ def virtual_krc4():
 
     made = []
 
-    def make(duration: float = 8.0, ring=RingLayout(axes=(3,))):
+    def make(duration: float = 8.0, ring=RingLayout(axes=(3,)), count: str = "$AXIS_ACT_MEAS"):
+        """The server counts the reads of ``count`` in ``srv.reads`` (a CountingSource)."""
         sim = VirtualKRC4(SimConfig().replace(noise_sigma=0.3), seed=11, axis=3)
         src = SimSource(sim, axis=3, trajectory=_excitation(duration), ring=ring).start()
-        srv = KvpServer(src, port=0).start()
+        reads = CountingSource(src, count)
+        srv = KvpServer(reads, port=0).start()
+        srv.reads = reads
         made.append((srv, src))
         return srv, src
 
@@ -48,19 +51,26 @@ def virtual_krc4():
         src.stop()
 
 
-def _match_truth(log, truth, min_pair_fraction=0.95, q_tol_deg=2e-6, tau_tol=2e-6):
+def _match_truth(log, truth, min_pair_fraction=None, q_tol_deg=2e-6, tau_tol=2e-6):
     """Every logged position is a position the simulator measured; (q, tau) pairs come from one sample.
 
-    Poll mode serves 6 decimals (deg, N·m); the ring logger's text has 4 (deg) and 3 (N·m).
+    Poll mode serves 6 decimals (deg, N·m); the ring logger's text has 4 (deg) and 3 (N·m).  Poll
+    mode reads the position and the torque in two requests: a new 12 ms sample between them splits
+    that one pair, so by default at most one pair per 12 ms of the log (+2) may be split, a bound
+    that holds at any polling rate (a fixed fraction would not: a slow poller splits more).
     """
     tq, ttau = truth["q"], truth["tau"]
     q, tau = log.q[:, 0], log.tau[:, 0]
     dq = np.abs(np.degrees(q)[:, None] - np.degrees(tq)[None, :])
     assert np.all(dq.min(axis=1) < q_tol_deg), "a logged position is not one the simulator measured"
     pair = (dq < q_tol_deg) & (np.abs(tau[:, None] - ttau[None, :]) < tau_tol)
-    frac = pair.any(axis=1).mean()
-    assert frac >= min_pair_fraction, f"only {frac:.3f} of (q, tau) pairs match one simulator sample"
-    return frac
+    split = int((~pair.any(axis=1)).sum())
+    if min_pair_fraction is None:
+        assert split <= log.duration / 0.012 + 2, f"{split} (q, tau) pairs split, {log.duration:.3f} s of samples"
+    else:
+        frac = 1 - split / log.n_samples
+        assert frac >= min_pair_fraction, f"only {frac:.3f} of (q, tau) pairs match one simulator sample"
+    return split
 
 
 def test_poll_capture_matches_ground_truth(virtual_krc4, tmp_path):
@@ -70,31 +80,38 @@ def test_poll_capture_matches_ground_truth(virtual_krc4, tmp_path):
     s = capture_kvp(out, "127.0.0.1", srv.port, [3], 1.5, False, "poll", seen.append,
                     attrs={"experiment": "inertia"})
     log = read_hdf5(out)
-    assert log.n_samples == s["n_samples"] > 100
+    n = log.n_samples
+    assert n == s["n_samples"] >= 2 and n == srv.reads.n  # one $AXIS_ACT_MEAS read a sample
+    assert s["rate_hz"] == pytest.approx((n - 1) / s["duration_s"])
     assert log.axes == (3,) and log.has("temp")
     _match_truth(log, src.truth())
     # every simulator sample of the captured interval was seen at least once (polling beats 12 ms)
     # polling (sub-ms) sees most 12 ms simulator samples of the captured interval; what it misses
     # is lost to scheduling pauses (here the server shares the test's process and CPU: under load
     # the simulator thread advances in bursts and a poll sees only the newest sample) -- the
-    # reason for ring mode.  Measured here (load average 5.5 on 2 cores): 0.99.
+    # reason for ring mode.  Measured here (load average 5.5 on 2 cores): 0.99.  A machine that
+    # polls slower than the 12 ms samples can only see rate x 12 ms of them: the bound follows.
     tr = src.truth()
     k = [int(np.argmin(np.abs(tr["q"] - log.q[i, 0]) + np.abs(tr["tau"] - log.tau[i, 0]))) for i in (0, -1)]
     window = np.round(np.degrees(tr["q"][k[0]:k[1] + 1]), 6)
     seen_frac = np.isin(window, np.round(np.degrees(log.q[:, 0]), 6)).mean()
-    assert seen_frac > 0.5, seen_frac
+    assert seen_frac > 0.5 * min(1.0, s["rate_hz"] * 0.012), (seen_frac, s["rate_hz"])
     # PC timestamps keep the controller's time scale: (sim time of the sample) - (PC stamp) is
     # constant up to the 12 ms sample age and scheduling jitter
     idx = np.array([int(np.argmin(np.abs(tr["q"] - log.q[i, 0]) + np.abs(tr["tau"] - log.tau[i, 0])))
                     for i in range(0, log.n_samples, 10)])
     offset = tr["time"][idx] - log.time[::10]
-    assert np.mean(np.abs(offset - np.median(offset)) < 0.03) > 0.8
+    jitter = 0.03 + 2 * s["latency_p99_s"]  # sample age + scheduling, and the request time measured
+    assert np.mean(np.abs(offset - np.median(offset)) < jitter) > 0.8
     for k in ("rate_hz", "latency_mean_s", "latency_p99_s", "latency_max_s", "n_requests"):
         assert k in log.attrs and log.attrs[k] > 0
     assert log.attrs["latency_p99_s"] >= log.attrs["latency_mean_s"]
     assert log.attrs["source"] == "kukavarproxy" and log.attrs["experiment"] == "inertia"
     assert 20 < log.temp[-1, 0] < 120  # kelvin converted to °C
-    assert seen and 1.0 < seen[-1] <= 1.6
+    # progress every 0.1 s up to the end: the last report is within 0.1 s + two sample intervals
+    # (as measured) of the last sample, and never after the capture ended
+    gap = float(np.max(np.diff(log.time)))
+    assert seen == sorted(seen) and log.time[-1] - 0.1 - 2 * gap <= seen[-1] <= s["wall_s"]
     assert log.attrs.get("gaps") is None and s["gaps"] == []
 
 
@@ -103,8 +120,8 @@ def test_ring_capture_is_exact_at_12_ms(virtual_krc4, tmp_path):
     out = tmp_path / "ring.h5"
     s = capture_kvp(out, "127.0.0.1", srv.port, [3], 1.2, False, "ring", None)
     log = read_hdf5(out)
-    assert np.allclose(np.diff(log.time), 0.012)
-    assert log.n_samples >= 72 and s["gaps"] == []
+    assert np.allclose(np.diff(log.time), 0.012)  # every 12 ms sample, none lost, whatever the speed
+    assert log.n_samples >= 10 and s["gaps"] == []
     tr = src.truth()
     k0 = int(np.argmin(np.abs(tr["q"] - log.q[0, 0]) + np.abs(tr["tau"] - log.tau[0, 0])))
     n = log.n_samples
@@ -122,37 +139,37 @@ def test_ring_capture_refuses_axes_the_logger_does_not_record(virtual_krc4, tmp_
 
 
 def test_dropped_connection_resumes_and_marks_gap(virtual_krc4, tmp_path):
+    """The link drops during sample 60 (the controller is away 0.5 s); the capture reconnects and
+    is stopped 60 samples later: driven by samples, the counts hold at any speed."""
     srv, src = virtual_krc4()
+    stop = threading.Event()
+    srv.reads.at(60, lambda: srv.go_down(0.5)).at(120, stop.set)
     out = tmp_path / "drop.h5"
-    timer = threading.Timer(0.7, srv.go_down, args=(0.5,))
-    timer.start()
-    try:
-        s = capture_kvp(out, "127.0.0.1", srv.port, [3], 2.0, False, "poll", None, reconnect_wait=5.0)
-    finally:
-        timer.cancel()
+    s = capture_kvp(out, "127.0.0.1", srv.port, [3], 60.0, False, "poll", None, reconnect_wait=5.0,
+                    stop_event=stop)
     log = read_hdf5(out)
-    assert len(s["gaps"]) == 1 and s["n_reconnects"] == 1
+    assert s["stopped_by"] == "stop-event" and len(s["gaps"]) == 1 and s["n_reconnects"] == 1
     g0, g1 = log.attrs["gaps"][0]
-    assert 0.5 < g0 < 0.9 and g1 - g0 >= 0.45
     before, after = log.time <= g0, log.time >= g1
-    assert before.sum() > 50 and after.sum() > 50 and (before | after).all()
+    assert before.sum() == 59 and after.sum() == 60 and (before | after).all()
+    assert g0 == log.time[58] and g1 - g0 >= 0.5  # from the last sample before to the reconnection
     _match_truth(log, src.truth())  # samples on both sides intact
 
 
 def test_garbage_mid_capture_is_survived_and_persistent_garbage_is_a_clear_error(virtual_krc4, tmp_path):
     srv, src = virtual_krc4()
-    timer = threading.Timer(0.3, lambda: setattr(srv.faults, "garbage", 1))
-    timer.start()
-    s = capture_kvp(tmp_path / "g1.h5", "127.0.0.1", srv.port, [3], 0.8, False, "poll", None)
-    assert len(s["gaps"]) == 1
+    stop = threading.Event()
+    # the reply after sample 30's position (its torque) is garbage; stopped at sample 80
+    srv.reads.at(30, lambda: setattr(srv.faults, "garbage", 1)).at(80, stop.set)
+    s = capture_kvp(tmp_path / "g1.h5", "127.0.0.1", srv.port, [3], 60.0, False, "poll", None, stop_event=stop)
+    assert len(s["gaps"]) == 1 and s["n_samples"] == 79  # sample 30 lost to the garbage
     _match_truth(read_hdf5(tmp_path / "g1.h5"), src.truth())
-    timer = threading.Timer(0.3, lambda: setattr(srv.faults, "garbage", 10_000))
-    timer.start()
-    with pytest.raises(ControllerError, match=r"capture stopped after \d+ samples \(kept in .*g2.h5\).*garbage"):
-        capture_kvp(tmp_path / "g2.h5", "127.0.0.1", srv.port, [3], 5.0, False, "poll", None, reconnect_wait=1.0)
+    srv.reads.at(srv.reads.n + 30, lambda: setattr(srv.faults, "garbage", 10_000))
+    with pytest.raises(ControllerError, match=r"capture stopped after 29 samples \(kept in .*g2.h5\).*garbage"):
+        capture_kvp(tmp_path / "g2.h5", "127.0.0.1", srv.port, [3], 60.0, False, "poll", None, reconnect_wait=1.0)
     srv.faults.garbage = 0
     log = read_hdf5(tmp_path / "g2.h5")
-    assert log.n_samples > 10
+    assert log.n_samples == 29
     _match_truth(log, src.truth())
 
 
@@ -181,27 +198,19 @@ def _child(out: Path, port: int, mode: str = "poll") -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def _wait_samples(out: Path, proc: subprocess.Popen, seconds: float) -> None:
-    deadline = time.monotonic() + 20
-    while not out.exists() and time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.05)
-    time.sleep(seconds)
-
-
 def test_sigkill_leaves_every_flushed_sample(virtual_krc4, tmp_path):
     srv, src = virtual_krc4()
     out = tmp_path / "killed.h5"
     proc = _child(out, srv.port)
     try:
-        _wait_samples(out, proc, 1.2)
+        flushed = wait_for_samples(out, proc, 200)  # on disk, whatever the speed
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=10)
     finally:
         if proc.poll() is None:
             proc.kill()
     log = read_hdf5(out)
-    # flushed at least every 0.25 s: at most the last 0.5 s may be missing
-    assert log.duration > 0.6 and log.n_samples > 100
+    assert log.n_samples >= flushed >= 200  # every sample flushed before the kill is kept
     _match_truth(log, src.truth())
 
 
@@ -210,7 +219,7 @@ def test_sigterm_stops_cleanly(virtual_krc4, tmp_path):
     out = tmp_path / "term.h5"
     proc = _child(out, srv.port, "ring")
     try:
-        _wait_samples(out, proc, 0.8)
+        flushed = wait_for_samples(out, proc, 24)
         proc.send_signal(signal.SIGTERM)
         stdout, stderr = proc.communicate(timeout=10)
     finally:
@@ -219,19 +228,19 @@ def test_sigterm_stops_cleanly(virtual_krc4, tmp_path):
     assert proc.returncode == 0, stderr
     assert stdout.startswith("stopped_by signal")
     log = read_hdf5(out)
-    assert log.attrs["stopped_by"] == "signal" and log.n_samples >= 24
+    assert log.attrs["stopped_by"] == "signal" and log.n_samples >= flushed >= 24
 
 
 def test_serve_sim_subprocess_end_to_end(tmp_path, kukaid_cmd):
     """`kukaid serve-sim` in the background; capture through the protocol; compare with its truth."""
     from kukaid.excite import Trajectory
 
-    ex = _excitation(4.0)
+    ex = _excitation(60.0)  # longer than the capture takes to start on any machine
     traj = Trajectory(t=ex.t, q=ex.q, axis=3, kind="inertia")
     traj.to_json(tmp_path / "traj.json")
     truth = tmp_path / "truth.h5"
     server = subprocess.Popen([*kukaid_cmd, "serve-sim", "--port", "0", "--trajectory", str(tmp_path / "traj.json"),
-                               "--duration", "4", "--seed", "5", "--truth", str(truth)],
+                               "--duration", "120", "--seed", "5", "--truth", str(truth)],
                               stderr=subprocess.PIPE, text=True)
     try:
         line = server.stderr.readline()
@@ -243,6 +252,7 @@ def test_serve_sim_subprocess_end_to_end(tmp_path, kukaid_cmd):
                             "--host", "127.0.0.1", "--port", str(port), "--axis", "3", "--duration", "2"],
                            capture_output=True, text=True, timeout=60)
         assert r.returncode == 0, r.stderr
+        server.send_signal(signal.SIGTERM)  # stops cleanly and writes the truth
         server.wait(timeout=30)
         assert server.returncode == 0, server.stderr.read()
     finally:
@@ -268,24 +278,32 @@ def test_slow_replies_lower_the_rate_and_show_in_the_latency(virtual_krc4, tmp_p
     _match_truth(log, src.truth(), min_pair_fraction=0.0)
 
 
-@pytest.mark.parametrize("ring, outage, expect_gap", [(RingLayout(axes=(3,)), 0.3, False),
-                                                      (RingLayout(axes=(3,), nb=2, bs=2), 0.5, True)])
-def test_ring_mode_rides_out_an_outage_shorter_than_the_ring(virtual_krc4, tmp_path, ring, outage, expect_gap):
-    """Unacknowledged blocks wait in the ring: a short outage loses nothing; a long one is a marked gap."""
-    srv, src = virtual_krc4(ring=ring)
-    timer = threading.Timer(0.4, srv.go_down, args=(outage,))
-    timer.start()
-    try:
-        s = capture_kvp(tmp_path / "ro.h5", "127.0.0.1", srv.port, [3], 1.6, False, "ring", None, reconnect_wait=5)
-    finally:
-        timer.cancel()
+@pytest.mark.parametrize("ring, outage", [(RingLayout(axes=(3,)), 0.3), (RingLayout(axes=(3,), nb=2, bs=2), 0.5)])
+def test_ring_mode_rides_out_an_outage_shorter_than_the_ring(virtual_krc4, tmp_path, ring, outage):
+    """Unacknowledged blocks wait in the ring: a short outage loses nothing; a long one is a marked gap.
+
+    The link drops at the 10th ring poll and the capture stops 20 polls after it is back.  Whether
+    samples are lost depends on how long the capture was away from the ring (the outage plus the
+    reconnection, longer on a loaded machine): measured, and compared with what the ring holds."""
+    srv, src = virtual_krc4(ring=ring, count="KID_WR")
+    stop = threading.Event()
+    srv.reads.at(10, lambda: srv.go_down(outage)).at(31, stop.set)  # read 10 is lost, 11 is the first after
+    s = capture_kvp(tmp_path / "ro.h5", "127.0.0.1", srv.port, [3], 60.0, False, "ring", None, reconnect_wait=5,
+                    stop_event=stop)
     log = read_hdf5(tmp_path / "ro.h5")
-    assert s["n_reconnects"] == 1
+    assert s["n_reconnects"] == 1 and s["stopped_by"] == "stop-event"
+    away = srv.reads.times[10] - srv.reads.times[8]  # from the last poll acknowledged before the outage
+    holds = ring.nb * ring.bs * 0.012  # s of samples the ring keeps unacknowledged
     steps = np.round(np.diff(log.time) / 0.012).astype(int)
-    if expect_gap:
+    assert away >= outage
+    if away > holds + 0.03:  # the ring overflowed: a marked gap
         assert s["ring_overflows"] >= 1 and len(log.attrs["gaps"]) >= 1
         g0, g1 = log.attrs["gaps"][0]
         assert g1 - g0 > 0.1 and steps.max() > 1
-    else:
+    elif away < holds - ring.bs * 0.012 - 0.03:  # room left for a whole block: nothing lost
         assert s["gaps"] == [] and s["ring_overflows"] == 0 and np.all(steps == 1)
+    else:  # at the edge: either, but consistent
+        assert (s["ring_overflows"] >= 1) == (len(s["gaps"]) >= 1) == bool(steps.max() > 1)
+    if holds + 0.03 < outage:
+        assert s["ring_overflows"] >= 1  # the long outage always overflows the small ring
     _match_truth(log, src.truth(), min_pair_fraction=1.0, q_tol_deg=5.1e-5, tau_tol=5.1e-4)
