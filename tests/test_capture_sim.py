@@ -6,7 +6,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ from kukaid.errors import KukaidError
 from kukaid.excite import Trajectory, friction
 from kukaid.logs import read_hdf5
 from kukaid_cli.main import cli
+from live_helpers import wait_for_samples
 
 
 def run(*args):
@@ -212,22 +212,6 @@ def _start_capture(traj: Path, out: Path) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
 
 
-def _wait_for_samples(out: Path, proc: subprocess.Popen, n_min: int, timeout: float = 60.0) -> None:
-    t_end = time.monotonic() + timeout
-    while time.monotonic() < t_end:
-        if proc.poll() is not None:
-            pytest.fail(f"capture ended early: {proc.stderr.read().decode()}")
-        if out.exists():
-            try:
-                if read_hdf5(out).n_samples >= n_min:
-                    return
-            except KukaidError:
-                pass
-        time.sleep(0.1)
-    proc.kill()
-    pytest.fail("capture did not record in time")
-
-
 def _check_prefix(out: Path, traj: Path) -> int:
     """The kept log is readable, strictly increasing, and equals the start of an uninterrupted run."""
     from kukaid.sim import SimConfig, VirtualKRC4
@@ -251,7 +235,7 @@ def _check_prefix(out: Path, traj: Path) -> int:
 def test_killed_capture_leaves_a_readable_log(long_traj, tmp_path):
     out = tmp_path / "killed.h5"
     proc = _start_capture(long_traj, out)
-    _wait_for_samples(out, proc, 300)
+    wait_for_samples(out, proc, 300)
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=30)
     assert proc.returncode == -signal.SIGKILL
@@ -262,7 +246,7 @@ def test_killed_capture_leaves_a_readable_log(long_traj, tmp_path):
 def test_interrupted_capture_keeps_data_and_says_so(long_traj, tmp_path, sig):
     out = tmp_path / "interrupted.h5"
     proc = _start_capture(long_traj, out)
-    _wait_for_samples(out, proc, 300)
+    wait_for_samples(out, proc, 300)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=30)
     err = err.decode()

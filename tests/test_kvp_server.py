@@ -60,7 +60,7 @@ def test_at_most_ten_clients(static_server):
 
 def test_faults_status_empty_garbage_drop_delay(static_server):
     srv, _ = static_server
-    c = KvpClient("127.0.0.1", srv.port, timeout=0.3)
+    c = KvpClient("127.0.0.1", srv.port, timeout=5.0)  # an upper bound for prompt replies, even when loaded
     srv.faults.fail = {"$OV_PRO"}
     with pytest.raises(KvpVariableError, match="status 0"):
         c.read("$OV_PRO")
@@ -77,10 +77,12 @@ def test_faults_status_empty_garbage_drop_delay(static_server):
     with pytest.raises(KvpConnectionError, match="closed"):
         c.read("$OV_PRO")
     assert c.read("$OV_PRO") == "100"
-    srv.faults.delay = 0.6
+    c.timeout = 0.3
+    srv.faults.delay = 0.6  # the reply comes 0.6 s late at the earliest: a 0.3 s timeout expires first
     with pytest.raises(KvpTimeoutError):
         c.read("$OV_PRO")
     srv.faults.delay = 0.0
+    c.timeout = 5.0
     srv.faults.split = True
     assert c.read("$OV_PRO") == "100"
     c.close()
