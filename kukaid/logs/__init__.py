@@ -1,15 +1,19 @@
-"""Axis logs and their file formats: HDF5 and CSV (:mod:`.axislog`), MAT (:mod:`.matlog`), KUKA Trace
-(:mod:`.trace`); :func:`read_log` picks the reader by the file's suffix."""
+"""Axis logs and their file formats: the log and its checks (:mod:`.core`), HDF5 (:mod:`.hdf5`, live
+data :mod:`.writer`), CSV (:mod:`.csvlog`), MAT (:mod:`.matlog`), KUKA Trace (:mod:`.trace`, DIAdem
+files :mod:`.diadem`); :func:`read_log` picks the reader by the file's suffix.  The formats import
+the core, this registry imports the formats."""
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any, Callable
 
 from kukaid.errors import LogFormatError
-from kukaid.logs.axislog import (AxisLog, AxisLogWriter, check_samples, check_units, read_csv, read_hdf5,
-                                 write_csv, write_hdf5)
+from kukaid.logs.core import AxisLog, check_samples, check_units
+from kukaid.logs.csvlog import read_csv, write_csv
+from kukaid.logs.hdf5 import read_hdf5, write_hdf5
 from kukaid.logs.matlog import read_mat
 from kukaid.logs.trace import read_trace
+from kukaid.logs.writer import AxisLogWriter
 
 #: one reader per file suffix; a reader takes the path and the format's own options
 READERS: dict[str, Callable[..., AxisLog]] = {

@@ -21,6 +21,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from kukaid.errors import LogFormatError
+from kukaid.logs.core import AxisLog, check_samples, check_units
 
 #: MATLAB classes of numeric arrays (v7.3 files name the class in the attribute MATLAB_class).
 _NUMERIC_CLASSES = {"double", "single", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64",
@@ -128,7 +129,7 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
              tau_scale_var: str | None = None, q_scale: float = 1.0, time_scale: float = 1.0,
              joint: str = "revolute", axis: int | Iterable[int] = 1, sample_time: float | None = None,
              **_ignored: Any):
-    """Read a MAT file as an :class:`~kukaid.logs.axislog.AxisLog` of one or more axes (SI units).
+    """Read a MAT file as an :class:`~kukaid.logs.core.AxisLog` of one or more axes (SI units).
 
     Parameters
     ----------
@@ -149,8 +150,6 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     ------
     LogFormatError : one line naming the file and the variable or option that is wrong.
     """
-    from kukaid.logs.axislog import AxisLog, check_samples, check_units
-
     path = Path(path)
     axes = tuple(int(a) for a in np.atleast_1d(axis))
     n_ax = len(axes)

@@ -1,29 +1,13 @@
-"""KUKA Trace recordings (KR C4): DIAdem ``.dat`` headers with ``.r64`` data files -> AxisLog.
+"""KUKA Trace recordings (KR C4) -> AxisLog: the channels of a recording's modules mapped to axes.
 
-The ``.dat`` file is DIAdem text: a first line starting ``DIAEXTENDED``, a global header
-(``#BEGINGLOBALHEADER`` .. ``#ENDGLOBALHEADER``) and one channel header per channel
-(``#BEGINCHANNELHEADER`` .. ``#ENDCHANNELHEADER``) made of ``code,value`` lines:
-
-====  ===========================================================================
-200   channel name                      202  unit
-210   ``EXPLIZIT`` (values in a data file) or ``IMPLIZIT`` (time: start + i*step)
-211   data file (``.r64``)              214  data type (``REAL64`` only)
-220   number of values                  221  column pointer (1-based) in the data file
-222   values per row (optional; default: the number of columns the file holds)
-240   offset (explicit) / start (implicit)
-241   factor (explicit) / step (implicit)
-====  ===========================================================================
-
-The ``.r64`` file is little-endian float64, interleaved: one column per explicit channel.
-
-A recording is usually several modules (one ``.dat``/``.r64`` pair each, e.g.
-``REC_KRCIpo.dat`` and ``REC_NextGenDrive#1.dat``) with different sample times.  Given one of
-them, :func:`read_trace` also reads its siblings ``REC_*.dat`` and puts every channel on one time
-base (by default that of the measured position; other channels are interpolated linearly over
-the interval all channels cover).
+The files are DIAdem ``.dat`` headers with ``.r64`` data (:mod:`kukaid.logs.diadem`).  A recording
+is several modules (one ``.dat``/``.r64`` pair each: ``REC_NextGenDrive#1`` .. ``#6``, one per
+drive, and ``REC_KRCIpo``, the interpolator) with different sample times.  Given any file of
+them, :func:`read_trace` also reads its siblings ``REC_*.dat`` and puts every channel on one stated
+time base (see ``time_base``) over the interval all channels cover.
 
 Channel mapping (case-insensitive; axis number from ``A3``, ``Achse 3``, ``Axis 3`` or a trailing
-number):
+number in the channel name, else from the module's file name, ``NextGenDrive#3`` -> A3):
 
 - measured position ``q``: ``Istposition``, ``Ist-Position``, ``Position_Ist``, ``AxisPos_Act``,
   ``ActPos``;
@@ -39,190 +23,16 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from kukaid.errors import LogFormatError
-
-if TYPE_CHECKING:
-    from kukaid.logs.axislog import AxisLog
+from kukaid.logs.core import AxisLog
+from kukaid.logs.diadem import Signal, load_signals
 
 _DEG = math.pi / 180.0
-
-
-@dataclass
-class _Channel:
-    file: Path
-    line: int  # line of #BEGINCHANNELHEADER
-    codes: dict[int, str] = field(default_factory=dict)
-    code_lines: dict[int, int] = field(default_factory=dict)
-
-    @property
-    def name(self) -> str:
-        return self.codes.get(200, "").strip() or f"<unnamed channel at line {self.line}>"
-
-    def where(self, code: int | None = None) -> str:
-        ln = self.code_lines.get(code, self.line) if code is not None else self.line
-        return f"{self.file}: line {ln}: channel '{self.name}'"
-
-    def num(self, code: int, kind=float, default=None):
-        if code not in self.codes or not self.codes[code].strip():
-            if default is not None:
-                return default
-            raise LogFormatError(f"{self.where()}: missing code {code}")
-        txt = self.codes[code].strip().replace("D", "E").replace("d", "e")
-        try:
-            v = kind(float(txt)) if kind is int else float(txt)
-        except ValueError:
-            raise LogFormatError(f"{self.where(code)}: code {code} value '{self.codes[code].strip()}' "
-                                 "is not a number") from None
-        if not math.isfinite(v):
-            raise LogFormatError(f"{self.where(code)}: code {code} is not finite")
-        if kind is int and float(txt) != int(float(txt)):
-            raise LogFormatError(f"{self.where(code)}: code {code} value '{self.codes[code].strip()}' "
-                                 "is not an integer")
-        return v
-
-    @property
-    def kind(self) -> str:
-        k = self.codes.get(210, "").strip().upper()
-        if k not in ("EXPLIZIT", "IMPLIZIT"):
-            raise LogFormatError(f"{self.where(210)}: code 210 must be EXPLIZIT or IMPLIZIT, got '{k}'")
-        return k
-
-
-def parse_dat(path: Path) -> tuple[dict[int, str], list[_Channel]]:
-    """Parse a DIAdem header: (global header codes, channels).  Errors name the line."""
-    try:
-        text = path.read_bytes().decode("latin-1")
-    except OSError as e:
-        raise LogFormatError(f"{path}: cannot read ({e.strerror or e})") from None
-    lines = text.splitlines()
-    first = next((i for i, ln in enumerate(lines) if ln.strip()), None)
-    if first is None:
-        raise LogFormatError(f"{path}: empty file (expected a DIAdem header starting with DIAEXTENDED)")
-    if not lines[first].strip().upper().startswith("DIAEXTENDED"):
-        raise LogFormatError(f"{path}: line {first + 1}: not a KUKA Trace/DIAdem header "
-                             f"(expected DIAEXTENDED, found '{lines[first].strip()[:40]}')")
-    glob: dict[int, str] = {}
-    channels: list[_Channel] = []
-    section: str | None = None
-    cur: _Channel | None = None
-    start = 0
-    for i in range(first + 1, len(lines)):
-        ln = lines[i].strip()
-        n = i + 1
-        if not ln:
-            continue
-        up = ln.upper()
-        if up.startswith("#BEGIN"):
-            if section is not None:
-                raise LogFormatError(f"{path}: line {n}: {ln} inside the section opened at line {start} "
-                                     f"(missing #END{section})")
-            if up == "#BEGINGLOBALHEADER":
-                section = "GLOBALHEADER"
-            elif up == "#BEGINCHANNELHEADER":
-                section = "CHANNELHEADER"
-                cur = _Channel(path, n)
-            else:
-                raise LogFormatError(f"{path}: line {n}: unknown section '{ln}'")
-            start = n
-            continue
-        if up.startswith("#END"):
-            if section is None or up != f"#END{section}":
-                raise LogFormatError(f"{path}: line {n}: '{ln}' does not close an open section")
-            if section == "CHANNELHEADER":
-                assert cur is not None
-                channels.append(cur)
-                cur = None
-            section = None
-            continue
-        if section is None:
-            raise LogFormatError(f"{path}: line {n}: '{ln[:40]}' is outside any header section")
-        code, sep, value = ln.partition(",")
-        if not sep or not code.strip().isdigit():
-            raise LogFormatError(f"{path}: line {n}: expected 'code,value', found '{ln[:40]}'")
-        if section == "GLOBALHEADER":
-            glob[int(code)] = value
-        else:
-            assert cur is not None
-            cur.codes[int(code)] = value
-            cur.code_lines[int(code)] = n
-    if section is not None:
-        raise LogFormatError(f"{path}: the section opened at line {start} is never closed (missing #END{section})")
-    if not channels:
-        raise LogFormatError(f"{path}: no channel headers (#BEGINCHANNELHEADER)")
-    return glob, channels
-
-
-@dataclass
-class _Signal:
-    channel: _Channel
-    time: np.ndarray
-    values: np.ndarray
-
-
-def _load_signals(path: Path) -> list[_Signal]:
-    _, channels = parse_dat(path)
-    implicit: list[tuple[int, _Channel, np.ndarray]] = []
-    for idx, ch in enumerate(channels):
-        if ch.kind == "IMPLIZIT":
-            n = ch.num(220, int)
-            step = ch.num(241)
-            if n < 1 or not step > 0:
-                raise LogFormatError(f"{ch.where()}: time channel needs 220 >= 1 and step 241 > 0 "
-                                     f"(got {n}, {step})")
-            implicit.append((idx, ch, ch.num(240, default=0.0) + step * np.arange(n)))
-    explicit = [(i, ch) for i, ch in enumerate(channels) if ch.kind == "EXPLIZIT"]
-    # data files: one column per explicit channel
-    by_file: dict[str, list[_Channel]] = {}
-    for _, ch in explicit:
-        fname = ch.codes.get(211, "").strip()
-        if not fname:
-            raise LogFormatError(f"{ch.where()}: missing code 211 (data file)")
-        dtype = ch.codes.get(214, "").strip().upper()
-        if dtype != "REAL64":
-            raise LogFormatError(f"{ch.where(214)}: data type '{dtype}' is not supported (REAL64 only)")
-        by_file.setdefault(fname, []).append(ch)
-    for fname, chans in by_file.items():
-        if not (path.parent / Path(fname.replace("\\", "/")).name).exists():
-            raise LogFormatError(f"{chans[0].where(211)}: data file '{Path(fname).name}' not found beside {path.name}")
-    out: list[_Signal] = []
-    for fname, chans in by_file.items():
-        dpath = path.parent / Path(fname.replace("\\", "/")).name
-        counts = {ch.num(220, int) for ch in chans}
-        if len(counts) != 1:
-            raise LogFormatError(f"{chans[0].where(220)}: channels of '{dpath.name}' disagree on the number of "
-                                 f"values (220): {sorted(counts)}")
-        n = counts.pop()
-        cols = [ch.num(221, int) for ch in chans]
-        stride = max(int(ch.num(222, int, default=0)) for ch in chans) or max(max(cols), len(chans))
-        for ch, c in zip(chans, cols):
-            if not 1 <= c <= stride:
-                raise LogFormatError(f"{ch.where(221)}: column pointer {c} outside 1..{stride}")
-        size = dpath.stat().st_size
-        want = n * stride * 8
-        if size != want:
-            raise LogFormatError(
-                f"{dpath}: {size} bytes, but channel '{chans[0].name}' and the other {len(chans) - 1} channel(s) "
-                f"of this file need {n} values x {stride} columns x 8 bytes = {want} bytes")
-        data = np.fromfile(dpath, dtype="<f8").reshape(n, stride)
-        for ch, c in zip(chans, cols):
-            vals = data[:, c - 1] * ch.num(241, default=1.0) + ch.num(240, default=0.0)
-            bad = np.flatnonzero(~np.isfinite(vals))
-            if bad.size:
-                raise LogFormatError(f"{ch.where()}: value {bad[0] + 1} is not a finite number")
-            pos = channels.index(ch)
-            cands = [(i, t) for i, c2, t in implicit if t.size == n]
-            before = [(i, t) for i, t in cands if i < pos]
-            if not cands:
-                raise LogFormatError(f"{ch.where()}: no time channel (IMPLIZIT) with {n} values in {path.name}")
-            t = (before[-1] if before else cands[0])[1]
-            out.append(_Signal(ch, t, vals))
-    return out
 
 
 # -- mapping ------------------------------------------------------------------------------------
@@ -247,7 +57,7 @@ def _axis_of(name: str) -> int | None:
     return None
 
 
-def _classify(sig: _Signal, module: str) -> tuple[str, int] | None:
+def _classify(sig: Signal, module: str) -> tuple[str, int] | None:
     name = sig.channel.name
     low = name.lower()
     qty = next((q for rx, q in _KEYS if re.search(rx, low)), None)
@@ -263,7 +73,7 @@ def _classify(sig: _Signal, module: str) -> tuple[str, int] | None:
     return qty, axis
 
 
-def _to_si(sig: _Signal, qty: str) -> tuple[np.ndarray, str]:
+def _to_si(sig: Signal, qty: str) -> tuple[np.ndarray, str]:
     unit = sig.channel.codes.get(202, "").strip()
     u = unit.lower().replace(" ", "")
     v = sig.values
@@ -397,8 +207,8 @@ TIME_BASES = ("position", "finest", "common")
 
 
 def read_trace(path: str | Path, *, siblings: bool = True, time_base: str = "position",
-               gear_ratio: str | Path | dict | None = None, **_ignored: Any) -> "AxisLog":
-    """Read a KUKA Trace recording into an :class:`~kukaid.logs.axislog.AxisLog` (SI units).
+               gear_ratio: str | Path | dict | None = None, **_ignored: Any) -> AxisLog:
+    """Read a KUKA Trace recording into an :class:`~kukaid.logs.core.AxisLog` (SI units).
 
     Parameters
     ----------
@@ -423,8 +233,6 @@ def read_trace(path: str | Path, *, siblings: bool = True, time_base: str = "pos
     axis.  The attributes ``time_base``, ``time_base_note``, ``trace_sample_times``,
     ``interpolated`` and ``gear_ratio`` say how the log was made.
     """
-    from kukaid.logs.axislog import AxisLog
-
     path = Path(path)
     if path.suffix.lower() == ".r64":
         dat = path.with_suffix(".dat")
@@ -437,14 +245,14 @@ def read_trace(path: str | Path, *, siblings: bool = True, time_base: str = "pos
         raise LogFormatError(f"{path}: time base must be one of {', '.join(TIME_BASES)}; got {time_base!r}")
     ratios = parse_gear_ratios(gear_ratio)
     files = _siblings(path) if siblings else [path]
-    mapped: dict[tuple[str, int], tuple[_Signal, np.ndarray]] = {}
+    mapped: dict[tuple[str, int], tuple[Signal, np.ndarray]] = {}
     joint_of: dict[int, str] = {}
     names: list[str] = []
     steps: dict[str, float] = {}
     motor: set[tuple[str, int]] = set()
     for f in files:
         module = f.stem
-        for sig in _load_signals(f):
+        for sig in load_signals(f):
             names.append(sig.channel.name)
             steps.setdefault(module, _sample_time(sig.time))
             c = _classify(sig, module)

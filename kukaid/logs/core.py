@@ -1,0 +1,241 @@
+"""The axis log: the measured signals of one or more robot axes, in SI units (:class:`AxisLog`),
+and the checks every reader applies (sample values, unit mistakes, file errors as one line).
+
+The formats live beside it: HDF5 (:mod:`.hdf5`, incremental :mod:`.writer`), CSV (:mod:`.csvlog`),
+MAT (:mod:`.matlog`), KUKA Trace (:mod:`.trace`); :func:`kukaid.logs.read_log` picks the reader.
+See ``../shared/DESIGN.md`` "File formats" for the contract.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Iterable, Iterator
+
+import numpy as np
+
+from kukaid.errors import KukaidError, LogFormatError
+
+#: Per-axis channels, each an (N, A) array.  ``q`` and ``tau`` are required.
+CHANNELS = ("q", "tau", "q_cmd", "temp", "tau_ext_true")
+OPTIONAL_CHANNELS = ("q_cmd", "temp", "tau_ext_true")
+JOINT_TYPES = ("revolute", "prismatic")
+#: Value of the HDF5 attribute ``format`` that marks a kukaid axis log.
+FORMAT = "kukaid.axislog/1"
+#: Largest plausible |position| of a revolute axis, rad (720 degrees).  Beyond it the numbers are
+#: in another unit (millidegrees, degrees stored as radians), not a robot axis.
+MAX_REVOLUTE_RAD = 4 * np.pi
+#: Largest plausible median sample interval, s.  Above it the times are probably milliseconds.
+MAX_SAMPLE_INTERVAL_S = 1.0
+
+
+def channel_unit(channel: str, joint: str) -> str:
+    """SI unit of a channel for a joint type ("revolute" or "prismatic")."""
+    prismatic = joint == "prismatic"
+    if channel in ("q", "q_cmd"):
+        return "m" if prismatic else "rad"
+    if channel in ("tau", "tau_ext_true"):
+        return "N" if prismatic else "N*m"
+    if channel == "temp":
+        return "degC"
+    if channel == "time":
+        return "s"
+    raise KeyError(channel)
+
+
+@dataclass(frozen=True, eq=False)
+class AxisLog:
+    """Measured signals of the axes ``axes``, sampled at the instants ``time``.
+
+    Parameters
+    ----------
+    time : (N,) array, s, strictly increasing.
+    q : (N, A) array, rad (m for a prismatic axis), as $AXIS_ACT_MEAS.
+    tau : (N, A) array, N·m (N), as $TORQUE_AXIS_ACT.
+    axes : the A axis numbers, KUKA numbering (1..6, external axes 7..12).
+    q_cmd, temp, tau_ext_true : optional (N, A) arrays: commanded position, motor temperature
+        (°C), and, for simulated logs only, the true external torque.
+    joint : per axis, "revolute" or "prismatic" (default all revolute).
+    attrs : provenance and metadata (source, experiment, seed, trajectory, ...); JSON-able.
+    """
+
+    time: np.ndarray
+    q: np.ndarray
+    tau: np.ndarray
+    axes: tuple[int, ...]
+    q_cmd: np.ndarray | None = None
+    temp: np.ndarray | None = None
+    tau_ext_true: np.ndarray | None = None
+    joint: tuple[str, ...] = ()
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        where = self.attrs.get("source_file", "axis log")
+        axes = tuple(int(a) for a in np.atleast_1d(self.axes))
+        object.__setattr__(self, "axes", axes)
+        if len(set(axes)) != len(axes) or not all(1 <= a <= 12 for a in axes):
+            raise LogFormatError(f"{where}: axis numbers must be distinct, 1 to 12; got {list(axes)}")
+        joint = tuple(self.joint) if self.joint else ("revolute",) * len(axes)
+        if len(joint) != len(axes) or any(j not in JOINT_TYPES for j in joint):
+            raise LogFormatError(f"{where}: joint types must be one of {JOINT_TYPES} per axis; got {list(joint)}")
+        object.__setattr__(self, "joint", joint)
+        t = np.asarray(self.time, dtype=float)
+        if t.ndim != 1:
+            raise LogFormatError(f"{where}: time must be one-dimensional, got shape {t.shape}")
+        object.__setattr__(self, "time", t)
+        for name in CHANNELS:
+            x = getattr(self, name)
+            if x is None:
+                if name in ("q", "tau"):
+                    raise LogFormatError(f"{where}: missing channel '{name}'")
+                continue
+            x = np.asarray(x, dtype=float)
+            if x.ndim == 1 and len(axes) == 1:
+                x = x[:, None]
+            if x.shape != (t.size, len(axes)):
+                raise LogFormatError(
+                    f"{where}: channel '{name}' has shape {x.shape}, expected ({t.size}, {len(axes)})"
+                )
+            object.__setattr__(self, name, x)
+        check_samples(self.time, {n: getattr(self, n) for n in CHANNELS}, axes, where)
+        check_units(self.time, {n: getattr(self, n) for n in CHANNELS}, axes, joint, where)
+
+    # -- access -----------------------------------------------------------------------------
+    @property
+    def n_samples(self) -> int:
+        return int(self.time.size)
+
+    @property
+    def sample_time(self) -> float:
+        """Median sample interval, s."""
+        return float(np.median(np.diff(self.time)))
+
+    @property
+    def duration(self) -> float:
+        return float(self.time[-1] - self.time[0])
+
+    def index(self, axis: int) -> int:
+        """Column of ``axis`` in the (N, A) channels; error naming the axes present."""
+        try:
+            return self.axes.index(int(axis))
+        except ValueError:
+            where = self.attrs.get("source_file", "axis log")
+            raise LogFormatError(f"{where}: axis A{axis} is not in the log (axes: {list(self.axes)})") from None
+
+    def channel(self, name: str, axis: int) -> np.ndarray:
+        """One axis of a channel as a 1-D array (error if the channel is absent)."""
+        x = getattr(self, name)
+        if x is None:
+            where = self.attrs.get("source_file", "axis log")
+            raise LogFormatError(f"{where}: the log has no '{name}' channel")
+        return x[:, self.index(axis)]
+
+    def has(self, name: str) -> bool:
+        return getattr(self, name) is not None
+
+    def select(self, rows: slice | np.ndarray) -> "AxisLog":
+        """Rows of the log (a slice or boolean mask), as a new log."""
+        kw = {n: (getattr(self, n)[rows] if getattr(self, n) is not None else None) for n in CHANNELS}
+        return replace(self, time=self.time[rows], **kw)
+
+    def with_attrs(self, **attrs: Any) -> "AxisLog":
+        return replace(self, attrs={**self.attrs, **attrs})
+
+
+def check_samples(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: Iterable[int],
+                  where: str, row_offset: int = 0, row_word: str = "row") -> None:
+    """Validate sample values: enough samples, finite, strictly increasing time.
+
+    ``row_offset`` and ``row_word`` let a reader report file lines ("line 7") instead of rows.
+    """
+    axes = list(axes)
+    if time.size < 2:
+        raise LogFormatError(f"{where}: too few samples ({time.size}); a log needs at least 2")
+    bad = np.flatnonzero(~np.isfinite(time))
+    if bad.size:
+        raise LogFormatError(f"{where}: time is not a finite number at {row_word} {bad[0] + row_offset}")
+    dt = np.diff(time)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        i = bad[0] + 1
+        kind = "duplicated" if dt[bad[0]] == 0 else "decreasing"
+        raise LogFormatError(
+            f"{where}: time is not strictly increasing ({kind}) at {row_word} {i + row_offset}: "
+            f"{time[i]:.6g} s after {time[i - 1]:.6g} s"
+        )
+    for name, x in channels.items():
+        if x is None:
+            continue
+        bad = np.argwhere(~np.isfinite(x))
+        if bad.size:
+            r, c = bad[0]
+            raise LogFormatError(
+                f"{where}: channel '{name}' of axis A{axes[c]} is not a finite number (NaN or inf) "
+                f"at {row_word} {r + row_offset}"
+            )
+
+
+def check_units(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: Iterable[int],
+                joint: Iterable[str], where: str, labels: dict[Any, str] | None = None) -> None:
+    """Refuse values whose size betrays a unit mistake (the values are SI, already converted).
+
+    A revolute position (``q``, ``q_cmd``) beyond +-720 degrees (4 pi rad) is millidegrees or
+    degrees stored as radians; a median sample interval above 1 s is milliseconds stored as
+    seconds.  Prismatic positions are not bounded (linear tracks are long).
+
+    Parameters
+    ----------
+    time : (N,) s.   channels : name -> (N, A) array or None.   axes, joint : per column.
+    where : file or place for the message.
+    labels : names for the message instead of "time" and "channel 'q' of axis A3", keyed by
+        ``"time"`` or ``(channel, axis)``: a reader's column or variable names.  A label ending in
+        "deg" gives the position in degrees only.
+    """
+    labels = labels or {}
+    if time.size >= 2:
+        dt = float(np.median(np.diff(time)))
+        if dt > MAX_SAMPLE_INTERVAL_S:
+            raise LogFormatError(
+                f"{where}: {labels.get('time', 'time')} has a median sample interval of {dt:.6g} s; above "
+                f"{MAX_SAMPLE_INTERVAL_S:g} s: milliseconds written as seconds?"
+            )
+    for name in ("q", "q_cmd"):
+        x = channels.get(name)
+        if x is None or x.size == 0:
+            continue
+        for c, (a, j) in enumerate(zip(axes, joint)):
+            if j != "revolute":
+                continue
+            peak = float(x[np.argmax(np.abs(x[:, c])), c])
+            if abs(peak) > MAX_REVOLUTE_RAD:
+                label = labels.get((name, a), f"channel '{name}' of axis A{a}")
+                deg = np.degrees(peak)
+                value = f"{deg:.6g} degrees" if label.endswith("deg") else f"{peak:.6g} rad ({deg:.6g} degrees)"
+                raise LogFormatError(
+                    f"{where}: {label} reaches {value}; beyond +-720 degrees: wrong unit (millidegrees, or "
+                    f"degrees as radians)?"
+                )
+
+
+def _os_reason(e: OSError) -> str:
+    """The operating system's reason for an OSError (h5py puts its own long text in strerror)."""
+    if e.errno:
+        return os.strerror(e.errno)
+    m = re.search(r"error message = '([^']*)'", str(e))
+    return m.group(1) if m else _short(e)
+
+
+@contextlib.contextmanager
+def _os_errors(path: str | Path, action: str = "cannot write") -> Iterator[None]:
+    """Turn an OSError (read-only folder, no space, ...) into one line naming ``path`` and the reason."""
+    try:
+        yield
+    except OSError as e:
+        raise KukaidError(f"{path}: {action}: {_os_reason(e)}") from None
+
+
+def _short(e: Exception) -> str:
+    """The first line of an exception's text, shortened for a one-line message."""
+    return str(e).split("\n")[0].strip()[:160]

@@ -1,0 +1,139 @@
+"""Axis logs as CSV: one row per sample, degrees and N·m as the KRC gives them."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kukaid.atomic import atomic_path
+from kukaid.errors import LogFormatError
+from kukaid.logs.core import CHANNELS, AxisLog, _os_errors, check_samples, check_units
+
+# column suffix -> (channel, joint type or None for either, scale to SI)
+_DEG = np.pi / 180.0
+_CSV_SUFFIX = {
+    "deg": ("q", "revolute", _DEG),
+    "rad": ("q", "revolute", 1.0),
+    "m": ("q", "prismatic", 1.0),
+    "Nm": ("tau", "revolute", 1.0),
+    "N": ("tau", "prismatic", 1.0),
+    "cmd_deg": ("q_cmd", "revolute", _DEG),
+    "cmd_rad": ("q_cmd", "revolute", 1.0),
+    "cmd_m": ("q_cmd", "prismatic", 1.0),
+    "temp_C": ("temp", None, 1.0),
+    "ext_true_Nm": ("tau_ext_true", "revolute", 1.0),
+    "ext_true_N": ("tau_ext_true", "prismatic", 1.0),
+}
+_CSV_COL = re.compile(r"^A(\d{1,2})_(\w+)$")
+
+
+def read_csv(path: str | Path) -> AxisLog:
+    """Read a CSV axis log (``time_s``, ``A{i}_deg``/``_rad``/``_m``, ``A{i}_Nm``/``_N``, ...)."""
+    path = Path(path)
+    if not path.exists():
+        raise LogFormatError(f"{path}: no such file")
+    text = path.read_text(errors="replace")
+    lines = [ln for ln in text.splitlines()]
+    if not lines or not lines[0].strip():
+        raise LogFormatError(f"{path}: empty file (expected a header row)")
+    header = [h.strip() for h in lines[0].split(",")]
+    if header[0] != "time_s":
+        raise LogFormatError(f"{path}: first column must be 'time_s', found '{header[0]}'")
+    cols: dict[tuple[int, str], tuple[int, float]] = {}
+    joint_of: dict[int, str] = {}
+    for j, name in enumerate(header[1:], start=1):
+        m = _CSV_COL.match(name)
+        if not m or m.group(2) not in _CSV_SUFFIX:
+            raise LogFormatError(
+                f"{path}: unknown column '{name}' (column {j + 1}); expected A<i>_ with a unit suffix in "
+                f"{sorted(_CSV_SUFFIX)}"
+            )
+        axis = int(m.group(1))
+        chan, jt, scale = _CSV_SUFFIX[m.group(2)]
+        if (axis, chan) in cols:
+            raise LogFormatError(f"{path}: axis A{axis} has two '{chan}' columns (column {j + 1}: '{name}')")
+        if jt is not None:
+            if joint_of.setdefault(axis, jt) != jt:
+                raise LogFormatError(f"{path}: column '{name}' mixes revolute and prismatic units for A{axis}")
+        cols[(axis, chan)] = (j, scale)
+    axes = sorted({a for a, _ in cols})
+    if not axes:
+        raise LogFormatError(f"{path}: no axis columns in the header")
+    for a in axes:
+        for need, hint in (("q", "A{a}_deg"), ("tau", "A{a}_Nm")):
+            if (a, need) not in cols:
+                raise LogFormatError(f"{path}: missing column {hint.format(a=a)} (axis A{a} has no '{need}')")
+    body = [ln for ln in lines[1:]]
+    rows = []
+    for k, ln in enumerate(body, start=2):
+        if not ln.strip():
+            continue
+        parts = ln.split(",")
+        if len(parts) != len(header):
+            raise LogFormatError(f"{path}: line {k} has {len(parts)} fields, the header has {len(header)}")
+        try:
+            rows.append([float(p) for p in parts])
+        except ValueError:
+            bad = next(p for p in parts if not _is_float(p))
+            raise LogFormatError(f"{path}: line {k}: '{bad.strip()}' is not a number") from None
+    if not rows:
+        raise LogFormatError(f"{path}: no data rows after the header")
+    arr = np.asarray(rows, dtype=float)
+    data: dict[str, np.ndarray | None] = {}
+    for chan in CHANNELS:
+        present = [(a, chan) in cols for a in axes]
+        if not any(present):
+            data[chan] = None
+            continue
+        if not all(present):
+            missing = [a for a, p in zip(axes, present) if not p]
+            raise LogFormatError(f"{path}: channel '{chan}' is present for some axes but not A{missing[0]}")
+        data[chan] = np.column_stack([arr[:, cols[(a, chan)][0]] * cols[(a, chan)][1] for a in axes])
+    time = arr[:, 0]
+    check_samples(time, data, axes, str(path), row_offset=2, row_word="line")
+    joint = tuple(joint_of.get(a, "revolute") for a in axes)
+    labels: dict[Any, str] = {(chan, a): header[j] for (a, chan), (j, _) in cols.items()}
+    check_units(time, data, axes, joint, str(path), labels={**labels, "time": "time_s"})
+    return AxisLog(time=time, axes=tuple(axes), joint=joint, attrs={"source_file": str(path)}, **data)
+
+
+def _is_float(s: str) -> bool:
+    try:
+        float(s)
+        return True
+    except ValueError:
+        return False
+
+
+def write_csv(log: AxisLog, path: str | Path, angle_unit: str = "deg") -> None:
+    """Write ``log`` as CSV (atomically).  Revolute positions in degrees (or ``rad``).
+
+    A folder that cannot be written is a :class:`KukaidError` naming ``path`` and the reason.
+    """
+    if angle_unit not in ("deg", "rad"):
+        raise ValueError("angle_unit must be 'deg' or 'rad'")
+    names, cols = ["time_s"], [log.time]
+    suffix = {  # channel -> (revolute suffix, prismatic suffix)
+        "q": (angle_unit, "m"),
+        "tau": ("Nm", "N"),
+        "q_cmd": ("cmd_" + angle_unit, "cmd_m"),
+        "temp": ("temp_C", "temp_C"),
+        "tau_ext_true": ("ext_true_Nm", "ext_true_N"),
+    }
+    for chan in CHANNELS:
+        x = getattr(log, chan)
+        if x is None:
+            continue
+        for c, (a, jt) in enumerate(zip(log.axes, log.joint)):
+            s = suffix[chan][jt == "prismatic"]
+            names.append(f"A{a}_{s}")
+            scale = 1.0 / _DEG if s.endswith("deg") else 1.0
+            cols.append(x[:, c] * scale)
+    table = np.column_stack(cols)
+    with atomic_path(path) as tmp, _os_errors(path):
+        with open(tmp, "w") as fh:
+            fh.write(",".join(names) + "\n")
+            for row in table:
+                fh.write(",".join(repr(float(v)) for v in row) + "\n")
