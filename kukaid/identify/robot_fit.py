@@ -52,6 +52,8 @@ class RobotFitSettings:
     torque_side : "joint" (the log's torques are joint torques) or "motor" (motor-side torques,
         converted with the URDF's gear ratios and the wrist coupling).
     rotor : fit rotor inertias (one per motor) as extra parameters.
+    reversal_window : a joint's equations closer than this many cut-off periods to a reversal of
+        its velocity are not fitted (0: all are).
     """
 
     cutoff: float | None = None
@@ -64,6 +66,7 @@ class RobotFitSettings:
     consistent: bool = True
     torque_side: str = "joint"
     rotor: bool = False
+    reversal_window: float = 1.0
 
     def __post_init__(self) -> None:
         if self.friction not in FRICTION_MODELS:
@@ -86,6 +89,30 @@ class Motion:
     qd: np.ndarray
     qdd: np.ndarray
     tau: np.ndarray
+    keep: np.ndarray | None = None      # (N, n) bool: the joint's equation is fitted at that sample
+
+
+def away_from_reversals(qd: np.ndarray, time: np.ndarray, window: float) -> np.ndarray:
+    """(N, n) mask: True where joint j's velocity has not changed sign within ``window`` s.
+
+    Near a reversal the low-pass filter smears the Coulomb step of the measured torque over about
+    one cut-off period while ``sign(qd)`` steps at once; those equations are left out."""
+    keep = np.ones(qd.shape, bool)
+    if window <= 0:
+        return keep
+    for j in range(qd.shape[1]):
+        s = np.signbit(qd[:, j])
+        idx = np.flatnonzero(s[1:] != s[:-1])
+        if idx.size == 0:
+            continue
+        tc = time[idx]
+        pos = np.searchsorted(tc, time)
+        near = np.full(time.size, np.inf)
+        for off in (-1, 0):
+            k = np.clip(pos + off, 0, tc.size - 1)
+            near = np.minimum(near, np.abs(time - tc[k]))
+        keep[:, j] = near > window
+    return keep
 
 
 def _joint_columns(log: AxisLog, n: int) -> list[int]:
@@ -134,11 +161,12 @@ def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive:
         fs = 1.0 / log.sample_time
         fc = _cutoff(settings, fs)
         m = motion(log, n, settings, drive)
+        keep = away_from_reversals(m.qd, log.time, settings.reversal_window * 1.0 / fc)
         edge = int(math.ceil(2.0 * fs / fc))                     # two cut-off periods at each end
         step = settings.decimate or max(1, int(fs / (10.0 * fc)))
         rows = slice(edge, log.n_samples - edge, step)
-        parts.append(Motion(m.q[rows], m.qd[rows], m.qdd[rows], m.tau[rows]))
-    out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau")))
+        parts.append(Motion(m.q[rows], m.qd[rows], m.qdd[rows], m.tau[rows], keep[rows]))
+    out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau", "keep")))
     if out.q.shape[0] < 10:
         raise FitError(f"too few samples left after trimming and decimation ({out.q.shape[0]})")
     return out
@@ -201,9 +229,9 @@ def _pi_of_theta(th):
                       -S[1, 2], tr - S[2, 2]), J
 
 
-def consistent_fit(H: np.ndarray, g: np.ndarray, c: float, robot: RobotModel, n_extra: int,
+def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_extra: int,
                    nonneg: np.ndarray, prior_weight: float, pi0: np.ndarray, x0_extra: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
-    """Minimise ``p^T H p - 2 g^T p + c + prior_weight * sum D(J_k || J_k,nominal)`` over
+    """Minimise ``|R p - z|^2 + c + prior_weight * sum D(J_k || J_k,nominal)`` over
     physically consistent links (log-Cholesky) and the extra parameters (``nonneg`` ones >= 0).
 
     Returns the standard parameters (10 n,), the extra parameters and solver statistics."""
@@ -212,28 +240,31 @@ def consistent_fit(H: np.ndarray, g: np.ndarray, c: float, robot: RobotModel, n_
     from kukaid.models.robot import pseudo_inertia
 
     n = robot.n
-    th = ca.SX.sym("theta", 10 * n)
-    ex = ca.SX.sym("extra", n_extra)
+    ts = ca.SX.sym("t", 10)
+    pt, Jt = _pi_of_theta(ts)
+    link = ca.Function("link", [ts], [pt, Jt])          # one link, reused: a small graph
+    th = ca.MX.sym("theta", 10 * n)
+    ex = ca.MX.sym("extra", n_extra)
     pis, prior = [], 0
     for k in range(n):
-        p, J = _pi_of_theta(th[10 * k: 10 * k + 10])
+        p, J = link(th[10 * k: 10 * k + 10])
         pis.append(p)
         J0 = pseudo_inertia(robot.pi_nominal[10 * k: 10 * k + 10])
         w, V = np.linalg.eigh(J0)
         J0 = (V * np.maximum(w, 1e-9 * max(w.max(), 1e-9))) @ V.T
         J0inv = np.linalg.inv(J0)
         logdetJ = 2 * (4 * th[10 * k] + th[10 * k + 1] + th[10 * k + 2] + th[10 * k + 3])
-        prior += ca.trace(ca.DM(J0inv) @ J) - logdetJ + float(np.linalg.slogdet(J0)[1]) - 4
+        prior += ca.trace(ca.mtimes(ca.DM(J0inv), J)) - logdetJ + float(np.linalg.slogdet(J0)[1]) - 4
     p = ca.vertcat(*pis, ex)
-    # scale the quadratic for the solver: divide by its value at the start
     x0 = np.concatenate([np.concatenate([_theta_of(pi0[10 * k: 10 * k + 10]) for k in range(n)]), x0_extra])
-    f = ca.mtimes([p.T, ca.DM(H), p]) - 2 * ca.dot(ca.DM(g), p) + c + prior_weight * prior
+    r = ca.mtimes(ca.DM(R), p) - ca.DM(z)
+    f = ca.dot(r, r) + c + prior_weight * prior
     lbx = np.full(x0.size, -np.inf)
     lbx[10 * n:][nonneg] = 0.0
     x0[10 * n:] = np.maximum(x0[10 * n:], lbx[10 * n:])
     nlp = {"x": ca.vertcat(th, ex), "f": f}
     solver = ca.nlpsol("robot_fit", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": 0,
-                                                   "ipopt.max_iter": 3000, "ipopt.tol": 1e-10})
+                                                   "ipopt.max_iter": 3000, "ipopt.tol": 1e-9})
     sol = solver(x0=x0, lbx=lbx)
     stats = solver.stats()
     x = np.asarray(sol["x"]).ravel()
@@ -247,8 +278,11 @@ def consistent_fit(H: np.ndarray, g: np.ndarray, c: float, robot: RobotModel, n_
 
 
 # -- the fit ---------------------------------------------------------------------------------------------
-def _flat(A: np.ndarray) -> np.ndarray:
-    return A.reshape(-1, A.shape[-1])
+def _solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Least-squares solution of the normal equations ``G x = g`` (columns scaled first)."""
+    d = 1.0 / np.sqrt(np.maximum(np.diag(G), 1e-300))
+    x, *_ = np.linalg.lstsq(d[:, None] * G * d[None, :], d * g, rcond=1e-13)
+    return d * x
 
 
 def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings | None = None,
@@ -274,43 +308,52 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     m = _samples(logs, n, settings, drive)
     Y, F = design(robot, m, settings, drive)
     base = robot.base_parameters()
-    Yb = Y[:, :, base.independent]
-    A = np.concatenate([Yb, F], axis=2)                                   # (N, n, b + k)
-    N = A.shape[0]
-    # ordinary least squares, then per-joint weights 1/sigma_j
-    beta0, *_ = np.linalg.lstsq(_flat(A), m.tau.ravel(), rcond=None)
-    res0 = m.tau - A @ beta0
-    dof = max(N - A.shape[2] / n, 1.0)
-    sig = np.sqrt(np.sum(res0 ** 2, axis=0) / dof)
-    sig = np.maximum(sig, 1e-6 * max(sig.max(), 1e-12))
-    Aw = A / sig[None, :, None]
-    tw = m.tau / sig[None, :]
-    Af, tf = _flat(Aw), tw.ravel()
-    beta, *_ = np.linalg.lstsq(Af, tf, rcond=None)
-    resw = tf - Af @ beta
-    M = tf.size
-    s2 = float(resw @ resw) / max(M - Af.shape[1], 1)
-    AtA = Af.T @ Af
-    cov = s2 * np.linalg.pinv(AtA)
-    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    cond = float(np.linalg.cond(Af / np.maximum(np.linalg.norm(Af, axis=0), 1e-300)))
+    N = Y.shape[0]
+    kw = m.keep.astype(float)
+    if np.any(kw.sum(axis=0) < 10):
+        raise FitError("too few samples away from velocity reversals; lower the reversal window")
+    # per-joint normal equations of all columns (standard parameters + extras): everything below
+    # works on these small matrices, whatever the number of samples
+    C = np.concatenate([Y, F], axis=2)
+    G = np.einsum("sjk,sjl->jkl", C * kw[:, :, None], C)                  # (n, p, p)
+    gb = np.einsum("sjk,sj->jk", C, m.tau * kw)                            # (n, p)
+    cc = np.einsum("sj,sj->j", m.tau * kw, m.tau)                          # (n,)
     nb = base.size
+    ib = np.concatenate([base.independent, robot.n_std + np.arange(F.shape[2])])
+    Gb, gbb = G[:, ib][:, :, ib], gb[:, ib]
+    # ordinary least squares on the base columns, then per-joint weights 1/sigma_j
+    beta0 = _solve(Gb.sum(0), gbb.sum(0))
+    rss = cc - 2 * gbb @ beta0 + np.einsum("k,jkl,l->j", beta0, Gb, beta0)
+    dof = np.maximum(kw.sum(axis=0) - ib.size / n, 1.0)
+    sig = np.sqrt(np.maximum(rss, 0.0) / dof)
+    sig = np.maximum(sig, 1e-6 * max(sig.max(), 1e-12))
+    w = 1.0 / sig ** 2
+    Gw, gw, cw = np.einsum("j,jkl->kl", w, G), w @ gb, float(w @ cc)
+    Gwb, gwb = Gw[np.ix_(ib, ib)], gw[ib]
+    beta = _solve(Gwb, gwb)
+    M = float(kw.sum())
+    s2 = max(cw - 2 * gwb @ beta + beta @ Gwb @ beta, 0.0) / max(M - ib.size, 1)
+    cov = s2 * np.linalg.pinv(Gwb)
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    dsc = 1.0 / np.sqrt(np.maximum(np.diag(Gwb), 1e-300))
+    cond = float(np.sqrt(np.linalg.cond(dsc[:, None] * Gwb * dsc[None, :])))
     extra_n = extra_names(robot, settings)
     result_ls = {"values": beta[:nb], "sigma": sd[:nb], "extra": beta[nb:], "extra_sigma": sd[nb:]}
+    Yb = Y[:, :, base.independent]
 
     pi_c = None
     solver_info = None
     extra = beta[nb:]
     if settings.consistent:
-        # quadratic in the full standard parameters + extras, normalised by M (chi2 / M)
-        S = np.concatenate([Y, F], axis=2) / sig[None, :, None]
-        Sf = _flat(S)
-        H = Sf.T @ Sf / M
-        g = Sf.T @ tf / M
-        c = float(tf @ tf) / M
-        nonneg = np.array([nm.endswith((".Fc", ".Fv", ".rotor_inertia")) for nm in extra_n])
-        pi_c, extra, solver_info = consistent_fit(H, g, c, robot, len(extra_n), nonneg, settings.prior_weight,
-                                                  robot.pi_nominal, beta[nb:].copy())
+        # chi2 / M = p^T H p - 2 g^T p + c = |R p - z|^2 + c' with H = R^T R (eigenvectors of H)
+        H, g, c = Gw / M, gw / M, cw / M
+        ev, V = np.linalg.eigh(H)
+        pos = ev > 1e-12 * ev.max()
+        R = np.sqrt(ev[pos])[:, None] * V[:, pos].T
+        z = (V[:, pos].T @ g) / np.sqrt(ev[pos])
+        nonneg = np.array(_nonneg(extra_n))
+        pi_c, extra, solver_info = consistent_fit(R, z, float(c - z @ z), robot, len(extra_n), nonneg,
+                                                  settings.prior_weight, robot.pi_nominal, beta[nb:].copy())
     pi_out = pi_c if pi_c is not None else None
     beta_out = base.of(pi_c) if pi_c is not None else beta[:nb]
     # metrics on the fitted (filtered) samples
