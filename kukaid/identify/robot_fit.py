@@ -52,6 +52,10 @@ class RobotFitSettings:
     torque_side : "joint" (the log's torques are joint torques) or "motor" (motor-side torques,
         converted with the URDF's gear ratios and the wrist coupling).
     rotor : fit rotor inertias (one per motor) as extra parameters.
+    weighting : per-joint weights of the equations: "noise" (1 / the residual standard deviation
+        of a first least-squares fit) or "torque" (1 / the joint's RMS torque: every joint's
+        relative error counts alike) or "none".
+    v_smooth : Coulomb friction as ``Fc tanh(qd / v_smooth)``, rad/s (0: ``Fc sign(qd)``).
     reversal_window : a joint's equations closer than this many cut-off periods to a reversal of
         its velocity are not fitted (0: all are).
     """
@@ -67,6 +71,8 @@ class RobotFitSettings:
     torque_side: str = "joint"
     rotor: bool = False
     reversal_window: float = 1.0
+    v_smooth: float = 0.0
+    weighting: str = "noise"
 
     def __post_init__(self) -> None:
         if self.friction not in FRICTION_MODELS:
@@ -76,6 +82,8 @@ class RobotFitSettings:
                 raise FitError(f"{name} must be a finite number > 0, got {v}")
         if not (math.isfinite(self.prior_weight) and self.prior_weight >= 0):
             raise FitError(f"prior weight must be a finite number >= 0, got {self.prior_weight}")
+        if self.weighting not in ("noise", "torque", "none"):
+            raise FitError(f"weighting '{self.weighting}': expected noise, torque or none")
         if self.torque_side not in ("joint", "motor"):
             raise FitError(f"torque side '{self.torque_side}': expected joint or motor")
 
@@ -182,7 +190,7 @@ def _drive(robot: RobotModel, settings: RobotFitSettings, coupling: np.ndarray |
 def design(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel) -> tuple[np.ndarray, np.ndarray]:
     """Rigid-body regressor (N, n, 10 n) and the extra columns (N, n, k): friction, offset, rotors."""
     Y = robot.regressor(m.q, m.qd, m.qdd)
-    F = friction_regressor(m.qd, settings.friction, settings.offset, settings.vs)
+    F = friction_regressor(m.qd, settings.friction, settings.offset, settings.vs, v_smooth=settings.v_smooth)
     if settings.rotor:
         F = np.concatenate([F, drive.rotor_regressor(m.qdd)], axis=2)
     return Y, F
@@ -272,7 +280,8 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
     pv = np.asarray(pfun(x[:10 * n], x[10 * n:])).ravel()
     info = {"solver": "ipopt", "status": stats.get("return_status"), "iterations": stats.get("iter_count"),
             "objective": float(sol["f"])}
-    if not stats.get("success") and stats.get("return_status") not in ("Solved_To_Acceptable_Level",):
+    ok = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Maximum_Iterations_Exceeded")
+    if stats.get("return_status") not in ok or not np.all(np.isfinite(pv)):
         raise FitError(f"physically consistent fit did not converge (IPOPT: {stats.get('return_status')})")
     return pv[:10 * n], pv[10 * n:], info
 
@@ -326,6 +335,10 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     rss = cc - 2 * gbb @ beta0 + np.einsum("k,jkl,l->j", beta0, Gb, beta0)
     dof = np.maximum(kw.sum(axis=0) - ib.size / n, 1.0)
     sig = np.sqrt(np.maximum(rss, 0.0) / dof)
+    if settings.weighting == "torque":
+        sig = np.sqrt(cc / np.maximum(kw.sum(axis=0), 1.0))
+    elif settings.weighting == "none":
+        sig = np.ones(n)
     sig = np.maximum(sig, 1e-6 * max(sig.max(), 1e-12))
     w = 1.0 / sig ** 2
     Gw, gw, cw = np.einsum("j,jkl->kl", w, G), w @ gb, float(w @ cc)

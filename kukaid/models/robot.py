@@ -71,7 +71,7 @@ class DriveModel:
 
     def motor_torque(self, tau_joint: np.ndarray) -> np.ndarray:
         """Motor-side torques (N, n) from joint-side torques (N, n), N·m."""
-        return np.linalg.solve(self.G, np.asarray(tau_joint, float).T).T
+        return np.linalg.solve(self.G.T, np.asarray(tau_joint, float).T).T
 
     def rotor_regressor(self, qdd: np.ndarray) -> np.ndarray:
         """(N, n, n) joint-side torque per unit rotor inertia of each motor, ``G^T e_k e_k^T G qdd``."""
