@@ -176,3 +176,20 @@ def test_lwr4_fit_generalises_to_the_other_trajectory():
     res = validate_robot(params, [read_log(LWR4 / "lwr4_3.csv")], robot)
     rel = [res["axes"][f"A{i}"]["relative_error"] for i in range(1, 8)]
     assert np.mean(rel) <= 0.40, rel
+
+
+def test_motor_side_torques_with_coupled_wrist_and_rotors(kr6):
+    """Torques logged on the motor side (gear ratios from the URDF, A4 -> A5/A6 coupling, rotor
+    inertia): the fit converts them to the joint side and predicts them back."""
+    log, truth = simulated_log(kr6, duration=30.0, fs=250.0, seed=4)
+    cpl = np.zeros((6, 6))
+    cpl[4, 3], cpl[5, 3], cpl[5, 4] = -0.2, 0.1, 0.15
+    drive = DriveModel(kr6.ratio, cpl, np.full(6, 5e-5))
+    from robot_sim_helpers import multisine
+    _, q, qd, qdd = multisine(kr6, 30.0, 250.0, seed=4 + 3)
+    tau_joint = log.tau + drive.rotor_regressor(qdd) @ drive.rotor_inertia
+    motor = type(log)(time=log.time, q=log.q, tau=drive.motor_torque(tau_joint), axes=log.axes)
+    params = fit_robot([motor], kr6, RobotFitSettings(torque_side="motor", rotor=True), coupling=cpl)
+    assert params["drive"]["coupling"][5][4] == pytest.approx(0.15)
+    res = validate_robot(params, [motor], kr6)
+    assert res["mean_relative_error"] < 0.05, res

@@ -171,7 +171,7 @@ def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive:
         m = motion(log, n, settings, drive)
         keep = away_from_reversals(m.qd, log.time, settings.reversal_window * 1.0 / fc)
         edge = int(math.ceil(2.0 * fs / fc))                     # two cut-off periods at each end
-        step = settings.decimate or max(1, int(fs / (10.0 * fc)))
+        step = settings.decimate or max(1, int(round(fs / (10.0 * fc))))
         rows = slice(edge, log.n_samples - edge, step)
         parts.append(Motion(m.q[rows], m.qd[rows], m.qdd[rows], m.tau[rows], keep[rows]))
     out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau", "keep")))
@@ -287,6 +287,14 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
 
 
 # -- the fit ---------------------------------------------------------------------------------------------
+def _one_blas_thread():
+    """Narrow products (under a hundred columns) gain nothing from BLAS threads, and on a busy
+    machine OpenBLAS threads that wait for cores make them ~50 times slower: use one."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def _solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Least-squares solution of the normal equations ``G x = g`` (columns scaled first)."""
     d = 1.0 / np.sqrt(np.maximum(np.diag(G), 1e-300))
@@ -324,9 +332,12 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     # per-joint normal equations of all columns (standard parameters + extras): everything below
     # works on these small matrices, whatever the number of samples
     C = np.concatenate([Y, F], axis=2)
-    G = np.einsum("sjk,sjl->jkl", C * kw[:, :, None], C)                  # (n, p, p)
-    gb = np.einsum("sjk,sj->jk", C, m.tau * kw)                            # (n, p)
-    cc = np.einsum("sj,sj->j", m.tau * kw, m.tau)                          # (n,)
+    tk = m.tau * kw
+    Cj = np.ascontiguousarray(np.moveaxis(C, 1, 0))                             # (n, N, p)
+    with _one_blas_thread():
+        G = np.stack([(Cj[j] * kw[:, j, None]).T @ Cj[j] for j in range(n)])    # (n, p, p)
+        gb = np.stack([Cj[j].T @ tk[:, j] for j in range(n)])                   # (n, p)
+    cc = np.sum(tk * m.tau, axis=0)                                             # (n,)
     nb = base.size
     ib = np.concatenate([base.independent, robot.n_std + np.arange(F.shape[2])])
     Gb, gbb = G[:, ib][:, :, ib], gb[:, ib]
