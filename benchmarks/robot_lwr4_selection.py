@@ -23,6 +23,8 @@ DATA = HERE.parent.parent / "shared" / "datasets" / "lwr4"
 CANDIDATES = {
     "defaults": {},
     "no consistency (LS)": {"consistent": False},
+    "no spring term": {"spring": False},
+    "cutoff 3 Hz": {"cutoff": 3.0},
     "no prior": {"prior_weight": 0.0},
     "prior 1e-2": {"prior_weight": 1e-2},
     "prior 1e-1": {"prior_weight": 1e-1},

@@ -41,7 +41,8 @@ PRIOR_WEIGHT = 1e-3
 class RobotFitSettings:
     """Settings of :func:`fit_robot` (all stored in the parameter file).
 
-    cutoff : low-pass cut-off of positions and torques, Hz (None: 5 Hz, at most fs/10).
+    cutoff : low-pass cut-off of positions and torques, Hz (None: 5 Hz as the single-axis fit at
+        KR C4 rates, at most fs/10).
     order : Butterworth order.
     decimate : keep every n-th sample after filtering (None: about 10 samples per cut-off period).
     friction : "coulomb-viscous" or "stribeck".
@@ -52,6 +53,9 @@ class RobotFitSettings:
     torque_side : "joint" (the log's torques are joint torques) or "motor" (motor-side torques,
         converted with the URDF's gear ratios and the wrist coupling).
     rotor : fit rotor inertias (one per motor) as extra parameters.
+    spring : a torque linear in the joint's own angle, ``k_j q_j`` (N·m/rad): what cables, hoses,
+        a balancing spring or a torque sensor's cross-talk add, and what a gravity model that is
+        slightly off leaves (with the offset: its first-order term about the working range).
     weighting : per-joint weights of the equations: "noise" (1 / the residual standard deviation
         of a first least-squares fit) or "torque" (1 / the joint's RMS torque: every joint's
         relative error counts alike) or "none".
@@ -73,6 +77,7 @@ class RobotFitSettings:
     reversal_window: float = 1.0
     v_smooth: float = 0.0
     weighting: str = "noise"
+    spring: bool = True
 
     def __post_init__(self) -> None:
         if self.friction not in FRICTION_MODELS:
@@ -191,6 +196,11 @@ def design(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: Driv
     """Rigid-body regressor (N, n, 10 n) and the extra columns (N, n, k): friction, offset, rotors."""
     Y = robot.regressor(m.q, m.qd, m.qdd)
     F = friction_regressor(m.qd, settings.friction, settings.offset, settings.vs, v_smooth=settings.v_smooth)
+    if settings.spring:
+        n = robot.n
+        P = np.zeros((m.q.shape[0], n, n))
+        P[:, np.arange(n), np.arange(n)] = m.q
+        F = np.concatenate([F, P], axis=2)
     if settings.rotor:
         F = np.concatenate([F, drive.rotor_regressor(m.qdd)], axis=2)
     return Y, F
@@ -198,6 +208,7 @@ def design(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: Driv
 
 def extra_names(robot: RobotModel, settings: RobotFitSettings) -> list[str]:
     names = friction_names(robot.n, settings.friction, settings.offset)
+    names += [f"A{j + 1}.k" for j in range(robot.n)] if settings.spring else []
     return names + ([f"M{k + 1}.rotor_inertia" for k in range(robot.n)] if settings.rotor else [])
 
 
