@@ -29,6 +29,7 @@ CANDIDATES = {
     "prior 1e-2": {"prior_weight": 1e-2},
     "prior 1e-1": {"prior_weight": 1e-1},
     "no reversal window": {"reversal_window": 0.0},
+    "reversal window 1": {"reversal_window": 1.0},
     "cutoff 2 Hz": {"cutoff": 2.0},
     "cutoff 10 Hz": {"cutoff": 10.0},
     "tanh Coulomb 0.05": {"v_smooth": 0.05},

@@ -74,7 +74,7 @@ class RobotFitSettings:
     consistent: bool = True
     torque_side: str = "joint"
     rotor: bool = False
-    reversal_window: float = 1.0
+    reversal_window: float = 2.0
     v_smooth: float = 0.0
     weighting: str = "noise"
     spring: bool = True
