@@ -48,13 +48,15 @@ def main() -> int:
                "max_err_sigma_ls_well": float(np.max(np.abs(ls - tb)[well] / sd[well])),
                "max_err_sigma_est_well": float(np.max(np.abs(est - tb)[well] / sd[well])),
                "max_rel_err_friction": float(ferr), "consistent": p["metrics"]["physically_consistent"],
-               "condition_number": p["metrics"]["condition_number"]}
+               "condition_number": p["metrics"]["condition_number"],
+               "residual_correlation_factor": p["metrics"]["residual_correlation_factor"]}
         rows.append(row)
         if not a.json:
             print(f"seed {seed}: {row['well_excited']}/{row['base']} well excited, max error "
                   f"{100 * row['max_rel_err_well']:.2f} % ({row['max_err_sigma_est_well']:.1f} sigma; least squares "
                   f"{row['max_err_sigma_ls_well']:.1f} sigma), friction max {100 * ferr:.2f} %, consistent "
-                  f"{'yes' if row['consistent'] else 'NO'}, cond {row['condition_number']:.0f}", flush=True)
+                  f"{'yes' if row['consistent'] else 'NO'}, cond {row['condition_number']:.0f}, "
+                  f"residual correlation factor {row['residual_correlation_factor']:.2f}", flush=True)
     if a.json:
         print(json.dumps(rows, indent=1))
     return 0

@@ -10,7 +10,9 @@ Steps (:func:`fit_robot`):
    per-joint friction (Coulomb-viscous or Stribeck with a fixed Stribeck velocity) and offset.
 3. *Base parameters* (numerical QR, :meth:`RobotModel.base_parameters`): weighted least squares
    on the base columns gives ``beta`` with its standard deviations; the per-joint weights are the
-   inverse residual standard deviations of a first ordinary fit.
+   inverse residual standard deviations of a first ordinary fit. Filtered residuals are correlated
+   in time, so these sigma are optimistic: ``metrics.residual_correlation_factor`` is the factor
+   to multiply them by (as in the single-axis fit).
 4. *Physically consistent estimate*: every link's pseudo-inertia ``J = U U^T`` in log-Cholesky
    coordinates (Rucker & Wensing 2022), so every mass is positive and every inertia satisfies the
    triangle inequalities by construction; Coulomb and viscous friction >= 0. IPOPT (CasADi)
@@ -30,6 +32,7 @@ from typing import Sequence
 import numpy as np
 
 from kukaid.errors import FitError
+from kukaid.identify.uncertainty import correlation_factor
 from kukaid.logs import AxisLog
 from kukaid.models.robot import (FRICTION_MODELS, DriveModel, RobotModel, consistency, friction_names,
                                  friction_regressor)
@@ -372,6 +375,8 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     dsc = 1.0 / np.sqrt(np.maximum(np.diag(Gwb), 1e-300))
     cond = float(np.sqrt(np.linalg.cond(dsc[:, None] * Gwb * dsc[None, :])))
+    resid = (m.tau - C[:, :, ib] @ beta) / sig[None, :]
+    cfac = [correlation_factor(resid[m.keep[:, j], j], 20) for j in range(n)]
     extra_n = extra_names(robot, settings)
     result_ls = {"values": beta[:nb], "sigma": sd[:nb], "extra": beta[nb:], "extra_sigma": sd[nb:]}
     Yb = Y[:, :, base.independent]
@@ -423,6 +428,7 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
             "ratio": drive.ratio.tolist(), "coupling": np.asarray(drive.coupling).tolist()},
         "settings": {**asdict(settings), "cutoff": settings.cutoff},
         "metrics": {"samples": int(N), "condition_number": cond, "noise_sigma": sig.tolist(),
+                    "residual_correlation_factor": float(max(cfac)),
                     "relative_error_fit": rel.tolist(),
                     "consistency": consistency(pi_c) if pi_c is not None else None,
                     "physically_consistent": bool(pi_c is not None and all(c["ok"] for c in consistency(pi_c))),
@@ -520,6 +526,8 @@ def format_robot_table(params: dict) -> str:
         ls = (fr.get("least_squares") or {}).get(k, v)
         lines.append(f"{k:<58} {v:>11.4g} {ls:>11.4g} {sd if sd is not None else float('nan'):>10.3g}")
     mt = params.get("metrics") or {}
+    lines.append(f"sigma: least squares, white residuals; multiply by the residual correlation factor "
+                 f"{mt.get('residual_correlation_factor', float('nan')):.2f} for a less optimistic figure")
     lines.append(f"condition number {mt.get('condition_number', float('nan')):.4g}; "
                  f"physically consistent: {'yes' if mt.get('physically_consistent') else 'no'}; "
                  f"at a bound: {', '.join(mt.get('at_bound') or []) or 'none'}")
