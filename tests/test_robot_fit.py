@@ -158,6 +158,11 @@ def test_cli_fit_robot_and_validate(tmp_path, kukaid_cmd, kr6):
     assert r.returncode == 0, r.stderr
     res = json.loads(r.stdout)
     assert set(res["axes"]) == {f"A{i}" for i in range(1, 7)} and res["mean_relative_error"] < 0.05
+    pdf = tmp_path / "r.pdf"
+    r = subprocess.run([*kukaid_cmd, "report", "--params", str(out), "--log", str(csv), "-o", str(pdf)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0 and "3 pages" in r.stderr, r.stderr
+    assert pdf.read_bytes().startswith(b"%PDF")
     r = subprocess.run([*kukaid_cmd, "fit", str(csv), "--robot", str(tmp_path / "none.urdf"), "-o",
                         str(tmp_path / "q.json")], capture_output=True, text=True)
     assert r.returncode == 1 and r.stderr.startswith("kukaid: error:") and "no such robot" in r.stderr
