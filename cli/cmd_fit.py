@@ -47,19 +47,22 @@ import click
 @click.option("--stribeck-vs", type=float, default=0.05, show_default=True,
               help="With --robot and --friction-model stribeck: the (fixed) Stribeck velocity, rad/s.")
 @click.option("--rotor-inertia", is_flag=True, help="With --robot: fit one rotor inertia per motor.")
+@click.option("--coupling", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="With --robot --torque-side motor: n x n JSON matrix, motor angles = ratio (I + C) q "
+                   "(the coupled wrist drives).")
 def command(logs, friction, inertia, presliding, axis, output, method, friction_model, gravity, offset, elements,
             cutoff, order, qd_thr, edge, decimate, reversal_window, diff, bound, robot, prior_weight, torque_side,
-            stribeck_vs, rotor_inertia) -> None:
+            stribeck_vs, rotor_inertia, coupling) -> None:
     """Fit Stribeck friction, Izz/Mx and Maxwell-slip elements from axis logs (HDF5 or CSV);
     with --robot, all axes of a robot jointly from logs of the whole arm moving."""
     import math
 
     if robot is not None:
         _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, prior_weight, torque_side,
-                   stribeck_vs, rotor_inertia)
+                   stribeck_vs, rotor_inertia, coupling)
         return
-    if prior_weight is not None or rotor_inertia or torque_side != "joint":
-        raise click.UsageError("--prior-weight, --torque-side and --rotor-inertia need --robot")
+    if prior_weight is not None or rotor_inertia or torque_side != "joint" or coupling is not None:
+        raise click.UsageError("--prior-weight, --torque-side, --rotor-inertia and --coupling need --robot")
     friction_model = friction_model or "stribeck"
     decimate = decimate or 1
 
@@ -97,7 +100,7 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
 
 
 def _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, prior_weight, torque_side,
-               stribeck_vs, rotor_inertia) -> None:
+               stribeck_vs, rotor_inertia, coupling) -> None:
     """``kukaid fit LOG... --robot``: the whole robot, written as kukaid.robot_params/1."""
     from kukaid.identify.robot_fit import PRIOR_WEIGHT, RobotFitSettings, fit_robot, format_robot_table
     from kukaid.logs import read_log
@@ -114,7 +117,22 @@ def _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, pri
                                 prior_weight=PRIOR_WEIGHT if prior_weight is None else prior_weight,
                                 torque_side=torque_side, rotor=rotor_inertia)
     model = RobotModel(robot)
-    params = fit_robot([read_log(p) for p in logs], model, settings)
+    cpl = None
+    if coupling is not None:
+        import numpy as np
+
+        from kukaid.errors import ParamFileError
+        from kukaid.jsonfile import read_json
+
+        cpl = read_json(coupling, ParamFileError)
+        try:
+            cpl = np.asarray(cpl, dtype=float)
+        except (TypeError, ValueError):
+            raise ParamFileError(f"{coupling}: must be a {model.n} x {model.n} matrix of numbers") from None
+        if cpl.shape != (model.n, model.n) or not np.all(np.isfinite(cpl)):
+            raise ParamFileError(f"{coupling}: must be a {model.n} x {model.n} matrix of finite numbers, "
+                                 f"got shape {cpl.shape}")
+    params = fit_robot([read_log(p) for p in logs], model, settings, coupling=cpl)
     save_robot_params(output, params)
     click.echo(format_robot_table(params))
     click.echo(f"{output}: parameters written", err=True)
