@@ -113,6 +113,9 @@ def test_robot_params_file_round_trip_and_errors(tmp_path, sim_fit):
     back = load_robot_params(path)
     assert back["schema"] == "kukaid.robot_params/1"
     assert back["base_parameters"]["values"] == pytest.approx(params["base_parameters"]["values"])
+    other = dict(back, robot={**back["robot"], "sha256": "0" * 64})
+    with pytest.raises(ParamFileError, match="not the one the parameters were fitted with"):
+        validate_robot(other, [simulated_log(RobotModel("kr6-r700-sixx"), duration=5.0)[0]])
     bad = json.loads(path.read_text())
     bad["axes"] = [1, 3]
     with pytest.raises(ParamFileError, match="'axes' must be"):

@@ -31,7 +31,7 @@ from typing import Sequence
 
 import numpy as np
 
-from kukaid.errors import FitError
+from kukaid.errors import FitError, ParamFileError
 from kukaid.identify.uncertainty import correlation_factor
 from kukaid.logs import AxisLog
 from kukaid.models.robot import (FRICTION_MODELS, DriveModel, RobotModel, consistency, friction_names,
@@ -454,6 +454,12 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     The positions are filtered and differentiated as in the fit; the prediction is compared with
     the raw measured torques by the caller (:func:`validate_robot`)."""
     robot = robot or RobotModel(params["robot"]["urdf"])
+    sha = params["robot"].get("sha256")
+    if sha and sha != robot.sha256:
+        raise ParamFileError(f"{robot.path}: this URDF is not the one the parameters were fitted with "
+                             f"(sha256 {robot.sha256[:12]}... against {sha[:12]}...)")
+    if robot.n != len(params["axes"]):
+        raise ParamFileError(f"{robot.path}: {robot.n} joints, the parameter file has {len(params['axes'])} axes")
     s = params["settings"]
     settings = RobotFitSettings(**{k: s[k] for k in RobotFitSettings.__dataclass_fields__ if k in s})
     n = robot.n
