@@ -34,8 +34,8 @@ import numpy as np
 from kukaid.errors import FitError, ParamFileError
 from kukaid.identify.uncertainty import correlation_factor
 from kukaid.logs import AxisLog
-from kukaid.models.robot import (FRICTION_MODELS, DriveModel, RobotModel, consistency, friction_names,
-                                 friction_regressor)
+from kukaid.models.robot import (BUNDLED, FRICTION_MODELS, LINK_PARAMS, DriveModel, RobotModel, consistency,
+                                 friction_names, friction_regressor, pseudo_inertia)
 
 PRIOR_WEIGHT = 1e-3
 
@@ -225,8 +225,6 @@ def _upper_cholesky(J: np.ndarray) -> np.ndarray:
 
 def _theta_of(pi10: np.ndarray) -> np.ndarray:
     """Log-Cholesky coordinates of a consistent link (nudged inside when on the boundary)."""
-    from kukaid.models.robot import pseudo_inertia
-
     J = pseudo_inertia(pi10)
     w, V = np.linalg.eigh(J)
     J = (V * np.maximum(w, 1e-6 * max(w.max(), 1e-9))) @ V.T
@@ -258,8 +256,6 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
 
     Returns the standard parameters (10 n,), the extra parameters and solver statistics."""
     import casadi as ca
-
-    from kukaid.models.robot import pseudo_inertia
 
     n = robot.n
     ts = ca.SX.sym("t", 10)
@@ -378,8 +374,6 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     resid = (m.tau - C[:, :, ib] @ beta) / sig[None, :]
     cfac = [correlation_factor(resid[m.keep[:, j], j], 20) for j in range(n)]
     extra_n = extra_names(robot, settings)
-    result_ls = {"values": beta[:nb], "sigma": sd[:nb], "extra": beta[nb:], "extra_sigma": sd[nb:]}
-    Yb = Y[:, :, base.independent]
 
     pi_c = None
     solver_info = None
@@ -394,45 +388,42 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
         nonneg = np.array(_nonneg(extra_n))
         pi_c, extra, solver_info = consistent_fit(R, z, float(c - z @ z), robot, len(extra_n), nonneg,
                                                   settings.prior_weight, robot.pi_nominal, beta[nb:].copy())
-    pi_out = pi_c if pi_c is not None else None
     beta_out = base.of(pi_c) if pi_c is not None else beta[:nb]
     # metrics on the fitted (filtered) samples
-    pred = np.einsum("sjk,k->sj", Yb, beta_out) + np.einsum("sjk,k->sj", F, extra)
+    pred = Y[:, :, base.independent] @ beta_out + F @ extra
     rel = np.linalg.norm(m.tau - pred, axis=0) / np.maximum(np.linalg.norm(m.tau, axis=0), 1e-12)
     at_bound = [nm for nm, v, nn in zip(extra_n, extra, _nonneg(extra_n)) if nn and abs(v) < 1e-7]
-    links_at_bound = []
-    if pi_c is not None:
-        for name, chk in zip(robot.link_names, consistency(pi_c)):
-            if chk["pseudo_inertia_min_eig"] < 1e-6 * max(chk["mass"], 1e-9) * 1e-2:
-                links_at_bound.append(name)
+    checks = consistency(pi_c) if pi_c is not None else None
+    # a link on the boundary of the consistent set: its pseudo-inertia (nearly) singular
+    at_bound += [name for name, chk in zip(robot.link_names, checks or [])
+                 if chk["pseudo_inertia_min_eig"] < 1e-8 * max(chk["mass"], 1e-9)]
+    bundled = robot.source in BUNDLED
     return {
-        "robot": {"name": robot.model.name, "urdf": str(robot.source if robot.source in _bundled() else
-                                                       Path(robot.path).resolve()),
+        "robot": {"name": robot.model.name, "urdf": robot.source if bundled else str(Path(robot.path).resolve()),
                   "sha256": robot.sha256, "joints": list(robot.joint_names), "links": list(robot.link_names)},
         "axes": list(range(1, n + 1)),
         "torque_side": settings.torque_side,
         "base_parameters": {"names": list(base.names), "values": beta_out.tolist(),
-                            "least_squares": result_ls["values"].tolist(), "sigma": result_ls["sigma"].tolist(),
+                            "least_squares": beta[:nb].tolist(), "sigma": sd[:nb].tolist(),
                             "independent": base.independent.tolist(), "dependent": base.dependent.tolist(),
                             "R": base.R.tolist()},
-        "standard_parameters": None if pi_out is None else {
-            link: dict(zip(("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz"),
-                           pi_out[10 * k: 10 * k + 10].tolist()))
+        "standard_parameters": None if pi_c is None else {
+            link: dict(zip(LINK_PARAMS, pi_c[10 * k: 10 * k + 10].tolist()))
             for k, link in enumerate(robot.link_names)},
         "friction": {"model": settings.friction, "vs": settings.vs if settings.friction == "stribeck" else None,
                      "offset": settings.offset,
                      "values": dict(zip(extra_n, np.asarray(extra).tolist())),
-                     "least_squares": dict(zip(extra_n, result_ls["extra"].tolist())),
-                     "sigma": dict(zip(extra_n, result_ls["extra_sigma"].tolist()))},
+                     "least_squares": dict(zip(extra_n, beta[nb:].tolist())),
+                     "sigma": dict(zip(extra_n, sd[nb:].tolist()))},
         "drive": None if not (settings.torque_side == "motor" or settings.rotor) else {
             "ratio": drive.ratio.tolist(), "coupling": np.asarray(drive.coupling).tolist()},
-        "settings": {**asdict(settings), "cutoff": settings.cutoff},
+        "settings": asdict(settings),
         "metrics": {"samples": int(N), "condition_number": cond, "noise_sigma": sig.tolist(),
                     "residual_correlation_factor": float(max(cfac)),
                     "relative_error_fit": rel.tolist(),
-                    "consistency": consistency(pi_c) if pi_c is not None else None,
-                    "physically_consistent": bool(pi_c is not None and all(c["ok"] for c in consistency(pi_c))),
-                    "at_bound": at_bound + links_at_bound,
+                    "consistency": checks,
+                    "physically_consistent": bool(checks is not None and all(c["ok"] for c in checks)),
+                    "at_bound": at_bound,
                     "solver": solver_info},
         "provenance": {"logs": [str(lg.attrs.get("source_file", "")) for lg in logs]},
     }
@@ -440,12 +431,6 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
 
 def _nonneg(names: Sequence[str]) -> list[bool]:
     return [nm.endswith((".Fc", ".Fv", ".rotor_inertia")) for nm in names]
-
-
-def _bundled() -> tuple[str, ...]:
-    from kukaid.models.robot import BUNDLED
-
-    return tuple(BUNDLED)
 
 
 def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -> dict[int, np.ndarray]:
