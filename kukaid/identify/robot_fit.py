@@ -34,6 +34,8 @@ import numpy as np
 from kukaid.errors import FitError, ParamFileError
 from kukaid.identify.uncertainty import correlation_factor
 from kukaid.logs import AxisLog
+from kukaid.params.robot import SCHEMA as ROBOT_SCHEMA
+from kukaid.params.robot import validate_robot_params
 from kukaid.models.robot import (BUNDLED, FRICTION_MODELS, LINK_PARAMS, DriveModel, RobotModel, consistency,
                                  friction_names, friction_regressor, pseudo_inertia)
 
@@ -399,6 +401,7 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
                  if chk["pseudo_inertia_min_eig"] < 1e-8 * max(chk["mass"], 1e-9)]
     bundled = robot.source in BUNDLED
     return {
+        "schema": ROBOT_SCHEMA,
         "robot": {"name": robot.model.name, "urdf": robot.source if bundled else str(Path(robot.path).resolve()),
                   "sha256": robot.sha256, "joints": list(robot.joint_names), "links": list(robot.link_names)},
         "axes": list(range(1, n + 1)),
@@ -438,6 +441,7 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
 
     The positions are filtered and differentiated as in the fit; the prediction is compared with
     the raw measured torques by the caller (:func:`validate_robot`)."""
+    validate_robot_params(params)
     robot = robot or RobotModel(params["robot"]["urdf"])
     sha = params["robot"].get("sha256")
     if sha and sha != robot.sha256:
@@ -465,7 +469,7 @@ def robot_predictor(params: dict, log: AxisLog, axis: int | None = None,
                     robot: RobotModel | None = None) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     """Measured (raw) and predicted torque per axis, ``{axis: (tau, tau_hat)}``, away from the
     filter's edges (two cut-off periods): the validation seam's predictor for
-    ``kukaid.robot_params/1`` (``axis``: only that axis)."""
+    ``kukaid.robot_params/1`` (``axis``: only that axis; the file is validated here)."""
     pred = predict_robot(params, log, robot)
     fs = 1.0 / log.sample_time
     s = params["settings"]
