@@ -117,7 +117,22 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
         vs = fr.get("vs")
         if isinstance(vs, bool) or not isinstance(vs, (int, float)) or not vs > 0:
             _fail(where, f"'friction.vs' must be a number > 0 for Stribeck friction, got {json.dumps(vs)}")
-    _object(where, "settings", d["settings"])
+    st = _object(where, "settings", d["settings"])
+    for key, lo in (("cutoff", 0.0), ("vs", 0.0), ("prior_weight", None), ("reversal_window", None),
+                    ("v_smooth", None)):
+        v = st.get(key)
+        if v is None and key in ("cutoff", "vs"):
+            continue
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                              or (v <= lo if lo is not None else v < 0)):
+            _fail(where, f"'settings.{key}' must be a finite number {'>' if lo is not None else '>='} 0, "
+                         f"got {json.dumps(v)[:40]}")
+    if "order" in st and (isinstance(st["order"], bool) or not isinstance(st["order"], int)
+                          or not 1 <= st["order"] <= 8):
+        _fail(where, f"'settings.order' must be an integer 1 to 8, got {json.dumps(st['order'])[:40]}")
+    for key in ("offset", "consistent", "rotor", "spring"):
+        if key in st and not isinstance(st[key], bool):
+            _fail(where, f"'settings.{key}' must be true or false")
     drive = d.get("drive")
     if drive is not None:
         _object(where, "drive", drive)
