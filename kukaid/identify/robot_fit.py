@@ -300,7 +300,7 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
 
 # -- the fit ---------------------------------------------------------------------------------------------
 def _one_blas_thread():
-    """Narrow products (under a hundred columns) gain nothing from BLAS threads, and on a busy
+    """Narrow products (under a hundred columns) and dot products gain nothing from BLAS threads, and on a busy
     machine OpenBLAS threads that wait for cores make them ~50 times slower: use one."""
     from threadpoolctl import threadpool_limits
 
@@ -374,7 +374,8 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     dsc = 1.0 / np.sqrt(np.maximum(np.diag(Gwb), 1e-300))
     cond = float(np.sqrt(np.linalg.cond(dsc[:, None] * Gwb * dsc[None, :])))
     resid = (m.tau - C[:, :, ib] @ beta) / sig[None, :]
-    cfac = [correlation_factor(resid[m.keep[:, j], j], 20) for j in range(n)]
+    with _one_blas_thread():
+        cfac = [correlation_factor(resid[m.keep[:, j], j], 20) for j in range(n)]
     extra_n = extra_names(robot, settings)
 
     pi_c = None
