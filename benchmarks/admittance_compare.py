@@ -18,7 +18,7 @@ import numpy as np
 def run_one(params: dict, damping: str, seed: int, operator: str, duration: float = 9.0) -> dict:
     from kukaid.control.backends import SimBackend
     from kukaid.control.loop import LoopConfig, run_admittance
-    from kukaid.io.params import model_from_params
+    from kukaid.params import model_from_params
     from kukaid.sim import SimConfig, VirtualKRC4
     from kukaid.sim.operator import make_operator
 
@@ -31,7 +31,7 @@ def run_one(params: dict, damping: str, seed: int, operator: str, duration: floa
 
 
 def main() -> None:
-    from kukaid.io.params import load_params
+    from kukaid.params import load_params
 
     ap = argparse.ArgumentParser()
     ap.add_argument("params")

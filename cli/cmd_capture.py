@@ -120,7 +120,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
         kept = ""
         if output.exists():
             try:
-                from kukaid.io.axislog import read_hdf5
+                from kukaid.logs import read_hdf5
 
                 log = read_hdf5(output)
                 kept = f"; {log.n_samples} samples ({log.duration:.2f} s) kept in {output}"

@@ -86,12 +86,12 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.control.loop import LoopConfig, run_admittance
     from kukaid.control.rbf import RBFConfig
     from kukaid.control.runlog import write_run
-    from kukaid.io.axislog import AxisLogWriter
+    from kukaid.logs import AxisLogWriter
     from kukaid.control.safety import SafetyLimits, check_motion_allowed
     from kukaid.errors import KukaidError
-    from kukaid.io.jsonfile import jsonable
-    from kukaid.io.params import load_params, model_from_params
-    from kukaid.io.atomic import check_writable
+    from kukaid.jsonfile import jsonable
+    from kukaid.params import load_params, model_from_params
+    from kukaid.atomic import check_writable
     from kukaid_cli._util import check_outputs, check_suffix, progress, refuse_overwrite
 
     check_suffix(output, ".h5", ".hdf5")
@@ -148,7 +148,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         axis_id = scfg.axis
     else:
         from kukaid.control.backends import KvpBackend
-        from kukaid.io.kvp import KvpClient
+        from kukaid.krc.kvp import KvpClient
 
         client = KvpClient(host=host, port=port, timeout=max(max_age, 2 * cycle))
         client.connect()

@@ -6,13 +6,13 @@ HDF5 axis log at ``output`` and returns a :class:`CaptureResult`.  Two backends:
 :class:`SimBackend`
     The virtual KR C4 (:mod:`kukaid.sim`).  The simulator runs in chunks of ``chunk`` seconds of
     simulated time (``VirtualKRC4.advance``); every chunk's samples are appended to the log with
-    :class:`~kukaid.io.axislog.AxisLogWriter` and flushed, so a capture that is interrupted
+    :class:`~kukaid.logs.axislog.AxisLogWriter` and flushed, so a capture that is interrupted
     (Ctrl-C, SIGTERM, a killed process) leaves a readable log of everything recorded up to the
     last chunk.  The log carries the truth of the simulation (``truth``), the seed, the
     experiment kind, the trajectory's parameters and the simulator configuration.
 :class:`KvpBackend`
     A real (or virtual) KR C4 over KUKAVARPROXY: delegates to
-    ``kukaid.io.kvp_capture.capture_kvp`` (imported only when used).
+    ``kukaid.krc.kvp_capture.capture_kvp`` (imported only when used).
 
 :func:`capture` refuses to replace an existing log unless ``force`` (nothing recorded is lost).
 """
@@ -126,7 +126,7 @@ class SimBackend:
 
     def capture(self, output: Path, progress: Progress | None = None,
                 stop: threading.Event | None = None) -> CaptureResult:
-        from kukaid.io.axislog import AxisLogWriter
+        from kukaid.logs import AxisLogWriter
         from kukaid.sim import VirtualKRC4
 
         axis = int(getattr(self.traj, "axis", self.config.axis))
@@ -168,7 +168,7 @@ class SimBackend:
 
 
 class KvpBackend:
-    """Capture from a KR C4 over KUKAVARPROXY (``kukaid.io.kvp_capture.capture_kvp``)."""
+    """Capture from a KR C4 over KUKAVARPROXY (``kukaid.krc.kvp_capture.capture_kvp``)."""
 
     name = "kvp"
 
@@ -197,13 +197,13 @@ class KvpBackend:
 
 
 def load_kvp_capture() -> Callable[..., dict]:
-    """``kukaid.io.kvp_capture.capture_kvp``, or a clear error if that module is not available."""
+    """``kukaid.krc.kvp_capture.capture_kvp``, or a clear error if that module is not available."""
     try:
-        from kukaid.io.kvp_capture import capture_kvp
+        from kukaid.krc.kvp_capture import capture_kvp
     except ModuleNotFoundError as e:
-        if e.name in ("kukaid.io.kvp_capture",):
+        if e.name in ("kukaid.krc.kvp_capture",):
             raise KukaidError("capture: the kvp backend is not available in this installation "
-                              "(module kukaid.io.kvp_capture is missing)") from None
+                              "(module kukaid.krc.kvp_capture is missing)") from None
         raise
     return capture_kvp
 
@@ -257,7 +257,7 @@ def check_limits(traj: Any, where: str = "trajectory") -> None:
     take precedence over the built-in KR 6 R700 sixx figures.
     """
     from kukaid.errors import LimitError
-    from kukaid.excite import AxisLimits
+    from kukaid.models.limits import AxisLimits
 
     if getattr(traj, "limits", None):
         limits = AxisLimits.from_dict(traj.limits, where=f"{where}: field 'limits'")

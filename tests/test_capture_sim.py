@@ -16,7 +16,7 @@ from click.testing import CliRunner
 from kukaid.capture import SimBackend, capture, load_kvp_capture, parse_effect, sim_config
 from kukaid.errors import KukaidError
 from kukaid.excite import Trajectory, friction
-from kukaid.io.axislog import read_hdf5
+from kukaid.logs import read_hdf5
 from kukaid_cli.main import cli
 
 
@@ -163,7 +163,7 @@ def test_kvp_backend_needs_duration_and_reports_a_missing_module(monkeypatch, tm
     code, text = run("capture", "-o", tmp_path / "k.h5", "--backend", "kvp", "--duration", "1", "--seed", "1",
                      "--effect", "backlash")
     assert code != 0 and "--effect is for --backend sim" in text
-    monkeypatch.setitem(sys.modules, "kukaid.io.kvp_capture", None)
+    monkeypatch.setitem(sys.modules, "kukaid.krc.kvp_capture", None)
     with pytest.raises(KukaidError, match="kvp backend is not available"):
         load_kvp_capture()
     code, text = run("capture", "-o", tmp_path / "k.h5", "--backend", "kvp", "--duration", "1")

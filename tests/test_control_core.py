@@ -12,7 +12,7 @@ from kukaid.control.loop import LoopConfig, run_admittance
 from kukaid.control.safety import ReferenceLimiter, SafetyLimits, Watchdog, check_motion_allowed
 from kukaid.control.torque_residual import TorqueResidual
 from kukaid.errors import KukaidError
-from kukaid.io.params import model_from_params
+from kukaid.params import model_from_params
 from kukaid.sim import SimConfig, VirtualKRC4
 
 

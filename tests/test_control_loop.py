@@ -12,7 +12,7 @@ from kukaid.control.loop import PHASE_ADMITTANCE, LoopConfig, run_admittance
 from kukaid.control.rbf import RBFConfig
 from kukaid.control.safety import SafetyLimits
 from kukaid.errors import ControllerError
-from kukaid.io.params import model_from_params
+from kukaid.params import model_from_params
 from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid.sim.operator import PushOperator
 

@@ -10,8 +10,8 @@ from click.testing import CliRunner
 
 from kukaid import excite
 from kukaid.identify import fit_axis
-from kukaid.io.axislog import write_hdf5
-from kukaid.io.params import save_params
+from kukaid.logs import write_hdf5
+from kukaid.params import save_params
 from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid_cli.main import cli
 

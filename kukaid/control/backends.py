@@ -68,8 +68,8 @@ class SimBackend:
 
 
 class KvpBackend:
-    """A KR C4 over KUKAVARPROXY (``client`` a connected :class:`kukaid.io.kvp.KvpClient`), with the
-    KRL follower program of :mod:`kukaid.io.krl_follower` running on the controller.
+    """A KR C4 over KUKAVARPROXY (``client`` a connected :class:`kukaid.krc.kvp.KvpClient`), with the
+    KRL follower program of :mod:`kukaid.krc.krl_follower` running on the controller.
 
     Every cycle writes the reference (``KID_TGT``, degrees) and the heartbeat (``KID_HB``), then
     reads ``$AXIS_ACT_MEAS`` and ``$TORQUE_AXIS_ACT[axis]``; :meth:`start` enables the follower
@@ -123,7 +123,7 @@ class KvpBackend:
         return [self._last]
 
     def _send(self, q: float) -> None:
-        from kukaid.io.kvp import format_real
+        from kukaid.krc.kvp import format_real
 
         self.client.write(self.target, format_real(math.degrees(q), 6))
         self._beat = (self._beat + 1) % 30000

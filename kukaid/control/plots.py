@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from kukaid.io.atomic import atomic_path
+from kukaid.atomic import atomic_path
 
 
 def plot_run(data: dict[str, np.ndarray], metrics: dict[str, Any], path: str | Path, title: str = "") -> None:

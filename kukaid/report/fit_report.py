@@ -100,7 +100,7 @@ def _prep_options(params: dict, fs: float) -> dict:
 
 def _load_one(x: Any, axis: int, params: dict) -> tuple[Any, Any]:
     from kukaid.identify import preprocess
-    from kukaid.io.axislog import read_log
+    from kukaid.logs import read_log
 
     if hasattr(x, "tau") and hasattr(x, "time"):
         log = x
@@ -127,7 +127,7 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
     Parameters
     ----------
     params : parameter dictionary or path of a ``kukaid.params/1`` file.
-    friction, inertia, logs : axis logs (paths or :class:`~kukaid.io.axislog.AxisLog`).
+    friction, inertia, logs : axis logs (paths or :class:`~kukaid.logs.axislog.AxisLog`).
     presliding : pre-sliding log, optional.
     axis : axis to report (default: the parameter file's ``axis``, else 3).
 
@@ -136,7 +136,7 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
     ParamFileError : broken parameter file.   LogFormatError, ReportError : missing or broken log,
     log without the axis, log too short for the filter.
     """
-    from kukaid.io.params import load_params, validate_params
+    from kukaid.params import load_params, validate_params
 
     if isinstance(params, dict):
         par, source = validate_params(params), "parameters"
@@ -181,7 +181,7 @@ def _fmt(x: Any, sig: int = 5) -> str:
 
 
 def _model(par: dict):
-    from kukaid.io.params import model_from_params
+    from kukaid.params import model_from_params
 
     return model_from_params(par)
 
@@ -806,7 +806,7 @@ def write_report(path: str | Path, figures: Sequence[Any], title: str = "kukaid 
     from matplotlib.backends.backend_pdf import PdfPages
 
     from kukaid import __version__
-    from kukaid.io.atomic import atomic_path
+    from kukaid.atomic import atomic_path
 
     if not figures:
         raise ReportError("nothing to write: no pages")
