@@ -35,9 +35,10 @@ from typing import Any, Callable
 import numpy as np
 
 from kukaid.errors import KukaidError
-from kukaid.sim.config import SimConfigError
+from kukaid.errors import SimConfigError
 from kukaid.sim.krc4 import _Spline
-from kukaid.sim.robot_truth import RobotTruth, draw_truth, load_model
+from kukaid.models.urdf import load_model
+from kukaid.sim.robot_truth import RobotTruth, draw_truth
 
 SOURCE = "virtual-krc4-robot"
 
@@ -118,7 +119,7 @@ class RobotSimConfig:
 
     @classmethod
     def load(cls, path: str | Path) -> "RobotSimConfig":
-        from kukaid.io.jsonfile import read_json
+        from kukaid.jsonfile import read_json
 
         return cls.from_dict(read_json(path, SimConfigError), str(path))
 
@@ -350,7 +351,7 @@ class VirtualRobotKRC4:
 
     def run(self, traj: Any, settle: float = 0.5, progress: Callable[[float], None] | None = None):
         """Reset to ``traj``'s start, follow it to its end plus ``settle`` s; the :class:`AxisLog`."""
-        from kukaid.io.axislog import AxisLog
+        from kukaid.logs.axislog import AxisLog
 
         self.reset(self.start_position(traj))
         self.follow(traj)
