@@ -76,7 +76,7 @@ def test_external_torque_shows_in_the_measured_torque_with_the_papers_sign():
     ext = np.zeros(sim.n)
     ext[1] = 5.0
     sim.set_external_torque(ext)
-    out = sim.advance(2.0)
+    out = sim.advance(6.0)
     assert np.allclose(out["tau_ext_true"][-1], ext)
     # the servo holds the position: the drive now delivers 5 N·m less on A2
     assert out["tau"][-25:, 1].mean() - base[1] == pytest.approx(-5.0, abs=0.2)

@@ -38,7 +38,7 @@ from kukaid.errors import KukaidError
 from kukaid.errors import SimConfigError
 from kukaid.sim.krc4 import _Spline
 from kukaid.models.urdf import load_model
-from kukaid.sim.robot_truth import RobotTruth, draw_truth
+from kukaid.sim.robot_truth import NOMINAL_ARMATURE, RobotTruth, draw_truth
 
 SOURCE = "virtual-krc4-robot"
 
@@ -164,12 +164,19 @@ class VirtualRobotKRC4:
         lo, hi = np.asarray(self.model_nominal.lowerPositionLimit), np.asarray(self.model_nominal.upperPositionLimit)
         mid = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
         Mn = pin.crba(self.model_nominal, self._data_ff, mid)
-        self.ctrl_J = np.maximum(np.diag(Mn).copy(), 1e-4)
         eff = np.asarray(self.model_nominal.effortLimit, dtype=float)
+        # the controller's inertia per axis: nominal link inertia at mid-range plus the nominal rotor
+        # inertia (machine data; the truth's is drawn around it)
+        self.ctrl_J = np.diag(Mn).copy() + (NOMINAL_ARMATURE * self._effort(eff) if c.armature else 0.0)
         self.tau_max = np.where(np.isfinite(eff) & (eff > 0), eff, 1e4)
-        self.noise_sigma = c.noise_rel * np.where(np.isfinite(eff) & (eff > 0), eff, 100.0)
+        self.noise_sigma = c.noise_rel * self._effort(eff)
         self._tau_ext: np.ndarray | Callable = np.zeros(n)
         self.reset(mid * 0.0)
+
+    @staticmethod
+    def _effort(eff: np.ndarray) -> np.ndarray:
+        """The URDF's torque limits, 100 N·m where it gives none (the scale of defaults)."""
+        return np.where(np.isfinite(eff) & (eff > 0), eff, 100.0)
 
     # -- state ---------------------------------------------------------------------------------
     @property

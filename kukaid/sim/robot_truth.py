@@ -24,6 +24,8 @@ import numpy as np
 from kukaid.errors import KukaidError
 
 TRUTH_SCHEMA = "kukaid.robot-truth/1"
+#: nominal reflected rotor inertia per N·m of the joint's torque limit, kg·m²/(N·m)
+NOMINAL_ARMATURE = 1e-3
 
 # -- inertial parameters <-> pseudo-inertia --------------------------------------------------------
 def pseudo_inertia(pi: np.ndarray) -> np.ndarray:
@@ -178,6 +180,6 @@ def draw_truth(robot: str | Path, model, seed: int = 1, size: float = 0.15,
     Fs = Fc * u(1.1, 1.4) if stribeck else Fc.copy()
     vs = u(0.02, 0.1)
     # reflected rotor inertia: a fraction of the torque limit (N·m -> kg·m² at ~1 rad/s² scale)
-    armature = 1e-3 * effort * u(0.5, 1.5)
+    armature = NOMINAL_ARMATURE * effort * u(0.5, 1.5)
     offset = 0.005 * effort * rng.choice([-1.0, 1.0], n) * u(0.5, 1.0)
     return RobotTruth(robot=str(robot), pi=pi, Fc=Fc, Fv=Fv, Fs=Fs, vs=vs, armature=armature, offset=offset)
