@@ -124,6 +124,63 @@ class RobotSimConfig:
         return cls.from_dict(read_json(path, SimConfigError), str(path))
 
 
+# rows of the parameter array of :func:`servo_step`
+_KP, _GKV, _GKI, _JC, _TMAX, _FC, _DF, _VS, _FV, _OFF, _ARM = range(11)
+_NP = 11
+
+
+def servo_step(qr, vr, ar, gff, q, v, I, te, P, h, ieps, tau, u, arm_eff):
+    """One servo cycle of every axis (scalar code: plain Python or compiled by numba).
+
+    Updates the integrators ``I`` in place and writes the motor torques ``tau``, the net joint
+    torque ``u = tau + te - F(v)`` the dynamics sees, and the inertia added per joint for the
+    step, ``arm_eff = armature + h dF/dv`` (implicit friction).
+    """
+    for j in range(q.shape[0]):
+        ev = vr[j] + P[_KP, j] * (qr[j] - q[j]) - v[j]
+        tmax = P[_TMAX, j]
+        Ij = min(max(I[j] + P[_GKI, j] * ev, -tmax), tmax)
+        I[j] = Ij
+        tj = min(max(P[_JC, j] * ar[j] + gff[j] + P[_GKV, j] * ev + Ij, -tmax), tmax)
+        tau[j] = tj
+        vj = v[j]
+        s = math.tanh(vj * ieps)
+        g = P[_FC, j]
+        if P[_DF, j] != 0.0:
+            x = vj / P[_VS, j]
+            g += P[_DF, j] * math.exp(-x * x)
+        u[j] = tj + te[j] - (g * s + P[_FV, j] * vj + P[_OFF, j])
+        arm_eff[j] = P[_ARM, j] + h * (g * (1.0 - s * s) * ieps + P[_FV, j])
+
+
+def integrate(q, v, a, h):
+    """Semi-implicit Euler step in place: ``v += h a``, then ``q += h v``."""
+    for j in range(q.shape[0]):
+        v[j] += h * a[j]
+        q[j] += h * v[j]
+
+
+_kernels = None
+
+
+def _get_kernels():
+    """(:func:`servo_step`, :func:`integrate`) compiled by numba (cached on disk) when available,
+    else plain Python (same numbers, slower); ``KUKAID_NO_NUMBA=1`` forces plain Python."""
+    global _kernels
+    if _kernels is None:
+        import os
+
+        try:
+            if os.environ.get("KUKAID_NO_NUMBA"):
+                raise ImportError("disabled by KUKAID_NO_NUMBA")
+            from numba import njit
+        except ImportError:
+            _kernels = (servo_step, integrate)
+        else:
+            _kernels = (njit(cache=True, nogil=True)(servo_step), njit(cache=True, nogil=True)(integrate))
+    return _kernels
+
+
 class VirtualRobotKRC4:
     """A simulated KR C4 moving all axes of a robot; see the module docstring for the physics.
 
@@ -301,13 +358,13 @@ class VirtualRobotKRC4:
         if callable(te):
             te = self._vec(te(self.t, self.q, self.qd), "external torque function's value")
         h = self.dt
-        Kp, gKv, gKi = c.Kp, self.ctrl_J * c.Kv, self.ctrl_J * c.Kv * c.Ki * h
-        Jc, tmax = self.ctrl_J, self.tau_max
-        Fc, dF, vs, Fv, off, arm = tr.Fc, tr.Fs - tr.Fc, tr.vs, tr.Fv, tr.offset, tr.armature
-        stri = bool(np.any(dF != 0))
+        P = self._servo_params()
+        arm = tr.armature
         ieps = 1.0 / c.friction_eps
         model, data, mnom, dnom = self.model, self._data, self.model_nominal, self._data_ff
-        q, v, I, tau = self._q, self._v, self._I, self._tau
+        q, v, I = self._q.copy(), self._v.copy(), self._I.copy()
+        tau, u, arm_eff = self._tau.copy(), np.empty(self.n), np.empty(self.n)
+        te = np.asarray(te, dtype=float)
         # sample ticks: the end of every ``per``-th servo cycle
         first = (-(t0 + 1)) % self._per
         rec = np.arange(first, m, self._per)
@@ -315,19 +372,14 @@ class VirtualRobotKRC4:
         out_tau = np.empty((rec.size, self.n))
         k = 0
         nxt = rec[0] if rec.size else -1
-        aba, grav, tanh, exp, clip = pin.aba, pin.computeGeneralizedGravity, np.tanh, np.exp, np.clip
+        aba, grav = pin.aba, pin.computeGeneralizedGravity
+        step, integrate = _get_kernels()
         for i in range(m):
             qr = qref[i]
-            ev = vff[i] + Kp * (qr - q) - v
-            I = clip(I + gKi * ev, -tmax, tmax)
-            tau = clip(Jc * aff[i] + grav(mnom, dnom, qr) + gKv * ev + I, -tmax, tmax)
-            s = tanh(v * ieps)
-            g = Fc + dF * exp(-(v / vs) ** 2) if stri else Fc
-            f = g * s + Fv * v + off
-            model.armature = arm + h * (g * (1.0 - s * s) * ieps + Fv)  # implicit friction
-            a = aba(model, data, q, v, tau + te - f)
-            v = v + h * a
-            q = q + h * v
+            step(qr, vff[i], aff[i], grav(mnom, dnom, qr), q, v, I, te, P, h, ieps, tau, u, arm_eff)
+            model.armature = arm_eff  # implicit friction: its velocity slope joins the inertia for the step
+            a = aba(model, data, q, v, u)
+            integrate(q, v, a, h)
             if i == nxt:
                 out_q[k] = q
                 out_tau[k] = tau
@@ -345,6 +397,15 @@ class VirtualRobotKRC4:
             "q_cmd": qref[rec + 1],
             "tau_ext_true": np.tile(te, (rec.size, 1)),
         }
+
+    def _servo_params(self) -> np.ndarray:
+        """The servo's and the truth's per-axis numbers in the rows :func:`servo_step` reads."""
+        c, tr = self.cfg, self.truth
+        P = np.zeros((_NP, self.n))
+        P[_KP], P[_GKV], P[_GKI] = c.Kp, self.ctrl_J * c.Kv, self.ctrl_J * c.Kv * c.Ki * self.dt
+        P[_JC], P[_TMAX] = self.ctrl_J, self.tau_max
+        P[_FC], P[_DF], P[_VS], P[_FV], P[_OFF], P[_ARM] = tr.Fc, tr.Fs - tr.Fc, tr.vs, tr.Fv, tr.offset, tr.armature
+        return P
 
     def _quantise(self, q: np.ndarray) -> np.ndarray:
         qd = self.cfg.quant_deg
