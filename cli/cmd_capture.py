@@ -49,7 +49,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
     """
     import signal
 
-    from kukaid.capture import KvpBackend, SimBackend, capture, check_limits
+    from kukaid.capture import KvpCapture, SimCapture, capture, check_limits
     from kukaid.errors import KukaidError
     from kukaid_cli._util import check_outputs
 
@@ -73,7 +73,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
                 raise click.UsageError("options --noise and --effect are for one-axis trajectories; set the robot "
                                        "simulator's noise_rel in --sim-config")
             cfg = robot_sim_config(sim_config, traj.robot)
-            be = SimBackend(traj, config=cfg, seed=seed, chunk=chunk, settle=settle,
+            be = SimCapture(traj, config=cfg, seed=seed, chunk=chunk, settle=settle,
                             extra_attrs={"trajectory_file": str(trajectory)})
         else:
             be = _one_axis_backend(traj, trajectory, sim_config, noise, effects, seed, chunk, settle)
@@ -88,7 +88,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
 
             traj = load_trajectory(trajectory)
             attrs = {"experiment": traj.kind, "trajectory": traj.params, "trajectory_file": str(trajectory)}
-        be = KvpBackend(host=host, port=port, axes=axes or (3,), duration=duration, until_interrupt=until_interrupt,
+        be = KvpCapture(host=host, port=port, axes=axes or (3,), duration=duration, until_interrupt=until_interrupt,
                         mode=mode, attrs=attrs)
 
     # Ctrl-C / SIGTERM end a simulated capture cleanly between blocks (a second one aborts at once);
@@ -139,7 +139,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
 def _one_axis_backend(traj, trajectory: Path, sim_config: Path | None, noise: float | None, effects: tuple[str, ...],
                       seed: int, chunk: float, settle: float):
     """The one-axis virtual KR C4 with the requested noise and hidden effects."""
-    from kukaid.capture import SimBackend, parse_effect, sim_config as make_config
+    from kukaid.capture import SimCapture, parse_effect, sim_config as make_config
 
     parsed = [parse_effect(e) for e in effects]
     names = [e[0] for e in parsed]
@@ -147,4 +147,4 @@ def _one_axis_backend(traj, trajectory: Path, sim_config: Path | None, noise: fl
         raise click.UsageError(f"--effect {next(n for n in names if names.count(n) > 1)} is given twice")
     cfg, extra = make_config(sim_config, noise=noise, effects=parsed, seed=seed)
     extra["trajectory_file"] = str(trajectory)
-    return SimBackend(traj, config=cfg, seed=seed, chunk=chunk, settle=settle, extra_attrs=extra)
+    return SimCapture(traj, config=cfg, seed=seed, chunk=chunk, settle=settle, extra_attrs=extra)
