@@ -93,3 +93,27 @@ def test_bad_input_is_a_clear_error(run):
         res.update(np.zeros(3), np.zeros(3))
     with pytest.raises(ParamFileError, match="robot_params/1"):
         RobotTorqueModel.from_params({"robot": {"urdf": ROBOT}})
+
+
+def test_base_parameters_with_their_dependency_predict_as_the_regressor():
+    """A fitted file's base parameters (β = π[ind] + R π[dep]) give the same torques by RNEA."""
+    from kukaid.excite.fourier import RegressorCondition
+    from kukaid.models.urdf import load_model
+    from scipy.linalg import qr, solve_triangular
+
+    model = load_model(ROBOT)
+    rc = RegressorCondition(model)
+    rng = np.random.default_rng(1)
+    n = model.nv
+    W = rc.regressor(rng.uniform(-1, 1, (60, n)), rng.normal(size=(60, n)), rng.normal(size=(60, n)))[:, :10 * n]
+    _, Rq, piv = qr(W, mode="economic", pivoting=True)
+    r = int(np.sum(np.abs(np.diag(Rq)) > 1e-8 * abs(Rq[0, 0]) * W.shape[0]))
+    ind, dep = piv[:r], piv[r:]
+    R = solve_triangular(Rq[:r, :r], Rq[:r, r:])
+    beta = rng.normal(size=r)
+    fast = RobotTorqueModel(model, base=(ind, beta), dependent=(dep, R))
+    slow = RobotTorqueModel(model, base=(ind, beta))
+    assert fast.base is None and slow.base is not None  # RNEA and regressor paths
+    for _ in range(5):
+        q, qd, qdd = rng.normal(size=(3, n))
+        np.testing.assert_allclose(fast(q, qd, qdd), slow(q, qd, qdd), rtol=1e-7, atol=1e-7)

@@ -34,7 +34,10 @@ class RobotTorqueModel:
     ----------
     model : Pinocchio model of the robot (built once from its URDF).
     pi : (n, 10) standard inertial parameters per link (Pinocchio order) -> RNEA; or
-    base : (independent columns, β) of the regressor's base parameters -> regressor.
+    base : (independent columns, β) of the regressor's base parameters, optionally with
+        (dependent columns, R) where ``β = π[independent] + R π[dependent]``: then RNEA on one
+        standard parameter set with those base parameters (the URDF's values for the dependent
+        ones; the torques are the same for every such set, and RNEA is faster), else the regressor.
     Fc, Fv, offset : (n,) Coulomb N·m, viscous N·m·s/rad, offset N·m.
     dFs, vs : (n,) Stribeck excess ``Fs - Fc`` N·m and velocity rad/s (optional).
     rotor : (n, n) joint-side rotor inertia matrix ``G^T diag(I_rotor) G`` kg·m² (or (n,) diagonal).
@@ -42,7 +45,7 @@ class RobotTorqueModel:
 
     def __init__(self, model, *, pi: np.ndarray | None = None, base: tuple[np.ndarray, np.ndarray] | None = None,
                  Fc: Any = 0.0, Fv: Any = 0.0, offset: Any = 0.0, dFs: Any = 0.0, vs: Any = 0.05,
-                 rotor: np.ndarray | None = None) -> None:
+                 rotor: np.ndarray | None = None, dependent: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         import pinocchio as pin
 
         self._pin = pin
@@ -58,6 +61,15 @@ class RobotTorqueModel:
             self.base = None
         else:
             self.base = (np.asarray(base[0], dtype=int), np.asarray(base[1], dtype=float))
+            if dependent is not None:
+                ind, beta = self.base
+                dep, R = np.asarray(dependent[0], dtype=int), np.asarray(dependent[1], dtype=float).reshape(ind.size, -1)
+                pi_eq = np.concatenate([model.inertias[j].toDynamicParameters() for j in range(1, model.njoints)])
+                pi_eq[ind] = beta - (R @ pi_eq[dep] if dep.size else 0.0)
+                if np.all(pi_eq[0::10] != 0):  # Pinocchio's spatial inertia needs a non-zero mass per link
+                    for j in range(1, self.model.njoints):
+                        self.model.inertias[j] = pin.Inertia.FromDynamicParameters(pi_eq[10 * (j - 1):10 * j])
+                    self.base = None
         self.model.armature = np.zeros(n)
         self.data = self.model.createData()
         vec = lambda x: np.broadcast_to(np.asarray(x, dtype=float), (n,)).copy()  # noqa: E731
@@ -112,8 +124,9 @@ class RobotTorqueModel:
                 coupling = np.asarray(drive.get("coupling", np.zeros((n, n))), dtype=float)
                 G = np.diag(ratio) @ (np.eye(n) + coupling)
                 rotor = G.T @ np.diag([float(v or 0.0) for v in ir]) @ G
+            dep = (np.asarray(bp["dependent"], int), np.asarray(bp["R"], float)) if "R" in bp else None
             return cls(model, base=(np.asarray(bp["independent"], int), np.asarray(bp["values"], float)),
-                       Fc=get("Fc"), Fv=get("Fv"), offset=get("offset"), dFs=get("Fs-Fc"),
+                       dependent=dep, Fc=get("Fc"), Fv=get("Fv"), offset=get("offset"), dFs=get("Fs-Fc"),
                        vs=float(fr.get("vs") or 0.05), rotor=rotor)
         except (KeyError, TypeError, ValueError) as e:
             raise ParamFileError(f"{where}: not a usable kukaid.robot_params/1 file ({type(e).__name__}: {e})") from None
