@@ -123,3 +123,12 @@ def test_kvp_ring_capture_records_all_axes(traj, tmp_path):
     q_true = np.degrees(truth["q"][first:first + k])
     np.testing.assert_allclose(np.degrees(log.q), q_true, atol=1e-4)
     np.testing.assert_allclose(log.tau, truth["tau"][first:first + k], atol=1e-3)
+
+
+def test_serve_sim_refuses_one_axis_options_with_a_robot(traj_file, tmp_path):
+    for extra in (["--axis", "2"], ["--q0", "10"], ["--noise", "0.1"], ["--operator", "push"]):
+        r = CliRunner().invoke(cli, ["serve-sim", "--trajectory", str(traj_file), "--port", "0", "--duration", "0.01"]
+                               + extra)
+        assert r.exit_code != 0 and "one-axis simulator" in r.output, (extra, r.output)
+    r = CliRunner().invoke(cli, ["serve-sim", "--robot", "no-such-robot", "--port", "0", "--duration", "0.01"])
+    assert r.exit_code != 0 and "no-such-robot" in r.output and r.output.count("\n") <= 1
