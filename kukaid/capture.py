@@ -290,9 +290,13 @@ def check_limits(traj: Any, where: str = "trajectory") -> None:
     from kukaid.errors import LimitError
     from kukaid.models.limits import AxisLimits
 
-    if hasattr(traj, "axes"):  # several axes: the limits excite stored, per axis
+    if hasattr(traj, "axes"):  # several axes: the limits excite stored per axis, else the URDF's
+        from kukaid.excite.fourier import robot_limits
+        from kukaid.models.urdf import load_model
+
         try:
-            traj.check()
+            robot = traj.robot or "kr6-r700-sixx"
+            traj.check(None if traj.limits else robot_limits(load_model(robot), robot=robot))
         except LimitError as e:
             raise LimitError(f"{where}: {e}") from None
         return

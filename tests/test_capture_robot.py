@@ -132,3 +132,16 @@ def test_serve_sim_refuses_one_axis_options_with_a_robot(traj_file, tmp_path):
         assert r.exit_code != 0 and "one-axis simulator" in r.output, (extra, r.output)
     r = CliRunner().invoke(cli, ["serve-sim", "--robot", "no-such-robot", "--port", "0", "--duration", "0.01"])
     assert r.exit_code != 0 and "no-such-robot" in r.output and r.output.count("\n") <= 1
+
+
+def test_a_robot_trajectory_without_stored_limits_is_checked_against_the_urdf(tmp_path):
+    from kukaid.errors import LimitError
+    from kukaid.capture import check_limits
+    from kukaid.excite.fourier import RobotTrajectory
+
+    t = np.arange(0, 2, 0.012)
+    q = np.zeros((t.size, 6))
+    q[:, 0] = 4.0 * np.sin(t)  # A1 beyond +-170 degrees
+    with pytest.raises(LimitError, match="position limit of A1"):
+        check_limits(RobotTrajectory(t=t, q=q, axes=range(1, 7), robot="kr6-r700-sixx"), "x.json")
+    check_limits(RobotTrajectory(t=t, q=q * 0.1, axes=range(1, 7), robot="kr6-r700-sixx"), "x.json")
