@@ -215,7 +215,6 @@ class VirtualRobotKRC4:
         self._data = self.model.createData()
         self._data_ff = self.model_nominal.createData()
         self.axes = tuple(range(1, n + 1))
-        self.axis = 0  # no single axis: log_attrs and SimSource use ``axes``
         self.dt = 1.0 / c.servo_rate
         self._per = max(int(round(c.sample_time * c.servo_rate)), 1)
         lo, hi = np.asarray(self.model_nominal.lowerPositionLimit), np.asarray(self.model_nominal.upperPositionLimit)
@@ -228,7 +227,7 @@ class VirtualRobotKRC4:
         self.tau_max = np.where(np.isfinite(eff) & (eff > 0), eff, 1e4)
         self.noise_sigma = c.noise_rel * self._effort(eff)
         self._tau_ext: np.ndarray | Callable = np.zeros(n)
-        self.reset(mid * 0.0)
+        self.reset(np.zeros(n))
 
     @staticmethod
     def _effort(eff: np.ndarray) -> np.ndarray:
