@@ -145,3 +145,30 @@ def test_a_robot_trajectory_without_stored_limits_is_checked_against_the_urdf(tm
     with pytest.raises(LimitError, match="position limit of A1"):
         check_limits(RobotTrajectory(t=t, q=q, axes=range(1, 7), robot="kr6-r700-sixx"), "x.json")
     check_limits(RobotTrajectory(t=t, q=q * 0.1, axes=range(1, 7), robot="kr6-r700-sixx"), "x.json")
+
+
+def test_kvp_poll_capture_records_all_axes(traj, tmp_path):
+    from kukaid.krc.kvp_capture import capture_kvp
+
+    sim, src, srv = _served(traj)
+    src._ingest(sim.advance(0.5))
+    last = src.truth()
+    out = tmp_path / "poll.h5"
+    stop = threading.Event()
+    th = threading.Thread(target=lambda: capture_kvp(out, "127.0.0.1", srv.port, range(1, 7), None, True, "poll",
+                                                     stop_event=stop))
+    th.start()
+    try:
+        for _ in range(5000):  # 30 samples: each is one $AXIS_ACT_MEAS and six $TORQUE_AXIS_ACT requests
+            if srv.n_requests >= 2 + 7 * 30:
+                break
+            threading.Event().wait(0.002)
+    finally:
+        stop.set()
+        th.join(10)
+        srv.stop()
+    log = read_hdf5(out)
+    assert log.axes == (1, 2, 3, 4, 5, 6) and log.n_samples >= 20
+    # the robot stood still meanwhile: every sample is the simulator's latest, on every axis
+    np.testing.assert_allclose(np.degrees(log.q), np.tile(np.degrees(last["q"][-1]), (log.n_samples, 1)), atol=1e-5)
+    np.testing.assert_allclose(log.tau, np.tile(last["tau"][-1], (log.n_samples, 1)), atol=1e-5)
