@@ -102,3 +102,15 @@ def test_krl_refuses_a_speed_above_the_limit(traj):
         krl_program_robot(six)
     with pytest.raises(LimitError):
         six.check()
+
+
+def test_a_bad_urdf_is_one_line_on_stderr(tmp_path, kukaid_cmd):
+    import subprocess
+
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot>")
+    r = subprocess.run(kukaid_cmd + ["excite", "fourier", "--robot", str(bad), "-o", str(tmp_path / "f.json")],
+                       capture_output=True, text=True)
+    assert r.returncode != 0
+    assert r.stderr.startswith("kukaid: error: ") and r.stderr.count("\n") == 1, r.stderr
+    assert not (tmp_path / "f.json").exists()

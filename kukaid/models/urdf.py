@@ -5,6 +5,9 @@ joint-torque regressor) run on a model built once and a data object per computat
 """
 from __future__ import annotations
 
+import os
+import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 from kukaid.errors import KukaidError
@@ -29,14 +32,18 @@ def robot_urdf(robot: str | Path) -> Path:
 
 
 def load_model(robot: str | Path):
-    """A Pinocchio model (fixed base, revolute joints) built once from the robot's URDF."""
+    """A Pinocchio model (fixed base, one coordinate per joint) built once from the robot's URDF.
+
+    The URDF parser's own complaints (printed by C++ on the process's stderr) are caught and
+    reported in the one-line :class:`KukaidError` instead."""
     import pinocchio as pin
 
     path = robot_urdf(robot)
     try:
-        model = pin.buildModelFromUrdf(str(path))
+        with _captured_stderr() as said:
+            model = pin.buildModelFromUrdf(str(path))
     except Exception as e:  # Pinocchio raises RuntimeError/ValueError with multi-line text
-        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        first = (str(e).strip() or said() or type(e).__name__).splitlines()[0]
         raise KukaidError(f"{path}: not a URDF Pinocchio can read ({first})") from None
     if model.nq != model.nv or model.nv == 0:
         raise KukaidError(f"{path}: the robot must have 1 to 12 revolute/prismatic joints with one coordinate each "
@@ -44,3 +51,28 @@ def load_model(robot: str | Path):
     if model.nv > 12:
         raise KukaidError(f"{path}: {model.nv} joints; kukaid handles at most 12 axes")
     return model
+
+
+@contextmanager
+def _captured_stderr():
+    """Redirect the process's file descriptor 2 (C++ output too) into a temporary file; yields a
+    function returning what was written."""
+    import tempfile
+
+    text = ""
+    try:
+        fd = sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):  # no real stderr (e.g. captured by a test runner)
+        yield lambda: text
+        return
+    sys.stderr.flush()
+    saved = os.dup(fd)
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), fd)
+        try:
+            yield lambda: text
+        finally:
+            os.dup2(saved, fd)
+            os.close(saved)
+            tmp.seek(0)
+            text = tmp.read().decode("utf-8", "replace").strip()
