@@ -117,3 +117,32 @@ def test_base_parameters_with_their_dependency_predict_as_the_regressor():
     for _ in range(5):
         q, qd, qdd = rng.normal(size=(3, n))
         np.testing.assert_allclose(fast(q, qd, qdd), slow(q, qd, qdd), rtol=1e-7, atol=1e-7)
+
+
+def test_coupled_wrist_drives_and_motor_side_torques():
+    """Drives with a coupled wrist, torques logged on the motor side: converted back with G^T, the
+    residual of every axis is again the external torque."""
+    n = 6
+    C = np.zeros((n, n))
+    C[4, 3], C[5, 3], C[5, 4] = 0.2, -0.1, 0.15  # the A5 and A6 motors also turn with A4 (and A6 with A5)
+    cfg = RobotSimConfig(robot=ROBOT, torque_side="motor", coupling=C.tolist())
+    sim = VirtualRobotKRC4(cfg, seed=3)
+    traj = fourier(ROBOT, harmonics=2, period=4.0, periods=2, iterations=0, starts=1)
+    sim.reset(sim.start_position(traj))
+    sim.follow(traj)
+    ext = np.zeros(n)
+    ext[4] = 1.0  # on A5, whose motor is coupled
+    parts = [sim.advance(3.0)]
+    sim.set_external_torque(ext)
+    parts.append(sim.advance(3.0))
+    d = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    truth = sim.log_attrs()["truth"]
+    assert truth["drive"]["torque_side"] == "motor" and np.allclose(truth["drive"]["coupling"], C)
+    G = np.diag(truth["drive"]["ratio"]) @ (np.eye(n) + C)
+    assert np.abs(d["tau"] - d["tau"] @ G).max() > 1.0  # motor side: not the joint torques
+    r = robot_residual(d["q"], d["tau"], RobotTorqueModel.from_truth(truth), sim.cfg.sample_time,
+                       torque_side="motor", drive_G=G)["gamma_r"]
+    t = d["time"]
+    quiet, push = (t > 0.5) & (t < 3.0), t > 3.5
+    assert r[push, 4].mean() == pytest.approx(1.0, abs=0.15)
+    assert np.abs(r[quiet].mean(axis=0)).max() < 0.15

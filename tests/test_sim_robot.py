@@ -103,3 +103,13 @@ def test_bad_config_is_one_clear_error():
         RobotSimConfig(Kv=-1)
     with pytest.raises(SimConfigError, match="unknown field 'bogus'"):
         RobotSimConfig.from_dict({"bogus": 1})
+
+
+def test_gear_ratios_are_read_from_the_urdf_transmissions():
+    from kukaid.models.urdf import gear_ratios
+
+    model = load_model(ROBOT)
+    r = gear_ratios(ROBOT, tuple(model.names[1:]))
+    assert r.shape == (model.nv,) and np.all(r > 0)
+    if ROBOT == "kr6-r700-sixx":  # its transmissions (and a comment with "--" that XML parsers refuse)
+        assert np.allclose(r, [121, 153, 121, 81, 81, 51])

@@ -133,14 +133,21 @@ class RobotTorqueModel:
 
     @classmethod
     def from_truth(cls, truth: dict, model=None) -> "RobotTorqueModel":
-        """From a simulator's truth (``kukaid.robot-truth/1``, a log's ``truth`` attribute)."""
+        """From a simulator's truth (``kukaid.robot-truth/1``, a log's ``truth`` attribute; its
+        ``drive`` section, when present, gives the rotor inertias on coupled drives)."""
         from kukaid.models.urdf import load_model
 
         model = model if model is not None else load_model(truth["robot"])
         f = truth["friction"]
         Fc = np.asarray(f["Fc"], float)
+        rotor = np.asarray(truth["armature"], float)
+        drive = truth.get("drive")
+        if drive:  # rotors on coupled drives: G^T diag(I_rotor) G on the joint side
+            n = model.nv
+            G = np.diag(np.asarray(drive["ratio"], float)) @ (np.eye(n) + np.asarray(drive["coupling"], float))
+            rotor = G.T @ np.diag(np.asarray(drive["rotor_inertia"], float)) @ G
         return cls(model, pi=np.asarray(truth["pi"], float), Fc=Fc, Fv=f["Fv"], dFs=np.asarray(f["Fs"], float) - Fc,
-                   vs=f["vs"], offset=truth["offset"], rotor=np.asarray(truth["armature"], float))
+                   vs=f["vs"], offset=truth["offset"], rotor=rotor)
 
 
 class _Butterworth:

@@ -6,9 +6,12 @@ joint-torque regressor) run on a model built once and a data object per computat
 from __future__ import annotations
 
 import os
+import re
 import sys
 from contextlib import contextmanager
 from pathlib import Path
+
+import numpy as np
 
 from kukaid.errors import KukaidError
 
@@ -76,3 +79,26 @@ def _captured_stderr():
             os.close(saved)
             tmp.seek(0)
             text = tmp.read().decode("utf-8", "replace").strip()
+
+
+def gear_ratios(robot: str | Path, joint_names: tuple[str, ...]) -> np.ndarray:
+    """Gear ratios (motor turns per joint turn) of the joints ``joint_names`` from the URDF's
+    ``<transmission>`` elements (``mechanicalReduction``); 1 where the URDF gives none."""
+    import xml.etree.ElementTree as ET
+
+    path = robot_urdf(robot)
+    ratio = np.ones(len(joint_names))
+    try:
+        # comments dropped first: URDF parsers accept "--" inside a comment, XML (and ElementTree) does not
+        root = ET.fromstring(re.sub(r"<!--.*?-->", "", path.read_text(), flags=re.S))
+    except (ET.ParseError, OSError, UnicodeDecodeError):
+        return ratio
+    for tr in root.iter("transmission"):
+        joint, red = tr.find("joint"), tr.find(".//mechanicalReduction")
+        if joint is not None and red is not None and joint.get("name") in joint_names:
+            try:
+                ratio[joint_names.index(joint.get("name"))] = float(red.text)
+            except (TypeError, ValueError):
+                raise KukaidError(f"{path}: transmission {tr.get('name')}: mechanicalReduction must be a number, "
+                                  f"got {red.text!r}") from None
+    return ratio

@@ -37,7 +37,7 @@ import numpy as np
 from kukaid.errors import KukaidError
 from kukaid.errors import SimConfigError
 from kukaid.sim.krc4 import _Spline
-from kukaid.models.urdf import load_model
+from kukaid.models.urdf import gear_ratios, load_model
 from kukaid.sim.robot_truth import NOMINAL_ARMATURE, RobotTruth, draw_truth
 
 SOURCE = "virtual-krc4-robot"
@@ -84,6 +84,8 @@ class RobotSimConfig:
     noise_rel: float = 0.002
     quant_deg: float = 1e-4
     friction_eps: float = 1e-3
+    torque_side: str = "joint"
+    coupling: Any = None
 
     def __post_init__(self) -> None:
         for name, (kind, lo, hi, doc) in ROBOT_FIELDS.items():
@@ -95,11 +97,24 @@ class RobotSimConfig:
             object.__setattr__(self, name, bool(v) if kind == "bool" else int(v) if kind == "int" else float(v))
         if not isinstance(self.robot, str) or not self.robot:
             raise SimConfigError("robot sim config: field 'robot' must be a robot name or a URDF path")
+        if self.torque_side not in ("joint", "motor"):
+            raise SimConfigError(f"robot sim config: field 'torque_side' must be \"joint\" or \"motor\", "
+                                 f"got {json.dumps(self.torque_side, default=str)}")
+        if self.coupling is not None:
+            try:
+                C = np.asarray(self.coupling, dtype=float)
+                ok = C.ndim == 2 and C.shape[0] == C.shape[1] and np.all(np.isfinite(C))
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise SimConfigError("robot sim config: field 'coupling' (the drives' coupling: motor angles "
+                                     "diag(ratio) (I + coupling) q) must be a square matrix of numbers, one row per axis")
+            object.__setattr__(self, "coupling", C.tolist())
         if self.sample_time * self.servo_rate < 1 - 1e-9:
             raise SimConfigError(f"robot sim config: field 'sample_time' = {self.sample_time} is shorter than a servo cycle")
 
     def replace(self, **changes: Any) -> "RobotSimConfig":
-        names = set(ROBOT_FIELDS) | {"robot"}
+        names = set(ROBOT_FIELDS) | {"robot", "torque_side", "coupling"}
         for k in changes:
             if k not in names:
                 raise SimConfigError(f"robot sim config: unknown field '{k}' (known: {', '.join(sorted(names))})")
@@ -211,6 +226,19 @@ class VirtualRobotKRC4:
             raise KukaidError(f"robot sim: the truth has {self.truth.n} joints, the robot {n}")
         if not c.armature:
             self.truth = replace(self.truth, armature=np.zeros(n))
+        # the drives: motor angles G q, G = diag(gear ratio) (I + coupling); the rotors turn with the
+        # motors, so their inertia on the joint side is G^T diag(I_rotor) G (the truth's armature
+        # is its diagonal without coupling)
+        ratio = gear_ratios(c.robot, tuple(self.model_nominal.names[1:]))
+        C = np.zeros((n, n)) if c.coupling is None else np.asarray(c.coupling, dtype=float)
+        if C.shape != (n, n):
+            raise SimConfigError(f"robot sim config: field 'coupling' must be {n} x {n} for this robot, got {C.shape}")
+        self.ratio, self.coupling = ratio, C
+        self.G = np.diag(ratio) @ (np.eye(n) + C)
+        self.rotor_inertia = self.truth.armature / ratio ** 2  # motor side, kg·m²
+        self._coupled = bool(np.any(C != 0))
+        self._M_rotor = self.G.T @ np.diag(self.rotor_inertia) @ self.G
+        self._to_motor = np.linalg.inv(self.G)  # row vectors: tau_motor = tau_joint G^-1 (= G^-T tau_joint)
         self.model = self.truth.apply(self.model_nominal)
         self._data = self.model.createData()
         self._data_ff = self.model_nominal.createData()
@@ -373,11 +401,21 @@ class VirtualRobotKRC4:
         nxt = rec[0] if rec.size else -1
         aba, grav = pin.aba, pin.computeGeneralizedGravity
         step, integrate = _get_kernels()
+        coupled, M_rot = self._coupled, self._M_rotor
+        if coupled:  # the rotor inertia is a full matrix: mass matrix and solve instead of ABA
+            P[_ARM] = 0.0
+            model.armature = np.zeros(self.n)
+            crba, nle, solve = pin.crba, pin.nonLinearEffects, np.linalg.solve
         for i in range(m):
             qr = qref[i]
             step(qr, vff[i], aff[i], grav(mnom, dnom, qr), q, v, I, te, P, h, ieps, tau, u, arm_eff)
-            model.armature = arm_eff  # implicit friction: its velocity slope joins the inertia for the step
-            a = aba(model, data, q, v, u)
+            if coupled:
+                Mq = crba(model, data, q)
+                Mq = np.triu(Mq) + np.triu(Mq, 1).T + M_rot + np.diag(arm_eff)
+                a = solve(Mq, u - nle(model, data, q, v))
+            else:
+                model.armature = arm_eff  # implicit friction: its velocity slope joins the inertia for the step
+                a = aba(model, data, q, v, u)
             integrate(q, v, a, h)
             if i == nxt:
                 out_q[k] = q
@@ -392,7 +430,7 @@ class VirtualRobotKRC4:
         return {
             "time": (t0 + 1 + rec) * h,
             "q": self._quantise(out_q),
-            "tau": out_tau + self.noise_sigma * self._rng.standard_normal(out_tau.shape),
+            "tau": self._measured(out_tau + self.noise_sigma * self._rng.standard_normal(out_tau.shape)),
             "q_cmd": qref[rec + 1],
             "tau_ext_true": np.tile(te, (rec.size, 1)),
         }
@@ -414,7 +452,12 @@ class VirtualRobotKRC4:
 
     def read(self) -> dict[str, np.ndarray]:
         """The latest measurement: ``q`` rad (quantised), ``tau`` N·m (noisy), per axis."""
-        return {"q": self._quantise(self._q), "tau": self._tau + self.noise_sigma * self._rng_read.standard_normal(self.n)}
+        return {"q": self._quantise(self._q),
+                "tau": self._measured(self._tau + self.noise_sigma * self._rng_read.standard_normal(self.n))}
+
+    def _measured(self, tau_joint: np.ndarray) -> np.ndarray:
+        """Torques as the log reports them: joint side, or motor side (``torque_side = "motor"``)."""
+        return tau_joint @ self._to_motor if self.cfg.torque_side == "motor" else tau_joint
 
     def run(self, traj: Any, settle: float = 0.5, progress: Callable[[float], None] | None = None):
         """Reset to ``traj``'s start, follow it to its end plus ``settle`` s; the :class:`AxisLog`."""
@@ -454,7 +497,9 @@ class VirtualRobotKRC4:
         attrs: dict[str, Any] = {
             "source": SOURCE,
             "robot": self.cfg.robot,
-            "truth": self.truth.to_dict(),
+            "truth": {**self.truth.to_dict(), "drive": {
+                "torque_side": self.cfg.torque_side, "ratio": self.ratio.tolist(), "coupling": self.coupling.tolist(),
+                "rotor_inertia": self.rotor_inertia.tolist()}},
             "seed": self.seed,
             "sim_config": self.cfg.to_dict(),
             "sample_time": self.cfg.sample_time,
