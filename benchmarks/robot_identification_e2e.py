@@ -1,6 +1,7 @@
 """End to end on the six-axis virtual KR C4: excite fourier -> capture -> fit --robot -> validate.
 
-Run:  python benchmarks/robot_identification_e2e.py [--out DIR] [--kukaid CMD] [--fit-kukaid CMD] [--rotor] [--json]
+Run:  python benchmarks/robot_identification_e2e.py [--out DIR] [--kukaid CMD] [--fit-kukaid CMD] [--robot URDF]
+          [--rotor | --coupled] [--json]
 
 Two Fourier excitations of every axis of the bundled KR 6 R700 sixx (different seeds, harmonics
 and periods), each captured on the six-axis simulator (the same seeded robot, truth away from
@@ -40,7 +41,11 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None, help="folder for the files (default: a temporary one)")
     ap.add_argument("--kukaid", default=f"{sys.executable} -m kukaid_cli.main")
     ap.add_argument("--fit-kukaid", default=None, help="kukaid command for fit and validate (default: --kukaid)")
+    ap.add_argument("--robot", default="kr6-r700-sixx", help="bundled robot or URDF (six axes)")
     ap.add_argument("--rotor", action="store_true", help="simulate and fit rotor inertias")
+    ap.add_argument("--coupled", action="store_true",
+                    help="motor-side torques of drives with a coupled wrist (implies --rotor; fit with --torque-side "
+                         "motor --coupling)")
     ap.add_argument("--repeat", type=int, default=6, help="periods of the fitted excitation (10 s each)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
@@ -51,14 +56,22 @@ def main() -> None:
     out = a.out or Path(tempfile.mkdtemp(prefix="kukaid_e2e_"))
     out.mkdir(parents=True, exist_ok=True)
     cfg = out / "sim.json"
-    cfg.write_text(json.dumps({"armature": bool(a.rotor)}))
+    sim_cfg: dict = {"armature": bool(a.rotor or a.coupled)}
+    fit_extra = ["--rotor-inertia"] if a.rotor or a.coupled else []
+    if a.coupled:
+        C = np.zeros((6, 6))
+        C[4, 3], C[5, 3], C[5, 4] = 0.2, -0.1, 0.15  # the A5 and A6 motors also turn with A4, A6's with A5
+        sim_cfg.update(torque_side="motor", coupling=C.tolist())
+        (out / "coupling.json").write_text(json.dumps(C.tolist()))
+        fit_extra += ["--torque-side", "motor", "--coupling", str(out / "coupling.json")]
+    cfg.write_text(json.dumps(sim_cfg))
     f = {k: str(out / k) for k in ("fit.json", "val.json", "fit.h5", "val.h5", "p.json")}
-    run(["excite", "fourier", "--robot", "kr6-r700-sixx", "-o", f["fit.json"], "--repeat", str(a.repeat)], kk)
-    run(["excite", "fourier", "--robot", "kr6-r700-sixx", "-o", f["val.json"], "--seed", "7", "--harmonics", "4",
+    run(["excite", "fourier", "--robot", a.robot, "-o", f["fit.json"], "--repeat", str(a.repeat)], kk)
+    run(["excite", "fourier", "--robot", a.robot, "-o", f["val.json"], "--seed", "7", "--harmonics", "4",
          "--period", "8", "--repeat", "4"], kk)
     run(["capture", f["fit.json"], "-o", f["fit.h5"], "--seed", "1", "--sim-config", str(cfg), "--force"], kk)
     run(["capture", f["val.json"], "-o", f["val.h5"], "--seed", "2", "--sim-config", str(cfg), "--force"], kk)
-    run(["fit", f["fit.h5"], "--robot", "kr6-r700-sixx", "-o", f["p.json"]] + (["--rotor-inertia"] if a.rotor else []), kf)
+    run(["fit", f["fit.h5"], "--robot", a.robot, "-o", f["p.json"]] + fit_extra, kf)
     val = json.loads(run(["validate", "--params", f["p.json"], f["val.h5"], "--json"], kf))
     p = json.loads(Path(f["p.json"]).read_text())
     tr = read_hdf5(f["fit.h5"]).attrs["truth"]
