@@ -45,7 +45,8 @@ class RobotTorqueModel:
 
     def __init__(self, model, *, pi: np.ndarray | None = None, base: tuple[np.ndarray, np.ndarray] | None = None,
                  Fc: Any = 0.0, Fv: Any = 0.0, offset: Any = 0.0, dFs: Any = 0.0, vs: Any = 0.05,
-                 rotor: np.ndarray | None = None, dependent: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+                 rotor: np.ndarray | None = None, dependent: tuple[np.ndarray, np.ndarray] | None = None,
+                 k: Any = 0.0, v_smooth: float = 0.0) -> None:
         import pinocchio as pin
 
         self._pin = pin
@@ -74,6 +75,7 @@ class RobotTorqueModel:
         self.data = self.model.createData()
         vec = lambda x: np.broadcast_to(np.asarray(x, dtype=float), (n,)).copy()  # noqa: E731
         self.Fc, self.Fv, self.offset, self.dFs, self.vs = vec(Fc), vec(Fv), vec(offset), vec(dFs), vec(vs)
+        self.k, self.v_smooth = vec(k), float(v_smooth)
         rot = np.zeros((n, n)) if rotor is None else np.asarray(rotor, dtype=float)
         self.rotor = np.diag(rot) if rot.ndim == 1 else rot
         self._stribeck = bool(np.any(self.dFs != 0))
@@ -87,17 +89,19 @@ class RobotTorqueModel:
         ind, beta = self.base
         return pin.computeJointTorqueRegressor(self.model, self.data, q, qd, qdd)[:, ind] @ beta
 
-    def friction(self, qd: np.ndarray) -> np.ndarray:
-        """Friction plus offset per joint (n,), N·m."""
-        s = np.sign(qd)
+    def friction(self, qd: np.ndarray, q: np.ndarray | None = None) -> np.ndarray:
+        """Friction, offset and the joint's own spring ``k q`` (when ``q`` is given) per joint (n,), N·m."""
+        s = np.tanh(qd / self.v_smooth) if self.v_smooth > 0 else np.sign(qd)
         f = self.Fc * s + self.Fv * qd + self.offset
+        if q is not None:
+            f = f + self.k * q
         if self._stribeck:
             f = f + self.dFs * s * np.exp(-(qd / self.vs) ** 2)
         return f
 
     def __call__(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         """Γp (n,), N·m, at one state."""
-        tau = self.rigid(q, qd, qdd) + self.friction(qd)
+        tau = self.rigid(q, qd, qdd) + self.friction(qd, q)
         if self._has_rotor:
             tau = tau + self.rotor @ qdd
         return tau
@@ -106,7 +110,8 @@ class RobotTorqueModel:
     @classmethod
     def from_params(cls, params: dict, where: str = "robot parameter file") -> "RobotTorqueModel":
         """From a ``kukaid.robot_params/1`` dictionary (``kukaid fit --robot``): its base parameters
-        (the estimate it predicts with), per-joint friction and offset, rotor inertias."""
+        (the estimate it predicts with), per-joint friction, offset and spring, rotor inertias: the
+        same terms as :func:`kukaid.identify.robot_fit.predict_robot`."""
         from kukaid.models.urdf import load_model
 
         try:
@@ -125,9 +130,11 @@ class RobotTorqueModel:
                 G = np.diag(ratio) @ (np.eye(n) + coupling)
                 rotor = G.T @ np.diag([float(v or 0.0) for v in ir]) @ G
             dep = (np.asarray(bp["dependent"], int), np.asarray(bp["R"], float)) if "R" in bp else None
+            st = params.get("settings") or {}
             return cls(model, base=(np.asarray(bp["independent"], int), np.asarray(bp["values"], float)),
                        dependent=dep, Fc=get("Fc"), Fv=get("Fv"), offset=get("offset"), dFs=get("Fs-Fc"),
-                       vs=float(fr.get("vs") or 0.05), rotor=rotor)
+                       vs=float(fr.get("vs") or st.get("vs") or 0.05), rotor=rotor, k=get("k"),
+                       v_smooth=float(st.get("v_smooth") or 0.0))
         except (KeyError, TypeError, ValueError) as e:
             raise ParamFileError(f"{where}: not a usable kukaid.robot_params/1 file ({type(e).__name__}: {e})") from None
 

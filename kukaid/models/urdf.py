@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kukaid.errors import KukaidError
+from kukaid.errors import ParamFileError
 
 #: robot names bundled with kukaid -> URDF file in kukaid/robots
 BUNDLED = {"kr6-r700-sixx": "kr6_r700_sixx.urdf"}
@@ -25,12 +25,12 @@ def robot_urdf(robot: str | Path) -> Path:
     if name in BUNDLED:
         p = Path(__file__).resolve().parent.parent / "robots" / BUNDLED[name]
         if not p.is_file():
-            raise KukaidError(f"robot '{name}': the bundled URDF {p} is missing from this installation")
+            raise ParamFileError(f"robot '{name}': the bundled URDF {p} is missing from this installation")
         return p
     p = Path(name)
     if not p.is_file():
         known = ", ".join(BUNDLED)
-        raise KukaidError(f"robot '{name}': no such URDF file and not a bundled robot (known: {known})")
+        raise ParamFileError(f"robot '{name}': no such robot (a .urdf file or one of: {known})")
     return p
 
 
@@ -47,12 +47,12 @@ def load_model(robot: str | Path):
             model = pin.buildModelFromUrdf(str(path))
     except Exception as e:  # Pinocchio raises RuntimeError/ValueError with multi-line text
         first = (str(e).strip() or said() or type(e).__name__).splitlines()[0]
-        raise KukaidError(f"{path}: not a URDF Pinocchio can read ({first})") from None
+        raise ParamFileError(f"{path}: not a URDF Pinocchio can read ({first})") from None
     if model.nq != model.nv or model.nv == 0:
-        raise KukaidError(f"{path}: the robot must have 1 to 12 revolute/prismatic joints with one coordinate each "
+        raise ParamFileError(f"{path}: the robot must have 1 to 12 revolute/prismatic joints with one coordinate each "
                           f"(nq = {model.nq}, nv = {model.nv})")
     if model.nv > 12:
-        raise KukaidError(f"{path}: {model.nv} joints; kukaid handles at most 12 axes")
+        raise ParamFileError(f"{path}: {model.nv} joints; kukaid handles at most 12 axes")
     return model
 
 
@@ -99,6 +99,6 @@ def gear_ratios(robot: str | Path, joint_names: tuple[str, ...]) -> np.ndarray:
             try:
                 ratio[joint_names.index(joint.get("name"))] = float(red.text)
             except (TypeError, ValueError):
-                raise KukaidError(f"{path}: transmission {tr.get('name')}: mechanicalReduction must be a number, "
+                raise ParamFileError(f"{path}: transmission {tr.get('name')}: mechanicalReduction must be a number, "
                                   f"got {red.text!r}") from None
     return ratio
