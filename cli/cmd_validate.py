@@ -1,0 +1,31 @@
+"""kukaid validate: a parameter file's model evaluated on logs it was not fitted on."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command("validate")
+@click.option("--params", "params_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Parameter file whose model is evaluated.")
+@click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--axis", type=int, default=None, help="KUKA axis number (default: the parameter file's).")
+@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
+def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json: bool) -> None:
+    """Per axis RMSE, relative error ||tau - tau_hat|| / ||tau||, R² and samples of the model of
+    --params on LOGS (pooled), pre-processed as its fit was.  Give logs the model was not fitted on."""
+    import json
+
+    from kukaid.diagnose.validate import load_model_file, table, to_json, validate
+    from kukaid.jsonfile import jsonable
+    from kukaid.logs import read_log
+
+    params = load_model_file(params_path)
+    scores = validate(params, [read_log(p) for p in logs], axis=axis)
+    if as_json:
+        click.echo(json.dumps(jsonable(to_json(scores)), indent=2))
+    else:
+        prismatic = (params.get("provenance") or {}).get("joint") == "prismatic"
+        for line in table(scores, "N" if prismatic else "N*m"):
+            click.echo(line)
