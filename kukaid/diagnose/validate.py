@@ -130,7 +130,9 @@ def predict_axis(params: dict, log: Any, axis: int | None = None) -> dict[int, t
     tau_hat = model.predict_dynamic(pr.q, pr.qd, pr.qdd)
     if params.get("effects"):
         temp = None if log.temp is None else np.asarray(log.temp[:, log.index(ax)], dtype=float)
-        tau_hat = tau_hat + effects_torque(params, pr.time, pr.q, pr.qd, temp, pr.joint)
+        others = ({a: preprocess(log, a, edge=0, **st).q for a in log.axes if a != ax}
+                  if "coupling" in params["effects"] else None)
+        tau_hat = tau_hat + effects_torque(params, pr.time, pr.q, pr.qd, temp, pr.joint, others)
     return {ax: (pr.tau[keep], tau_hat[keep])}
 
 
