@@ -22,7 +22,7 @@ import numpy as np
 from kukaid import __version__
 from kukaid.errors import FitError
 from kukaid.identify.dynamic import fit_dynamic
-from kukaid.identify.filtering import preprocess
+from kukaid.identify.filtering import preprocess, settings_reason
 from kukaid.identify.least_squares import fit_rigid
 from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
 from kukaid.identify.stribeck_fit import extract_friction, natural_uncertainty, solve_separable
@@ -223,7 +223,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         "offset": bool(offset), "joint": all_preps[0].joint,
         "logs": {"general": [p.source for p in general], "friction": [p.source for p in fr],
                  "inertia": [p.source for p in ine], "presliding": psl.source if psl is not None else None},
-        "preprocess": jsonable(all_preps[0].settings),
+        "preprocess": jsonable({**all_preps[0].settings, "why": settings_reason(all_preps[0].settings)}),
     }
     return out
 
