@@ -261,6 +261,11 @@ class PositionRipple(Candidate):
         n = nl["n"]
         return np.column_stack([np.sin(n * sig.q), np.cos(n * sig.q)])
 
+    def columns_at(self, q: np.ndarray, options: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+        """The sin and cos columns of many options at positions ``q``: two (len(q), len(options))."""
+        ph = np.outer(q, [o["n"] for o in options])
+        return np.sin(ph), np.cos(ph)
+
     def coordinate(self, sig, nl):
         return np.mod(nl["n"] * sig.q, 2 * math.pi), f"ripple phase n q mod 2 pi (n = {nl['n']:.3g})"
 
