@@ -130,7 +130,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
 
     attrs = {"params_file": str(params_path), "backend": backend}
     if backend == "sim":
-        from kukaid.control.backends import SimBackend
+        from kukaid.robot import SimRobot
         from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
         from kukaid.sim.operator import make_operator
 
@@ -142,17 +142,17 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         q0r = math.radians(q0)
         op = None if operator == "none" else make_operator(operator, seed, q0r + cfg.init_move,
                                                            t_start=cfg.init_time + cfg.init_rest + 0.8)
-        be = SimBackend(VirtualKRC4(scfg, seed=seed), q0r, op)
+        be = SimRobot(VirtualKRC4(scfg, seed=seed), q0r, op)
         attrs.update(seed=seed, operator=operator, operator_params=(op.__dict__ if op is not None else None),
                      sim_config=scfg.to_dict(), truth={**scfg.truth_params(), "axis": scfg.axis})
         axis_id = scfg.axis
     else:
-        from kukaid.control.backends import KvpBackend
+        from kukaid.robot import KvpRobot
         from kukaid.krc.kvp import KvpClient
 
         client = KvpClient(host=host, port=port, timeout=max(max_age, 2 * cycle))
         client.connect()
-        be = KvpBackend(client, axis=axis)
+        be = KvpRobot(client, axis=axis)
         attrs.update(host=host, port=port)
         axis_id = axis
 
