@@ -32,14 +32,19 @@ import click
 @click.option("--decimate", type=click.IntRange(1, 1000), default=1, show_default=True,
               help="Keep every n-th sample after filtering.")
 @click.option("--reversal-window", type=float, default=None,
-              help="s; dynamic samples this close to a reversal/start/stop are not fitted (default 1.2/cutoff; 0 keeps all).")
+              help="s; dynamic samples this close to a reversal/start/stop are not fitted (default 1.2/cutoff, or 0 "
+                   "when the filter smears a jump over a dozen samples or fewer; 0 keeps all).")
 @click.option("--diff", type=click.Choice(["central", "spectral"]), default=None,
               help="Differentiation of the filtered position (default central differences).")
 @click.option("--bound", "bound", multiple=True, metavar="NAME=LO:HI",
               help="Override a bound, e.g. --bound vs=0:0.1 --bound Fs-Fc=0:5 (empty side = unbounded).")
 def command(logs, friction, inertia, presliding, axis, output, method, friction_model, gravity, offset, elements,
             cutoff, order, qd_thr, edge, decimate, reversal_window, diff, bound) -> None:
-    """Fit Stribeck friction, Izz/Mx and Maxwell-slip elements from axis logs (HDF5 or CSV)."""
+    """Fit Stribeck friction, Izz/Mx and Maxwell-slip elements from axis logs (HDF5 or CSV).
+
+    The table on stdout ends with the parameters that ended on a bound, the pre-processing and why,
+    and warnings (IPOPT stopped early; other axes move, so a single-axis model cannot explain this
+    one); the parameter file's metrics hold the same (at_bound, warnings, single_axis_adequate)."""
     import math
 
     from kukaid.errors import FitError
