@@ -67,7 +67,7 @@ def timed(fn):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, nargs="+", default=[4, 16])
+    ap.add_argument("--repeats", type=int, nargs="*", default=[4, 16], help="EMPS repeats (none: skip)")
     ap.add_argument("--hour", action="store_true", help="also the one-hour 1 kHz simulated log")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)

@@ -7,7 +7,8 @@ Torque prediction on a log's full sample grid (N·m):
 with Stribeck friction F = (Fc (1 - E) + Fs E) sign(qd) + Fv qd, E = exp(-(|qd|/vs)^delta) (or
 Coulomb + viscous).  Every parameter except vs and delta (and the effects' nonlinear settings)
 enters linearly, so the joint refit is a variable projection: an outer bounded least-squares over
-(vs, delta), an inner linear least-squares over everything else.  Residuals are formed after the
+(vs, delta), an inner linear least-squares over everything else, bounded where physics bounds it
+(Fc, Fs, Fv, Izz >= 0: :data:`POSITIVE`).  Residuals are formed after the
 comparison filter (see :mod:`kukaid.diagnose.signals`).
 """
 from __future__ import annotations
@@ -25,6 +26,20 @@ from kukaid.errors import FitError, ParamFileError
 from kukaid.jsonfile import jsonable
 
 VS_BOUNDS = (1e-4, 2.0)
+#: physical lower bounds of the refit: friction levels and the inertia are not negative
+POSITIVE: dict[str, float] = {"Fc": 0.0, "Fs": 0.0, "Fv": 0.0, "Izz": 0.0}
+
+
+def bounded_lstsq(X: np.ndarray, y: np.ndarray, lower: Sequence[float]) -> np.ndarray:
+    """Least squares ``X theta ~ y`` with lower bounds (-inf for a free parameter): the ordinary
+    solution when it keeps the bounds, else bounded least squares (scipy ``lsq_linear``)."""
+    theta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    lo = np.asarray(lower, dtype=float)
+    if np.all(theta >= lo):
+        return theta
+    from scipy.optimize import lsq_linear
+
+    return lsq_linear(X, y, bounds=(lo, np.full(lo.size, np.inf)), lsmr_tol="auto", method="bvls").x
 DELTA_BOUNDS = (0.5, 2.0)
 
 
@@ -285,9 +300,9 @@ class DiagModel:
             X = np.vstack(blocks)
             scale = np.linalg.norm(X, axis=0)
             scale[scale == 0] = 1.0
-            theta, *_ = np.linalg.lstsq(X / scale, y, rcond=None)
-            theta = theta / scale
-            out = (nb + ne, theta, y - X @ theta)
+            names = nb + ne
+            theta = bounded_lstsq(X / scale, y, [POSITIVE.get(k, -np.inf) * 1.0 for k in names]) / scale
+            out = (names, theta, y - X @ theta)
             cache[key] = out
             return out
 

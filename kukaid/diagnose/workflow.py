@@ -18,6 +18,7 @@
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 from typing import Any, Sequence
@@ -570,7 +571,8 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
                          "explained first)")
         model, cur_rmse, cur_rel = steps[-1].model_after, steps[-1].rmse_after, steps[-1].rel_after
     added = [s.name for s in steps]
-    out_params = model.to_params(params, added)
+    # nothing named: the parameter file stays as it was (a refit without new effects is no finding)
+    out_params = model.to_params(params, added) if added else copy.deepcopy(params)
     prov = dict(out_params.get("provenance") or {})
     prov["diagnose"] = {"effects_added": added, "rmse_before": rmse0, "rmse_after": cur_rmse, "noise_floor": floor}
     out_params["provenance"] = jsonable(prov)
