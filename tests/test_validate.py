@@ -52,7 +52,7 @@ def test_validate_cli_table_and_json(tmp_path):
     assert r.exit_code == 0, r.output
     d = json.loads(r.output)
     a = d["axes"]["A3"]
-    assert set(a) == {"rmse", "rel_error", "r2", "samples"}
+    assert set(a) == {"rmse", "rel_error", "r2", "samples"} and d["mean_relative_error"] == a["rel_error"]
     assert a["r2"] > 0.99 and a["rel_error"] < 0.05 and a["samples"] > 1000
     r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(other)])
     assert r.exit_code == 0 and "A3" in r.output and "R2" in r.output

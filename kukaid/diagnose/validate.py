@@ -10,7 +10,7 @@ for every axis it models, the measured torque and the model's torque on the samp
 (two (n,) arrays, N·m), pre-processed the way that model's fit pre-processes.  :data:`PREDICTORS`
 maps a parameter file's ``schema`` to the import path ``"module:function"`` of its predictor
 (imported only when used).  A multi-axis robot parameter file adds one line there with its own
-schema; nothing else changes.
+schema; nothing else changes (``kukaid.robot_params/1``: the six-axis robot fit).
 
 The single-axis predictor (:func:`predict_axis`, schema ``kukaid.params/1``) evaluates exactly
 the model ``kukaid fit`` fits: the log pre-processed with the fit's own settings (filter, mode
@@ -33,6 +33,7 @@ from kukaid.errors import KukaidError, ParamFileError
 #: schema -> "module:function" of its predictor (see the module docstring)
 PREDICTORS: dict[str, str] = {
     "kukaid.params/1": "kukaid.diagnose.validate:predict_axis",
+    "kukaid.robot_params/1": "kukaid.identify.robot_fit:robot_predictor",
 }
 
 Predictor = Callable[[dict, Any, "int | None"], "dict[int, tuple[np.ndarray, np.ndarray]]"]
@@ -161,8 +162,10 @@ def validate(params: dict, logs: Sequence[Any], axis: int | None = None) -> dict
 
 
 def to_json(scores: dict[int, AxisScore]) -> dict[str, Any]:
-    """``{"axes": {"A3": {"rmse": ..., "rel_error": ..., "r2": ..., "samples": ...}}}``."""
-    return {"axes": {f"A{ax}": s.to_json() for ax, s in scores.items()}}
+    """``{"axes": {"A3": {"rmse": ..., "rel_error": ..., "r2": ..., "samples": ...}},
+    "mean_relative_error": ...}`` (the mean of the axes' relative errors)."""
+    return {"axes": {f"A{ax}": s.to_json() for ax, s in scores.items()},
+            "mean_relative_error": float(np.mean([s.rel_error for s in scores.values()])) if scores else math.nan}
 
 
 def table(scores: dict[int, AxisScore], unit: str = "N*m") -> list[str]:
@@ -170,4 +173,6 @@ def table(scores: dict[int, AxisScore], unit: str = "N*m") -> list[str]:
     out = [f"{'axis':<5} {'RMSE (' + unit + ')':>13} {'rel. error':>11} {'R2':>8} {'samples':>8}"]
     for ax, s in scores.items():
         out.append(f"A{ax:<4} {s.rmse:>13.4g} {100 * s.rel_error:>10.2f}% {s.r2:>8.4f} {s.samples:>8d}")
+    if len(scores) > 1:
+        out.append(f"{'mean':<5} {'':>13} {100 * float(np.mean([s.rel_error for s in scores.values()])):>10.2f}%")
     return out
