@@ -44,7 +44,7 @@ def main(argv=None) -> int:
         v0 = validate(p, [other], axis=ax)[ax]
         v1 = validate(d.params, [other], axis=ax)[ax]
         rows.append({"axis": ax, "named": d.names, "ambiguous": [x["candidates"] for x in d.ambiguous],
-                     "rejected": [r["name"] for r in d.rejected], "fit_adequate": p["metrics"]["single_axis_adequate"],
+                     "rejected": {r["name"]: r["reason"] for r in d.rejected}, "fit_adequate": p["metrics"]["single_axis_adequate"],
                      "at_bound": [b["name"] for b in p["metrics"]["at_bound"]],
                      "fit": v0.to_json(), "refined": v1.to_json(), "never_worse": v1.rmse <= v0.rmse * (1 + 1e-9),
                      "seconds": time.perf_counter() - t0})

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 import numpy as np
 
 from kukaid.diagnose import selection as S
+from kukaid.errors import KukaidError
 
 #: leave one log out from this many logs on (fewer: contiguous blocks of every log)
 LOLO_MIN_LOGS = 3
@@ -125,7 +126,7 @@ def evaluate(model: "DiagModel", name: str, nl: dict, coefs: dict, sigs: Sequenc
             # refined by the refit itself, from the whole-data value
             nl_k = search(base, train, cand) if ok and "n" not in nl and len(cand.options(train, base)) > 1 else nl
             new = base.with_effect(name, nl_k, coefs).refit(train)
-        except Exception:  # a fold the model cannot be fitted on (e.g. one direction only): no evidence
+        except (KukaidError, np.linalg.LinAlgError, ValueError):  # a fold the model cannot be fitted on: no evidence
             continue
         f0, f1 = 0.0, 0.0
         for s in test:
