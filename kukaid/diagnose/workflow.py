@@ -573,6 +573,8 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     added = [s.name for s in steps]
     # nothing named: the parameter file stays as it was (a refit without new effects is no finding)
     out_params = model.to_params(params, added) if added else copy.deepcopy(params)
+    if not added:
+        model, cur_rmse, cur_rel = given, rmse0, rel0
     prov = dict(out_params.get("provenance") or {})
     prov["diagnose"] = {"effects_added": added, "rmse_before": rmse0, "rmse_after": cur_rmse, "noise_floor": floor}
     out_params["provenance"] = jsonable(prov)
