@@ -26,8 +26,11 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     """Find the physical effects the model of --params misses in the --log data, add them, refit.
 
     Candidates: gravity_sine, torque_offset, position_ripple, thermal_drift,
-    load_dependent_friction, backlash.  Prints per step the effect, its parameters, RMSE before ->
-    after and the evidence; says so when nothing is missing or two candidates are ambiguous.
+    load_dependent_friction, backlash, stribeck, presliding, coupling.  An effect is named only if
+    it is significant, physically plausible, and lowers the error on data its fit did not see
+    (leave one log out from three logs, else held-out blocks).  Prints per step the effect, its
+    parameters, RMSE before -> after and the evidence (in-sample and held out); says why
+    candidates were not named, and when two are ambiguous.
     """
     import json
 

@@ -32,7 +32,8 @@ import click
 @click.option("--decimate", type=click.IntRange(1, 1000), default=None,
               help="Keep every n-th sample after filtering [default: 1; with --robot: about 10 per cut-off period].")
 @click.option("--reversal-window", type=float, default=None,
-              help="s; dynamic samples this close to a reversal/start/stop are not fitted (default 1.2/cutoff; 0 keeps all).")
+              help="s; dynamic samples this close to a reversal/start/stop are not fitted (default 1.2/cutoff, or 0 "
+                   "when the filter smears a jump over a dozen samples or fewer; 0 keeps all).")
 @click.option("--diff", type=click.Choice(["central", "spectral"]), default=None,
               help="Differentiation of the filtered position (default central differences).")
 @click.option("--bound", "bound", multiple=True, metavar="NAME=LO:HI",
@@ -54,7 +55,11 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
             cutoff, order, qd_thr, edge, decimate, reversal_window, diff, bound, robot, prior_weight, torque_side,
             stribeck_vs, rotor_inertia, coupling) -> None:
     """Fit Stribeck friction, Izz/Mx and Maxwell-slip elements from axis logs (HDF5 or CSV);
-    with --robot, all axes of a robot jointly from logs of the whole arm moving."""
+    with --robot, all axes of a robot jointly from logs of the whole arm moving.
+
+    The table on stdout ends with the parameters that ended on a bound, the pre-processing and why,
+    and warnings (IPOPT stopped early; other axes move, so a single-axis model cannot explain this
+    one); the parameter file's metrics hold the same (at_bound, warnings, single_axis_adequate)."""
     import math
 
     if robot is not None:

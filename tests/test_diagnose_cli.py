@@ -42,7 +42,7 @@ def test_json_schema_refined_file_and_report(case):
     r = CliRunner().invoke(cli, args(params, paths, "--json", "-o", str(refined), "--report", str(report)))
     assert r.exit_code == 0, r.output
     js = json.loads(r.stdout)
-    assert set(js) == {"effects", "rmse_before", "rmse_after", "noise_floor", "ambiguous"}
+    assert {"effects", "rmse_before", "rmse_after", "noise_floor", "ambiguous", "rejected", "verdict"} <= set(js)
     assert [e["name"] for e in js["effects"]] == ["position_ripple"]
     e = js["effects"][0]
     assert set(e) == {"name", "params", "rmse_before", "rmse_after", "evidence"}

@@ -109,6 +109,6 @@ def test_andrews_bandwidth_grows_with_correlation():
 
 def test_candidate_names_are_fixed():
     assert C.NAMES == ("gravity_sine", "torque_offset", "position_ripple", "thermal_drift",
-                       "load_dependent_friction", "backlash")
+                       "load_dependent_friction", "backlash", "stribeck", "presliding", "coupling")
     with pytest.raises(KeyError, match="known"):
         C.get("friction_wobble")

@@ -124,11 +124,35 @@ def test_failed_solve_is_refused(sweep_log, monkeypatch):
     import kukaid.identify.stribeck_fit as sf
 
     def broken(y, A, v, p0, lo, hi, max_iter=300):
-        return p0, "Maximum_Iterations_Exceeded", False, 300, 0.0
+        return p0, "Invalid_Number_Detected", False, 3, 0.0
 
     monkeypatch.setattr(sf, "_ipopt", broken)
     with pytest.raises(FitError, match="IPOPT did not converge"):
         fit_dynamic([preprocess(sweep_log, 3)])
+
+
+def test_iteration_limit_keeps_the_best_point_and_says_so(sweep_log, monkeypatch):
+    """IPOPT at its iteration limit: the best point (never worse than the start) is kept and the
+    fit is marked not converged (issue 13: the LWR4 fit gave up here)."""
+    import kukaid.identify.stribeck_fit as sf
+
+    def stopped(y, A, v, p0, lo, hi, max_iter=300):
+        return p0, "Maximum_Iterations_Exceeded", False, 300, 0.0
+
+    monkeypatch.setattr(sf, "_ipopt", stopped)
+    f = fit_dynamic([preprocess(sweep_log, 3)])
+    assert not f.converged and f.ipopt_status == "Maximum_Iterations_Exceeded"
+    assert f.cost_ <= f.info["start_cost"] * (1 + 1e-9)
+
+
+def test_at_bounds_tolerance():
+    from kukaid.identify.stribeck_fit import at_bounds
+
+    inf = float("inf")
+    out = at_bounds(["Fc", "Fv", "Izz", "delta"], [1e-10, 3.0, 2.0, 2.0],
+                    [(0.0, 50.0), (0.0, inf), (0.0, inf), (0.5, 2.0)], {"Fv": 0.1})
+    assert [(b["name"], b["side"]) for b in out] == [("Fc", "lower"), ("delta", "upper")]
+    assert at_bounds(["Fv"], [1e-10], [(0.0, inf)], {"Fv": 7.0})[0]["name"] == "Fv"
 
 
 def test_maxwell_slip_fit_synthetic():

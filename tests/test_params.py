@@ -128,7 +128,7 @@ FRICTION_REF = DRIFT["friction_ref"]
     ([], r"effects must be an object \{name: parameters\}"),
     # known names only
     ({"bogus": {"x": 1.0}}, r"unknown effect 'effects.bogus' \(known: gravity_sine, torque_offset, position_ripple, "
-                            r"thermal_drift, load_dependent_friction, backlash\)"),
+                            r"thermal_drift, load_dependent_friction, backlash, stribeck, presliding, coupling\)"),
 ])
 def test_invalid_effects(tmp_path, effects, msg):
     _refused(tmp_path, {**good(), "effects": effects}, msg)
@@ -143,7 +143,7 @@ def test_what_the_toolkit_writes_validates(tmp_path):
 
     rng = np.random.default_rng(3)
     truth = SimConfig().replace(effects={n: draw_effect(n, 1.0, rng) for n in EFFECTS}).truth_params()
-    assert set(truth["effects"]) == set(NAMES)
+    assert set(truth["effects"]) == set(EFFECTS)
     save_params(tmp_path / "truth.json", truth)
     assert load_params(tmp_path / "truth.json") == truth
 
@@ -154,13 +154,18 @@ def test_what_the_toolkit_writes_validates(tmp_path):
                  EffectTerm("thermal_drift", {"coordinate": "energy", "form": "friction",
                                               "friction_ref": {**m.friction_dict(), "Fc": -0.5}}, {"c": 1e-3}),
                  EffectTerm("load_dependent_friction", {}, {"Fc_load": 0.4}),
-                 EffectTerm("backlash", {"shape": "pulse", "tau": 0.07}, {"A": 1.2})]
+                 EffectTerm("backlash", {"shape": "pulse", "tau": 0.07}, {"A": 1.2}),
+                 EffectTerm("presliding", {"x0": 0.004}, {"A": -0.8}),
+                 EffectTerm("coupling", {"axes": "2,4"}, {f"{p}_A{a}": 0.1 for a in (2, 4)
+                                                          for p in ("cos_sum", "sin_sum", "cos", "sin", "qdd")})]
     m.std = {"Fc": 0.1, "vs": float("nan"), "position_ripple.a": 0.01, "My": 0.02}  # nan -> null
     refined = m.to_params(base, ["gravity_sine", "torque_offset"])
-    assert set(refined["effects"]) == set(NAMES) and refined["effects"]["torque_offset"]["std"]["offset"] is None
+    assert set(refined["effects"]) == set(NAMES) - {"stribeck"} and refined["effects"]["torque_offset"]["std"]["offset"] is None
     save_params(tmp_path / "refined.json", refined)
     again = DiagModel.from_params(load_params(tmp_path / "refined.json"))
-    assert again.effect_names == ["position_ripple", "thermal_drift", "load_dependent_friction", "backlash"]
+    assert again.effect_names == ["position_ripple", "thermal_drift", "load_dependent_friction", "backlash",
+                                  "presliding", "coupling"]
+    assert again.effects[-1].nl == {"axes": "2,4"} and len(again.effects[-1].coefs) == 10
     # re-diagnosed on a prismatic log the derived mu has no Mx: null, still valid
     prism = DiagModel.from_params(refined, "prismatic").to_params(refined)
     assert prism["effects"]["load_dependent_friction"]["mu"] is None

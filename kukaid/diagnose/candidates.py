@@ -77,11 +77,15 @@ class Candidate:
     def size(self, nl: dict, coefs: dict[str, float], sigs: Sequence["LogSignals"], model: "DiagModel") -> float:
         """The effect's size, N·m: its amplitude or peak, as the simulator documents sizes
         (:data:`kukaid.sim.effects.EFFECTS`), not only the part of it the base model cannot mimic."""
-        return abs(float(coefs[self.coef_names[0]]))
+        return abs(float(coefs[self.coef_keys(nl)[0]]))
 
     def freeze(self, nl: dict, model: "DiagModel") -> dict:
         """Settings to store when the effect joins the model (fix what depends on the model)."""
         return nl
+
+    def coef_keys(self, nl: dict) -> tuple[str, ...]:
+        """Names of the coefficients at settings ``nl`` (fixed, except for ``coupling``)."""
+        return self.coef_names
 
     def from_params(self, d: dict) -> tuple[dict, dict[str, float]]:
         """(nonlinear settings, coefficients) of a stored effect."""
@@ -91,6 +95,79 @@ class Candidate:
         return nl, coefs
 
     derived: tuple[str, ...] = ()
+
+    #: the largest plausible size of the effect, as a share of the torque scale (99th percentile of |tau|)
+    max_share: float = 0.5
+
+    def term(self, model: "DiagModel") -> tuple[dict, dict[str, float]] | None:
+        """(settings, coefficients) of this effect in ``model``; None when it is not there."""
+        if self.native:
+            return ({}, {self.native: model.lin[self.native]}) if self.native in model.lin else None
+        e = next((e for e in model.effects if e.name == self.name), None)
+        return (dict(e.nl), dict(e.coefs)) if e else None
+
+    def implausible(self, model: "DiagModel", sigs: Sequence["LogSignals"], given: "DiagModel") -> str:
+        """Why the refitted ``model`` with this effect is not physical ("" when it is).
+
+        Common rules: friction levels and the inertia stay positive; the effect's size is at most
+        ``max_share`` of the torque scale; its coefficients do not cancel another parameter
+        (|correlation| above :data:`CANCEL_CORR` in the refit's Jacobian).  Then the effect's own
+        rule (:meth:`rule`)."""
+        for k in ("Fc", "Fv", "Izz", "Fs"):
+            if k in model.lin and model.lin[k] < 0 and given.lin.get(k, 0.0) >= 0:
+                return f"with it the refit gives {k} = {model.lin[k]:.4g} (must be positive)"
+        if "Izz" in model.lin and given.lin.get("Izz", 0.0) > 0 and model.lin["Izz"] < 1e-3 * given.lin["Izz"]:
+            return f"with it the refit drives Izz to {model.lin['Izz']:.3g} (it takes over the inertia)"
+        t = self.term(model)
+        if t is None:
+            return ""
+        scale = torque_scale(sigs)
+        size = self.size(*t, sigs, model)
+        if scale > 0 and size > self.max_share * scale:
+            return (f"size {size:.4g} is more than {self.max_share:g} x the torque scale {scale:.4g} "
+                    "(99th percentile of |tau|)")
+        worst, other = cancelling(model, sigs, self)
+        if worst > CANCEL_CORR:
+            return f"its coefficient cancels {other} (correlation {worst:.4f}): the two cannot be told apart"
+        return self.rule(model, sigs, *t)
+
+    def rule(self, model: "DiagModel", sigs: Sequence["LogSignals"], nl: dict, coefs: dict[str, float]) -> str:
+        """The effect's own size / time-scale rule ("" when it holds)."""
+        return ""
+
+
+#: |correlation| of two estimated coefficients above which they cancel each other
+CANCEL_CORR = 0.999
+
+
+def torque_scale(sigs: Sequence["LogSignals"]) -> float:
+    """99th percentile of |tau| over the compared rows, N·m."""
+    x = np.concatenate([np.abs(s.tau_raw[s.rows]) for s in sigs]) if sigs else np.zeros(0)
+    return float(np.percentile(x, 99)) if x.size else 0.0
+
+
+def cancelling(model: "DiagModel", sigs: Sequence["LogSignals"], cand: "Candidate") -> tuple[float, str]:
+    """Largest |correlation| between a coefficient of ``cand`` and any other parameter in the
+    refit of ``model`` (from the filtered Jacobian on decimated rows), and that parameter's name."""
+    from kukaid.diagnose.signals import decimation
+
+    Js, names = [], []
+    for s in sigs:
+        names, J = model.design(s)
+        Js.append(J[decimation(s)])
+    J = np.vstack(Js)
+    norms = np.linalg.norm(J, axis=0)
+    norms[norms == 0] = 1.0
+    cov = np.linalg.pinv((J / norms).T @ (J / norms))
+    d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+    corr = cov / np.outer(d, d)
+    mine = [i for i, n in enumerate(names) if n == cand.native or n.startswith(cand.name + ".")]
+    worst, other = 0.0, ""
+    for i in mine:
+        for j, n in enumerate(names):
+            if j not in mine and abs(corr[i, j]) > worst:
+                worst, other = float(abs(corr[i, j])), n
+    return worst, other
 
 
 def _num(v: Any) -> Any:
@@ -108,6 +185,8 @@ class GravitySine(Candidate):
     def applies(self, sigs, model):
         if any(s.joint != "revolute" for s in sigs):
             return False, "prismatic axis: no gravity angle"
+        if "Mx" not in model.lin:
+            return False, "the fit had no gravity (--gravity none)"
         if "My" in model.lin:
             return False, "the model already has My"
         return True, ""
@@ -182,11 +261,32 @@ class PositionRipple(Candidate):
         n = nl["n"]
         return np.column_stack([np.sin(n * sig.q), np.cos(n * sig.q)])
 
+    def columns_at(self, q: np.ndarray, options: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+        """The sin and cos columns of many options at positions ``q``: two (len(q), len(options))."""
+        ph = np.outer(q, [o["n"] for o in options])
+        return np.sin(ph), np.cos(ph)
+
     def coordinate(self, sig, nl):
         return np.mod(nl["n"] * sig.q, 2 * math.pi), f"ripple phase n q mod 2 pi (n = {nl['n']:.3g})"
 
     def size(self, nl, coefs, sigs, model):
         return float(math.hypot(coefs["a"], coefs["b"]))
+
+    #: a ripple must repeat at least this often over the position range of the data; when other
+    #: axes move (multi-body torque is a slow function of the positions) at least MIN_PERIODS_COUPLED
+    MIN_PERIODS = 1.0
+    MIN_PERIODS_COUPLED = 3.0
+
+    def rule(self, model, sigs, nl, coefs):
+        R = self._range(sigs)[0]
+        periods = R * float(nl["n"]) / (2 * math.pi)
+        coupled = any(s.others for s in sigs)
+        need = self.MIN_PERIODS_COUPLED if coupled else self.MIN_PERIODS
+        if periods < need:
+            return (f"order n = {nl['n']:.3g} gives {periods:.2g} periods over the {R:.3g} range; a ripple needs "
+                    f"at least {need:g}" + (" when other axes move (their torque is a slow function of the "
+                                            "positions)" if coupled else ""))
+        return ""
 
     def describe(self, nl, coefs, std, model):
         d = super().describe(nl, coefs, std, model)
@@ -262,6 +362,25 @@ class ThermalDrift(Candidate):
             out = max(out, abs(coefs["c"]) * float(np.ptp(x)) * level if x.size else 0.0)
         return out
 
+    #: without a temperature channel, drift in time or energy needs logs at least this long, s
+    MIN_DURATION = 60.0
+    #: the friction may change by at most this share of its level over the logs
+    MAX_CHANGE = 0.5
+
+    def rule(self, model, sigs, nl, coefs):
+        if nl["coordinate"] != "temperature":
+            dur = sum(float(s.time[-1] - s.time[0]) for s in sigs)
+            if dur < self.MIN_DURATION:
+                return (f"no temperature channel and {dur:.3g} s of data: too short for a motor to heat "
+                        f"(at least {self.MIN_DURATION:g} s)")
+        level = float(np.mean(np.concatenate([np.abs(model.friction_torque(s, nl.get("friction_ref"))[s.rows])
+                                              for s in sigs])))
+        size = self.size(nl, coefs, sigs, model)
+        if level > 0 and size > self.MAX_CHANGE * level:
+            return (f"friction would change by {size:.3g}, more than {self.MAX_CHANGE:g} x its mean level "
+                    f"{level:.3g} over the logs")
+        return ""
+
     def describe(self, nl, coefs, std, model):
         d = super().describe(nl, coefs, std, model)
         unit = {"temperature": "degC", "time": "s", "energy": "J"}[nl["coordinate"]]
@@ -292,6 +411,18 @@ class LoadDependentFriction(Candidate):
 
     def coordinate(self, sig, nl):
         return np.abs(np.cos(sig.q)), "gravity load |cos q|"
+
+    #: largest plausible friction coefficient Fc_load / |Mx| (steel on steel, dry: about 0.2-0.5)
+    MAX_MU = 0.5
+
+    def rule(self, model, sigs, nl, coefs):
+        mx = abs(model.lin.get("Mx", 0.0))
+        c = float(coefs["Fc_load"])
+        if c <= 0:
+            return f"Fc_load = {c:.3g}: friction would fall as the load grows"
+        if mx > 0 and c / mx > self.MAX_MU:
+            return f"mu = Fc_load / |Mx| = {c / mx:.3g} is above {self.MAX_MU:g}"
+        return ""
 
     def describe(self, nl, coefs, std, model):
         d = super().describe(nl, coefs, std, model)
@@ -360,10 +491,173 @@ class Backlash(Candidate):
         return since, "time since the last reversal (s)"
 
 
-CANDIDATES: dict[str, Candidate] = {c.name: c for c in (GravitySine(), TorqueOffset(), PositionRipple(),
-                                                        ThermalDrift(), LoadDependentFriction(), Backlash())}
-assert {n: c.coef_names for n, c in CANDIDATES.items()} == COEFFICIENTS, "models.effects and the candidates disagree"
+    def rule(self, model, sigs, nl, coefs):
+        if not separable_backlash(sigs):
+            return ("one position sensor: backlash and pre-sliding friction give the same transient at a "
+                    "reversal (a load-side encoder would tell them apart)")
+        return ""
 
+
+def separable_backlash(sigs: Sequence["LogSignals"]) -> bool:
+    """Whether the logs can tell backlash from pre-sliding friction: only with a second, load-side
+    position measurement (the play shows as motor motion without load motion).  The axis log
+    holds one measured position per axis (``q``; ``q_cmd`` is the controller's setpoint, not a
+    second sensor), so this is False for every log the toolkit reads today."""
+    return all(getattr(s, "q_load", None) is not None for s in sigs)
+
+
+class StribeckRise(Candidate):
+    name = "stribeck"
+    meaning = "friction rising above Coulomb at low speed (Stribeck), on a Coulomb + viscous model"
+    coef_names = ("dF",)
+
+    def applies(self, sigs, model):
+        if model.friction_kind != "coulomb-viscous":
+            return False, "the model's friction is already Stribeck"
+        if "stribeck" in model.effect_names:
+            return False, "already in the model"
+        return True, ""
+
+    def options(self, sigs, model):
+        v = np.concatenate([np.abs(s.qd[s.rows]) for s in sigs])
+        lo, hi = (float(np.percentile(v, 2)), float(np.percentile(v, 60))) if v.size else (1e-3, 1.0)
+        lo = max(lo, 1e-6)
+        hi = max(hi, 2 * lo)
+        return [{"vs": float(vs), "delta": d} for vs in np.geomspace(lo, hi, 10) for d in (1.0, 2.0)]
+
+    def n_effective(self, sigs, options):
+        return max(1.0, len(options) / 3.0)
+
+    def columns(self, sig, nl, model):
+        with np.errstate(over="ignore", under="ignore"):
+            return (_sign(sig) * np.exp(-np.power(np.abs(sig.qd) / nl["vs"], nl["delta"])))[:, None]
+
+    def coordinate(self, sig, nl):
+        return sig.qd, "velocity (rad/s)"
+
+    def rule(self, model, sigs, nl, coefs):
+        if coefs["dF"] <= 0:
+            return f"Fs - Fc = {coefs['dF']:.3g}: a Stribeck rise is positive"
+        return ""
+
+
+class PreSliding(Candidate):
+    name = "presliding"
+    meaning = ("pre-sliding friction: after a reversal friction builds up over a small displacement "
+               "(Dahl-like), not at once")
+    coef_names = ("A",)
+    taus = Backlash.taus
+
+    def applies(self, sigs, model):
+        if "presliding" in model.effect_names:
+            return False, "already in the model"
+        if sum(reversals(s)[0].size for s in sigs) < 2:
+            return False, "fewer than two velocity reversals"
+        return True, ""
+
+    def options(self, sigs, model):
+        v = np.concatenate([np.abs(s.qd[s.rows]) for s in sigs])
+        v50 = float(np.percentile(v, 50)) if v.size else 0.0
+        dt = min(1.0 / s.fs for s in sigs)
+        return [{"x0": float(v50 * t)} for t in self.taus if t >= 0.5 * dt and v50 > 0]
+
+    def n_effective(self, sigs, options):
+        return max(1.0, len(options) / 3.0)
+
+    def columns(self, sig, nl, model):
+        """s_r exp(-|q - q_r| / x0) from each reversal r (position q_r, new direction s_r) on."""
+        idx, new = reversals(sig)
+        col = np.zeros(sig.n)
+        bounds = list(idx) + [sig.n]
+        for k, i in enumerate(idx):
+            j = bounds[k + 1]
+            col[i:j] = new[k] * np.exp(-np.abs(sig.q[i:j] - sig.q[i]) / nl["x0"])
+        return col[:, None]
+
+    def coordinate(self, sig, nl):
+        idx, _ = reversals(sig)
+        since = np.full(sig.n, np.nan)
+        bounds = list(idx) + [sig.n]
+        for k, i in enumerate(idx):
+            since[i:bounds[k + 1]] = np.abs(sig.q[i:bounds[k + 1]] - sig.q[i])
+        return since, "displacement since the last reversal"
+
+    def rule(self, model, sigs, nl, coefs):
+        if coefs["A"] >= 0:
+            return f"A = {coefs['A']:.3g}: pre-sliding friction lags the Coulomb step (A < 0)"
+        lim = 2.5 * max(model.lin.get("Fs", 0.0), model.lin.get("Fc", 0.0))
+        if -coefs["A"] > lim:
+            return f"|A| = {-coefs['A']:.3g} above 2.5 x the friction level {lim / 2.5:.3g}"
+        return ""
+
+
+class Coupling(Candidate):
+    """Torque from the motion of the other axes of a multi-body robot, without a robot model:
+    per other moving axis j, gravity on the relative angle (cos and sin of q + q_j), gravity of
+    the links it moves (cos, sin of q_j) and inertial coupling (qdd_j)."""
+
+    name = "coupling"
+    meaning = "torque from the other axes' motion (multi-body gravity and inertia, no robot model)"
+    coef_names = ()
+    parts = ("cos_sum", "sin_sum", "cos", "sin", "qdd")
+    max_share = 2.0
+
+    def applies(self, sigs, model):
+        if "coupling" in model.effect_names:
+            return False, "already in the model"
+        axes = [tuple(sorted(s.others or {})) for s in sigs]
+        if not axes[0] or any(a != axes[0] for a in axes):
+            return False, "no other axis moves in every log"
+        return True, ""
+
+    def options(self, sigs, model):
+        return [{"axes": ",".join(str(a) for a in sorted(sigs[0].others))}]
+
+    @staticmethod
+    def _axes(nl: dict) -> list[int]:
+        return [int(a) for a in str(nl["axes"]).split(",") if a]
+
+    def coef_keys(self, nl):
+        return tuple(f"{p}_A{a}" for a in self._axes(nl) for p in self.parts)
+
+    def from_params(self, d):
+        coefs = {k: float(v) for k, v in d.items() if any(k.startswith(p + "_A") for p in self.parts)}
+        axes = sorted({int(k.rsplit("_A", 1)[1]) for k in coefs})
+        return {"axes": ",".join(map(str, axes))}, coefs
+
+    def columns(self, sig, nl, model):
+        others = sig.others or {}
+        cols = []
+        for a in self._axes(nl):
+            if a not in others:
+                from kukaid.errors import ParamFileError
+
+                raise ParamFileError(f"coupling: the log has no axis A{a} (its motion is part of the model)")
+            qj, qddj = others[a]
+            cols += [np.cos(sig.q_raw + qj), np.sin(sig.q_raw + qj), np.cos(qj), np.sin(qj), qddj]
+        return np.column_stack(cols)
+
+    def coordinate(self, sig, nl):
+        a = self._axes(nl)[0]
+        return (sig.others or {})[a][0], f"position of A{a} (rad)"
+
+    def size(self, nl, coefs, sigs, model):
+        """RMS of the coupling torque over the compared rows, N·m."""
+        keys = self.coef_keys(nl)
+        x = np.concatenate([(self.columns(s, nl, model) @ np.array([coefs[k] for k in keys]))[s.rows] for s in sigs])
+        return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+
+    def describe(self, nl, coefs, std, model):
+        d: dict[str, Any] = {"model": TAG}
+        d.update({k: float(v) for k, v in coefs.items()})
+        d["std"] = {k: float(std.get(k, math.nan)) for k in coefs}
+        return d
+
+
+CANDIDATES: dict[str, Candidate] = {c.name: c for c in (GravitySine(), TorqueOffset(), PositionRipple(),
+                                                        ThermalDrift(), LoadDependentFriction(), Backlash(),
+                                                        StribeckRise(), PreSliding(), Coupling())}
+assert {n: c.coef_names for n, c in CANDIDATES.items()} == COEFFICIENTS, "models.effects and the candidates disagree"
 
 def get(name: str) -> Candidate:
     """The candidate called ``name`` (KeyError listing the names otherwise)."""

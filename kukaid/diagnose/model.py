@@ -7,7 +7,8 @@ Torque prediction on a log's full sample grid (N·m):
 with Stribeck friction F = (Fc (1 - E) + Fs E) sign(qd) + Fv qd, E = exp(-(|qd|/vs)^delta) (or
 Coulomb + viscous).  Every parameter except vs and delta (and the effects' nonlinear settings)
 enters linearly, so the joint refit is a variable projection: an outer bounded least-squares over
-(vs, delta), an inner linear least-squares over everything else.  Residuals are formed after the
+(vs, delta), an inner linear least-squares over everything else, bounded where physics bounds it
+(Fc, Fs, Fv, Izz >= 0: :data:`POSITIVE`).  Residuals are formed after the
 comparison filter (see :mod:`kukaid.diagnose.signals`).
 """
 from __future__ import annotations
@@ -25,6 +26,20 @@ from kukaid.errors import FitError, ParamFileError
 from kukaid.jsonfile import jsonable
 
 VS_BOUNDS = (1e-4, 2.0)
+#: physical lower bounds of the refit: friction levels and the inertia are not negative
+POSITIVE: dict[str, float] = {"Fc": 0.0, "Fs": 0.0, "Fv": 0.0, "Izz": 0.0}
+
+
+def bounded_lstsq(X: np.ndarray, y: np.ndarray, lower: Sequence[float]) -> np.ndarray:
+    """Least squares ``X theta ~ y`` with lower bounds (-inf for a free parameter): the ordinary
+    solution when it keeps the bounds, else bounded least squares (scipy ``lsq_linear``)."""
+    theta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    lo = np.asarray(lower, dtype=float)
+    if np.all(theta >= lo):
+        return theta
+    from scipy.optimize import lsq_linear
+
+    return lsq_linear(X, y, bounds=(lo, np.full(lo.size, np.inf)), lsmr_tol="auto", method="bvls").x
 DELTA_BOUNDS = (0.5, 2.0)
 
 
@@ -68,7 +83,9 @@ class DiagModel:
             raise ParamFileError(f"friction.model '{kind}' is not supported by the diagnosis")
         inert = d.get("inertial") or {}
         lin["Izz"] = float(inert.get("Izz", 0.0))
-        if joint == "revolute":
+        gravity = (d.get("provenance") or {}).get("gravity")
+        if joint == "revolute" and ("Mx" in inert or (gravity is not None and gravity != "none")):
+            # the fit's options are kept: a fit with --gravity none has no Mx and the refit adds none
             lin["Mx"] = float(inert.get("Mx", 0.0))
             if "My" in inert:
                 lin["My"] = float(inert["My"])
@@ -99,7 +116,7 @@ class DiagModel:
         m = self.copy()
         cand = C.get(name)
         if cand.native:
-            m.lin[cand.native] = float(coefs[cand.coef_names[0]])
+            m.lin[cand.native] = float(coefs[cand.coef_keys(nl)[0]])
         else:
             m.effects.append(EffectTerm(name, cand.freeze(dict(nl), self), dict(coefs)))
         return m
@@ -166,7 +183,7 @@ class DiagModel:
         names, cols = [], []
         for e in self.effects:
             Z = C.get(e.name).columns(sig, e.nl, self)
-            names += [e.key(c) for c in C.get(e.name).coef_names]
+            names += [e.key(c) for c in C.get(e.name).coef_keys(e.nl)]
             cols.append(Z)
         if not cols:
             return [], np.zeros((sig.n, 0))
@@ -248,7 +265,7 @@ class DiagModel:
                 if k in free:
                     nl["n"] = ns[free.index(k)]
                 Z = C.get(e.name).columns(s, nl, m)
-                names += [e.key(c) for c in C.get(e.name).coef_names]
+                names += [e.key(c) for c in C.get(e.name).coef_keys(nl)]
                 cols += [s.filtw(Z[:, j])[s.rows] for j in range(Z.shape[1])]
             return names, (np.column_stack(cols) if cols else np.zeros((s.rows.size, 0)))
 
@@ -283,9 +300,9 @@ class DiagModel:
             X = np.vstack(blocks)
             scale = np.linalg.norm(X, axis=0)
             scale[scale == 0] = 1.0
-            theta, *_ = np.linalg.lstsq(X / scale, y, rcond=None)
-            theta = theta / scale
-            out = (nb + ne, theta, y - X @ theta)
+            names = nb + ne
+            theta = bounded_lstsq(X / scale, y, [POSITIVE.get(k, -np.inf) * 1.0 for k in names]) / scale
+            out = (names, theta, y - X @ theta)
             cache[key] = out
             return out
 
@@ -359,13 +376,15 @@ class DiagModel:
 
 
 def effects_torque(params: dict, time: np.ndarray, q: np.ndarray, qd: np.ndarray,
-                   temp: np.ndarray | None = None, joint: str = "revolute") -> np.ndarray:
+                   temp: np.ndarray | None = None, joint: str = "revolute",
+                   others: dict[int, np.ndarray] | None = None) -> np.ndarray:
     """Torque of the diagnosed effects stored in ``params["effects"]`` (N·m), for other stages.
 
     Only the effects not already held by the rigid body are included (gravity_sine is
     ``inertial.My`` and torque_offset is ``offset``; :meth:`kukaid.models.joint.AxisModel.
     predict_dynamic` has those).  ``time`` s, ``q`` rad, ``qd`` rad/s (a smooth velocity),
-    ``temp`` °C (for a temperature-driven thermal_drift).
+    ``temp`` °C (for a temperature-driven thermal_drift), ``others`` {axis: position, rad} of the
+    other axes (for ``coupling``).
     """
     t = np.asarray(time, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -373,8 +392,15 @@ def effects_torque(params: dict, time: np.ndarray, q: np.ndarray, qd: np.ndarray
     m = DiagModel.from_params(params, joint)
     if not m.effects:
         return np.zeros(t.size)
+    oth = None
+    if others:
+        oth = {}
+        for a, qa in others.items():
+            qa = np.asarray(qa, dtype=float)
+            qda = np.gradient(qa, t) if t.size > 1 else np.zeros(t.size)
+            oth[int(a)] = (qa, np.gradient(qda, t) if t.size > 1 else np.zeros(t.size))
     sig = LogSignals(t, q, np.zeros(t.size), q, qd, np.gradient(qd, t) if t.size > 1 else np.zeros(t.size),
                      None if temp is None else np.asarray(temp, dtype=float), np.arange(t.size), joint,
-                     1.0 / float(np.median(np.diff(t))) if t.size > 1 else 1.0, 0.0, 0, "signals")
+                     1.0 / float(np.median(np.diff(t))) if t.size > 1 else 1.0, 0.0, 0, "signals", others=oth)
     ne, Xe = m.effect_columns(sig)
     return Xe @ m.coef_vector(ne)

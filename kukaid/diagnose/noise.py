@@ -13,28 +13,9 @@ from typing import Sequence
 import numpy as np
 
 from kukaid.diagnose.signals import LogSignals
+from kukaid.identify.adequacy import raw_noise_sigma
 
-_MAD = 1.482602218505602  # MAD -> standard deviation for a normal distribution
-
-
-def raw_noise_sigma(x: np.ndarray) -> float:
-    """Standard deviation of white noise on the samples ``x`` (same unit as x).
-
-    Uses the second difference d2 = x[k+1] - 2 x[k] + x[k-1], var(d2) = 6 sigma² for white
-    noise, with a robust (MAD) scale; falls back to a trimmed RMS when more than half the second
-    differences are exactly equal (coarse quantisation).
-    """
-    x = np.asarray(x, dtype=float)
-    if x.size < 5:
-        return 0.0
-    d2 = np.diff(x, 2)
-    med = np.median(d2)
-    mad = np.median(np.abs(d2 - med))
-    if mad > 0:
-        return float(_MAD * mad / np.sqrt(6.0))
-    a = np.sort(np.abs(d2 - med))
-    a = a[: max(1, int(0.95 * a.size))]
-    return float(np.sqrt(np.mean(a * a) / 6.0))
+__all__ = ["raw_noise_sigma", "noise_sigma", "noise_floor", "row_noise_gain"]
 
 
 def noise_sigma(sigs: Sequence[LogSignals]) -> float:

@@ -31,6 +31,8 @@ class LogSignals:
     rows : indices of the samples compared (dynamic mode, away from the log's ends).
     joint : "revolute" or "prismatic".   fs : sample rate, Hz.   cutoff : filter cut-off, Hz.
     name : label of the log (file name).
+    others : {axis: (q, qdd)} of the log's other axes that move (raw position, rad, and its
+        unfiltered spectral second derivative, rad/s²), for the ``coupling`` candidate.
     """
 
     time: np.ndarray
@@ -50,6 +52,7 @@ class LogSignals:
     qd_lin: np.ndarray | None = field(default=None, repr=False)
     qdd_lin: np.ndarray | None = field(default=None, repr=False)
     weight: np.ndarray | None = field(default=None, repr=False)
+    others: dict[int, tuple[np.ndarray, np.ndarray]] | None = field(default=None, repr=False)
 
     def filtw(self, x: np.ndarray) -> np.ndarray:
         """Filter after zeroing the standstill samples (where the sliding model does not apply).
@@ -78,6 +81,12 @@ class LogSignals:
     def elapsed(self) -> np.ndarray:
         """Time since the log started, s."""
         return self.time - self.time[0]
+
+
+def decimation(sig: LogSignals) -> np.ndarray:
+    """Positions (into the compared rows) kept for the tests: one per ~1/(2.5 cutoff) s."""
+    d = max(1, int(sig.fs / (2.5 * sig.cutoff))) if sig.cutoff > 0 else 1
+    return np.flatnonzero(sig.rows % d == 0)
 
 
 def noise_gain(sig: LogSignals) -> float:
@@ -157,5 +166,11 @@ def prepare(log: Any, axis: int | None = None, cutoff: float | None = None, orde
     keep &= ~still
     keep &= reversal_distance(t, np.where(still, 0.0, qd), qd_thr) >= rw
     rows = np.flatnonzero(keep)
+    from kukaid.identify.adequacy import moving_axes
+
+    others = {}
+    for a in moving_axes(log, axis):
+        qa = np.asarray(log.q[:, log.index(a)], dtype=float)
+        others[a] = (qa, lowpass(qa, fs, None, order, 2)[2])
     return LogSignals(t, q_raw, tau_raw, qf, qd, qdd, temp, rows, joint, fs, cutoff, order, name or str(where),
-                      filt, qd_lin, qdd_lin, weight)
+                      filt, qd_lin, qdd_lin, weight, others or None)

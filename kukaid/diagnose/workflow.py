@@ -18,6 +18,7 @@
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 from typing import Any, Sequence
@@ -25,10 +26,11 @@ from typing import Any, Sequence
 import numpy as np
 
 from kukaid.diagnose import candidates as C
+from kukaid.diagnose import heldout
 from kukaid.diagnose import selection as S
 from kukaid.diagnose.model import DiagModel
 from kukaid.diagnose.noise import noise_floor, noise_sigma
-from kukaid.diagnose.signals import LogSignals, prepare
+from kukaid.diagnose.signals import LogSignals, decimation, prepare
 from kukaid.errors import FitError, KukaidError
 from kukaid.jsonfile import jsonable
 
@@ -47,6 +49,7 @@ class CandidateTest:
     size: float = math.nan      # amplitude / peak of the effect in the final joint fit, N·m
     significant: bool = False
     reason: str = ""
+    held_out: "heldout.HeldOut | None" = None
 
     def evidence(self) -> dict[str, Any]:
         return jsonable({
@@ -56,6 +59,7 @@ class CandidateTest:
             "n_effective_options": float(self.n_effective), "bandwidth": int(self.wald.bandwidth),
             "effect_rms": float(self.effect_rms), "size": float(self.size),
             "rss_share": float(self.wald.delta_rss / self.wald.rss) if self.wald.rss > 0 else 0.0,
+            "held_out": self.held_out.to_json() if self.held_out is not None else None,
         })
 
 
@@ -100,6 +104,9 @@ class Diagnosis:
     model_given: DiagModel = field(repr=False, default=None)
     model_final: DiagModel = field(repr=False, default=None)
     notes: list[str] = field(default_factory=list)
+    tested: bool = True
+    rejected: list[dict] = field(default_factory=list)
+    scheme: str = ""
 
     @property
     def names(self) -> list[str]:
@@ -111,7 +118,22 @@ class Diagnosis:
     def to_json(self) -> dict[str, Any]:
         return jsonable({"effects": [s.to_json() for s in self.steps], "rmse_before": float(self.rmse_before),
                         "rmse_after": float(self.rmse_after), "noise_floor": float(self.noise_floor),
-                        "ambiguous": self.ambiguous})
+                        "ambiguous": self.ambiguous, "rejected": self.rejected, "tested": self.tested,
+                        "held_out_scheme": self.scheme, "verdict": self.verdict})
+
+    @property
+    def verdict(self) -> str:
+        """One sentence: what was found, or why nothing was named."""
+        if not self.tested:
+            return "no candidate tested (--max-steps 0): the gap above is all this run measured"
+        if self.steps:
+            return "named: " + ", ".join(self.names)
+        if self.ambiguous:
+            return "nothing named: candidates are ambiguous"
+        if self.rejected:
+            return ("no candidate improved the held-out error (" + self.scheme + "): "
+                    + ", ".join(r["name"] for r in self.rejected) + " rejected")
+        return "no candidate improved the held-out error: none is significant against the noise in the fit"
 
     def lines(self) -> list[str]:
         """Human-readable summary, one string per line."""
@@ -133,11 +155,17 @@ class Diagnosis:
                        f"{100 * s.rel_after:.2f} %")
             out.append(f"    evidence: HAC Wald {ev.wald.stat:.1f} (dof {ev.wald.dof}), corrected p = "
                        f"{ev.p_adjusted:.2g}, effect RMS {ev.effect_rms:.3g} {u}")
+            if ev.held_out is not None:
+                h = ev.held_out
+                out.append(f"    held out ({h.scheme}): RMSE {h.rmse_without:.4g} -> {h.rmse_with:.4g} {u}, "
+                           f"better in {h.folds_improved}/{h.n_folds} folds, p = {h.p_value:.2g}")
         for a in self.ambiguous:
             out.append(f"ambiguous: {' or '.join(a['candidates'])} explain the same residual ({a['reason']}); "
                        "not guessing")
+        for r in self.rejected:
+            out.append(f"not named: {r['name']}: {r['reason']}")
         if not self.steps and not self.ambiguous:
-            out.append("no effect is missing: no candidate is significant against the noise")
+            out.append(self.verdict)
         out.append(f"gap after: RMSE {self.rmse_after:.4g} {u}"
                    + (f" = {self.rmse_after / self.noise_floor:.2f} x noise floor" if self.noise_floor > 0 else "")
                    + f"; relative error {100 * self.rel_after:.2f} %")
@@ -152,12 +180,6 @@ def _fmt_param(k: str, v: Any, sd: Any) -> str:
 
 
 # -- helpers ---------------------------------------------------------------------------------
-def decimation(sig: LogSignals) -> np.ndarray:
-    """Positions (into the compared rows) kept for the tests: one per ~1/(2.5 cutoff) s."""
-    d = max(1, int(sig.fs / (2.5 * sig.cutoff))) if sig.cutoff > 0 else 1
-    return np.flatnonzero(sig.rows % d == 0)
-
-
 def rmse_of(model: DiagModel, sigs: Sequence[LogSignals]) -> tuple[float, float]:
     """(RMSE, relative error ||tau - tau_hat|| / ||tau||) of the filtered comparison."""
     r = np.concatenate([model.residual(s) for s in sigs])
@@ -197,10 +219,42 @@ class _Round:
         f = Zp @ b
         return float(2 * f @ self.rp - f @ f)
 
+    #: the prescan of a long option grid uses at most this many (evenly spaced) decimated rows
+    PRESCAN_ROWS = 20000
+
+    def prescan(self, cand: C.Candidate, opts: list[dict]) -> np.ndarray:
+        """Residual sum of squares each option would remove, unfiltered, on at most
+        :data:`PRESCAN_ROWS` rows: a ranking (the best few are then scored exactly), at a cost
+        that does not grow with the log.  Candidates with a pointwise ``columns_at(q, options)``
+        (the ripple) are scored for all options at once."""
+        idx = np.unique(np.linspace(0, self.r.size - 1, min(self.r.size, self.PRESCAN_ROWS)).astype(int))
+        U = S.basis(self.J[idx])
+        r = S.partial_out(U, self.r[idx][:, None])[:, 0]
+        if not hasattr(cand, "columns_at"):
+            out = []
+            for o in opts:
+                Zp = S.partial_out(U, self.columns(cand, o, filtered=False)[idx])
+                b, *_ = np.linalg.lstsq(Zp, r, rcond=None)
+                f = Zp @ b
+                out.append(float(2 * f @ r - f @ f))
+            return np.array(out)
+        q = np.concatenate([s.q[s.rows][d] for s, d in zip(self.sigs, self.dec)])[idx]
+        out = np.zeros(len(opts))
+        for a in range(0, len(opts), 100):  # options in chunks: (rows x 100) matrices
+            X, Y = cand.columns_at(q, opts[a:a + 100])
+            X, Y = X - U @ (U.T @ X), Y - U @ (U.T @ Y)
+            g11, g22, g12 = (X * X).sum(0), (Y * Y).sum(0), (X * Y).sum(0)
+            b1, b2 = X.T @ r, Y.T @ r
+            det = g11 * g22 - g12 ** 2
+            with np.errstate(divide="ignore", invalid="ignore"):
+                dr = (g22 * b1 ** 2 - 2 * g12 * b1 * b2 + g11 * b2 ** 2) / det
+            out[a:a + 100] = np.where(det > 1e-12 * np.maximum(g11 * g22, 1e-300), dr, 0.0)
+        return out
+
     def best_option(self, cand: C.Candidate) -> tuple[dict, np.ndarray]:
         opts = cand.options(self.sigs, self.model)
         if len(opts) > 24:  # prescan without the filter (cheap), refine the best few with it
-            scores = [self.delta_rss(self.columns(cand, o, filtered=False)) for o in opts]
+            scores = self.prescan(cand, opts)
             top = np.argsort(scores)[::-1][:6]
             opts_f = [opts[i] for i in top]
         else:
@@ -309,7 +363,7 @@ def term_rms(model: DiagModel, name: str, sigs: Sequence[LogSignals]) -> float:
     parts = []
     for s in sigs:
         Z = cand.columns(s, nl, model)
-        parts.append(s.filtw(Z @ np.array([coefs[c] for c in cand.coef_names]))[s.rows])
+        parts.append(s.filtw(Z @ np.array([coefs[c] for c in cand.coef_keys(nl)]))[s.rows])
     x = np.concatenate(parts)
     return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
 
@@ -378,9 +432,8 @@ def _in_order_of_size(steps: list[Step], base: DiagModel, final: DiagModel, sigs
         out = []
         for s in order:
             _, nl, coefs = terms[s.name]
-            t = _Round(model, sigs).test_fixed(C.get(s.name), nl or s.test.nl, s.test.n_effective)
-            t.p_adjusted = S.bonferroni(t.p_candidate, n_candidates)  # Holm's first (strictest) factor
-            t.significant, t.reason = True, "significant when found"
+            t = s.test  # the evidence is the one the effect was found with (in-sample and held out)
+            t.nl = dict(nl or t.nl)
             out.append(_add(model, t, coefs, sigs, rmse, rel, floor))
             model, rmse, rel = out[-1].model_after, out[-1].rmse_after, out[-1].rel_after
         steps = out
@@ -390,8 +443,19 @@ def _in_order_of_size(steps: list[Step], base: DiagModel, final: DiagModel, sigs
 
 
 # -- the workflow ----------------------------------------------------------------------------
+def _reject(rejected: list[dict], name: str, reason: str) -> None:
+    """Record why a candidate was not named (its latest reason only)."""
+    rejected[:] = [r for r in rejected if r["name"] != name] + [{"name": name, "reason": reason}]
+
+
+def _search(model: DiagModel, sigs: Sequence[LogSignals], cand: C.Candidate) -> dict:
+    """The candidate's best discrete settings given ``model`` on ``sigs`` (held-out folds)."""
+    return _Round(model, sigs).best_option(cand)[0]
+
+
 def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float = 0.01, min_effect: float = 0.15,
-                     max_steps: int = 4, candidates: Sequence[str] | None = None) -> Diagnosis:
+                     max_steps: int = 4, candidates: Sequence[str] | None = None,
+                     max_held_out: int = 3, alpha_held_out: float = 0.05) -> Diagnosis:
     """Run the workflow on prepared signals (see :func:`diagnose`)."""
     if not sigs:
         raise KukaidError("diagnose needs at least one log")
@@ -416,13 +480,16 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     cur_rmse, cur_rel = rmse_r, rel_r
     tests: list[CandidateTest] = []
     first_round: list[CandidateTest] = []
+    rejected: list[dict] = []
+    excluded: set[str] = set()
+    tested = max_steps > 0
     for _ in range(max_steps):
         rd = _Round(model, sigs)
         tests = []
         for n in names:
             cand = C.get(n)
             ok, why = cand.applies(sigs, model)
-            if not ok or n in added:
+            if not ok or n in added or n in excluded:
                 continue
             tests.append(rd.test(cand))
         if not tests:
@@ -439,9 +506,9 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
         sig_tests = sorted([t for t in tests if t.significant], key=lambda t: -t.wald.delta_rss)
         if not sig_tests:
             break
-        best = sig_tests[0]
         # two significant candidates "explain the same thing" when each loses its significance
         # given the other; if the best one is in such a pair, nothing is guessed
+        best = sig_tests[0]
         amb = []
         for i, a in enumerate(sig_tests):
             for b in sig_tests[i + 1:]:
@@ -450,12 +517,45 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
                 if p_ab >= alpha and p_ba >= alpha:
                     amb.append({"candidates": [a.name, b.name],
                                 "reason": f"each loses significance given the other (p = {p_ab:.2g}, {p_ba:.2g})"})
-        if any(best.name in x["candidates"] for x in amb):
+        if any(best.name in x["candidates"] for x in amb):  # not guessed; the search goes on without them
             ambiguous += amb
+            for x in amb:
+                excluded.update(x["candidates"])
+            continue
+        # the decision is taken on data not fitted: the first significant candidate (most residual
+        # explained first) whose refit is plausible and that lowers the held-out error, significantly
+        step, retry = None, False
+        for t in sig_tests[:max_held_out]:
+            if t.name == "backlash" and not C.separable_backlash(sigs):
+                # one position sensor: a reversal transient is backlash or pre-sliding friction
+                ambiguous.append({"candidates": ["backlash", "presliding"],
+                                  "reason": "a transient after each reversal; with one position sensor backlash and "
+                                            "pre-sliding friction cannot be told apart (a load-side encoder would)"})
+                excluded.update(("backlash", "presliding"))
+                retry = True
+                break
+            coefs = dict(zip(C.get(t.name).coef_keys(t.nl), t.wald.coef))
+            cand_step = _add(model, t, coefs, sigs, cur_rmse, cur_rel, floor)
+            why = C.get(t.name).implausible(cand_step.model_after, sigs, given)
+            if why:
+                _reject(rejected, t.name, why)
+                continue
+            ho = heldout.evaluate(model, t.name, t.nl, coefs, sigs, _search)
+            t.held_out = ho
+            if ho is None:
+                _reject(rejected, t.name, "no held-out data to check it on")
+            elif not (ho.passed and ho.p_value < alpha_held_out):
+                _reject(rejected, t.name, f"held-out RMSE {ho.rmse_without:.4g} -> {ho.rmse_with:.4g} "
+                                          f"({ho.scheme}), p = {ho.p_value:.2g}")
+            else:
+                step = cand_step
+                break
+        if step is None:
+            if retry:
+                continue  # search the other candidates without the ambiguous pair
             break
-        step = _add(model, best, dict(zip(C.get(best.name).coef_names, best.wald.coef)), sigs, cur_rmse, cur_rel,
-                    floor)
-        added.append(best.name)
+        added.append(step.name)
+        rejected[:] = [r for r in rejected if r["name"] != step.name]
         steps.append(step)
         model, cur_rmse, cur_rel = step.model_after, step.rmse_after, step.rel_after
     if len(steps) > 1:
@@ -471,12 +571,17 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
                          "explained first)")
         model, cur_rmse, cur_rel = steps[-1].model_after, steps[-1].rmse_after, steps[-1].rel_after
     added = [s.name for s in steps]
-    out_params = model.to_params(params, added)
+    # nothing named: the parameter file stays as it was (a refit without new effects is no finding)
+    out_params = model.to_params(params, added) if added else copy.deepcopy(params)
+    if not added:
+        model, cur_rmse, cur_rel = given, rmse0, rel0
     prov = dict(out_params.get("provenance") or {})
     prov["diagnose"] = {"effects_added": added, "rmse_before": rmse0, "rmse_after": cur_rmse, "noise_floor": floor}
     out_params["provenance"] = jsonable(prov)
+    steps = [st for st in steps if st.test.p_adjusted < alpha]  # never a step with p >= alpha as found
     return Diagnosis(steps, rmse0, cur_rmse, floor, sigma, ambiguous, out_params, rel0, cur_rel, rmse_r, tests,
-                     list(sigs), given, model, notes)
+                     list(sigs), given, model, notes, tested=tested, rejected=rejected,
+                     scheme=heldout.folds(sigs)[0])
 
 
 def preprocess_settings(params: dict) -> dict:

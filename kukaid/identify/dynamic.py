@@ -18,7 +18,7 @@ import numpy as np
 
 from kukaid.errors import FitError
 from kukaid.identify.least_squares import GRAVITY_OPTIONS, rigid_columns
-from kukaid.identify.stribeck_fit import _merge_bounds, default_bounds, natural_uncertainty, solve_separable
+from kukaid.identify.stribeck_fit import _merge_bounds, at_bounds, default_bounds, natural_uncertainty, solve_separable
 from kukaid.identify.uncertainty import Uncertainty, covariance
 from kukaid.models.friction import CoulombViscous, Stribeck
 from kukaid.models.joint import RigidBody
@@ -69,6 +69,8 @@ class DynamicFit:
     extra_names: list[str] = field(default_factory=list)
     n_samples: int = 0
     info: dict[str, Any] = field(default_factory=dict)
+    converged: bool = True
+    at_bound_: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def friction_(self) -> Stribeck | CoulombViscous:
@@ -154,12 +156,15 @@ def fit_dynamic(prepared_list: Sequence[Any], friction_model: str = "stribeck", 
         status, cost, res = sr.status, sr.cost, sr.residual
         info = {"start": dict(zip(sr.names, map(float, sr.start))), "start_cost": sr.start_cost,
                 "iterations": sr.iterations, "solve_time": sr.solve_time, "bounds": sr.info["bounds"]}
+        converged, on_bound = sr.converged, sr.at_bound(u.std)
     else:
         theta, status, info = _linear_bounded(y, A, names, bounds, v)
         res = y - A @ theta
         cost = 0.5 * float(res @ res)
         u = covariance(res, A, names, theta)
         params = dict(zip(names, map(float, theta)))
+        converged = True
+        on_bound = at_bounds(names, theta, [info["bounds"][k] for k in names], u.std)
     order = [k for k in ("Izz", "Mx", "My", "offset", "Fc", "Fs", "vs", "delta", "Fv") if k in params]
     order += [k for k in params if k not in order]
     idx = [list(u.names).index(k) for k in order]
@@ -167,7 +172,7 @@ def fit_dynamic(prepared_list: Sequence[Any], friction_model: str = "stribeck", 
     params = {k: params[k] for k in order}
     fit = DynamicFit(params, u.std, u.cov, order, u, [], [pr.dynamic.copy() for pr in preps],
                      float(np.mean(res ** 2)), cost, status, friction_model, gravity, bool(offset),
-                     list(extra), int(y.size), info)
+                     list(extra), int(y.size), info, converged, on_bound)
     fit.residual_ = [pr.tau - fit.predict(pr, {k: c[i] for k, c in extra.items()}) for i, pr in enumerate(preps)]
     return fit
 

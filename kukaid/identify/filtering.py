@@ -20,7 +20,7 @@ What :func:`preprocess` does, in order (the paper's recipe, section 2, made expl
 4. **Modes.**  Quasi-static samples: ``|qd| < qd_thr`` (default 0.0017 rad/s, the paper's
    0.1 deg/s).  Dynamic samples: ``|qd| >= qd_thr`` **and** at least ``reversal_window``
    seconds away from any velocity reversal, start or stop (default ``1.2 / cutoff``: 0.24 s at
-   5 Hz).  Around a reversal (and a start from standstill) the joint passes through pre-sliding
+   5 Hz; 0 when that is a dozen samples or fewer, see :func:`default_reversal_window`).  Around a reversal (and a start from standstill) the joint passes through pre-sliding
    (Maxwell-slip, not Stribeck) and the filtered torque smears the friction jump (2 Fc, or Fs
    at a start) over about that time (a 5 Hz zero-phase step
    response stays more than 1 % off within 0.23 s of the step), so the sliding model does not
@@ -59,7 +59,32 @@ def filter_defaults(fs: float) -> dict[str, float]:
     else:
         order, cutoff = 4, fs / 10.0
     return {"order": order, "cutoff": cutoff, "edge": int(math.ceil(5.0 * fs / cutoff)),
-            "reversal_window": 1.2 / cutoff}
+            "reversal_window": default_reversal_window(fs, cutoff)}
+
+
+#: a friction jump smeared over at most this many samples by the filter is not excluded
+SMEAR_SAMPLES_KEPT = 12.5
+
+
+def default_reversal_window(fs: float, cutoff: float) -> float:
+    """Default exclusion around reversals, s: ``1.2 / cutoff`` (the zero-phase filter smears a
+    friction jump over about that time), or 0 when that is at most a dozen samples (a fast log
+    filtered at fs/10, such as EMPS at 1 kHz: the few smeared samples are kept, as the EMPS recipe
+    keeps them, and excluding them biases Fc and Fv by about 2 %)."""
+    rw = 1.2 / cutoff
+    return 0.0 if rw * fs <= SMEAR_SAMPLES_KEPT else rw
+
+
+def settings_reason(settings: dict) -> str:
+    """One line saying why the pre-processing settings are what they are (for the fit's output)."""
+    fs, fc = settings["fs"], settings["cutoff"]
+    rate = "the paper's KR C4 recipe (up to 250 Hz)" if fs <= 250 else "fs/10 (the EMPS recipe above 250 Hz)"
+    rw = settings["reversal_window"]
+    why = [f"cut-off from the {fs:.4g} Hz sample rate: {rate}",
+           f"edge = 5 periods of the cut-off",
+           f"reversal window {rw * 1e3:.3g} ms" + (" (the filter smears a friction jump over "
+                                                    f"{1.2 * fs / fc:.3g} samples: kept)" if rw == 0 else "")]
+    return "; ".join(why)
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,6 +130,22 @@ class Prepared:
         return float(self.settings["qd_thr"])
 
 
+def fast_length(m: int) -> int:
+    """The smallest length >= m whose prime factors are 2, 3 and 5 (a fast FFT length)."""
+    best = 1 << max(0, (int(m) - 1).bit_length())
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            p = p35
+            while p < m:
+                p *= 2
+            best = min(best, p)
+            p35 *= 3
+        p5 *= 5
+    return int(best)
+
+
 def lowpass(x: np.ndarray, fs: float, cutoff: float | None, order: int, derivatives: int = 0) -> list[np.ndarray]:
     """Zero-phase Butterworth low-pass of ``x`` (the forward-backward filter's response).
 
@@ -129,16 +170,20 @@ def lowpass(x: np.ndarray, fs: float, cutoff: float | None, order: int, derivati
     m = x.size
     slope = (x[-1] - x[0]) / (m - 1) if m > 1 else 0.0
     line = x[0] + slope * np.arange(m)
-    f = np.fft.rfftfreq(m, d=1.0 / fs)
-    X = np.fft.rfft(x - line)
+    # x - line is 0 at both ends, so zeros appended up to a length with small prime factors keep
+    # the periodic extension continuous; an FFT of an arbitrary length (a large prime factor) can
+    # cost far more than m log m
+    N = fast_length(m)
+    f = np.fft.rfftfreq(N, d=1.0 / fs)
+    X = np.fft.rfft(x - line, n=N)
     if cutoff:
         ratio = np.tan(np.pi * np.minimum(f, 0.5 * fs * (1 - 1e-12)) / fs) / np.tan(np.pi * cutoff / fs)
         X = X / (1.0 + ratio ** (2 * int(order)))
-    out = [np.fft.irfft(X, n=m)[pad:pad + n] + line[pad:pad + n]]
+    out = [np.fft.irfft(X, n=N)[pad:pad + n] + line[pad:pad + n]]
     jw = 2j * np.pi * f
     for k in range(1, derivatives + 1):
         X = X * jw
-        d = np.fft.irfft(X, n=m)[pad:pad + n]
+        d = np.fft.irfft(X, n=N)[pad:pad + n]
         if k == 1:
             d = d + slope * fs
         out.append(d)
@@ -178,7 +223,8 @@ def preprocess(log: Any, axis: int | None = None, cutoff: float | None = None, o
     edge : samples trimmed at both ends (default ``ceil(5 fs / cutoff)``).
     decimate : keep every ``decimate``-th sample after filtering (default 1).
     reversal_window : s; dynamic samples closer than this to a velocity reversal are excluded
-        (default ``1.2 / cutoff``).  0 disables.
+        (default :func:`default_reversal_window`: ``1.2 / cutoff``, 0 when that is a dozen samples
+        or fewer).  0 disables.
     qdd_tol : rad/s², acceleration below which a dynamic sample counts as constant velocity.
     filter_torque : filter the torque as well as the position (default True, the paper).
     diff : "central" (default: central differences of the filtered position, the paper's and
@@ -219,7 +265,7 @@ def preprocess(log: Any, axis: int | None = None, cutoff: float | None = None, o
     qd_thr = QD_THR_DEFAULT if qd_thr is None else float(qd_thr)
     if not qd_thr >= 0:
         raise FitError(f"qd_thr must be >= 0 rad/s, got {qd_thr}")
-    rw = 1.2 / cutoff if reversal_window is None else float(reversal_window)
+    rw = default_reversal_window(fs, cutoff) if reversal_window is None else float(reversal_window)
     padlen = 3 * (2 * ((order + 1) // 2) + 1)  # sosfiltfilt's default pad length
     need = max(2 * edge + 10, padlen + 1)
     if t.size < need:

@@ -22,7 +22,7 @@ import numpy as np
 from kukaid import __version__
 from kukaid.errors import FitError
 from kukaid.identify.dynamic import fit_dynamic
-from kukaid.identify.filtering import preprocess
+from kukaid.identify.filtering import preprocess, settings_reason
 from kukaid.identify.least_squares import fit_rigid
 from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
 from kukaid.identify.stribeck_fit import extract_friction, natural_uncertainty, solve_separable
@@ -47,7 +47,8 @@ def _r(x: float, sig: int = 8) -> float:
 
 def staged_friction(preps: Sequence[Any], friction_model: str = "stribeck",
                     bounds: dict | None = None) -> tuple[dict, dict, float, str, Any]:
-    """Friction by the paper's staged method: returns (params, std, mse, status, points)."""
+    """Friction by the paper's staged method: returns (params, std, mse, status, (points,
+    uncertainty, parameters on a bound))."""
     pts = extract_friction(preps)
     v, y = pts.v, pts.gamma_f
     A = np.column_stack([np.ones_like(v), v])
@@ -55,12 +56,32 @@ def staged_friction(preps: Sequence[Any], friction_model: str = "stribeck",
         sr = solve_separable(y, A, v, ["Fc", "Fv"], bounds=bounds, where="staged friction")
         params, u = natural_uncertainty(sr)
         res, status = sr.residual, sr.status
+        on_bound = sr.at_bound(u.std)
     else:
         theta = np.linalg.lstsq(A, y, rcond=None)[0]
         res = y - A @ theta
         u = covariance(res, A, ["Fc", "Fv"], theta)
         params, status = {"Fc": float(theta[0]), "Fv": float(theta[1])}, "linear"
-    return params, u.std, float(np.mean(res ** 2)), status, (pts, u)
+        on_bound = []
+    return params, u.std, float(np.mean(res ** 2)), status, (pts, u, on_bound)
+
+
+def _adequacy(ax: int, raw_logs: Sequence[Any], preps: Sequence[Any], fit_joint: Any, staged_at_bound: list,
+              friction: Any, rigid: dict) -> dict[str, Any]:
+    """Parameters on bounds, solver status and single-axis adequacy (:func:`kukaid.identify.adequacy.assess`)."""
+    from kukaid.identify.adequacy import assess, moving_axes, noise_floor
+    from kukaid.models.joint import RigidBody
+
+    on_bound = list(staged_at_bound) + (list(fit_joint.at_bound_) if fit_joint is not None else [])
+    converged = fit_joint.converged if fit_joint is not None else True
+    status = fit_joint.ipopt_status if fit_joint is not None else ""
+    rb = RigidBody(Izz=rigid.get("Izz", 0.0), Mx=rigid.get("Mx", 0.0), My=rigid.get("My", 0.0),
+                   offset=rigid.get("offset", 0.0))
+    res = np.concatenate([(pr.tau - rb.torque(pr.q, pr.qdd) - friction(pr.qd))[pr.dynamic] for pr in preps])
+    rms = float(np.sqrt(np.mean(res ** 2))) if res.size else 0.0
+    others = sorted({a for lg in raw_logs for a in moving_axes(lg, ax)})
+    warnings, figures = assess(ax, rms, noise_floor(preps), others, on_bound, converged, status)
+    return {"at_bound": on_bound, "converged": converged, "warnings": warnings, **figures}
 
 
 def _friction_model(p: dict, model: str) -> Stribeck | CoulombViscous:
@@ -100,10 +121,17 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     ro = dict(read_options or {})
     pre = dict(axis=axis, cutoff=cutoff, order=order, qd_thr=qd_thr, edge=edge, decimate=decimate,
                reversal_window=reversal_window, diff=diff)
-    general = [preprocess(_load(x, ro), **pre) for x in logs]
-    fr = [preprocess(_load(x, ro), **pre) for x in friction]
-    ine = [preprocess(_load(x, ro), **pre) for x in inertia]
-    psl = preprocess(_load(presliding, ro), **pre) if presliding is not None else None
+    raw_logs: list[Any] = []
+
+    def prep(x: Any) -> Any:
+        lg = _load(x, ro)
+        raw_logs.append(lg)
+        return preprocess(lg, **pre)
+
+    general = [prep(x) for x in logs]
+    fr = [prep(x) for x in friction]
+    ine = [prep(x) for x in inertia]
+    psl = prep(presliding) if presliding is not None else None
     if not (general or fr or ine):
         raise FitError("no logs to fit: give general logs, or --friction and/or --inertia logs")
     all_preps = general + fr + ine + ([psl] if psl is not None else [])
@@ -118,8 +146,9 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     rigid: dict[str, float] = {}
     if method == "staged" and not fr:
         raise FitError("the staged method needs --friction logs (paired constant-velocity sweeps)")
+    staged_at_bound: list[dict] = []
     if fr and method == "staged":
-        fp, fstd, fmse, status, (pts, u) = staged_friction(fr, friction_model, bounds)
+        fp, fstd, fmse, status, (pts, u, staged_at_bound) = staged_friction(fr, friction_model, bounds)
         std.update(fstd)
         metrics.update(friction_fit_mse=fmse, ipopt_status=status, friction_pairs=pts.pairs,
                        friction_condition_number=u.cond)
@@ -167,6 +196,8 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
                        "with accelerations")
     if rigid["Izz"] <= 0:
         raise FitError(f"fitted Izz = {rigid['Izz']:.4g} is not positive: the data do not excite the inertia")
+    metrics.update(_adequacy(ax, raw_logs, [p for p in (general + fr + ine) if p is not None], fit_joint,
+                             staged_at_bound, _friction_model(fp, friction_model), rigid))
     out: dict[str, Any] = {"schema": "kukaid.params/1", "axis": int(ax)}
     out["friction"] = {"model": friction_model, **{k: _r(fp[k]) for k in ("Fc", "Fs", "vs", "delta", "Fv") if k in fp}}
     out["inertial"] = {k: _r(rigid[k]) for k in ("Izz", "Mx", "My") if k in rigid}
@@ -192,7 +223,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         "offset": bool(offset), "joint": all_preps[0].joint,
         "logs": {"general": [p.source for p in general], "friction": [p.source for p in fr],
                  "inertia": [p.source for p in ine], "presliding": psl.source if psl is not None else None},
-        "preprocess": jsonable(all_preps[0].settings),
+        "preprocess": jsonable({**all_preps[0].settings, "why": settings_reason(all_preps[0].settings)}),
     }
     return out
 
@@ -227,5 +258,16 @@ def format_table(params: dict) -> str:
             extra.append(f"{label} {m[key]:.4g} N^2m^2")
     if "ipopt_status" in m:
         extra.append(f"IPOPT: {m['ipopt_status']}")
+    tail = []
+    if m.get("at_bound"):
+        tail.append("  at a bound: " + ", ".join(f"{b['name']} ({b['side']} {b['bound']:.4g})" for b in m["at_bound"]))
+    else:
+        tail.append("  at a bound: none")
+    pre = (params.get("provenance") or {}).get("preprocess") or {}
+    if pre:
+        line = (f"  pre-processing: low-pass {pre.get('cutoff', 0):.4g} Hz (order {pre.get('order')}), "
+                f"{pre.get('edge')} edge samples trimmed, decimation {pre.get('decimate', 1)}")
+        tail.append(line + (f" ({pre['why']})" if pre.get("why") else ""))
+    tail += [f"  warning: {w}" for w in m.get("warnings", [])]
     return "\n".join([f"axis A{params['axis']}, friction model {params['friction']['model']}", *rows,
-                      "  " + "; ".join(extra)])
+                      "  " + "; ".join(extra), *tail])

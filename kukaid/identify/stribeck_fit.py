@@ -36,6 +36,10 @@ from kukaid.identify.uncertainty import Uncertainty, covariance, transform
 INF = float("inf")
 DELTA_BOUNDS = (0.5, 2.0)
 _OK_STATUS = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+#: IPOPT stopped before its convergence test held but on a feasible point no worse than the start:
+#: the best point is kept and the result is marked not converged (the fit says why and warns)
+_STOPPED_STATUS = ("Maximum_Iterations_Exceeded", "Search_Direction_Becomes_Too_Small",
+                   "Restoration_Failed", "Maximum_CpuTime_Exceeded")
 
 
 def stribeck_column(v: np.ndarray, vs: float, delta: float) -> np.ndarray:
@@ -60,6 +64,36 @@ class SeparableResult:
     iterations: int = 0
     solve_time: float = 0.0
     info: dict[str, Any] = field(default_factory=dict)
+    converged: bool = True
+
+    def at_bound(self, std: dict[str, float] | None = None) -> list[dict[str, Any]]:
+        """Parameters that end on (or within a tiny tolerance of) a bound (:func:`at_bounds`)."""
+        names = ["Fs-Fc" if k == "dF" else k for k in self.names]
+        b = self.info.get("bounds", {})
+        return at_bounds(names, self.values, [b[k] for k in self.names], std)
+
+
+def at_bounds(names: Sequence[str], values: Sequence[float], bounds: Sequence[Sequence[float]],
+              std: dict[str, float] | None = None, rtol: float = 1e-6) -> list[dict[str, Any]]:
+    """Parameters whose value is on a bound: ``[{"name", "value", "bound", "side"}]``.
+
+    "On" means within ``rtol`` of the scale of the parameter: the bound interval's width when it
+    is finite, else the largest of |bound|, |value| and the parameter's standard deviation (a value
+    1e-10 above a bound of 0 with a standard deviation of 7 is on the bound).
+    """
+    out = []
+    std = std or {}
+    for k, v, (lo, hi) in zip(names, values, bounds):
+        v, lo, hi = float(v), float(lo), float(hi)
+        width = hi - lo
+        for side, b in (("lower", lo), ("upper", hi)):
+            if not math.isfinite(b):
+                continue
+            scale = width if math.isfinite(width) and width > 0 else max(abs(b), abs(v), float(std.get(k, 0.0) or 0.0))
+            if abs(v - b) <= rtol * max(scale, 1e-12):
+                out.append({"name": k, "value": v, "bound": b, "side": side})
+                break
+    return out
 
 
 def default_bounds(y: np.ndarray, v: np.ndarray, lin_names: Sequence[str]) -> dict[str, tuple[float, float]]:
@@ -267,7 +301,9 @@ def solve_separable(y: np.ndarray, A: np.ndarray, v: np.ndarray, lin_names: Sequ
 
     Raises
     ------
-    FitError : no samples, non-finite data, or IPOPT did not converge.
+    FitError : no samples, non-finite data, or IPOPT failed (infeasible, error).  When IPOPT stops
+        at its iteration limit (or cannot improve further) the best point is kept, never worse
+        than the start, with ``converged = False``: the caller warns.
     """
     y = np.asarray(y, dtype=float)
     A = np.asarray(A, dtype=float).reshape(y.size, -1)
@@ -289,7 +325,8 @@ def solve_separable(y: np.ndarray, A: np.ndarray, v: np.ndarray, lin_names: Sequ
         ps, status, ok, iters, dt = _ipopt(y, A, v, p0, lo, hi)
     except RuntimeError as e:  # CasADi/IPOPT raised
         raise FitError(f"{where}: IPOPT failed to run: {str(e).splitlines()[0][:160]}") from None
-    if not ok or status not in _OK_STATUS or not np.all(np.isfinite(ps)):
+    converged = ok and status in _OK_STATUS
+    if not np.all(np.isfinite(ps)) or not (converged or status in _STOPPED_STATUS):
         raise FitError(f"{where}: IPOPT did not converge (return status '{status}'); no parameters written")
     pred, jac = prediction_and_jac(A, v, ps)
     res = y - pred
@@ -300,7 +337,7 @@ def solve_separable(y: np.ndarray, A: np.ndarray, v: np.ndarray, lin_names: Sequ
         res = y - pred
         cost = c0
     return SeparableResult(names, ps, res, jac, cost, status, p0, c0, iters, dt,
-                           {"bounds": {k: list(bnd[k]) for k in names}})
+                           {"bounds": {k: list(bnd[k]) for k in names}}, converged)
 
 
 def natural_uncertainty(sr: SeparableResult) -> tuple[dict[str, float], Uncertainty]:

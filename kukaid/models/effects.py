@@ -15,6 +15,9 @@ COEFFICIENTS: dict[str, tuple[str, ...]] = {
     "thermal_drift": ("c",),
     "load_dependent_friction": ("Fc_load",),
     "backlash": ("A",),
+    "stribeck": ("dF",),
+    "presliding": ("A",),
+    "coupling": (),  # one coefficient per other axis and part: cos_sum_A3, sin_sum_A3, cos_A3, sin_A3, qdd_A3
 }
 
 NAMES: tuple[str, ...] = tuple(COEFFICIENTS)

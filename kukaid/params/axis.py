@@ -73,6 +73,7 @@ _EFFECT_KEYS: dict[str, tuple[str, Any]] = {
 _EFFECT_NEEDS: dict[str, tuple[str, ...]] = {"position_ripple": ("n",)}
 _EFFECT_SETTINGS: dict[str, tuple[str, ...]] = {
     "position_ripple": ("n",), "thermal_drift": ("coordinate", "form"), "backlash": ("tau",),
+    "stribeck": ("vs", "delta"), "presliding": ("x0",),
 }
 
 
