@@ -125,7 +125,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     limits = SafetyLimits(q_min=lo, q_max=hi, qd_max=math.radians(qd_max), qdd_max=math.radians(qdd_max),
                           tau_max=tau_max, max_age=max_age)
     check_motion_allowed(backend, enable_motion, limits)
-    cfg = LoopConfig(I=I, D=D, damping=damping,  # checks the admittance's stability, also at D-max threshold=threshold, release=release, cycle=cycle,
+    # LoopConfig checks the admittance's stability (also at D-max) and the detection thresholds
+    cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
                      sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf, limits=limits)
 
     attrs = {"params_file": str(params_path), "backend": backend}

@@ -237,3 +237,28 @@ def test_a_killed_run_leaves_the_measured_log(files, tmp_path, kukaid_cmd):
     log = read_hdf5(out)
     assert log.n_samples > 100 and log.has("q_cmd") and log.has("tau_ext_true")
     assert np.all(np.diff(log.time) > 0)
+
+
+def test_cycle_threshold_and_release_reach_the_controller(files, tmp_path):
+    """Every detection and timing option changes the run and is written in the log's config."""
+    import h5py
+
+    out = tmp_path / "opts.h5"
+    r = _run(["--params", files / "params.json", "--sim-config", files / "truth.json", "--operator", "push",
+              "--seed", "3", "--duration", "4", "--cycle", "0.024", "--threshold", "8", "--release", "3", "-o", out,
+              "--json"])
+    assert r.exit_code == 0, r.output
+    m = json.loads(r.output.strip().splitlines()[-1])
+    assert (m["cycle"], m["threshold"], m["release"]) == (0.024, 8.0, 3.0)
+    log, control, metrics = read_run(out)
+    assert metrics == m
+    with h5py.File(out, "r") as f:
+        cfg = json.loads(f["control"].attrs["config"])
+    assert (cfg["cycle"], cfg["threshold"], cfg["release"]) == (0.024, 8.0, 3.0)
+    adm = control["phase"] == 2
+    assert np.allclose(np.diff(log.time[adm]), 0.024, atol=1e-9)  # one row per 24 ms cycle
+    g, det = np.abs(control["gamma_r"][adm]), control["detected"][adm].astype(bool)
+    assert det.any() and np.all(g[det & ~np.roll(det, 1)] >= 8.0)  # detections start at 8 N·m ...
+    ends = det[:-1] & ~det[1:]
+    assert ends.any() and np.all(g[1:][ends] < 3.0)  # ... and end below 3 N·m
+    assert np.any(det & (g < 8.0))  # held between the two (hysteresis)

@@ -69,6 +69,12 @@ class LoopConfig:
             object.__setattr__(self, "rbf", r)
 
 
+    @property
+    def release_torque(self) -> float:
+        """|Γr| below which a detection ends, N·m (``release``, default 0.6 ``threshold``)."""
+        return 0.6 * self.threshold if self.release is None else float(self.release)
+
+
 @dataclass
 class AdmittanceRun:
     """What :func:`run_admittance` returns: per-cycle arrays (``data``), ``metrics``, ``status``."""
@@ -209,8 +215,8 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     ph = data["phase"] == PHASE_ADMITTANCE
     t, gr, te = data["time"], data["gamma_r"], data["tau_ext_true"]
     det, dyn = data["detected"], data["dynamic"]
-    out: dict[str, Any] = {"lambda": lam, "threshold": cfg.threshold, "damping": cfg.damping, "I": cfg.I,
-                           "D": cfg.D, "cycle": cfg.cycle}
+    out: dict[str, Any] = {"lambda": lam, "threshold": cfg.threshold, "release": cfg.release_torque,
+                           "damping": cfg.damping, "I": cfg.I, "D": cfg.D, "cycle": cfg.cycle}
     has_truth = bool(np.any(np.isfinite(te[ph])))
     idx = np.flatnonzero(ph)
     if idx.size == 0:
