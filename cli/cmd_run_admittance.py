@@ -48,9 +48,13 @@ def _fmt(v):
 # backends
 @click.option("--backend", type=click.Choice(["sim", "kvp"]), default="sim", show_default=True,
               help="sim: the virtual KR C4 with a simulated operator; kvp: a real KR C4 over KUKAVARPROXY.")
-@click.option("--operator", type=click.Choice(["push", "pull", "hand", "none"]), default="pull", show_default=True,
-              help="sim: push (smooth 12-18 N·m push, then release) or pull/hand (spring-damper hand dragging "
-                   "the joint 0.25-0.35 rad, then letting go); drawn from --seed.")
+@click.option("--operator", type=click.Choice(["human", "push", "pull", "hand", "none"]), default="human",
+              show_default=True,
+              help="sim: human (a person's arm: impedance around an intended minimum-jerk move, co-contraction, "
+                   "reflex and reaction delays, tremor, lets go on target), push (open-loop 12-18 N·m push) or "
+                   "pull/hand (open-loop spring dragging the joint); drawn from --seed.")
+@click.option("--grip", type=click.Choice(["soft", "ordinary", "firm"]),
+              help="sim, --operator human: the person's grip [drawn from --seed].")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="sim: seed of noise, vibration and operator.")
 @click.option("--q0", type=click.FloatRange(-360.0, 360.0), default=30.0, show_default=True,
@@ -66,7 +70,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
             duration: float, cycle: float, init_move: float, q_min: float | None, q_max: float | None,
             qd_max: float, qdd_max: float, tau_max: float, max_age: float, backend: str, operator: str, seed: int,
-            q0: float, sim_config: Path | None, noise: float | None, enable_motion: bool, host: str, port: int,
+            q0: float, grip: str | None, sim_config: Path | None, noise: float | None, enable_motion: bool, host: str, port: int,
             axis: int) -> None:
     """Push the axis by hand without a force sensor: estimate the external torque Γr from the
     identified model (eqs. 12-14) and let an admittance (eqs. 15-16) with constant or adaptive
@@ -133,7 +137,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     if backend == "sim":
         from kukaid.control.backends import SimBackend
         from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
-        from kukaid.sim.operator import make_operator
+        from kukaid.sim.operator import make_operator, operator_params
 
         scfg = load_sim_config(sim_config) if sim_config else SimConfig()
         if noise is not None:
@@ -141,10 +145,12 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if abs(scfg.sample_time - 0.012) > 1e-9:
             cfg = dataclasses.replace(cfg, sample_time=scfg.sample_time)
         q0r = math.radians(q0)
+        if grip is not None and operator != "human":
+            raise click.UsageError("--grip is for --operator human")
         op = None if operator == "none" else make_operator(operator, seed, q0r + cfg.init_move,
-                                                           t_start=cfg.init_time + cfg.init_rest + 0.8)
+                                                           t_start=cfg.init_time + cfg.init_rest + 0.8, grip=grip)
         be = SimBackend(VirtualKRC4(scfg, seed=seed), q0r, op)
-        attrs.update(seed=seed, operator=operator, operator_params=(op.__dict__ if op is not None else None),
+        attrs.update(seed=seed, operator=operator, operator_params=operator_params(op),
                      sim_config=scfg.to_dict(), truth={**scfg.truth_params(), "axis": scfg.axis})
         axis_id = scfg.axis
     else:

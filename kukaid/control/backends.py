@@ -44,6 +44,8 @@ class SimBackend:
 
     def start(self) -> list[Sample]:
         self.sim.reset(self.q0)
+        if hasattr(self.operator, "reset"):
+            self.operator.reset()  # a stateful operator (a human arm) starts afresh
         if self.operator is not None:
             self.sim.set_external_torque(self.operator)
         return self._samples(self.sim.advance(self.sim.cfg.sample_time))
