@@ -24,6 +24,7 @@ import numpy as np
 from kukaid.control.admittance import Admittance, check_admittance
 from kukaid.control.rbf import RBFConfig, RBFDamping
 from kukaid.control.safety import ReferenceLimiter, SafetyLimits, Watchdog
+from kukaid.control.stability import OscillationMonitor, StabilityConfig
 from kukaid.control.torque_residual import DYNAMIC, TorqueResidual
 from kukaid.errors import KukaidError
 
@@ -36,7 +37,8 @@ class LoopConfig:
 
     I kg·m², D N·m·s/rad (constant damping, and D0 of the adaptive one); damping "constant" or
     "adaptive"; threshold / release N·m; cycle s; duration s (of the admittance phase);
-    init_move rad, init_time s, init_rest s; rbf (adaptive damping settings); limits (safety).
+    init_move rad, init_time s, init_rest s; rbf (adaptive damping settings); limits (safety);
+    stability (the online oscillation monitor that raises the damping, both modes).
     """
 
     I: float = 20.0
@@ -53,6 +55,7 @@ class LoopConfig:
     u_window: float = 0.12
     rbf: RBFConfig | None = None
     limits: SafetyLimits = field(default_factory=SafetyLimits)
+    stability: StabilityConfig = field(default_factory=StabilityConfig)
 
     def __post_init__(self) -> None:
         if self.damping not in ("constant", "adaptive"):
@@ -109,7 +112,8 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
         for s in samples:
             r = est.update(s.q, s.tau)
         limiter = ReferenceLimiter(cfg.limits, cfg.cycle, samples[-1].q)
-        log, status = _loop(backend, est, r, limiter, samples[-1], cfg, progress, on_row)
+        mon = OscillationMonitor(cfg.stability, cfg.cycle, cfg.D, D_limit=0.9 * 2.0 * cfg.I / cfg.cycle)
+        log, status = _loop(backend, est, r, limiter, mon, samples[-1], cfg, progress, on_row)
     except BaseException:
         backend.hold()
         backend.close()
@@ -121,16 +125,21 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     metrics = run_metrics(data, cfg)
     metrics["status"] = status
     metrics["clipped_cycles"] = int(limiter.clipped)
+    metrics["stability_events"] = len(mon.events)
+    if mon.events:  # when and why the damping was raised (times on the run's time axis)
+        t_adm = (cfg.init_time if cfg.init_move else 0.0) + cfg.init_rest
+        metrics["stability_log"] = [{**e, "time": e["time"] + t_adm} for e in mon.events[:20]]
     if est.ignored_effects:
         metrics["ignored_effects"] = est.ignored_effects
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
 
 
 _KEYS = ("time", "q", "tau", "tau_ext_true", "gamma_r", "gamma_p", "sigma", "sigma_dot", "q_cmd", "D",
-         "dynamic", "detected", "phase", "clipped")
+         "dynamic", "detected", "phase", "clipped", "osc_index", "D_floor")
 
 
-def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, first: Any, cfg: LoopConfig,
+def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, mon: OscillationMonitor,
+          first: Any, cfg: LoopConfig,
           progress: Callable[[float], None] | None,
           on_row: Callable[[dict[str, Any]], None] | None) -> tuple[dict[str, list], str]:
     """The control cycles from the estimator's latest step ``r`` and measurement ``first``; returns
@@ -156,10 +165,13 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
         else:
             phase = PHASE_ADMITTANCE
             gamma = r.gamma_r if r.detected else 0.0
-            if rbf is not None:
-                D_now = rbf.step(r.gamma_r, direction=adm.sigma_dot if adm.sigma_dot != 0 else gamma,
-                                 adapt=r.detected)
-            sigma, sd = adm.step(gamma, D_now if rbf is not None else None)
+            floor = mon.step(r.gamma_r, D_now)
+            D_base = cfg.D
+            if rbf is not None:  # no learning while the monitor damps an oscillation
+                D_base = rbf.step(r.gamma_r, direction=adm.sigma_dot if adm.sigma_dot != 0 else gamma,
+                                  adapt=r.detected and not mon.oscillating)
+            D_now = max(D_base, floor)
+            sigma, sd = adm.step(gamma, D_now)
             q_cmd, clipped = limiter.apply(sigma)
             if clipped:  # no wind-up: the admittance continues from what was sent
                 adm.reset(q_cmd, limiter.v)
@@ -187,7 +199,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             t_row = max(last.t, backend.now())  # a stale measurement: the row is the moment motion stopped
         row = {"time": t_row - t0, "q": last.q, "tau": last.tau, "tau_ext_true": last.tau_ext_true,
                "gamma_r": r.gamma_r, "gamma_p": r.gamma_p, "sigma": adm.sigma, "sigma_dot": sd, "q_cmd": q_cmd,
-               "D": D_now, "dynamic": r.mode == DYNAMIC, "detected": r.detected, "phase": phase, "clipped": clipped}
+               "D": D_now, "dynamic": r.mode == DYNAMIC, "detected": r.detected, "phase": phase, "clipped": clipped,
+               "osc_index": mon.index, "D_floor": mon.floor}
         for key, v in row.items():
             log[key].append(v)
         if on_row is not None:

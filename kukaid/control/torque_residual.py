@@ -13,9 +13,17 @@ Online, causal version (what a controller can do):
 
 * torque, position and the velocity and acceleration obtained by differencing positions all pass
   through the same causal 3rd-order Butterworth low-pass (5 Hz), so they stay aligned in time;
-* Γu, the unmodelled quasi-static torque, is set to minus the mean raw residual over the first
-  ``u_window`` seconds of every quasi-static phase (and after :meth:`TorqueResidual.reset`);
-  during that window the running mean is used, so Γr starts at zero in quasi-static mode;
+* Γu, the unmodelled quasi-static torque, is minus the raw residual's mean over the first
+  ``u_window`` seconds after :meth:`TorqueResidual.reset` (the axis at rest, nobody touching it),
+  then tracked by a slow first-order observer (time constant ``u_tau``) **only while nobody is in
+  contact**: quasi-static mode, no detection, ``u_holdoff`` s since the last contact ended, and
+  |Γr| below half the threshold (so a push building up is not learnt as an offset).
+  In contact it is frozen, so a push that is still there when the axis stops is never absorbed
+  into Γu (and cannot come back with the opposite sign at the release);
+* friction is continuous across the mode switch: below ``qd_thr`` the Maxwell-slip torque, above
+  ``3 qd_thr`` the Stribeck curve, linearly blended in between; and every change of mode
+  (Γu added or removed, the Maxwell-slip elements re-initialised, eq. 12) is bumpless: the jump of
+  Γp at the switch is carried as an offset that fades with the time constant ``switch_tau``;
 * at every dynamic -> quasi-static transition the Maxwell-slip elements are re-initialised
   saturated in the direction of the last motion, relative to the stop position (eq. 12);
 * detection: Γr is "detected" when |Γr| >= ``threshold`` and stays so until |Γr| < ``release``
@@ -79,7 +87,10 @@ class TorqueResidual:
     threshold : detection threshold on |Γr|, N·m (paper: 3 quasi-static, 5 mode switching).
     release : |Γr| below which a detection ends, N·m (default 0.6 * threshold).
     cutoff, order : causal Butterworth low-pass, Hz and order (paper: 5 Hz, 3).
-    u_window : length of the Γu averaging at the start of each quasi-static phase, s.
+    u_window : length of the initial Γu averaging (at rest, after a reset), s.
+    u_tau : time constant of the Γu observer out of contact, s.
+    u_holdoff : Γu stays frozen this long after a contact ended, s.
+    switch_tau : time constant with which the jump of Γp at a mode switch fades, s.
     zeta0 : Maxwell-slip element positions relative to the start position, rad (parameter file's
         ``maxwell_slip.zeta0``); default zero (Γu absorbs the unknown initial state).
     qd_thr : mode-switching velocity threshold, rad/s (default the model's).
@@ -87,7 +98,8 @@ class TorqueResidual:
 
     def __init__(self, model: AxisModel, sample_time: float = 0.012, threshold: float = 5.0,
                  release: float | None = None, cutoff: float = 5.0, order: int = 3, u_window: float = 0.12,
-                 zeta0: Any = None, qd_thr: float | None = None) -> None:
+                 zeta0: Any = None, qd_thr: float | None = None, u_tau: float = 1.0, u_holdoff: float = 0.5,
+                 switch_tau: float = 0.15) -> None:
         self.model = model
         self.sample_time = _check("sample_time", sample_time, 0.0, 1.0)
         self.threshold = _check("threshold", threshold, 0.0)
@@ -96,6 +108,9 @@ class TorqueResidual:
             raise KukaidError(f"torque residual: release = {self.release} N·m must not exceed threshold = "
                               f"{self.threshold} N·m")
         self.u_window = _check("u_window", u_window, 0.0, 60.0, open_lo=False)
+        self.u_tau = _check("u_tau", u_tau, 0.0, 600.0)
+        self.u_holdoff = _check("u_holdoff", u_holdoff, 0.0, 60.0, open_lo=False)
+        self.switch_tau = _check("switch_tau", switch_tau, 0.0, 10.0)
         self.qd_thr = _check("qd_thr", model.qd_thr if qd_thr is None else qd_thr, 0.0, open_lo=False)
         self.cutoff, self.order = float(cutoff), int(order)
         fs = 1.0 / self.sample_time
@@ -153,20 +168,19 @@ class TorqueResidual:
         self._q_prev = q
         self._qd_prev = 0.0
         self._zeta = q + self._zeta0
-        fp0 = float(np.sum(self._k * (q - self._zeta))) if self._k.size else 0.0
+        fp0 = self._maxwell_slip(q)  # elements beyond their saturation slip back to it
         for f, x0 in zip(self._filters, (q, 0.0, 0.0, tau, self.static_torque(q) + fp0)):
             f.reset(x0)
         self._mode = QUASI_STATIC
         self._last_sign = 0.0
-        self._begin_quasi_static()
-        self._detected = False
-        self._started = True
-
-    def _begin_quasi_static(self) -> None:
         self._u_sum = 0.0
         self._u_n = 0
         self._u_need = max(1, int(round(self.u_window / self.sample_time)))
         self._gamma_u = 0.0
+        self._since_contact = math.inf  # s since the last detection ended
+        self._bump = 0.0  # Γp jump of the last mode switch, fading
+        self._detected = False
+        self._started = True
 
     @property
     def mode(self) -> str:
@@ -200,36 +214,53 @@ class TorqueResidual:
         # and the Maxwell-slip hysteresis would leave spikes).  The mode is chosen on the filtered
         # speed, as in the paper.
         fp_raw = self._maxwell_slip(q)
-        fric_raw = float(self.model.friction(qd_raw)) if abs(qd_raw) >= self.qd_thr else fp_raw
+        v = abs(qd_raw)
+        thr = self.qd_thr
+        if v <= thr:
+            fric_raw = fp_raw
+        else:
+            fs = float(self.model.friction(qd_raw))
+            fric_raw = fs if v >= 3 * thr else fp_raw + (fs - fp_raw) * (v - thr) / (2 * thr)
         pred_raw = self.model.rigid.Izz * qdd_raw + self.static_torque(q) + fric_raw
         q_f, qd_f, qdd_f, tau_f = fq.step(q), fqd.step(qd_raw), fqdd.step(qdd_raw), ftau.step(tau)
         pred_f = fpred.step(pred_raw)
 
+        old_mode, old_u = self._mode, (self._gamma_u if self._mode == QUASI_STATIC else 0.0)
         if abs(qd_f) >= self.qd_thr:
             self._mode = DYNAMIC
             self._last_sign = math.copysign(1.0, qd_f)
-            gamma_p = pred_f
-        else:
-            if self._mode == DYNAMIC:
-                # eq. (12): elements saturated in the direction of the last motion, relative to the
-                # stop position (a no-op when the motion was long enough to saturate them all)
-                self._mode = QUASI_STATIC
-                if self._k.size:
-                    self._zeta = q - self._last_sign * (self._W / self._k)
-                self._begin_quasi_static()
-            raw = pred_f - tau_f
-            if self._u_n < self._u_need:
+        elif self._mode == DYNAMIC:
+            # eq. (12): elements saturated in the direction of the last motion, relative to the
+            # stop position (a no-op when the motion was long enough to saturate them all); they
+            # enter the prediction from the next sample, through the filter
+            self._mode = QUASI_STATIC
+            if self._k.size:
+                self._zeta = q - self._last_sign * (self._W / self._k)
+        quasi = self._mode == QUASI_STATIC
+        raw = tau_f - pred_f  # what Γu must add for Γr = 0
+        if (quasi and not self._detected and self._since_contact >= self.u_holdoff
+                and (self._u_n < self._u_need or abs(raw - self._gamma_u) < 0.5 * self.threshold)):
+            if self._u_n < self._u_need:  # first estimate after a reset: the mean
                 self._u_sum += raw
                 self._u_n += 1
-                self._gamma_u = -self._u_sum / self._u_n
-            gamma_p = pred_f + self._gamma_u
+                self._gamma_u = self._u_sum / self._u_n
+            else:
+                self._gamma_u += min(h / self.u_tau, 1.0) * (raw - self._gamma_u)
+        new_u = self._gamma_u if quasi else 0.0
+        if self._mode != old_mode:  # bumpless: the prediction does not jump at a switch
+            self._bump += old_u - new_u
+        self._bump *= math.exp(-h / self.switch_tau)
+        gamma_p = pred_f + new_u + self._bump
         gamma_r = gamma_p - tau_f
         a = abs(gamma_r)
         if self._detected:
             self._detected = a >= self.release
+            if not self._detected:
+                self._since_contact = 0.0
         else:
             self._detected = a >= self.threshold
-        return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, self._gamma_u)
+            self._since_contact += h
+        return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, new_u)
 
 
 def torque_residual(time: np.ndarray, q: np.ndarray, tau: np.ndarray, model: AxisModel,
