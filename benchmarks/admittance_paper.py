@@ -1,7 +1,7 @@
 """The paper's hand-guiding experiment (experiment 4) as a paired benchmark with a human arm.
 
 Usage: python benchmarks/admittance_paper.py [--operators 30] [--cycles 0.024,0.012] [--json]
-                                             [--sweep] [--params PARAMS.json]
+                                             [--sweep] [--params PARAMS.json] [--save RESULTS.json]
 
 Every operator (a seeded person from kukaid.sim.human: a third each soft, ordinary and firm
 grips) meets every controller with the same seed (the same person, the same sensor noise and
@@ -213,6 +213,7 @@ def main() -> None:
     ap.add_argument("--sweep", action="store_true", help="also the sensitivity sweep (24 ms)")
     ap.add_argument("--sweep-operators", type=int, default=15)
     ap.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
+    ap.add_argument("--save", help="also write the JSON results to this file")
     a = ap.parse_args()
     params = None
     if a.params:
@@ -225,10 +226,14 @@ def main() -> None:
     res = benchmark(a.operators, cycles, model, zeta0)
     rows = sweep(a.sweep_operators, model, zeta0) if a.sweep else None
     secs = time.perf_counter() - t
-    if a.json:
-        from kukaid.io.jsonfile import jsonable
+    from kukaid.io.jsonfile import jsonable
 
-        json.dump(jsonable({"operators": a.operators, "results": res, "sweep": rows, "seconds": secs}), sys.stdout)
+    doc = jsonable({"operators": a.operators, "results": res, "sweep": rows, "seconds": secs})
+    if a.save:
+        with open(a.save, "w") as f:
+            json.dump(doc, f)
+    if a.json:
+        json.dump(doc, sys.stdout)
         print()
         return
     print_table(res, a.operators)

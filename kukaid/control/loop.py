@@ -149,6 +149,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
     q_start, t0, last = first.q, first.t, first
     adm = Admittance(cfg.I, cfg.D, cfg.cycle, sigma0=q_start)
     rbf = RBFDamping(cfg.rbf) if cfg.damping == "adaptive" else None
+    if rbf is not None:
+        rbf.set_cycle(cfg.cycle)
     t_init_end = cfg.init_time if cfg.init_move else 0.0
     t_adm = t_init_end + cfg.init_rest
     log: dict[str, list] = {k: [] for k in _KEYS}
