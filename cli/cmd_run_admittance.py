@@ -88,6 +88,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     import signal
 
     from kukaid.control.loop import LoopConfig, run_admittance
+    from kukaid.control.metrics import operator_metrics
     from kukaid.control.rbf import RBFConfig
     from kukaid.control.runlog import write_run
     from kukaid.io.axislog import AxisLogWriter
@@ -147,9 +148,13 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         q0r = math.radians(q0)
         if grip is not None and operator != "human":
             raise click.UsageError("--grip is for --operator human")
-        op = None if operator == "none" else make_operator(operator, seed, q0r + cfg.init_move,
-                                                           t_start=cfg.init_time + cfg.init_rest + 0.8, grip=grip)
-        be = SimBackend(VirtualKRC4(scfg, seed=seed), q0r, op)
+
+        def sim_backend(cfg_):  # the same person and the same noise for every controller (paired)
+            op_ = None if operator == "none" else make_operator(operator, seed, q0r + cfg_.init_move,
+                                                                t_start=cfg_.init_time + cfg_.init_rest + 0.8, grip=grip)
+            return SimBackend(VirtualKRC4(scfg, seed=seed), q0r, op_), op_
+
+        be, op = sim_backend(cfg)
         attrs.update(seed=seed, operator=operator, operator_params=operator_params(op),
                      sim_config=scfg.to_dict(), truth={**scfg.truth_params(), "axis": scfg.axis})
         axis_id = scfg.axis
@@ -188,11 +193,27 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     finally:
         signal.signal(signal.SIGTERM, old_handler)
     writer.close()
+    lam = cfg.rbf.lam if cfg.rbf is not None else RBFConfig().lam
+    if backend == "sim":  # the paper's measures over the fixed window of a human operator
+        run.metrics.update(operator_metrics(run.data, op, lam, scfg.sample_time))
     write_run(output, run, axis=axis_id, attrs=attrs)
     if report is not None:
-        from kukaid.control.plots import plot_run
+        from kukaid.control.plots import plot_runs
 
-        plot_run(run.data, run.metrics, report, title=f"kukaid run-admittance ({damping} damping, {backend})")
+        runs = [(f"{damping} damping" + (f" (D {D:g})" if damping == "constant" else f" (D0 {D:g})"), run.data,
+                 run.metrics)]
+        if backend == "sim":  # the other controller on the same operator, side by side
+            other = "adaptive" if damping == "constant" else "constant"
+            cfg2 = dataclasses.replace(cfg, damping=other, rbf=None if other == "constant" else cfg.rbf)
+            be2, op2 = sim_backend(cfg2)
+            run2 = run_admittance(be2, model, cfg2, zeta0=zeta0)
+            run2.metrics.update(operator_metrics(run2.data, op2, lam, scfg.sample_time))
+            runs.append((f"{other} damping (D {D:g}{', for comparison' if other == 'constant' else ''})", run2.data,
+                         run2.metrics))
+            runs.sort(key=lambda r: not r[0].startswith("constant"))
+        who = f", operator {operator} seed {seed}" if backend == "sim" else ""
+        plot_runs(runs, report, title=f"kukaid run-admittance ({damping} damping, {backend}{who}, "
+                                      f"cycle {1000 * cfg.cycle:g} ms)")
     if as_json:
         click.echo(json.dumps(jsonable(run.metrics)))
     else:
@@ -200,7 +221,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         click.echo(f"run-admittance ({damping} damping, {backend}): {run.status}")
         for k in ("detection_delay", "residual_rmse", "residual_rmse_dynamic", "residual_rmse_quasi_static",
                   "false_detections", "mean_sq_dgamma", "mean_cost", "displacement", "peak_speed", "D_range",
-                  "settled", "clipped_cycles"):
+                  "settled", "clipped_cycles", "xi", "dgamma2", "xi_true", "dgamma2_true", "end_error",
+                  "stability_events"):
             if k in m:
                 click.echo(f"  {k:28s} {_fmt(m[k])}")
         click.echo(f"  -> {output}" + (f", {report}" if report else ""))

@@ -82,3 +82,23 @@ def window_metrics(data: dict[str, np.ndarray], t_from: float, t_to: float, lam:
         out["osc_ptp"], out["osc_seconds"] = oscillation(t[w], data["gamma_r"][w])
     out["gamma_rms"] = float(np.sqrt(np.mean(data["gamma_r"][w] ** 2))) if w.any() else math.nan
     return out
+
+
+def operator_metrics(data: dict[str, np.ndarray], operator: Any, lam: float, t_offset: float) -> dict[str, Any]:
+    """:func:`window_metrics` of a simulated run with a human arm (:mod:`kukaid.sim.human`) over
+    its fixed window (grasp to release + 1 s), plus ``goal`` rad, ``end_error`` (|q_end - goal| /
+    |move|) and ``false_after_release`` (detections once the hand is gone).  ``t_offset`` s: the
+    simulator's time at the run's time 0.  Empty for other operators."""
+    p = getattr(operator, "p", None)
+    if p is None or not hasattr(p, "t_grasp"):
+        return {}
+    t_rel = operator.t_release if math.isfinite(operator.t_release) else math.inf
+    t_end = float(data["time"][-1])
+    out = window_metrics(data, p.t_grasp - t_offset, min(t_rel + 1.0 - t_offset, t_end), lam)
+    move = p.goal - p.q_start
+    out["goal"] = float(p.goal)
+    out["end_error"] = float(abs(data["q"][-1] - p.goal) / abs(move)) if move else math.nan
+    gone = data["time"] > t_rel - t_offset + p.release_time + 0.05
+    out["false_after_release"] = int(np.sum(data["detected"][gone])) if math.isfinite(t_rel) else 0
+    out["t_release"] = float(t_rel - t_offset) if math.isfinite(t_rel) else math.nan
+    return out
