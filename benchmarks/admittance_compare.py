@@ -16,22 +16,22 @@ import numpy as np
 
 
 def run_one(params: dict, damping: str, seed: int, operator: str, duration: float = 9.0) -> dict:
-    from kukaid.control.backends import SimBackend
+    from kukaid.robot import SimRobot
     from kukaid.control.loop import LoopConfig, run_admittance
-    from kukaid.io.params import model_from_params
+    from kukaid.params import model_from_params
     from kukaid.sim import SimConfig, VirtualKRC4
     from kukaid.sim.operator import make_operator
 
     q0 = math.radians(30.0)
     cfg = LoopConfig(damping=damping, duration=duration)
     op = make_operator(operator, seed, q0 + cfg.init_move, t_start=cfg.init_time + cfg.init_rest + 0.8)
-    be = SimBackend(VirtualKRC4(SimConfig(), seed=seed), q0, op)
+    be = SimRobot(VirtualKRC4(SimConfig(), seed=seed), q0, op)
     run = run_admittance(be, model_from_params(params), cfg, zeta0=(params.get("maxwell_slip") or {}).get("zeta0"))
     return run.metrics
 
 
 def main() -> None:
-    from kukaid.io.params import load_params
+    from kukaid.params import load_params
 
     ap = argparse.ArgumentParser()
     ap.add_argument("params")

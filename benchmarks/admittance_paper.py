@@ -35,7 +35,7 @@ GRIPS = ("soft", "ordinary", "firm")
 
 
 def controller_model(params: dict | None = None):
-    from kukaid.io.params import model_from_params
+    from kukaid.params import model_from_params
     from kukaid.sim import SimConfig
 
     if params is None:
@@ -48,7 +48,7 @@ def controller_model(params: dict | None = None):
 def run_one(model, zeta0, seed: int, damping: str, D: float, cycle: float, rbf=None, grip: str | None = None,
             duration: float = 13.0) -> dict:
     """One paired run; returns the window metrics plus run-level checks."""
-    from kukaid.control.backends import SimBackend
+    from kukaid.robot import SimRobot
     from kukaid.control.loop import LoopConfig, run_admittance
     from kukaid.control.metrics import window_metrics
     from kukaid.sim import SimConfig, VirtualKRC4
@@ -58,7 +58,7 @@ def run_one(model, zeta0, seed: int, damping: str, D: float, cycle: float, rbf=N
     kw = {"rbf": rbf} if rbf is not None else {}
     cfg = LoopConfig(damping=damping, D=D, cycle=cycle, duration=duration, **kw)
     op = make_operator("human", seed, q0 + cfg.init_move, t_start=cfg.init_time + cfg.init_rest + 0.8, grip=grip)
-    be = SimBackend(VirtualKRC4(SimConfig(), seed=seed), q0, op)
+    be = SimRobot(VirtualKRC4(SimConfig(), seed=seed), q0, op)
     run = run_admittance(be, model, cfg, zeta0=zeta0)
     d = run.data
     t0 = 0.012  # the run's time axis starts at the first measurement
@@ -217,7 +217,7 @@ def main() -> None:
     a = ap.parse_args()
     params = None
     if a.params:
-        from kukaid.io.params import load_params
+        from kukaid.params import load_params
 
         params = load_params(a.params)
     model, zeta0 = controller_model(params)
@@ -226,7 +226,7 @@ def main() -> None:
     res = benchmark(a.operators, cycles, model, zeta0)
     rows = sweep(a.sweep_operators, model, zeta0) if a.sweep else None
     secs = time.perf_counter() - t
-    from kukaid.io.jsonfile import jsonable
+    from kukaid.jsonfile import jsonable
 
     doc = jsonable({"operators": a.operators, "results": res, "sweep": rows, "seconds": secs})
     if a.save:

@@ -22,7 +22,7 @@ def main() -> None:
     from kukaid.control.rbf import RBFConfig, RBFDamping
     from kukaid.control.stability import OscillationMonitor, StabilityConfig
     from kukaid.control.torque_residual import TorqueResidual
-    from kukaid.io.params import model_from_params
+    from kukaid.params import model_from_params
     from kukaid.sim import SimConfig
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -146,7 +146,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
         from kukaid import excite
-        from kukaid.io.axislog import write_hdf5
+        from kukaid.logs import write_hdf5
         from kukaid.sim import SimConfig, VirtualKRC4
 
         for i, k in enumerate(("friction", "inertia", "presliding")):

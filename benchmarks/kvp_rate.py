@@ -1,7 +1,7 @@
 """KUKAVARPROXY capture rate and request latency against the virtual KR C4 on loopback.
 
 Starts `kukaid serve-sim` (a separate process, as a controller would be) on a free port, runs the
-poll capture (`kukaid.io.kvp_capture.capture_kvp`) for one axis and for three axes, and prints
+poll capture (`kukaid.krc.kvp_capture.capture_kvp`) for one axis and for three axes, and prints
 achieved samples per second, mean sample period, and request latency mean / p99 / max.
 Targets (issue 4): < 1 ms per exchange on loopback; a full A3 sample (position + torque) every
 12 ms or faster.  The paper reports about 5 ms per exchange and a 24 ms cycle over its network.
@@ -22,7 +22,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=3.0)
     args = ap.parse_args()
-    from kukaid.io.kvp_capture import capture_kvp
+    from kukaid.krc.kvp_capture import capture_kvp
 
     server = subprocess.Popen([sys.executable, "-m", "kukaid_cli.main", "serve-sim", "--port", "0"],
                               stderr=subprocess.PIPE, text=True)

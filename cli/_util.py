@@ -42,7 +42,7 @@ def refuse_overwrite(path: Path, force: bool) -> None:
 def check_outputs(outputs: Iterable[Path | None], inputs: Iterable[Path | None] = ()) -> None:
     """Before any work: every output can be a plain file, no two outputs are the same file, and
     no output is one of the inputs (a command never writes over what it reads)."""
-    from kukaid.io.atomic import check_output
+    from kukaid.atomic import check_output
 
     outs = [Path(o) for o in outputs if o is not None]
     for k, o in enumerate(outs):
@@ -73,7 +73,7 @@ def _same(a: Path, b: Path) -> bool:
 def write_krl_files(outdir: Path, files: dict[str, str], force: bool) -> None:
     """Write KRL files (name -> text) into ``outdir`` with the controller's CR LF line ends, all or
     none; existing files only with --force (they may have been edited for the robot)."""
-    from kukaid.io.atomic import write_texts_atomic
+    from kukaid.atomic import write_texts_atomic
 
     for name in files:
         refuse_overwrite(outdir / name, force)

@@ -49,7 +49,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
     """
     import signal
 
-    from kukaid.capture import KvpBackend, SimBackend, capture, check_limits, parse_effect, sim_config as make_config
+    from kukaid.capture import KvpCapture, SimCapture, capture, check_limits, parse_effect, sim_config as make_config
     from kukaid.errors import KukaidError
     from kukaid_cli._util import check_outputs
 
@@ -72,7 +72,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
             raise click.UsageError(f"--effect {next(n for n in names if names.count(n) > 1)} is given twice")
         cfg, extra = make_config(sim_config, noise=noise, effects=parsed, seed=seed)
         extra["trajectory_file"] = str(trajectory)
-        be = SimBackend(traj, config=cfg, seed=seed, chunk=chunk, settle=settle, extra_attrs=extra)
+        be = SimCapture(traj, config=cfg, seed=seed, chunk=chunk, settle=settle, extra_attrs=extra)
     else:
         given = [n for n, v in (("--sim-config", sim_config), ("--noise", noise is not None), ("--effect", effects))
                  if v]
@@ -84,7 +84,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
 
             traj = Trajectory.from_json(trajectory)
             attrs = {"experiment": traj.kind, "trajectory": traj.params, "trajectory_file": str(trajectory)}
-        be = KvpBackend(host=host, port=port, axes=axes or (3,), duration=duration, until_interrupt=until_interrupt,
+        be = KvpCapture(host=host, port=port, axes=axes or (3,), duration=duration, until_interrupt=until_interrupt,
                         mode=mode, attrs=attrs)
 
     # Ctrl-C / SIGTERM end a simulated capture cleanly between blocks (a second one aborts at once);
@@ -120,7 +120,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
         kept = ""
         if output.exists():
             try:
-                from kukaid.io.axislog import read_hdf5
+                from kukaid.logs import read_hdf5
 
                 log = read_hdf5(output)
                 kept = f"; {log.n_samples} samples ({log.duration:.2f} s) kept in {output}"

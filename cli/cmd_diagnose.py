@@ -32,10 +32,10 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     import json
 
     from kukaid.errors import KukaidError
-    from kukaid.io.atomic import atomic_paths
-    from kukaid.io.axislog import read_log
+    from kukaid.atomic import atomic_paths
+    from kukaid.logs import read_log
     from kukaid_cli._util import check_outputs, check_suffix
-    from kukaid.io.params import load_params, save_params, validate_params
+    from kukaid.params import load_params, save_params, validate_params
     from kukaid.diagnose.workflow import diagnose
 
     if not 0 < alpha < 1:

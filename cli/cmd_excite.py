@@ -124,7 +124,7 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     limit (A3 of a KR 6 R700 sixx unless overridden).  Defaults in [brackets].
     """
     from kukaid.excite import AxisLimits, generate
-    from kukaid.io.atomic import write_texts_atomic
+    from kukaid.atomic import write_texts_atomic
     from kukaid_cli._util import check_outputs, check_suffix
 
     check_suffix(output, ".json")
@@ -152,7 +152,7 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     files = {output: traj.json_text()}
     msg = f"{output}: {kind} trajectory of A{axis}, {traj.n_samples} samples, {traj.duration:.2f} s"
     if krl_dir is not None:
-        from kukaid.io.krl import krl_program
+        from kukaid.krc.krl import krl_program
 
         src, dat, summary = krl_program(traj, name=krl_name, limits=limits, tol_deg=krl_tol)
         files.update({krl_dir / f"{summary['name']}.src": src, krl_dir / f"{summary['name']}.dat": dat})

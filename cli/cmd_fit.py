@@ -44,7 +44,7 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
 
     from kukaid.errors import FitError
     from kukaid.identify import fit_axis, format_table
-    from kukaid.io.params import save_params
+    from kukaid.params import save_params
     from kukaid_cli._util import check_outputs, check_suffix
 
     check_suffix(output, ".json")

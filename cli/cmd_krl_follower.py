@@ -29,7 +29,7 @@ def command(axis: int, q_min: float, q_max: float, qd_max: float, axis_speed: fl
     first; the KRC's own monitoring stays in force.
     """
     from kukaid.errors import KukaidError
-    from kukaid.io.krl_follower import FollowerConfig, krl_follower_files
+    from kukaid.krc.krl_follower import FollowerConfig, krl_follower_files
     from kukaid_cli._util import write_krl_files
 
     if not (qd_max > 0 and axis_speed > 0 and qd_max <= axis_speed):

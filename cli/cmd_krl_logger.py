@@ -21,7 +21,7 @@ def command(axes: tuple[int, ...], blocks: int, block_samples: int, outdir: Path
     Capture writes only the logger's acknowledgement counter KID_RD; it never writes any other
     robot variable.
     """
-    from kukaid.io.krl_logger import RingLayout, krl_logger_files
+    from kukaid.krc.krl_logger import RingLayout, krl_logger_files
     from kukaid_cli._util import write_krl_files
 
     layout = RingLayout(axes=tuple(axes) or (3,), nb=blocks, bs=block_samples)

@@ -62,7 +62,7 @@ def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q
         if given:
             raise KukaidError(f"{source}: option {given[0]} is for MAT (.mat) sources")
 
-    from kukaid.io.axislog import read_log, write_csv, write_hdf5
+    from kukaid.logs import read_log, write_csv, write_hdf5
 
     options = {}
     if is_mat:

@@ -91,12 +91,12 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.control.metrics import operator_metrics
     from kukaid.control.rbf import RBFConfig
     from kukaid.control.runlog import write_run
-    from kukaid.io.axislog import AxisLogWriter
+    from kukaid.logs import AxisLogWriter
     from kukaid.control.safety import SafetyLimits, check_motion_allowed
     from kukaid.errors import KukaidError
-    from kukaid.io.jsonfile import jsonable
-    from kukaid.io.params import load_params, model_from_params
-    from kukaid.io.atomic import check_writable
+    from kukaid.jsonfile import jsonable
+    from kukaid.params import load_params, model_from_params
+    from kukaid.atomic import check_writable
     from kukaid_cli._util import check_outputs, check_suffix, progress, refuse_overwrite
 
     check_suffix(output, ".h5", ".hdf5")
@@ -136,7 +136,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
 
     attrs = {"params_file": str(params_path), "backend": backend}
     if backend == "sim":
-        from kukaid.control.backends import SimBackend
+        from kukaid.robot import SimRobot
         from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
         from kukaid.sim.operator import make_operator, operator_params
 
@@ -152,19 +152,19 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         def sim_backend(cfg_):  # the same person and the same noise for every controller (paired)
             op_ = None if operator == "none" else make_operator(operator, seed, q0r + cfg_.init_move,
                                                                 t_start=cfg_.init_time + cfg_.init_rest + 0.8, grip=grip)
-            return SimBackend(VirtualKRC4(scfg, seed=seed), q0r, op_), op_
+            return SimRobot(VirtualKRC4(scfg, seed=seed), q0r, op_), op_
 
         be, op = sim_backend(cfg)
         attrs.update(seed=seed, operator=operator, operator_params=operator_params(op),
                      sim_config=scfg.to_dict(), truth={**scfg.truth_params(), "axis": scfg.axis})
         axis_id = scfg.axis
     else:
-        from kukaid.control.backends import KvpBackend
-        from kukaid.io.kvp import KvpClient
+        from kukaid.robot import KvpRobot
+        from kukaid.krc.kvp import KvpClient
 
         client = KvpClient(host=host, port=port, timeout=max(max_age, 2 * cycle))
         client.connect()
-        be = KvpBackend(client, axis=axis)
+        be = KvpRobot(client, axis=axis)
         attrs.update(host=host, port=port)
         axis_id = axis
 

@@ -56,10 +56,10 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, 
     import threading
 
     from kukaid.errors import KukaidError
-    from kukaid.io.atomic import check_writable
-    from kukaid.io.krl_logger import RingLayout
+    from kukaid.atomic import check_writable
+    from kukaid.krc.krl_logger import RingLayout
     from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
-    from kukaid.sim.kvp_server import Faults, KvpServer, SimSource
+    from kukaid.krc.server import Faults, KvpServer, SimSource
     from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite
 
     if truth_path is not None:  # checked now, not after the session
@@ -91,7 +91,7 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, 
         sim.set_external_torque(make_operator(operator, seed, sim.q, t_start=sim.t + operator_start, grip=grip))
     follower = None
     if follower_window:
-        from kukaid.io.krl_follower import FollowerConfig
+        from kukaid.krc.krl_follower import FollowerConfig
 
         follower = FollowerConfig(axis=axis, q_min_deg=follower_window[0], q_max_deg=follower_window[1],
                                   stale_ms=stale_ms)
@@ -124,7 +124,7 @@ def _wait_forever(stop) -> None:
 
 
 def _write_truth(source, sim, traj, path: Path, axis: int) -> None:
-    from kukaid.io.axislog import AxisLog, write_hdf5
+    from kukaid.logs import AxisLog, write_hdf5
 
     d = source.truth()
     attrs = dict(sim.log_attrs(traj)) if hasattr(sim, "log_attrs") else {}

@@ -1,18 +1,19 @@
-"""Capture: run a trajectory on a backend and record an axis log, incrementally.
+"""Capture: run a trajectory on a robot and record an axis log, incrementally.
 
-A backend is anything with a ``name`` and a ``capture(output, progress)`` method that writes the
-HDF5 axis log at ``output`` and returns a :class:`CaptureResult`.  Two backends:
+A capture source has a ``name`` and a ``capture(output, progress, stop)`` method that writes the
+HDF5 axis log at ``output`` and returns a :class:`CaptureResult`.  Two sources:
 
-:class:`SimBackend`
-    The virtual KR C4 (:mod:`kukaid.sim`).  The simulator runs in chunks of ``chunk`` seconds of
-    simulated time (``VirtualKRC4.advance``); every chunk's samples are appended to the log with
-    :class:`~kukaid.io.axislog.AxisLogWriter` and flushed, so a capture that is interrupted
+:class:`SimCapture`
+    The virtual KR C4 as a :class:`kukaid.robot.SimRobot` running the trajectory as its program;
+    its cycles (``chunk`` seconds of simulated time each) are appended to the log with
+    :class:`~kukaid.logs.axislog.AxisLogWriter` and flushed, so a capture that is interrupted
     (Ctrl-C, SIGTERM, a killed process) leaves a readable log of everything recorded up to the
     last chunk.  The log carries the truth of the simulation (``truth``), the seed, the
     experiment kind, the trajectory's parameters and the simulator configuration.
-:class:`KvpBackend`
-    A real (or virtual) KR C4 over KUKAVARPROXY: delegates to
-    ``kukaid.io.kvp_capture.capture_kvp`` (imported only when used).
+:class:`KvpCapture`
+    A real (or virtual) KR C4 over KUKAVARPROXY running its own KRL program: recorded by
+    ``kukaid.krc.kvp_capture.capture_kvp`` (polling, or the KRL ring-buffer logger that keeps
+    every 12 ms sample, which a command cycle over the network cannot guarantee).
 
 :func:`capture` refuses to replace an existing log unless ``force`` (nothing recorded is lost).
 """
@@ -47,8 +48,8 @@ class CaptureResult:
     info: dict[str, Any] = field(default_factory=dict)
 
 
-class Backend(Protocol):
-    """Interface of a capture backend."""
+class CaptureSource(Protocol):
+    """Interface of a capture source."""
 
     name: str
 
@@ -61,7 +62,7 @@ class Backend(Protocol):
         keeping what was recorded, when ``stop`` is set."""
 
 
-def capture(backend: Backend, output: str | Path, force: bool = False, progress: Progress | None = None,
+def capture(backend: CaptureSource, output: str | Path, force: bool = False, progress: Progress | None = None,
             stop: threading.Event | None = None) -> CaptureResult:
     """Run ``backend`` into ``output``; refuse to replace an existing file unless ``force``.
 
@@ -79,7 +80,7 @@ def capture(backend: Backend, output: str | Path, force: bool = False, progress:
     return backend.capture(output, progress, stop)
 
 
-class SimBackend:
+class SimCapture:
     """Capture a trajectory on the virtual KR C4.
 
     Parameters
@@ -126,37 +127,42 @@ class SimBackend:
 
     def capture(self, output: Path, progress: Progress | None = None,
                 stop: threading.Event | None = None) -> CaptureResult:
-        from kukaid.io.axislog import AxisLogWriter
+        from kukaid.logs import AxisLogWriter
+        from kukaid.robot import SimRobot
         from kukaid.sim import VirtualKRC4
 
         axis = int(getattr(self.traj, "axis", self.config.axis))
-        sim = VirtualKRC4(self.config, seed=self.seed, axis=axis)
         q = np.asarray(self.traj.q, dtype=float)
-        sim.reset(float(q[0]))
-        sim.follow(self.traj)
+        robot = SimRobot(VirtualKRC4(self.config, seed=self.seed, axis=axis), float(q[0]), program=self.traj)
         total = self.total()
         n_chunks = max(1, int(math.ceil(total / self.chunk - 1e-9)))
         writer = None
         n = 0
         t_last = 0.0
-        done = 0.0
         complete = True
+        done = 0.0
         try:
             for k in range(n_chunks):
                 if stop is not None and stop.is_set():
                     complete = False
                     break
                 end = min(total, (k + 1) * self.chunk)
-                block = sim.advance(end - done)
-                done = end
+                if k == 0:  # the robot starts with its first sample, then runs to the chunk's end
+                    first = robot.start().channels
+                    done = self.config.sample_time
+                    more = robot.cycle(None, max(end - done, 0.0)).channels
+                    b = {c: np.concatenate([first[c], more[c]]) for c in first}
+                else:
+                    b = robot.cycle(None, end - done).channels
+                done = max(end, done)
                 if writer is None:
-                    channels = [c for c in ("q", "tau", "q_cmd", "temp", "tau_ext_true") if c in block]
-                    writer = AxisLogWriter(output, axes=(axis,), channels=channels, attrs=self.attrs(sim),
+                    channels = [c for c in ("q", "tau", "q_cmd", "temp", "tau_ext_true") if c in b]
+                    writer = AxisLogWriter(output, axes=(axis,), channels=channels, attrs=self.attrs(robot.sim),
                                            flush_every=10**9)
-                if block["time"].size:
-                    writer.append(block["time"], **{c: block[c] for c in writer.channels})
-                    n += int(block["time"].size)
-                    t_last = float(block["time"][-1])
+                if b["time"].size:
+                    writer.append(b["time"], **{c: b[c] for c in writer.channels})
+                    n += int(b["time"].size)
+                    t_last = float(b["time"][-1])
                 writer.flush()
                 if progress is not None:
                     progress(done)
@@ -167,8 +173,8 @@ class SimBackend:
                              info={"seed": self.seed, "chunks": n_chunks, "simulated_s": done})
 
 
-class KvpBackend:
-    """Capture from a KR C4 over KUKAVARPROXY (``kukaid.io.kvp_capture.capture_kvp``)."""
+class KvpCapture:
+    """Capture from a KR C4 over KUKAVARPROXY (``kukaid.krc.kvp_capture.capture_kvp``)."""
 
     name = "kvp"
 
@@ -197,13 +203,13 @@ class KvpBackend:
 
 
 def load_kvp_capture() -> Callable[..., dict]:
-    """``kukaid.io.kvp_capture.capture_kvp``, or a clear error if that module is not available."""
+    """``kukaid.krc.kvp_capture.capture_kvp``, or a clear error if that module is not available."""
     try:
-        from kukaid.io.kvp_capture import capture_kvp
+        from kukaid.krc.kvp_capture import capture_kvp
     except ModuleNotFoundError as e:
-        if e.name in ("kukaid.io.kvp_capture",):
+        if e.name in ("kukaid.krc.kvp_capture",):
             raise KukaidError("capture: the kvp backend is not available in this installation "
-                              "(module kukaid.io.kvp_capture is missing)") from None
+                              "(module kukaid.krc.kvp_capture is missing)") from None
         raise
     return capture_kvp
 
@@ -257,7 +263,7 @@ def check_limits(traj: Any, where: str = "trajectory") -> None:
     take precedence over the built-in KR 6 R700 sixx figures.
     """
     from kukaid.errors import LimitError
-    from kukaid.excite import AxisLimits
+    from kukaid.models.limits import AxisLimits
 
     if getattr(traj, "limits", None):
         limits = AxisLimits.from_dict(traj.limits, where=f"{where}: field 'limits'")

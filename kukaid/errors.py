@@ -9,8 +9,16 @@ class LogFormatError(KukaidError):
     """An axis log (CSV, HDF5, MAT, Trace) is malformed or inconsistent."""
 
 
+class TrajectoryError(KukaidError):
+    """A trajectory file or a generator option is malformed or out of range."""
+
+
 class ParamFileError(KukaidError):
     """A parameter file is missing a field, has a wrong type or an out-of-range value."""
+
+
+class SimConfigError(ParamFileError):
+    """A simulator configuration has an unknown field, a wrong type or an out-of-range value."""
 
 
 class LimitError(KukaidError):

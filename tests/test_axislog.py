@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from kukaid.errors import KukaidError, LogFormatError
-from kukaid.io.axislog import AxisLog, AxisLogWriter, read_csv, read_hdf5, read_log, write_csv, write_hdf5
+from kukaid.logs import AxisLog, AxisLogWriter, read_csv, read_hdf5, read_log, write_csv, write_hdf5
 from kukaid_cli.main import cli
 
 
@@ -149,7 +149,7 @@ def test_writer_survives_sigkill(tmp_path):
     path = tmp_path / "live.h5"
     code = textwrap.dedent(f"""
         import numpy as np, os, sys
-        from kukaid.io.axislog import AxisLogWriter
+        from kukaid.logs import AxisLogWriter
         w = AxisLogWriter({str(path)!r}, axes=(3,), attrs={{"experiment": "x"}}, flush_every=10)
         n = 0
         while True:

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from kukaid.capture import SimBackend, capture, load_kvp_capture, parse_effect, sim_config
+from kukaid.capture import SimCapture, capture, load_kvp_capture, parse_effect, sim_config
 from kukaid.errors import KukaidError
 from kukaid.excite import Trajectory, friction
-from kukaid.io.axislog import read_hdf5
+from kukaid.logs import read_hdf5
 from kukaid_cli.main import cli
 
 
@@ -60,7 +60,7 @@ def test_chunked_capture_equals_one_simulator_run(short_traj, tmp_path):
 
     tr = Trajectory.from_json(short_traj)
     out = tmp_path / "log.h5"
-    capture(SimBackend(tr, seed=3, chunk=0.7), out)
+    capture(SimCapture(tr, seed=3, chunk=0.7), out)
     log = read_hdf5(out)
     sim = VirtualKRC4(SimConfig(), seed=3, axis=3)
     ref = sim.run(tr, settle=0.5)
@@ -163,7 +163,7 @@ def test_kvp_backend_needs_duration_and_reports_a_missing_module(monkeypatch, tm
     code, text = run("capture", "-o", tmp_path / "k.h5", "--backend", "kvp", "--duration", "1", "--seed", "1",
                      "--effect", "backlash")
     assert code != 0 and "--effect is for --backend sim" in text
-    monkeypatch.setitem(sys.modules, "kukaid.io.kvp_capture", None)
+    monkeypatch.setitem(sys.modules, "kukaid.krc.kvp_capture", None)
     with pytest.raises(KukaidError, match="kvp backend is not available"):
         load_kvp_capture()
     code, text = run("capture", "-o", tmp_path / "k.h5", "--backend", "kvp", "--duration", "1")
@@ -184,7 +184,7 @@ def test_stop_event_ends_the_capture_cleanly(short_traj, tmp_path):
             stop.set()
 
     out = tmp_path / "stopped.h5"
-    res = capture(SimBackend(tr, seed=2, chunk=1.0), out, progress=progress, stop=stop)
+    res = capture(SimCapture(tr, seed=2, chunk=1.0), out, progress=progress, stop=stop)
     assert not res.complete and seen == [1.0, 2.0, 3.0]
     log = read_hdf5(out)
     assert log.n_samples == res.n_samples and log.time[-1] == pytest.approx(3.0, abs=0.013)

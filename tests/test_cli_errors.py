@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from kukaid.errors import KukaidError
-from kukaid.io.atomic import atomic_paths, check_output
+from kukaid.atomic import atomic_paths, check_output
 from kukaid_cli.main import cli
 
 

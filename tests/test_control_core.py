@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from kukaid.control.admittance import Admittance, check_admittance
-from kukaid.control.backends import SimBackend
+from kukaid.robot import SimRobot
 from kukaid.control.loop import LoopConfig, run_admittance
 from kukaid.control.safety import ReferenceLimiter, SafetyLimits, Watchdog, check_motion_allowed
 from kukaid.control.torque_residual import TorqueResidual
 from kukaid.errors import KukaidError
-from kukaid.io.params import model_from_params
+from kukaid.params import model_from_params
 from kukaid.sim import SimConfig, VirtualKRC4
 
 
@@ -47,7 +47,7 @@ def test_limiter_clips_window_speed_acceleration():
 
 
 def test_stale_reading_stops_motion():
-    class Stale(SimBackend):
+    class Stale(SimRobot):
         def cycle(self, q_cmd, dt):
             out = super().cycle(q_cmd, dt)
             return out if self.sim.t < 2.0 else []  # readings stop arriving at 2 s

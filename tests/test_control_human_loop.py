@@ -8,12 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from kukaid.control.backends import SimBackend
+from kukaid.robot import SimRobot
 from kukaid.control.loop import PHASE_ADMITTANCE, LoopConfig, run_admittance
 from kukaid.control.metrics import operator_metrics
 from kukaid.control.safety import SafetyLimits
 from kukaid.control.stability import StabilityConfig
-from kukaid.io.params import model_from_params
+from kukaid.params import model_from_params
 from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid.sim.human import make_human
 from kukaid.sim.operator import PushOperator
@@ -27,7 +27,7 @@ MODEL = model_from_params(SIM.truth_params())
 def _human_run(seed, grip, damping="adaptive", stability=True, duration=11.0):
     cfg = LoopConfig(damping=damping, cycle=0.024, duration=duration, stability=StabilityConfig(enabled=stability))
     op = make_human(seed, Q0 + cfg.init_move, cfg.init_time + cfg.init_rest + 0.8, grip=grip)
-    run = run_admittance(SimBackend(VirtualKRC4(SIM, seed=seed), Q0, op), MODEL, cfg)
+    run = run_admittance(SimRobot(VirtualKRC4(SIM, seed=seed), Q0, op), MODEL, cfg)
     return run, {**run.metrics, **operator_metrics(run.data, op, 0.05, SIM.sample_time)}
 
 
@@ -37,7 +37,7 @@ def test_push_held_while_the_axis_stands_is_not_absorbed_and_does_not_come_back(
     op = PushOperator(amplitude=12.0, t_start=2.0, duration=4.0, ramp=0.3)
     lim = SafetyLimits(q_min=Q0 - 1.0, q_max=Q0 + math.radians(4.0), qd_max=0.5, qdd_max=5.0)
     cfg = LoopConfig(duration=8.0, limits=lim)
-    run = run_admittance(SimBackend(VirtualKRC4(SIM, seed=2), Q0, op), MODEL, cfg)
+    run = run_admittance(SimRobot(VirtualKRC4(SIM, seed=2), Q0, op), MODEL, cfg)
     d = run.data
     t_sim = d["time"] + SIM.sample_time
     stopped = (t_sim > 4.0) & (t_sim < 5.6)

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from kukaid.control.backends import SimBackend
+from kukaid.robot import SimRobot
 from kukaid.control.loop import PHASE_ADMITTANCE, LoopConfig, run_admittance
 from kukaid.control.rbf import RBFConfig
 from kukaid.control.safety import SafetyLimits
 from kukaid.errors import ControllerError
-from kukaid.io.params import model_from_params
+from kukaid.params import model_from_params
 from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid.sim.operator import PushOperator
 
@@ -24,7 +24,7 @@ Q0 = math.radians(30.0)
 def _run(operator=None, seed=3, **cfg_kw):
     cfg = SimConfig().replace(**TRUTH)
     model = model_from_params(cfg.truth_params())
-    be = SimBackend(VirtualKRC4(cfg, seed=seed), Q0, operator)
+    be = SimRobot(VirtualKRC4(cfg, seed=seed), Q0, operator)
     return run_admittance(be, model, LoopConfig(**cfg_kw))
 
 
@@ -90,7 +90,7 @@ def test_torque_limit_stops_motion():
     assert run.data["phase"][-1] == 3
 
 
-class _Failing(SimBackend):
+class _Failing(SimRobot):
     def __init__(self, *a, fail_at: float, exc: BaseException, **kw):
         super().__init__(*a, **kw)
         self.fail_at, self.exc, self.holds = fail_at, exc, 0

@@ -13,8 +13,8 @@ from kukaid_cli.main import cli
 @pytest.fixture(scope="module")
 def case(tmp_path_factory):
     from kukaid.diagnose.power import draw_effects, hidden_effect_logs, initial_fit
-    from kukaid.io.axislog import write_hdf5
-    from kukaid.io.params import save_params
+    from kukaid.logs import write_hdf5
+    from kukaid.params import save_params
 
     d = tmp_path_factory.mktemp("diag")
     effects = draw_effects({"position_ripple": 1.5}, np.random.default_rng(8))

@@ -14,7 +14,7 @@ EMPS = SHARED / "datasets" / "emps" / "DATA_EMPS.mat"
 def load_emps():
     if not EMPS.exists():
         pytest.skip("../shared/datasets/emps is not present")
-    from kukaid.io.matlog import read_mat
+    from kukaid.logs import read_mat
 
     return read_mat(EMPS, time="t", q="qm", tau="vir", tau_scale_var="gtau", joint="prismatic", q_cmd="qg")
 

@@ -10,7 +10,7 @@ from kukaid.diagnose.model import DiagModel, effects_torque
 from kukaid.diagnose.noise import noise_floor
 from kukaid.diagnose.signals import prepare
 from kukaid.diagnose.workflow import diagnose, rmse_of
-from kukaid.io.axislog import AxisLog
+from kukaid.logs import AxisLog
 from kukaid.models.friction import Stribeck
 
 TRUE = {"schema": "kukaid.params/1", "axis": 3,

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from kukaid.errors import DiskFullError
-from kukaid.io.axislog import AxisLogWriter, read_hdf5
+from kukaid.logs import AxisLogWriter, read_hdf5
 
 resource = pytest.importorskip("resource")  # file-size limits: POSIX
 
@@ -88,7 +88,7 @@ def test_run_admittance_stops_the_robot_and_keeps_the_log(tmp_path, monkeypatch)
     keeps the samples and exits with one line."""
     from click.testing import CliRunner
 
-    from kukaid.io.params import save_params
+    from kukaid.params import save_params
     from kukaid.sim import SimConfig
     from kukaid_cli.main import cli
 
@@ -106,9 +106,9 @@ def test_run_admittance_stops_the_robot_and_keeps_the_log(tmp_path, monkeypatch)
 def test_kvp_capture_keeps_the_samples(tmp_path, monkeypatch):
     from types import SimpleNamespace
 
-    from kukaid.io.kvp_capture import capture_kvp
+    from kukaid.krc.kvp_capture import capture_kvp
     from kukaid.sim import SimConfig, VirtualKRC4
-    from kukaid.sim.kvp_server import KvpServer, SimSource
+    from kukaid.krc.server import KvpServer, SimSource
 
     t = np.arange(0.0, 30.0, 0.012)
     traj = SimpleNamespace(t=t, q=0.3 + 0.1 * np.sin(2 * np.pi * t / 4.0) * np.minimum(t, 1.0), axis=3)

@@ -9,7 +9,7 @@ import pytest
 
 from kukaid.errors import KukaidError
 from kukaid.excite import KINDS, AxisLimits, friction, generate, presliding
-from kukaid.io.krl import export_krl, krl_program
+from kukaid.krc.krl import export_krl, krl_program
 
 DEG = math.pi / 180
 
@@ -136,7 +136,7 @@ from hypothesis import given, settings, strategies as st  # noqa: E402
 @given(st.lists(st.floats(-0.02, 0.02), min_size=3, max_size=300), st.floats(1e-4, 0.05))
 def test_via_points_stay_within_tolerance(steps, tol_deg):
     """Any sampled path: the via points include both ends and the straight pieces stay within tol."""
-    from kukaid.io.krl import via_points
+    from kukaid.krc.krl import via_points
 
     q = np.concatenate([[0.0], np.cumsum(np.where(np.abs(steps) < 1e-3, 0.0, steps))])
     t = np.arange(q.size) * 0.012

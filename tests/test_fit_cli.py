@@ -8,8 +8,8 @@ import pytest
 from click.testing import CliRunner
 
 from kukaid import excite
-from kukaid.io.axislog import AxisLog, write_hdf5
-from kukaid.io.params import load_params
+from kukaid.logs import AxisLog, write_hdf5
+from kukaid.params import load_params
 from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid_cli.main import cli
 

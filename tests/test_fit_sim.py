@@ -6,7 +6,7 @@ import pytest
 
 from kukaid import excite
 from kukaid.identify import fit_axis
-from kukaid.io.params import save_params
+from kukaid.params import save_params
 from kukaid.models.friction import MaxwellSlip, Stribeck
 from kukaid.sim import SimConfig, VirtualKRC4
 

@@ -8,7 +8,7 @@ from kukaid.errors import FitError
 from kukaid.identify import fit_dynamic, preprocess
 from kukaid.identify.filtering import lowpass
 from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
-from kukaid.io.axislog import AxisLog
+from kukaid.logs import AxisLog
 from kukaid.models.friction import MaxwellSlip, Stribeck
 from kukaid.models.joint import RigidBody
 

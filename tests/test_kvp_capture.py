@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from kukaid.errors import ControllerError, KukaidError
-from kukaid.io.axislog import read_hdf5
-from kukaid.io.krl_logger import RingLayout
-from kukaid.io.kvp_capture import capture_kvp
-from kukaid.sim.kvp_server import KvpServer, SimSource
+from kukaid.logs import read_hdf5
+from kukaid.krc.krl_logger import RingLayout
+from kukaid.krc.kvp_capture import capture_kvp
+from kukaid.krc.server import KvpServer, SimSource
 
 
 def _excitation(duration: float = 8.0) -> SimpleNamespace:
@@ -170,7 +170,7 @@ def test_empty_value_and_unreachable_proxy_are_clear_errors(virtual_krc4, tmp_pa
 
 
 _CAPTURE_CHILD = (
-    "import sys; from kukaid.io.kvp_capture import capture_kvp; "
+    "import sys; from kukaid.krc.kvp_capture import capture_kvp; "
     "s = capture_kvp(sys.argv[1], '127.0.0.1', int(sys.argv[2]), [3], None, True, sys.argv[3], None); "
     "print('stopped_by', s['stopped_by'], s['n_samples'])"
 )

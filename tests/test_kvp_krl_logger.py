@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from kukaid.errors import ControllerError, KukaidError
-from kukaid.io.krl_logger import RingLayout, format_sample, krl_logger_files, parse_block, parse_config
+from kukaid.krc.krl_logger import RingLayout, format_sample, krl_logger_files, parse_block, parse_config
 
 
 def test_logger_text_declares_the_handshake_and_samples_every_ipo_cycle():

@@ -9,7 +9,7 @@ import time
 import pytest
 
 from kukaid.errors import ControllerError
-from kukaid.io.kvp import (KvpClient, KvpConnectionError, KvpProtocolError, KvpTimeoutError, KvpValueError,
+from kukaid.krc.kvp import (KvpClient, KvpConnectionError, KvpProtocolError, KvpTimeoutError, KvpValueError,
                            KvpVariableError, decode_reply_body, decode_request, encode_read, encode_reply,
                            encode_write, format_e6axis, parse_bool, parse_e6axis, parse_e6pos, parse_int,
                            parse_real, parse_string, parse_struct)
@@ -292,7 +292,7 @@ def test_encode_decode_round_trip(msg_id, name, value, ok):
 @settings(max_examples=100, deadline=None, derandomize=True)
 @given(x=st.floats(allow_nan=False, allow_infinity=False, min_value=-1e6, max_value=1e6))
 def test_real_and_e6axis_text_round_trip(x):
-    from kukaid.io.kvp import format_real
+    from kukaid.krc.kvp import format_real
 
     assert parse_real(format_real(x)) == pytest.approx(x, abs=1e-6)
     assert parse_e6axis(format_e6axis({"A3": x}))["A3"] == pytest.approx(x, abs=1e-6)

@@ -7,10 +7,10 @@ import time
 import numpy as np
 import pytest
 
-from kukaid.io.krl_logger import RingLayout, parse_block, parse_config
-from kukaid.io.kvp import (KvpClient, KvpConnectionError, KvpProtocolError, KvpTimeoutError, KvpVariableError,
+from kukaid.krc.krl_logger import RingLayout, parse_block, parse_config
+from kukaid.krc.kvp import (KvpClient, KvpConnectionError, KvpProtocolError, KvpTimeoutError, KvpVariableError,
                            parse_e6axis)
-from kukaid.sim.kvp_server import KvpServer, SimSource, StaticSource
+from kukaid.krc.server import KvpServer, SimSource, StaticSource
 
 
 @pytest.fixture

@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 from kukaid.errors import LogFormatError
 from kukaid.identify import fit_axis
-from kukaid.io.axislog import read_hdf5, read_log
+from kukaid.logs import read_hdf5, read_log
 from kukaid_cli.main import cli
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
@@ -70,7 +70,7 @@ def test_emps_published_recipe_within_2_percent(emps):
 
 
 def test_emps_stribeck_runs(emps, tmp_path):
-    from kukaid.io.params import save_params
+    from kukaid.params import save_params
 
     p = fit_axis(logs=[emps], friction_model="stribeck", gravity="none", offset=True)
     assert p["metrics"]["ipopt_status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level")

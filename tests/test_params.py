@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from kukaid.errors import ParamFileError
-from kukaid.io.params import SCHEMA, load_params, model_from_params, save_params
+from kukaid.params import SCHEMA, load_params, model_from_params, save_params
 from kukaid.models import MaxwellSlip, Stribeck
 
 

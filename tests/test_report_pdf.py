@@ -10,8 +10,8 @@ from click.testing import CliRunner
 
 from kukaid import excite
 from kukaid.identify import fit_axis
-from kukaid.io.axislog import write_hdf5
-from kukaid.io.params import save_params
+from kukaid.logs import write_hdf5
+from kukaid.params import save_params
 from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid_cli.main import cli
 
@@ -70,7 +70,8 @@ def test_pages_follow_the_data_given(fitted):
 
 def test_library_pages_truth_and_caveat(fitted):
     from kukaid.report import build_report, load_report_data
-    from kukaid.report.fit_report import page_correlation, presliding_replay
+    from kukaid.report.correlation import page_correlation
+    from kukaid.report.presliding import presliding_replay
 
     _, p, logs, params = fitted
     data = load_report_data(params, friction=[logs["friction"]], inertia=[logs["inertia"]],

@@ -14,10 +14,10 @@ import pytest
 from click.testing import CliRunner
 
 from kukaid.control.runlog import read_run
-from kukaid.io.krl_follower import STOP_BY_PC, STOP_STALE, FollowerConfig
-from kukaid.io.params import save_params
+from kukaid.krc.krl_follower import STOP_BY_PC, STOP_STALE, FollowerConfig
+from kukaid.params import save_params
 from kukaid.sim import SimConfig, VirtualKRC4
-from kukaid.sim.kvp_server import SimSource
+from kukaid.krc.server import SimSource
 from kukaid_cli.main import cli
 
 TRUTH = dict(Fc=12.8, Fs=15.2, vs=0.05, delta=1.5, Fv=11.0, Izz=1.9, Mx=22.5)
@@ -92,7 +92,7 @@ def kvp_robot(files, kukaid_cmd, tmp_path):
     pushing from 5 s on (after the run's initiation move and rest: a push already there when the
     quasi-static offset Γu is taken is absorbed into it, as in the paper).  Yields (port, client,
     push amplitude N·m)."""
-    from kukaid.io.kvp import KvpClient
+    from kukaid.krc.kvp import KvpClient
     from kukaid.sim.operator import make_operator
 
     seed = 6
@@ -145,7 +145,7 @@ def test_kvp_controller_that_stops_answering_stops_the_run_and_keeps_the_log(fil
     class Dead(Exception):
         pass
 
-    from kukaid.io import kvp
+    from kukaid.krc import kvp
 
     real_read = kvp.KvpClient.read_real
     t_dead = time.monotonic() + 2.5
@@ -219,7 +219,7 @@ def test_a_killed_run_leaves_the_measured_log(files, tmp_path, kukaid_cmd):
     """SIGKILL while the robot moves: the axis log recorded so far is on disk and readable."""
     import signal
 
-    from kukaid.io.axislog import read_hdf5
+    from kukaid.logs import read_hdf5
 
     out = tmp_path / "killed.h5"
     proc = subprocess.Popen([*kukaid_cmd, "run-admittance", "--params", str(files / "params.json"), "--duration",

@@ -6,7 +6,7 @@ import json
 import pytest
 
 from kukaid.errors import KukaidError
-from kukaid.io.params import validate_params
+from kukaid.params import validate_params
 from kukaid.sim import SimConfig, SimConfigError, load_sim_config
 
 
@@ -88,7 +88,7 @@ def test_file_errors(tmp_path):
 
 
 def test_a_parameter_file_can_be_the_truth(tmp_path):
-    from kukaid.io.params import save_params
+    from kukaid.params import save_params
 
     f = tmp_path / "fitted.json"
     save_params(f, {"axis": 3, "friction": {"model": "stribeck", "Fc": 14.0, "Fs": 16.5, "vs": 0.03, "delta": 1.5,

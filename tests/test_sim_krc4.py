@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from kukaid.errors import KukaidError
-from kukaid.io.axislog import read_hdf5, write_hdf5
+from kukaid.logs import read_hdf5, write_hdf5
 from kukaid.sim import SimConfig, VirtualKRC4
 from sim_helpers import Builder
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from kukaid.errors import LogFormatError
-from kukaid.io.axislog import read_hdf5, read_log
-from kukaid.io.trace import read_trace
+from kukaid.logs import read_hdf5, read_log
+from kukaid.logs import read_trace
 
 
 def write_module(folder: Path, stem: str, step: float, n: int, channels: list[tuple[str, str, np.ndarray]],

@@ -94,7 +94,7 @@ class AdmittanceRun:
 def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, zeta0: Any = None,
                    progress: Callable[[float], None] | None = None,
                    on_row: Callable[[dict[str, Any]], None] | None = None) -> AdmittanceRun:
-    """Run the loop on ``backend`` (:mod:`kukaid.control.backends`) with the identified ``model``.
+    """Run the loop on ``backend`` (a :class:`kukaid.robot.Robot`) with the identified ``model``.
 
     Returns an :class:`AdmittanceRun`; ``status`` is "completed" or "stopped: <reason>" (a stale
     or missing measurement, the torque limit, a controller error, an interrupt).  Whatever ends

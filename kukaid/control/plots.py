@@ -14,7 +14,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from kukaid.io.atomic import atomic_path
+from kukaid.atomic import atomic_path
 
 _TABLE_KEYS = (("status", "status"), ("xi", "mean ξ (Γr, window)"), ("dgamma2", "mean dΓr² (window)"),
                ("xi_true", "mean ξ (true hand torque)"), ("dgamma2_true", "mean dΓ² (true)"),

@@ -1,7 +1,7 @@
 """The run log of ``kukaid run-admittance``: an HDF5 axis log plus a ``control`` group.
 
 Top level: the axis-log contract (``time``, ``q``, ``tau``, ``q_cmd``, ``tau_ext_true`` as (N, 1)
-arrays, attribute ``axes``), so ``kukaid.io.axislog.read_hdf5`` reads it.  Group ``control``:
+arrays, attribute ``axes``), so ``kukaid.logs.axislog.read_hdf5`` reads it.  Group ``control``:
 per-cycle datasets ``gamma_r``, ``gamma_p`` (N·m), ``sigma`` (rad), ``sigma_dot`` (rad/s), ``D``
 (N·m·s/rad), ``osc_index`` (N·m, the oscillation index), ``D_floor`` (N·m·s/rad, the damping the
 stability monitor imposes, 0 when inactive), ``dynamic``, ``detected``, ``clipped`` (0/1), ``phase`` (0 initiation move, 1 rest,
@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from kukaid.io.atomic import atomic_path
-from kukaid.io.jsonfile import jsonable
+from kukaid.atomic import atomic_path
+from kukaid.jsonfile import jsonable
 
 
 def _json(x: Any) -> str:
@@ -28,7 +28,7 @@ def write_run(path: str | Path, run: Any, axis: int = 3, attrs: dict[str, Any] |
     import h5py
 
     from kukaid.control.loop import config_dict
-    from kukaid.io.axislog import AxisLog, write_hdf5
+    from kukaid.logs import AxisLog, write_hdf5
 
     d = run.data
     te = d["tau_ext_true"]
@@ -58,7 +58,7 @@ def read_run(path: str | Path) -> tuple[Any, dict[str, np.ndarray], dict[str, An
     import h5py
 
     from kukaid.errors import LogFormatError
-    from kukaid.io.axislog import read_hdf5
+    from kukaid.logs import read_hdf5
 
     log = read_hdf5(path)
     with h5py.File(path, "r") as f:

@@ -82,7 +82,7 @@ class TorqueResidual:
 
     Parameters
     ----------
-    model : the identified axis model (:func:`kukaid.io.params.model_from_params`).
+    model : the identified axis model (:func:`kukaid.params.axis.model_from_params`).
     sample_time : measurement interval, s (12 ms on a KR C4).
     threshold : detection threshold on |Γr|, N·m (paper: 3 quasi-static, 5 mode switching).
     release : |Γr| below which a detection ends, N·m (default 0.6 * threshold).

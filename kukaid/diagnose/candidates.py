@@ -32,9 +32,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from kukaid.diagnose.model import DiagModel
     from kukaid.diagnose.signals import LogSignals
 
-NAMES = ("gravity_sine", "torque_offset", "position_ripple", "thermal_drift", "load_dependent_friction",
-         "backlash")
-TAG = "kukaid.diagnose/1"
+from kukaid.models.effects import COEFFICIENTS, NAMES, TAG  # noqa: F401  (the names the parameter file knows)
 
 
 def _sign(sig: "LogSignals") -> np.ndarray:
@@ -364,7 +362,7 @@ class Backlash(Candidate):
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in (GravitySine(), TorqueOffset(), PositionRipple(),
                                                         ThermalDrift(), LoadDependentFriction(), Backlash())}
-assert tuple(CANDIDATES) == NAMES
+assert {n: c.coef_names for n, c in CANDIDATES.items()} == COEFFICIENTS, "models.effects and the candidates disagree"
 
 
 def get(name: str) -> Candidate:

@@ -22,7 +22,7 @@ import numpy as np
 from kukaid.diagnose import candidates as C
 from kukaid.diagnose.signals import LogSignals
 from kukaid.errors import FitError, ParamFileError
-from kukaid.io.jsonfile import jsonable
+from kukaid.jsonfile import jsonable
 
 VS_BOUNDS = (1e-4, 2.0)
 DELTA_BOUNDS = (0.5, 2.0)

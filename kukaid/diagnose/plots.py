@@ -9,7 +9,7 @@ import numpy as np
 from kukaid.diagnose import candidates as C
 from kukaid.diagnose.model import DiagModel
 from kukaid.diagnose.workflow import Diagnosis
-from kukaid.io.atomic import atomic_path
+from kukaid.atomic import atomic_path
 
 
 def _binned(x: np.ndarray, y: np.ndarray, bins: int = 30) -> tuple[np.ndarray, np.ndarray]:

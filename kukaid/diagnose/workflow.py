@@ -30,7 +30,7 @@ from kukaid.diagnose.model import DiagModel
 from kukaid.diagnose.noise import noise_floor, noise_sigma
 from kukaid.diagnose.signals import LogSignals, prepare
 from kukaid.errors import FitError, KukaidError
-from kukaid.io.jsonfile import jsonable
+from kukaid.jsonfile import jsonable
 
 
 @dataclass

@@ -27,7 +27,7 @@ from kukaid.identify.least_squares import fit_rigid
 from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
 from kukaid.identify.stribeck_fit import extract_friction, natural_uncertainty, solve_separable
 from kukaid.identify.uncertainty import correlation_factor, covariance
-from kukaid.io.jsonfile import jsonable
+from kukaid.jsonfile import jsonable
 from kukaid.models.friction import CoulombViscous, Stribeck
 
 METHODS = ("joint", "staged")
@@ -36,7 +36,7 @@ METHODS = ("joint", "staged")
 def _load(x: Any, options: dict) -> Any:
     if hasattr(x, "tau") and hasattr(x, "time"):
         return x
-    from kukaid.io.axislog import read_log
+    from kukaid.logs import read_log
 
     return read_log(x, **options)
 

@@ -19,14 +19,10 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
-from kukaid.errors import ParamFileError
-from kukaid.io.jsonfile import read_json
+from kukaid.errors import SimConfigError
+from kukaid.jsonfile import read_json
 
 INF = math.inf
-
-
-class SimConfigError(ParamFileError):
-    """A simulator configuration has an unknown field, a wrong type or an out-of-range value."""
 
 
 # field -> (kind, low, high, doc).  kind: "float", "int", "bool", "vec" (list of floats).

@@ -91,7 +91,7 @@ EFFECTS: dict[str, dict[str, Any]] = {
 
 
 def _err(msg: str):
-    from kukaid.sim.config import SimConfigError
+    from kukaid.errors import SimConfigError
 
     return SimConfigError(msg)
 

@@ -381,13 +381,13 @@ class VirtualKRC4:
         return {"q": q, "tau": tau, "temp": round(float(self._st[K.S_T]), 2)}
 
     def run(self, traj: Any, progress: Callable[[float], None] | None = None, settle: float = 0.5):
-        """Follow ``traj`` to its end plus ``settle`` s; return the :class:`~kukaid.io.axislog.AxisLog`.
+        """Follow ``traj`` to its end plus ``settle`` s; return the :class:`~kukaid.logs.axislog.AxisLog`.
 
         If the commanded position now differs from ``traj.q[0]`` the simulator is first reset
         to a standstill at ``traj.q[0]``.  ``progress(done_s)`` is called with the simulated
         seconds done so far.
         """
-        from kukaid.io.axislog import AxisLog
+        from kukaid.logs import AxisLog
 
         q = np.asarray(traj.q, dtype=float)
         t = np.asarray(traj.t, dtype=float)

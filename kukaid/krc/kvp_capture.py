@@ -9,7 +9,7 @@ Two modes:
     as uneven sample spacing, which is recorded, not hidden).
 ``ring``
     Read blocks of samples taken every interpolation cycle by the KRL ring-buffer logger
-    (:mod:`kukaid.io.krl_logger`); sample times come from the controller's ``$ROB_TIMER`` (ms),
+    (:mod:`kukaid.krc.krl_logger`); sample times come from the controller's ``$ROB_TIMER`` (ms),
     so no sample is lost to network jitter as long as the PC keeps up with the ring.  Only
     published blocks are read: the samples of the block being filled when capture stops (at most
     ``bs - 1`` cycles) are not in the log.
@@ -18,7 +18,7 @@ Read-only: capture never writes a robot variable.  The single exception is ring 
 writes ``KID_RD`` -- the acknowledgement counter of kukaid's own logger -- to hand consumed blocks
 back to the SUB program.
 
-The log is written incrementally (:class:`kukaid.io.axislog.AxisLogWriter`), flushed at least
+The log is written incrementally (:class:`kukaid.logs.axislog.AxisLogWriter`), flushed at least
 every 0.5 s (``flush_interval``), so a killed capture leaves a readable file holding every sample
 up to the last flush.  A dropped connection is survived: the client reconnects with back-off,
 the interval without samples is recorded with ``writer.mark_gap`` (dataset ``gaps``), and nothing
@@ -37,7 +37,7 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from kukaid.errors import ControllerError, KukaidError
-from kukaid.io.kvp import (DEFAULT_PORT, KvpClient, KvpConnectionError, KvpError, KvpProtocolError,
+from kukaid.krc.kvp import (DEFAULT_PORT, KvpClient, KvpConnectionError, KvpError, KvpProtocolError,
                            KvpValueError, KvpVariableError, parse_e6axis, parse_int, parse_real, parse_string)
 
 _DEG = math.pi / 180.0
@@ -153,7 +153,7 @@ def capture_kvp(output: str | Path, host: str = "127.0.0.1", port: int = DEFAULT
     dict with n_samples, duration_s, rate_hz, latency_mean_s, latency_p99_s, latency_max_s,
     n_requests, n_reconnects, gaps (list of [t_start, t_end]), stopped_by, and output.
     """
-    from kukaid.io.axislog import AxisLogWriter
+    from kukaid.logs import AxisLogWriter
 
     axes = tuple(int(a) for a in axes)
     if not axes:
@@ -331,7 +331,7 @@ def _poll_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
 
 def _ring_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps, stop, t0, duration,
                progress, *, reconnect_wait, temp_unit, ring_poll, max_errors, result, **_) -> str:
-    from kukaid.io.krl_logger import IPO_MS, parse_block, parse_config, slot_name
+    from kukaid.krc.krl_logger import IPO_MS, parse_block, parse_config, slot_name
 
     def rd(name: str) -> str:
         v = client.read(name)

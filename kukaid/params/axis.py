@@ -14,8 +14,9 @@ from pathlib import Path
 from typing import Any
 
 from kukaid.errors import ParamFileError
-from kukaid.io.atomic import write_text_atomic
-from kukaid.io.jsonfile import read_json
+from kukaid.atomic import write_text_atomic
+from kukaid.jsonfile import read_json
+from kukaid.models.effects import COEFFICIENTS, NAMES, TAG
 from kukaid.models.friction import MaxwellSlip, friction_from_dict
 from kukaid.models.joint import AxisModel, RigidBody
 
@@ -121,8 +122,6 @@ def _friction_ref(where: str, name: str, fr: Any) -> None:
 
 
 def _effects(where: str, effects: Any) -> None:
-    from kukaid.diagnose.candidates import CANDIDATES, NAMES, TAG  # lazy: keeps the file reader light
-
     effects = _object(where, "effects", effects, "an object {name: parameters}")
     for name, e in effects.items():
         if name not in NAMES:
@@ -147,7 +146,7 @@ def _effects(where: str, effects: Any) -> None:
                 _number(f"{where}: {field}", v, *rng)
         need = _EFFECT_NEEDS.get(name, ())
         if e.get("model") == TAG:  # the diagnosis reads these back (kukaid diagnose, effects_torque)
-            need = CANDIDATES[name].coef_names + _EFFECT_SETTINGS.get(name, ())
+            need = COEFFICIENTS[name] + _EFFECT_SETTINGS.get(name, ())
         for k in need:
             if k not in e:
                 raise ParamFileError(f"{where}: missing field effects.{name}.{k}")

@@ -1,7 +1,7 @@
 """A virtual KR C4 that speaks KUKAVARPROXY.
 
 :class:`KvpServer` is a threaded TCP server speaking the KUKAVARPROXY protocol
-(:mod:`kukaid.io.kvp`), bound to loopback by default, accepting up to 10 clients like the real
+(:mod:`kukaid.krc.kvp`), bound to loopback by default, accepting up to 10 clients like the real
 proxy.  What it serves comes from a pluggable *variable source* (anything with
 ``read(name) -> str | None`` and ``write(name, value) -> bool``):
 
@@ -9,7 +9,7 @@ proxy.  What it serves comes from a pluggable *variable source* (anything with
 - :class:`SimSource`: the virtual KR C4 (:class:`kukaid.sim.VirtualKRC4`) run in real time by a
   background thread, serving ``$AXIS_ACT_MEAS``, ``$AXIS_ACT``, ``$TORQUE_AXIS_ACT[i]``,
   ``$MOT_TEMP[i]``, ``$OV_PRO``, ``$ROB_TIMER``, global variables, and emulating the KRL
-  ring-buffer logger (:mod:`kukaid.io.krl_logger`) sample for sample.
+  ring-buffer logger (:mod:`kukaid.krc.krl_logger`) sample for sample.
 
 Faults for tests (:class:`Faults`, changeable while running): slow replies, replies split into
 single bytes, a dropped connection, garbage bytes, empty values or status 0 for chosen names, and
@@ -27,8 +27,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from kukaid.io.krl_follower import STOP_BY_PC, STOP_STALE
-from kukaid.io.kvp import (DEFAULT_PORT, MAX_NAME_BYTES, MAX_VALUE_BYTES, MODE_READ, KvpProtocolError,
+from kukaid.krc.krl_follower import STOP_BY_PC, STOP_STALE
+from kukaid.krc.kvp import (DEFAULT_PORT, MAX_NAME_BYTES, MAX_VALUE_BYTES, MODE_READ, KvpProtocolError,
                            decode_request, encode_reply, format_e6axis, format_real, parse_bool, parse_int,
                            parse_real)
 
@@ -315,8 +315,8 @@ class SimSource:
     trajectory : optional trajectory to follow from the start (``sim.follow``); otherwise the axis
         holds its position and follows writes of the global ``KID_TGT`` (REAL, degrees).
     speed : simulated seconds per wall-clock second (1.0 = real time).
-    ring : optional :class:`kukaid.io.krl_logger.RingLayout`: emulate the KRL ring-buffer logger.
-    follower : optional :class:`kukaid.io.krl_follower.FollowerConfig`: emulate the KRL follower
+    ring : optional :class:`kukaid.krc.krl_logger.RingLayout`: emulate the KRL ring-buffer logger.
+    follower : optional :class:`kukaid.krc.krl_follower.FollowerConfig`: emulate the KRL follower
         program of ``kukaid run-admittance --backend kvp`` (``KID_TGT`` is followed only while
         ``KID_RUN`` is TRUE, clamped to the window; motion stops when ``KID_HB`` goes stale).
         Without it, every write of ``KID_TGT`` commands the axis directly.
@@ -363,7 +363,7 @@ class SimSource:
             self._hb_t = float(sim.t)
         self.ring = ring
         if ring is not None:
-            from kukaid.io.krl_logger import RingLayout
+            from kukaid.krc.krl_logger import RingLayout
 
             if not isinstance(ring, RingLayout):
                 raise TypeError("ring must be a RingLayout")
@@ -543,7 +543,7 @@ class SimSource:
         return c + 273.15 if self.temp_kelvin else c
 
     def _ring_sample(self, row: dict[str, float]) -> None:
-        from kukaid.io.krl_logger import format_sample
+        from kukaid.krc.krl_logger import format_sample
 
         ring = self.ring
         q = [self._axis_deg(row, "q")[f"A{a}"] for a in ring.axes]

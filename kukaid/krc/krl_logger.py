@@ -157,7 +157,7 @@ def krl_logger_files(layout: RingLayout, name: str = "KUKAID_LOG") -> dict[str, 
     vals += [f"$MOT_TEMP[{ax}]" for ax in layout.axes]
     slot = layout.block_chars
     dat = [f"DEFDAT {n} PUBLIC",
-           ";kukaid ring-buffer logger globals (generated; see kukaid.io.krl_logger)",
+           ";kukaid ring-buffer logger globals (generated; see kukaid.krc.krl_logger)",
            "DECL GLOBAL CHAR KID_CFG[64]",
            f'KID_CFG[]="{layout.config_text()}"',
            "DECL GLOBAL INT KID_WR=0",

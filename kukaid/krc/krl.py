@@ -32,7 +32,7 @@ import numpy as np
 
 from kukaid import __version__
 from kukaid.errors import KukaidError
-from kukaid.io.atomic import write_texts_atomic
+from kukaid.atomic import write_texts_atomic
 
 _DEG = math.pi / 180.0
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,23}$")
@@ -122,7 +122,7 @@ def krl_program(traj: Any, name: str | None = None, limits: Any = None, tol_deg:
     start_vel_pct : $VEL_AXIS of the move to the start point, %.   apo_pct : $APO.CPTP, %.
     max_points : refuse programs with more via points (KRL data memory).
     """
-    from kukaid.excite import AxisLimits
+    from kukaid.models.limits import AxisLimits
 
     axis = int(traj.axis)
     if not 1 <= axis <= 6:

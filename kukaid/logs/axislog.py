@@ -19,7 +19,7 @@ import numpy as np
 
 from kukaid import __version__
 from kukaid.errors import DiskFullError, KukaidError, LogFormatError
-from kukaid.io.atomic import atomic_path
+from kukaid.atomic import atomic_path
 
 #: Per-axis channels, each an (N, A) array.  ``q`` and ``tau`` are required.
 CHANNELS = ("q", "tau", "q_cmd", "temp", "tau_ext_true")
@@ -721,23 +721,3 @@ def write_csv(log: AxisLog, path: str | Path, angle_unit: str = "deg") -> None:
             fh.write(",".join(names) + "\n")
             for row in table:
                 fh.write(",".join(repr(float(v)) for v in row) + "\n")
-
-
-# -- any format ------------------------------------------------------------------------------
-def read_log(path: str | Path, **options: Any) -> AxisLog:
-    """Read an axis log, choosing the reader by file extension (.h5/.hdf5, .csv, .mat, .dat)."""
-    path = Path(path)
-    ext = path.suffix.lower()
-    if ext in (".h5", ".hdf5"):
-        return read_hdf5(path)
-    if ext == ".csv":
-        return read_csv(path)
-    if ext == ".mat":
-        from kukaid.io.matlog import read_mat  # added by the identification work
-
-        return read_mat(path, **options)
-    if ext == ".dat":
-        from kukaid.io.trace import read_trace  # KUKA Trace recordings
-
-        return read_trace(path, **options)
-    raise LogFormatError(f"{path}: unknown log format '{ext}' (expected .h5, .hdf5, .csv, .mat or .dat)")

@@ -76,7 +76,7 @@ def krl_follower_files(cfg: FollowerConfig, name: str = "KUKAID_FOLLOW") -> dict
     n = name.upper()
     a = int(cfg.axis)
     dat = [f"DEFDAT {n} PUBLIC",
-           ";kukaid admittance follower globals (generated; see kukaid.io.krl_follower)",
+           ";kukaid admittance follower globals (generated; see kukaid.krc.krl_follower)",
            "DECL GLOBAL REAL KID_TGT=0.0",
            "DECL GLOBAL INT KID_HB=0",
            "DECL GLOBAL BOOL KID_RUN=FALSE",

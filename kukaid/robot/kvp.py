@@ -1,77 +1,22 @@
-"""Where the admittance loop reads measurements and sends its reference.
-
-A backend has ``start() -> list[Sample]`` (measurements so far, the robot standing),
-``cycle(q_cmd, dt) -> list[Sample]`` (send the reference, let ``dt`` s pass, return the new
-measurements), ``now()`` (s, the backend's clock), ``hold()`` (stop motion: keep the last
-reference) and ``close()``.
-
-* :class:`SimBackend` — the virtual KR C4 (default), with an optional simulated operator.
-* :class:`KvpBackend` — a KR C4 through KUKAVARPROXY: writes the reference angle (degrees) to the
-  global REAL variable ``KID_TGT`` that the KRL follower program (``kukaid krl-follower``)
-  follows, with a heartbeat, and reads ``$AXIS_ACT_MEAS`` and ``$TORQUE_AXIS_ACT[axis]``.  Only
-  reachable through the CLI's ``--backend kvp --enable-motion`` with bounds (see
-  :func:`kukaid.control.safety.check_motion_allowed`).
-"""
+"""A KR C4 over KUKAVARPROXY as a :class:`~kukaid.robot.interface.Robot`: the reference angle goes
+to the global REAL ``KID_TGT`` that the KRL follower program (``kukaid krl-follower``) follows, with
+a heartbeat; ``$AXIS_ACT_MEAS`` and ``$TORQUE_AXIS_ACT[axis]`` come back.  Only reachable through
+the CLI's ``--backend kvp --enable-motion`` with bounds (see
+:func:`kukaid.control.safety.check_motion_allowed`).  The socket is the client's
+(:class:`kukaid.krc.kvp.KvpClient`): this module opens none."""
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from kukaid.errors import ControllerError
+from kukaid.robot.interface import Block, Sample
 
 
-@dataclass(frozen=True)
-class Sample:
-    """One measurement: ``t`` s (backend clock), ``q`` rad, ``tau`` N·m, ``tau_ext_true`` N·m (NaN unknown)."""
-
-    t: float
-    q: float
-    tau: float
-    tau_ext_true: float = math.nan
-
-
-class SimBackend:
-    """The virtual KR C4 with an external torque (operator) ``fn(t, q, qd)``."""
-
-    name = "sim"
-
-    def __init__(self, sim: Any, q0: float, operator: Callable[[float, float, float], float] | float | None = None) -> None:
-        self.sim = sim
-        self.q0 = float(q0)
-        self.operator = operator
-
-    def start(self) -> list[Sample]:
-        self.sim.reset(self.q0)
-        if hasattr(self.operator, "reset"):
-            self.operator.reset()  # a stateful operator (a human arm) starts afresh
-        if self.operator is not None:
-            self.sim.set_external_torque(self.operator)
-        return self._samples(self.sim.advance(self.sim.cfg.sample_time))
-
-    @staticmethod
-    def _samples(b: dict) -> list[Sample]:
-        return [Sample(float(t), float(q), float(tau), float(te))
-                for t, q, tau, te in zip(b["time"], b["q"], b["tau"], b["tau_ext_true"])]
-
-    def now(self) -> float:
-        return float(self.sim.t)
-
-    def cycle(self, q_cmd: float, dt: float) -> list[Sample]:
-        self.sim.command(q_cmd)
-        return self._samples(self.sim.advance(dt))
-
-    def hold(self) -> None:
-        pass  # the simulator's interpolator holds the last setpoint
-
-    def close(self) -> None:
-        pass
-
-
-class KvpBackend:
-    """A KR C4 over KUKAVARPROXY (``client`` a connected :class:`kukaid.io.kvp.KvpClient`), with the
-    KRL follower program of :mod:`kukaid.io.krl_follower` running on the controller.
+class KvpRobot:
+    """A KR C4 over KUKAVARPROXY (``client`` a connected :class:`kukaid.krc.kvp.KvpClient`), with the
+    KRL follower program of :mod:`kukaid.krc.krl_follower` running on the controller.
 
     Every cycle writes the reference (``KID_TGT``, degrees) and the heartbeat (``KID_HB``), then
     reads ``$AXIS_ACT_MEAS`` and ``$TORQUE_AXIS_ACT[axis]``; :meth:`start` enables the follower
@@ -106,32 +51,32 @@ class KvpBackend:
     def now(self) -> float:
         return time.monotonic() - self._t0
 
-    def _read(self) -> list[Sample]:
+    def _read(self) -> Block:
         try:
             q_deg = self.client.read_axis("$AXIS_ACT_MEAS")[f"A{self.axis}"]
             tau = self.client.read_real(f"$TORQUE_AXIS_ACT[{self.axis}]")
         except ControllerError:
-            return []  # a missing reading: the watchdog decides
+            return Block()  # a missing reading: the watchdog decides
         q = math.radians(q_deg)
         prev = self._last
         if prev is not None and q == prev.q and tau == prev.tau:
             self._repeats += 1
-            return []  # the same controller sample again
+            return Block()  # the same controller sample again
         k = round(self.now() / self.sample_time)  # the controller's sample count
         if self._k is not None and k <= self._k:
             k = self._k + 1
         self._k = k
         self._last = Sample(k * self.sample_time, q, tau)
-        return [self._last]
+        return Block([self._last])
 
     def _send(self, q: float) -> None:
-        from kukaid.io.kvp import format_real
+        from kukaid.krc.kvp import format_real
 
         self.client.write(self.target, format_real(math.degrees(q), 6))
         self._beat = (self._beat + 1) % 30000
         self.client.write(self.heartbeat, str(self._beat))
 
-    def start(self) -> list[Sample]:
+    def start(self) -> Block:
         s = self._read()
         if not s:
             raise ControllerError("kvp: cannot read $AXIS_ACT_MEAS / $TORQUE_AXIS_ACT at start")
@@ -140,13 +85,14 @@ class KvpBackend:
         self._enabled = True
         return s
 
-    def cycle(self, q_cmd: float, dt: float) -> list[Sample]:
+    def cycle(self, q_cmd: float | None, dt: float) -> Block:
         # cycles on a fixed grid (not "dt after the last one"), so the PC's mean period is dt and
         # does not drift against the controller's sample clock; a late cycle resynchronises
         now = self.now()
         nxt = (self._t_next if self._t_next is not None else now) + dt
         self._t_next = nxt if nxt > now else now + dt
-        self._send(q_cmd)
+        if q_cmd is not None:
+            self._send(q_cmd)
         repeats = self._repeats
         out = self._read()
         if self._repeats > repeats:

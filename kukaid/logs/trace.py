@@ -48,7 +48,7 @@ import numpy as np
 from kukaid.errors import LogFormatError
 
 if TYPE_CHECKING:
-    from kukaid.io.axislog import AxisLog
+    from kukaid.logs.axislog import AxisLog
 
 _DEG = math.pi / 180.0
 
@@ -298,7 +298,7 @@ def _siblings(path: Path) -> list[Path]:
 
 
 def read_trace(path: str | Path, *, siblings: bool = True, time_base: str = "position") -> "AxisLog":
-    """Read a KUKA Trace recording into an :class:`~kukaid.io.axislog.AxisLog` (SI units).
+    """Read a KUKA Trace recording into an :class:`~kukaid.logs.axislog.AxisLog` (SI units).
 
     Parameters
     ----------
@@ -310,7 +310,7 @@ def read_trace(path: str | Path, *, siblings: bool = True, time_base: str = "pos
     Every axis with both a measured position and a torque channel is logged; commanded
     position and motor temperature are added when present for every logged axis.
     """
-    from kukaid.io.axislog import AxisLog
+    from kukaid.logs.axislog import AxisLog
 
     path = Path(path)
     if not path.exists():

@@ -89,7 +89,7 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
              q_cmd: str | None = None, temp: str | None = None, tau_scale: float | None = None,
              tau_scale_var: str | None = None, q_scale: float = 1.0, time_scale: float = 1.0,
              joint: str = "revolute", axis: int = 1, sample_time: float | None = None, **_ignored: Any):
-    """Read a MAT file as a one-axis :class:`~kukaid.io.axislog.AxisLog` (SI units).
+    """Read a MAT file as a one-axis :class:`~kukaid.logs.axislog.AxisLog` (SI units).
 
     Parameters
     ----------
@@ -107,7 +107,7 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     ------
     LogFormatError : one line naming the file and the variable or option that is wrong.
     """
-    from kukaid.io.axislog import AxisLog
+    from kukaid.logs.axislog import AxisLog
 
     path = Path(path)
     if tau_scale is not None and tau_scale_var is not None:
@@ -170,7 +170,7 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
                 raise LogFormatError(f"{path}: variable '{nm}' has {x.size} samples but time has {t.size}")
             extra[ch] = x * sc
     # unit mistakes (milliseconds as seconds, degrees without --q-scale) name the variables
-    from kukaid.io.axislog import check_samples, check_units
+    from kukaid.logs.axislog import check_samples, check_units
 
     labels = {"time": f"time variable '{tn_name}'" if tn_name else "the time base (--sample-time)",
               ("q", int(axis)): f"position variable '{qn}'"}
