@@ -61,10 +61,10 @@ def test_firm_grip_is_damped_instead_of_oscillating():
     """Without the monitor the stiff arm and the delays oscillate (the test can fail); with it the
     damping is raised within about a second, logged, and the torque stop is never reached."""
     off, m_off = _human_run(0, "firm", stability=False)
-    assert m_off["osc_seconds"] > 2.5 or off.status.startswith("stopped")
+    assert m_off["osc_seconds"] > 2.0 or off.status.startswith("stopped")
     on, m_on = _human_run(0, "firm")
     assert on.status == "completed" and m_on["osc_seconds"] <= 2.5
-    assert m_on["stability_events"] >= 1 and "oscillation index" in m_on["stability_log"][0]["reason"]
+    assert m_on["stability_events"] >= 1 and "alternating half-cycles" in m_on["stability_log"][0]["reason"]
     ph = on.data["phase"] == PHASE_ADMITTANCE
     assert np.max(on.data["D_floor"][ph]) > 2 * 50.0
     assert np.max(np.abs(on.data["tau"][ph])) < 100.0

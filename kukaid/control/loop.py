@@ -167,7 +167,7 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
         else:
             phase = PHASE_ADMITTANCE
             gamma = r.gamma_r if r.detected else 0.0
-            floor = mon.step(r.gamma_r, D_now)
+            floor = mon.step(r.gamma_r, D_now, contact=r.detected)
             D_base = cfg.D
             if rbf is not None:  # no learning while the monitor damps an oscillation
                 D_base = rbf.step(r.gamma_r, direction=adm.sigma_dot if adm.sigma_dot != 0 else gamma,

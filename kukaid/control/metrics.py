@@ -46,17 +46,47 @@ def oscillation_ptp(time: np.ndarray, torque: np.ndarray, f_lo: float = 1.5, spa
     return w.max(axis=1) - w.min(axis=1)
 
 
+def oscillation_runs(time: np.ndarray, torque: np.ndarray, limit: float = 10.0, f_lo: float = 0.6,
+                     max_half_period: float = 0.8, min_lobes: int = 4) -> list[tuple[float, float]]:
+    """Oscillations of a torque record: [(start s, end s), ...] of its content above ``f_lo`` Hz
+    (zero-phase high-pass).
+
+    An oscillation is a run of at least ``min_lobes`` successive half-cycles, each shorter than
+    ``max_half_period`` s and peaking beyond ``limit``/2 (so ``limit`` N·m peak to peak), from the
+    first to the last of them.  A guiding move (speeding up, then braking) or a quick push gives
+    two or three such lobes, not a run.
+    """
+    from scipy.signal import butter, sosfiltfilt
+
+    t = np.asarray(time, dtype=float)
+    if t.size < 16:
+        return []
+    fs = 1.0 / float(np.median(np.diff(t)))
+    hp = sosfiltfilt(butter(2, f_lo, btype="highpass", fs=fs, output="sos"), np.asarray(torque, dtype=float))
+    edges = np.flatnonzero(np.diff(np.sign(hp)) != 0) + 1
+    bounds = np.concatenate([[0], edges, [hp.size]])
+    runs: list[tuple[float, float]] = []
+    start, n = 0.0, 0
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if b > a and np.max(np.abs(hp[a:b])) > limit / 2 and (b - a) / fs <= max_half_period:
+            if n == 0:
+                start = float(t[a])
+            n += 1
+            if n == min_lobes:
+                runs.append((start, float(t[b - 1])))
+            elif n > min_lobes:
+                runs[-1] = (start, float(t[b - 1]))
+        else:
+            n = 0
+    return runs
+
+
 def oscillation(time: np.ndarray, torque: np.ndarray, limit: float = 10.0) -> tuple[float, float]:
-    """(largest peak-to-peak N·m, seconds over which 1-s windows exceed ``limit`` N·m) of the
-    torque's content above 1.5 Hz (:func:`oscillation_ptp`).  An oscillation that the controller
-    damps within about a second lasts about 1-2 s here; a sustained one lasts longer."""
-    ptp = oscillation_ptp(time, torque)
-    if ptp.size == 0:
-        return 0.0, 0.0
-    dt = float(np.median(np.diff(np.asarray(time, dtype=float))))
-    over = np.flatnonzero(ptp > limit)
-    dur = float((over[-1] - over[0] + 1) * dt + 1.0) if over.size else 0.0
-    return float(ptp.max()), dur
+    """(largest peak-to-peak N·m over 1 s of the content above 0.6 Hz, seconds of the longest of
+    :func:`oscillation_runs`)."""
+    ptp = oscillation_ptp(time, torque, 0.6)
+    runs = oscillation_runs(time, torque, limit)
+    return (float(ptp.max()) if ptp.size else 0.0), max((e - s for s, e in runs), default=0.0)
 
 
 def window_metrics(data: dict[str, np.ndarray], t_from: float, t_to: float, lam: float) -> dict[str, Any]:
@@ -66,6 +96,7 @@ def window_metrics(data: dict[str, np.ndarray], t_from: float, t_to: float, lam:
     Keys: ``xi``, ``dgamma2`` (on Γr), ``xi_true``, ``dgamma2_true`` (on the true hand torque, NaN
     without truth), ``dgamma2_ratio`` (estimated / true), ``gamma_rms`` N·m, ``osc_ptp`` N·m
     and ``osc_seconds`` s (:func:`oscillation` of the hand torque, or of Γr without truth),
+    ``osc_runs`` (:func:`oscillation_runs`),
     ``window`` (t_from, t_to).
     """
     t = data["time"]
@@ -77,9 +108,11 @@ def window_metrics(data: dict[str, np.ndarray], t_from: float, t_to: float, lam:
         out["xi_true"], out["dgamma2_true"] = paper_costs(te, lam)
         out["dgamma2_ratio"] = out["dgamma2"] / out["dgamma2_true"] if out["dgamma2_true"] > 0 else math.nan
         out["osc_ptp"], out["osc_seconds"] = oscillation(t[w], te)
+        out["osc_runs"] = oscillation_runs(t[w], te)
     else:
         out["xi_true"] = out["dgamma2_true"] = out["dgamma2_ratio"] = math.nan
         out["osc_ptp"], out["osc_seconds"] = oscillation(t[w], data["gamma_r"][w])
+        out["osc_runs"] = oscillation_runs(t[w], data["gamma_r"][w])
     out["gamma_rms"] = float(np.sqrt(np.mean(data["gamma_r"][w] ** 2))) if w.any() else math.nan
     return out
 
