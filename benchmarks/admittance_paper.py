@@ -33,7 +33,6 @@ import time
 
 import numpy as np
 
-DAMP_WITHIN = 1.5  # s: an oscillation still there this long after the monitor acted is not damped
 GRIPS = ("soft", "ordinary", "firm")
 
 
@@ -53,7 +52,7 @@ def run_one(model, zeta0, seed: int, damping: str, D: float, cycle: float, rbf=N
     """One paired run; returns the window metrics (cost with ``lam``) plus run-level checks."""
     from kukaid.robot import SimRobot
     from kukaid.control.loop import LoopConfig, run_admittance
-    from kukaid.control.metrics import window_metrics
+    from kukaid.control.metrics import damping_delay, window_metrics
     from kukaid.sim import SimConfig, VirtualKRC4
     from kukaid.sim.operator import make_operator
 
@@ -69,15 +68,7 @@ def run_one(model, zeta0, seed: int, damping: str, D: float, cycle: float, rbf=N
     t_to = min(t_rel + 1.0 - t0, float(d["time"][-1]))
     m = window_metrics(d, op.p.t_grasp - t0, t_to, lam)
     after = d["time"] > t_rel - t0 + op.p.release_time + 0.05
-    # an oscillation counts when it lasts more than 2 s, or, once the monitor has acted (its
-    # first event during the oscillation), more than DAMP_WITHIN s after that
-    events = [e["time"] for e in run.metrics.get("stability_log", [])]
-    sustained, damp = False, 0.0
-    for s_, e_ in m["osc_runs"]:
-        acted = [te for te in events if s_ - 0.5 <= te <= e_]
-        late = e_ - acted[0] if acted else e_ - s_
-        damp = max(damp, late)
-        sustained |= late > (DAMP_WITHIN if acted else 2.0)
+    damp, sustained = damping_delay(m["osc_runs"], [e["time"] for e in run.metrics.get("stability_log", [])])
     move = op.p.goal - op.p.q_start
     m.update(seed=seed, grip=op.p.grip, status=run.status,
              torque_stop=run.status.startswith("stopped: measured torque"),

@@ -61,9 +61,11 @@ def test_firm_grip_is_damped_instead_of_oscillating():
     """Without the monitor the stiff arm and the delays oscillate (the test can fail); with it the
     damping is raised within about a second, logged, and the torque stop is never reached."""
     off, m_off = _human_run(0, "firm", stability=False)
-    assert m_off["osc_seconds"] > 2.0 or off.status.startswith("stopped")
+    assert off.status.startswith("stopped: measured torque") or m_off["osc_seconds"] > 5.0
     on, m_on = _human_run(0, "firm")
-    assert on.status == "completed" and m_on["osc_seconds"] <= 2.5
+    assert on.status == "completed"
+    assert m_on["osc_ptp"] < 0.5 * m_off["osc_ptp"]  # the oscillation is much smaller ...
+    assert m_on["osc_seconds"] < 3.5  # ... and over within seconds (the person lets go at ~6.5 s)
     assert m_on["stability_events"] >= 1 and "alternating half-cycles" in m_on["stability_log"][0]["reason"]
     ph = on.data["phase"] == PHASE_ADMITTANCE
     assert np.max(on.data["D_floor"][ph]) > 2 * 50.0

@@ -135,3 +135,17 @@ def operator_metrics(data: dict[str, np.ndarray], operator: Any, lam: float, t_o
     out["false_after_release"] = int(np.sum(data["detected"][gone])) if math.isfinite(t_rel) else 0
     out["t_release"] = float(t_rel - t_offset) if math.isfinite(t_rel) else math.nan
     return out
+
+
+def damping_delay(runs: list[tuple[float, float]], event_times: list[float]) -> tuple[float, bool]:
+    """How long oscillations outlast the stability monitor's action, s, and whether one is
+    sustained: still there more than 1.5 s after the monitor's first event during it (or lasting
+    more than 2 s when it never acted).  ``runs`` from :func:`oscillation_runs`, ``event_times``
+    the monitor's events (s, the same time axis)."""
+    late_max, sustained = 0.0, False
+    for s, e in runs:
+        acted = [t for t in event_times if s - 0.5 <= t <= e]
+        late = e - acted[0] if acted else e - s
+        late_max = max(late_max, late)
+        sustained |= late > (1.5 if acted else 2.0)
+    return late_max, sustained
