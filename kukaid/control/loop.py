@@ -6,7 +6,10 @@ Per control cycle (12 ms = the KRC sample time; the paper's ~24 ms as an option)
 2. the watchdog checks the age of the latest measurement (stale or missing: hold and stop);
 3. while an external torque is detected, the admittance (eqs. 15-16) integrates Γr, with a
    constant or an RBF-adapted damping (eqs. 17-22); otherwise it integrates zero (the reference
-   decelerates with the time constant I/D and stops);
+   decelerates with the time constant I/D and stops), except a torque against the reference's
+   motion (a person braking the coasting axis), which is applied until the reference stands;
+   the damping is at least the floor of the oscillation monitor
+   (:mod:`kukaid.control.stability`);
 4. the reference is clipped by :class:`~kukaid.control.safety.ReferenceLimiter` and sent.
 
 Before the admittance is enabled the axis makes the paper's initiation move (section 3.4: move
@@ -25,7 +28,7 @@ from kukaid.control.admittance import Admittance, check_admittance
 from kukaid.control.rbf import RBFConfig, RBFDamping
 from kukaid.control.safety import ReferenceLimiter, SafetyLimits, Watchdog
 from kukaid.control.stability import OscillationMonitor, StabilityConfig
-from kukaid.control.torque_residual import DYNAMIC, TorqueResidual
+from kukaid.control.torque_residual import DYNAMIC, RELEASE_SHARE, TorqueResidual
 from kukaid.errors import KukaidError
 
 PHASE_INIT, PHASE_REST, PHASE_ADMITTANCE, PHASE_STOPPED = 0, 1, 2, 3
@@ -74,8 +77,9 @@ class LoopConfig:
 
     @property
     def release_torque(self) -> float:
-        """|Γr| below which a detection ends, N·m (``release``, default 0.6 ``threshold``)."""
-        return 0.6 * self.threshold if self.release is None else float(self.release)
+        """|Γr| below which a detection ends, N·m (``release``, default 0.3 ``threshold``: once in contact the axis
+        follows down to this smaller holding torque, not only to the start threshold)."""
+        return RELEASE_SHARE * self.threshold if self.release is None else float(self.release)
 
 
 @dataclass
@@ -166,7 +170,12 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             sd = 0.0
         else:
             phase = PHASE_ADMITTANCE
-            gamma = r.gamma_r if r.detected else 0.0
+            sd0 = adm.sigma_dot
+            # a detected push drives the admittance; below the detection only a torque against
+            # the reference's motion is applied (a person braking the coasting axis), and never
+            # so far that it reverses it: it can only take energy out
+            braking = not r.detected and sd0 * r.gamma_r < 0.0
+            gamma = r.gamma_r if (r.detected or braking) else 0.0
             floor = mon.step(r.gamma_r, D_now, contact=r.detected)
             D_base = cfg.D
             if rbf is not None:  # no learning while the monitor damps an oscillation
@@ -174,6 +183,9 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
                                   adapt=r.detected and not mon.oscillating)
             D_now = max(D_base, floor)
             sigma, sd = adm.step(gamma, D_now)
+            if braking and sd * sd0 < 0.0:  # braked to a stop
+                adm.reset(sigma, 0.0)
+                sd = 0.0
             q_cmd, clipped = limiter.apply(sigma)
             if clipped:  # no wind-up: the admittance continues from what was sent
                 adm.reset(q_cmd, limiter.v)

@@ -20,14 +20,20 @@ Online, causal version (what a controller can do):
   |Γr| below half the threshold (so a push building up is not learnt as an offset).
   In contact it is frozen, so a push that is still there when the axis stops is never absorbed
   into Γu (and cannot come back with the opposite sign at the release);
-* friction is continuous across the mode switch: below ``qd_thr`` the Maxwell-slip torque, above
-  ``3 qd_thr`` the Stribeck curve, linearly blended in between; and every change of mode
+* friction is continuous across the mode switch: up to ``qd_thr`` the Maxwell-slip torque, from
+  ``3 qd_thr`` on the Stribeck curve, linearly blended in between (on the differenced speed,
+  ``BLEND``); and every change of mode
   (Γu added or removed, the Maxwell-slip elements re-initialised, eq. 12) is bumpless: the jump of
   Γp at the switch is carried as an offset that fades with the time constant ``switch_tau``;
 * at every dynamic -> quasi-static transition the Maxwell-slip elements are re-initialised
   saturated in the direction of the last motion, relative to the stop position (eq. 12);
 * detection: Γr is "detected" when |Γr| >= ``threshold`` and stays so until |Γr| < ``release``
-  (hysteresis), so a residual hovering at the threshold does not chatter.
+  (hysteresis), so a residual hovering at the threshold does not chatter; for ``regrip_time`` s
+  after a detection ended, a new one starts already at ``regrip_share`` x ``threshold`` (the
+  person is probably still holding on: the start threshold does not hold the axis short of
+  where they push), except within ``switch_quiet`` s of the axis starting or stopping (a change
+  of mode, or the differenced speed crossing ``qd_thr``: starts and stops leave short spikes in
+  Γr, the paper's backlash spikes, that must not restart it).
 
 Effects a diagnosis added to the parameter file are included when they depend on position only
 (``gravity_sine``, ``torque_offset``, ``position_ripple``); others are listed in
@@ -47,6 +53,10 @@ from kukaid.models.joint import AxisModel
 
 DYNAMIC = "dynamic"
 QUASI_STATIC = "quasi-static"
+#: speeds (multiples of qd_thr) between which the friction model goes from Maxwell-slip to Stribeck
+BLEND = (1.0, 3.0)
+#: default holding threshold (end of a detection) as a share of the start threshold
+RELEASE_SHARE = 0.3
 #: effects of a parameter file that the online residual evaluates
 SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
 
@@ -85,12 +95,15 @@ class TorqueResidual:
     model : the identified axis model (:func:`kukaid.params.axis.model_from_params`).
     sample_time : measurement interval, s (12 ms on a KR C4).
     threshold : detection threshold on |Γr|, N·m (paper: 3 quasi-static, 5 mode switching).
-    release : |Γr| below which a detection ends, N·m (default 0.6 * threshold).
+    release : |Γr| below which a detection ends, N·m (default 0.3 * threshold:
+        a smaller holding threshold, so a person in contact is followed down to small torques).
     cutoff, order : causal Butterworth low-pass, Hz and order (paper: 5 Hz, 3).
     u_window : length of the initial Γu averaging (at rest, after a reset), s.
     u_tau : time constant of the Γu observer out of contact, s.
     u_holdoff : Γu stays frozen this long after a contact ended, s.
     switch_tau : time constant with which the jump of Γp at a mode switch fades, s.
+    regrip_time, regrip_share : for this long (s) after a detection ended, the start threshold is
+        this share of ``threshold`` (but not within ``switch_quiet`` s of a start or stop).
     zeta0 : Maxwell-slip element positions relative to the start position, rad (parameter file's
         ``maxwell_slip.zeta0``); default zero (Γu absorbs the unknown initial state).
     qd_thr : mode-switching velocity threshold, rad/s (default the model's).
@@ -98,12 +111,13 @@ class TorqueResidual:
 
     def __init__(self, model: AxisModel, sample_time: float = 0.012, threshold: float = 5.0,
                  release: float | None = None, cutoff: float = 5.0, order: int = 3, u_window: float = 0.12,
-                 zeta0: Any = None, qd_thr: float | None = None, u_tau: float = 1.0, u_holdoff: float = 0.5,
-                 switch_tau: float = 0.15) -> None:
+                 zeta0: Any = None, qd_thr: float | None = None, u_tau: float = 1.0, u_holdoff: float = 1.0,
+                 switch_tau: float = 0.15, regrip_time: float = 1.0, regrip_share: float = 0.6,
+                 switch_quiet: float = 1.0) -> None:
         self.model = model
         self.sample_time = _check("sample_time", sample_time, 0.0, 1.0)
         self.threshold = _check("threshold", threshold, 0.0)
-        self.release = 0.6 * self.threshold if release is None else _check("release", release, 0.0, open_lo=False)
+        self.release = RELEASE_SHARE * self.threshold if release is None else _check("release", release, 0.0, open_lo=False)
         if self.release > self.threshold:
             raise KukaidError(f"torque residual: release = {self.release} N·m must not exceed threshold = "
                               f"{self.threshold} N·m")
@@ -111,6 +125,9 @@ class TorqueResidual:
         self.u_tau = _check("u_tau", u_tau, 0.0, 600.0)
         self.u_holdoff = _check("u_holdoff", u_holdoff, 0.0, 60.0, open_lo=False)
         self.switch_tau = _check("switch_tau", switch_tau, 0.0, 10.0)
+        self.regrip_time = _check("regrip_time", regrip_time, 0.0, 60.0, open_lo=False)
+        self.regrip_share = _check("regrip_share", regrip_share, 0.0, 1.0)
+        self.switch_quiet = _check("switch_quiet", switch_quiet, 0.0, 10.0, open_lo=False)
         self.qd_thr = _check("qd_thr", model.qd_thr if qd_thr is None else qd_thr, 0.0, open_lo=False)
         self.cutoff, self.order = float(cutoff), int(order)
         fs = 1.0 / self.sample_time
@@ -179,6 +196,8 @@ class TorqueResidual:
         self._gamma_u = 0.0
         self._since_contact = math.inf  # s since the last detection ended
         self._bump = 0.0  # Γp jump of the last mode switch, fading
+        self._since_switch = math.inf  # s since the axis last started or stopped
+        self._moving = False
         self._detected = False
         self._started = True
 
@@ -216,11 +235,12 @@ class TorqueResidual:
         fp_raw = self._maxwell_slip(q)
         v = abs(qd_raw)
         thr = self.qd_thr
-        if v <= thr:
+        lo, hi = BLEND[0] * thr, BLEND[1] * thr
+        if v <= lo:
             fric_raw = fp_raw
         else:
             fs = float(self.model.friction(qd_raw))
-            fric_raw = fs if v >= 3 * thr else fp_raw + (fs - fp_raw) * (v - thr) / (2 * thr)
+            fric_raw = fs if v >= hi else fp_raw + (fs - fp_raw) * (v - lo) / (hi - lo)
         pred_raw = self.model.rigid.Izz * qdd_raw + self.static_torque(q) + fric_raw
         q_f, qd_f, qdd_f, tau_f = fq.step(q), fqd.step(qd_raw), fqdd.step(qdd_raw), ftau.step(tau)
         pred_f = fpred.step(pred_raw)
@@ -249,6 +269,12 @@ class TorqueResidual:
         new_u = self._gamma_u if quasi else 0.0
         if self._mode != old_mode:  # bumpless: the prediction does not jump at a switch
             self._bump += old_u - new_u
+        moving = v > thr  # the axis starting or stopping (on the differenced speed)
+        if self._mode != old_mode or moving != self._moving:
+            self._since_switch = 0.0
+        else:
+            self._since_switch += h
+        self._moving = moving
         self._bump *= math.exp(-h / self.switch_tau)
         gamma_p = pred_f + new_u + self._bump
         gamma_r = gamma_p - tau_f
@@ -258,7 +284,10 @@ class TorqueResidual:
             if not self._detected:
                 self._since_contact = 0.0
         else:
-            self._detected = a >= self.threshold
+            start = self.threshold
+            if self._since_contact < self.regrip_time and self._since_switch >= self.switch_quiet:
+                start = max(self.release, self.regrip_share * self.threshold)
+            self._detected = a >= start
             self._since_contact += h
         return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, new_u)
 
