@@ -262,3 +262,32 @@ def test_cycle_threshold_and_release_reach_the_controller(files, tmp_path):
     ends = det[:-1] & ~det[1:]
     assert ends.any() and np.all(g[1:][ends] < 3.0)  # ... and end below 3 N·m
     assert np.any(det & (g < 8.0))  # held between the two (hysteresis)
+
+
+@pytest.mark.slow
+def test_kvp_run_with_a_human_arm_in_serve_sim(files, kukaid_cmd, tmp_path):
+    """The KUKAVARPROXY path with a person in the loop: serve-sim runs the simulated human arm (a
+    firm grip), run-admittance (adaptive) follows it to the person's goal, nothing trips."""
+    from kukaid.sim.human import make_human
+
+    seed, start = 5, 4.0
+    proc = subprocess.Popen([*kukaid_cmd, "serve-sim", "--port", "0", "--q0", "30", "--follower", "0", "60",
+                             "--stale-ms", "150", "--operator", "human", "--grip", "firm", "--operator-start",
+                             str(start), "--seed", str(seed), "--sim-config", str(files / "truth.json"),
+                             "--duration", "40"], stderr=subprocess.PIPE, text=True)
+    try:
+        m = re.search(r"listening on 127\.0\.0\.1:(\d+)", proc.stderr.readline())
+        assert m
+        out = tmp_path / "human.h5"
+        r = _run([*_kvp_args(files, m.group(1), out)[:-4], "--duration", "14", "--damping", "adaptive",
+                  "--cycle", "0.024", "-o", out])
+        assert r.exit_code == 0, r.output
+        log, control, met = read_run(out)
+        assert met["status"] == "completed" and met["clipped_cycles"] >= 0
+        arm = make_human(seed, 0.0, 0.0, grip="firm")
+        assert np.sign(met["displacement"]) == np.sign(arm.p.goal)  # went the person's way
+        assert np.max(np.abs(log.tau[:, 0])) < 100.0
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+        proc.stderr.close()

@@ -140,6 +140,7 @@ class TorqueResidual:
         if z0.size != self._k.size:
             raise KukaidError(f"torque residual: zeta0 has {z0.size} values, the Maxwell-slip model {self._k.size} elements")
         self._zeta0 = z0
+        self._k_lim = [(float(k), float(w) / float(k)) for k, w in zip(self._k, self._W)]
         # effects a diagnosis stored in the rigid body (inertial.My, offset; marked stored_as) are
         # already in the model
         eff = {k: v for k, v in (model.effects or {}).items() if "stored_as" not in v}
@@ -166,14 +167,17 @@ class TorqueResidual:
         return g
 
     def _maxwell_slip(self, z: float) -> float:
-        if self._k.size == 0:
-            return 0.0
-        lim = self._W / self._k
-        d = z - self._zeta
-        over = np.abs(d) >= lim
-        if over.any():
-            self._zeta = np.where(over, z - np.sign(d) * lim, self._zeta)
-        return float(np.sum(self._k * (z - self._zeta)))
+        """Eqs. (9)-(10) for the common displacement ``z`` rad (element positions updated)."""
+        total = 0.0
+        zeta = self._zeta
+        for i, (k, lim) in enumerate(self._k_lim):  # a few elements: plain floats are fastest
+            d = z - zeta[i]
+            if d >= lim:
+                zeta[i] = z - lim
+            elif d <= -lim:
+                zeta[i] = z + lim
+            total += k * (z - zeta[i])
+        return total
 
     # -- state ----------------------------------------------------------------------------------
     def reset(self, q0: float | None = None) -> None:
@@ -184,7 +188,7 @@ class TorqueResidual:
     def _start(self, q: float, tau: float) -> None:
         self._q_prev = q
         self._qd_prev = 0.0
-        self._zeta = q + self._zeta0
+        self._zeta = [q + float(v) for v in self._zeta0]
         fp0 = self._maxwell_slip(q)  # elements beyond their saturation slip back to it
         for f, x0 in zip(self._filters, (q, 0.0, 0.0, tau, self.static_torque(q) + fp0)):
             f.reset(x0)
