@@ -29,8 +29,9 @@ def _fmt(v):
 @click.option("--D-min", "D_min", type=float, help="adaptive: lower bound of D [0.3 D].")
 @click.option("--D-max", "D_max", type=float, help="adaptive: upper bound of D [2 D].")
 @click.option("--threshold", type=float, default=5.0, show_default=True, help="Detection threshold on |Γr|, N·m.")
-@click.option("--release", type=float, help="|Γr| below which a detection ends, N·m [0.3 threshold: once in contact the axis follows
-              down to this holding torque].")
+@click.option("--release", type=float,
+              help="|Γr| below which a detection ends, N·m [0.3 threshold: once in contact the axis follows "
+                   "down to this holding torque].")
 @click.option("--duration", type=float, default=10.0, show_default=True,
               help="Seconds of admittance control (after the 1-degree initiation move and rest).")
 @click.option("--cycle", type=float, default=0.012, show_default=True,

@@ -280,7 +280,7 @@ def test_kvp_run_with_a_human_arm_in_serve_sim(files, kukaid_cmd, tmp_path):
         assert m
         out = tmp_path / "human.h5"
         r = _run([*_kvp_args(files, m.group(1), out)[:-4], "--duration", "14", "--damping", "adaptive",
-                  "--cycle", "0.024", "-o", out])
+                  "--cycle", "0.024", "--max-age", "0.5", "-o", out])  # a loaded test machine
         assert r.exit_code == 0, r.output
         log, control, met = read_run(out)
         assert met["status"] == "completed" and met["clipped_cycles"] >= 0
