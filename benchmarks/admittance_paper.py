@@ -175,9 +175,9 @@ def sweep(n_ops: int, model, zeta0, cycle: float = 0.024) -> list[dict]:
 
     base = RBFConfig(D0=50.0, D_min=15.0, D_max=100.0)
     variants = [("chosen", {})]
-    variants += [(f"lam={v:g}", {"lam": v}) for v in (base.lam / 3, base.lam * 3)]
-    variants += [(f"eta1={v:g}", {"eta1": v}) for v in (base.eta1 / 3, base.eta1 * 3)]
-    variants += [(f"eta2={v:g}", {"eta2": v}) for v in (base.eta2 / 3, base.eta2 * 3)]
+    variants += [(f"lam={v:.3g}", {"lam": v}) for v in (base.lam / 3, base.lam * 3)]
+    variants += [(f"eta1={v:.3g}", {"eta1": v}) for v in (base.eta1 / 3, base.eta1 * 3)]
+    variants += [(f"eta2={v:.3g}", {"eta2": v}) for v in (base.eta2 / 3, base.eta2 * 3)]
     variants += [(f"width={v:g}", {"width": v}) for v in (base.width / 2, base.width * 2)]
     variants += [(f"m={v}", {"m": v}) for v in (0, 3)]
     variants += [("centres x0.5", {"force_levels": tuple(0.5 * f for f in base.force_levels),
@@ -214,6 +214,39 @@ def print_sweep(rows: list[dict]) -> None:
               f"{d['wins']:2d}/{d['n']:2d} | {r['oscillating']:3d} {r['torque_stop']:4d}")
 
 
+def print_markdown(doc: dict) -> None:
+    """The README's tables from :func:`benchmark` / :func:`sweep` results (JSON as saved)."""
+    res = doc["results"]
+    print("| cycle | vs | measure | mean diff [95 % CI] | rel | wins (s/o/f) | Wilcoxon p |")
+    print("|---|---|---|---|---|---|---|")
+    for cyc, r in res.items():
+        for name in ("D35", "D50", "D70"):
+            for key in ("xi", "dgamma2", "xi_true", "dgamma2_true"):
+                pr = r["paired"][name][key]
+                print(f"| {float(cyc) * 1000:.0f} ms | {name} | {key} | {pr['diff']:+.3f} [{pr['ci'][0]:+.3f}, "
+                      f"{pr['ci'][1]:+.3f}] | {100 * pr['rel']:+.1f} % | {pr['wins']}/{pr['n']} "
+                      f"({pr['wins_soft']}/{pr['wins_ordinary']}/{pr['wins_firm']}) | {pr['wilcoxon_p']:.2g} |")
+    print()
+    print("| controller | cycle | mean ξ (true) | dΓ² est/true (largest run) | osc | stop | false | end error median / max "
+          "(soft max) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in res[next(iter(res))]["per_controller"]:
+        for cyc, r in res.items():
+            p = r["per_controller"][name]
+            print(f"| {name} | {float(cyc) * 1000:.0f} ms | {p['xi_true']:.2f} | {p['dgamma2_ratio']:.2f} "
+                  f"({p['dgamma2_ratio_max']:.2f}) | {p['oscillating']} | {p['torque_stop']} | {p['false_after_release']} "
+                  f"| {100 * p['end_error_median']:.1f} / {100 * p['end_error_max']:.1f} "
+                  f"({100 * p['end_error_soft_max']:.1f}) % |")
+    if doc.get("sweep"):
+        print()
+        print("| variant | ξ rel | ξ wins | dΓ² rel | dΓ² wins | osc | stop |")
+        print("|---|---|---|---|---|---|---|")
+        for row in doc["sweep"]:
+            x, d = row["xi_true"], row["dgamma2_true"]
+            print(f"| {row['variant']} | {100 * x['rel']:+.1f} % | {x['wins']}/{x['n']} | {100 * d['rel']:+.1f} % | "
+                  f"{d['wins']}/{d['n']} | {row['oscillating']} | {row['torque_stop']} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--operators", type=int, default=30)
@@ -223,7 +256,13 @@ def main() -> None:
     ap.add_argument("--sweep-operators", type=int, default=15)
     ap.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     ap.add_argument("--save", help="also write the JSON results to this file")
+    ap.add_argument("--markdown", metavar="RESULTS.json",
+                    help="print the README's markdown tables from saved results (no runs)")
     a = ap.parse_args()
+    if a.markdown:
+        with open(a.markdown) as f:
+            print_markdown(json.load(f))
+        return
     params = None
     if a.params:
         from kukaid.params import load_params
