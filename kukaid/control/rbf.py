@@ -27,6 +27,7 @@ Choices this module makes where the paper leaves room (stated, not hidden):
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,10 +84,17 @@ class RBFDamping:
         # centres: every (force level, force-change level) pair, repeated on all lags
         pairs = list(itertools.product(c.force_levels, c.dforce_levels))
         self.centres = np.array([[f / c.force_scale] * n_lag + [d / c.dforce_scale] * n_lag for f, d in pairs])
-        self.w = np.zeros(len(pairs))
+        self._wl = [0.0] * len(pairs)
+        self._fl = [f / c.force_scale for f in c.force_levels]  # centre levels in scaled units
+        self._dl = [d / c.dforce_scale for d in c.dforce_levels]
         self._f_top = max(abs(f) for f in c.force_levels) / c.force_scale or 1.0
         self._d_top = max(abs(d) for d in c.dforce_levels) / c.dforce_scale or 1.0
         self.reset_history()
+
+    @property
+    def w(self) -> np.ndarray:
+        """The weights w_i, N·m·s/rad (one per centre)."""
+        return np.asarray(self._wl)
 
     def reset_history(self, gamma_r0: float = 0.0) -> None:
         n = self.config.m + 1
@@ -97,15 +105,20 @@ class RBFDamping:
         self._peak_g = 0.0
         self._peak_dg = 0.0
 
-    def _features(self) -> np.ndarray:
+    def _features(self) -> list[float]:
+        """G_i of every centre for the present inputs (plain floats: 15 small centres are faster
+        than numpy's per-call overhead; G factorises over the force and force-change levels)."""
         c = self.config
         fs, ds = c.force_scale, c.dforce_scale
         if c.scale_to_seen:  # the outermost centre level sits at the largest recent torque
             fs = max(fs, self._peak_g / self._f_top)
             ds = max(ds, self._peak_dg / self._d_top)
-        x = np.array([v / fs for v in self._g] + [v / ds for v in self._dg])
-        d2 = np.sum((self.centres - x) ** 2, axis=1)
-        return np.exp(-0.5 * d2 / (c.width ** 2))
+        k = -0.5 / (c.width * c.width)
+        xg = [v / fs for v in self._g]
+        xd = [v / ds for v in self._dg]
+        ef = [math.exp(k * sum((x - y) * (x - y) for x in xg)) for y in self._fl]
+        ed = [math.exp(k * sum((x - y) * (x - y) for x in xd)) for y in self._dl]
+        return [a * b for a in ef for b in ed]
 
     _fade = 0.0  # per-step forgetting of the envelopes, set by :meth:`set_cycle`
 
@@ -130,14 +143,15 @@ class RBFDamping:
             self._peak_g = max(abs(g), self._peak_g * fade)
             self._peak_dg = max(abs(dg), self._peak_dg * fade)
         G = self._features()
-        D_raw = c.D0 + float(self.w @ G)
+        w = self._wl
+        D_raw = c.D0 + sum(wi * gi for wi, gi in zip(w, G))
         D = min(max(D_raw, c.D_min), c.D_max)
         if adapt:
             s = 1.0 if direction >= 0 else -1.0
-            dw = -(c.eta1 * dg + c.lam * c.eta2 * g) * s * G
-            trend = float(dw @ G)
+            a = -(c.eta1 * dg + c.lam * c.eta2 * g) * s
+            trend = a * sum(gi * gi for gi in G)  # the change of D this update makes
             # no wind-up: at a bound, do not push further out
             if not ((D_raw <= c.D_min and trend < 0) or (D_raw >= c.D_max and trend > 0)):
-                self.w += dw
+                self._wl = [wi + a * gi for wi, gi in zip(w, G)]
         self.D = D
         return D
