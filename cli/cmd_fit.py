@@ -19,8 +19,8 @@ import click
               help="Parameter file to write (JSON, kukaid.params/1).")
 @click.option("--method", type=click.Choice(["joint", "staged"]), default="joint", show_default=True,
               help="Stribeck fit: joint (all dynamic samples) or staged (the paper's eqs. 2-5).")
-@click.option("--friction-model", type=click.Choice(["stribeck", "coulomb-viscous"]), default="stribeck",
-              show_default=True)
+@click.option("--friction-model", type=click.Choice(["stribeck", "coulomb-viscous"]), default=None,
+              help="Friction model [default: stribeck; with --robot: coulomb-viscous].")
 @click.option("--gravity", type=click.Choice(["cos", "cos+sin", "none"]), default="cos", show_default=True,
               help="Gravity terms: Mx cos q, + My sin q, or none (horizontal/prismatic axis).")
 @click.option("--offset", is_flag=True, help="Fit a constant torque offset.")
@@ -29,18 +29,42 @@ import click
 @click.option("--order", type=click.IntRange(1, 8), default=None, help="Butterworth order (default 3 at KRC rates).")
 @click.option("--qd-thr", type=float, default=None, help="Dynamic-mode velocity threshold, rad/s (0.0017).")
 @click.option("--edge", type=int, default=None, help="Samples trimmed at both ends (default 5 fs/cutoff).")
-@click.option("--decimate", type=click.IntRange(1, 1000), default=1, show_default=True,
-              help="Keep every n-th sample after filtering.")
+@click.option("--decimate", type=click.IntRange(1, 1000), default=None,
+              help="Keep every n-th sample after filtering [default: 1; with --robot: about 10 per cut-off period].")
 @click.option("--reversal-window", type=float, default=None,
               help="s; dynamic samples this close to a reversal/start/stop are not fitted (default 1.2/cutoff; 0 keeps all).")
 @click.option("--diff", type=click.Choice(["central", "spectral"]), default=None,
               help="Differentiation of the filtered position (default central differences).")
 @click.option("--bound", "bound", multiple=True, metavar="NAME=LO:HI",
               help="Override a bound, e.g. --bound vs=0:0.1 --bound Fs-Fc=0:5 (empty side = unbounded).")
+@click.option("--robot", default=None, metavar="URDF|NAME",
+              help="Fit all axes of a robot jointly from its URDF (or kr6-r700-sixx): base parameters, a "
+                   "physically consistent estimate, per-joint friction and offset (kukaid.robot_params/1).")
+@click.option("--prior-weight", type=float, default=None,
+              help="With --robot: weight of the pull toward the URDF's nominal links [default: 1e-3].")
+@click.option("--torque-side", type=click.Choice(["joint", "motor"]), default="joint", show_default=True,
+              help="With --robot: the logs' torques are joint-side or motor-side (gear ratios from the URDF).")
+@click.option("--stribeck-vs", type=float, default=0.05, show_default=True,
+              help="With --robot and --friction-model stribeck: the (fixed) Stribeck velocity, rad/s.")
+@click.option("--rotor-inertia", is_flag=True, help="With --robot: fit one rotor inertia per motor.")
+@click.option("--coupling", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="With --robot --torque-side motor: n x n JSON matrix, motor angles = ratio (I + C) q "
+                   "(the coupled wrist drives).")
 def command(logs, friction, inertia, presliding, axis, output, method, friction_model, gravity, offset, elements,
-            cutoff, order, qd_thr, edge, decimate, reversal_window, diff, bound) -> None:
-    """Fit Stribeck friction, Izz/Mx and Maxwell-slip elements from axis logs (HDF5 or CSV)."""
+            cutoff, order, qd_thr, edge, decimate, reversal_window, diff, bound, robot, prior_weight, torque_side,
+            stribeck_vs, rotor_inertia, coupling) -> None:
+    """Fit Stribeck friction, Izz/Mx and Maxwell-slip elements from axis logs (HDF5 or CSV);
+    with --robot, all axes of a robot jointly from logs of the whole arm moving."""
     import math
+
+    if robot is not None:
+        _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, prior_weight, torque_side,
+                   stribeck_vs, rotor_inertia, coupling)
+        return
+    if prior_weight is not None or rotor_inertia or torque_side != "joint" or coupling is not None:
+        raise click.UsageError("--prior-weight, --torque-side, --rotor-inertia and --coupling need --robot")
+    friction_model = friction_model or "stribeck"
+    decimate = decimate or 1
 
     from kukaid.errors import FitError
     from kukaid.identify import fit_axis, format_table
@@ -72,4 +96,43 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
                       edge=edge, decimate=decimate, reversal_window=reversal_window, diff=diff)
     save_params(output, params)
     click.echo(format_table(params))
+    click.echo(f"{output}: parameters written", err=True)
+
+
+def _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, prior_weight, torque_side,
+               stribeck_vs, rotor_inertia, coupling) -> None:
+    """``kukaid fit LOG... --robot``: the whole robot, written as kukaid.robot_params/1."""
+    from kukaid.identify.robot_fit import PRIOR_WEIGHT, RobotFitSettings, fit_robot, format_robot_table
+    from kukaid.logs import read_log
+    from kukaid.models.robot import RobotModel
+    from kukaid.params import save_robot_params
+    from kukaid_cli._util import check_outputs, check_suffix
+
+    if not logs:
+        raise click.UsageError("give at least one log of the robot moving (LOG...)")
+    check_suffix(output, ".json")
+    check_outputs([output], list(logs))
+    settings = RobotFitSettings(cutoff=cutoff, order=order or 4, decimate=decimate,
+                                friction=friction_model or "coulomb-viscous", vs=stribeck_vs,
+                                prior_weight=PRIOR_WEIGHT if prior_weight is None else prior_weight,
+                                torque_side=torque_side, rotor=rotor_inertia)
+    model = RobotModel(robot)
+    cpl = None
+    if coupling is not None:
+        import numpy as np
+
+        from kukaid.errors import ParamFileError
+        from kukaid.jsonfile import read_json
+
+        cpl = read_json(coupling, ParamFileError)
+        try:
+            cpl = np.asarray(cpl, dtype=float)
+        except (TypeError, ValueError):
+            raise ParamFileError(f"{coupling}: must be a {model.n} x {model.n} matrix of numbers") from None
+        if cpl.shape != (model.n, model.n) or not np.all(np.isfinite(cpl)):
+            raise ParamFileError(f"{coupling}: must be a {model.n} x {model.n} matrix of finite numbers, "
+                                 f"got shape {cpl.shape}")
+    params = fit_robot([read_log(p) for p in logs], model, settings, coupling=cpl)
+    save_robot_params(output, params)
+    click.echo(format_robot_table(params))
     click.echo(f"{output}: parameters written", err=True)

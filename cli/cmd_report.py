@@ -31,7 +31,29 @@ def command(params, friction, inertia, presliding, logs, axis, output) -> None:
 
     check_suffix(output, ".pdf")
     check_outputs([output], [params, *friction, *inertia, presliding, *logs])
+    if _robot_report(params, friction, inertia, presliding, logs, axis, output):
+        return
 
     n = make_report(params, output, friction=list(friction), inertia=list(inertia), presliding=presliding,
                     logs=list(logs), axis=axis)
     click.echo(f"{output}: report written, {n} pages", err=True)
+
+
+def _robot_report(params, friction, inertia, presliding, logs, axis, output) -> bool:
+    """A robot parameter file (kukaid.robot_params/1): its own report; False for any other file."""
+    from kukaid.errors import ParamFileError
+    from kukaid.jsonfile import read_json
+    from kukaid.params import is_robot_params, validate_robot_params
+
+    d = read_json(params, ParamFileError)
+    if not is_robot_params(d):
+        return False
+    if friction or inertia or presliding or axis is not None:
+        raise click.UsageError("a robot parameter file takes only --log (prediction pages)")
+    from kukaid.logs import read_log
+    from kukaid.report.robot import make_robot_report
+
+    validate_robot_params(d, str(params))
+    n = make_robot_report(d, output, [read_log(p) for p in logs], source=str(params))
+    click.echo(f"{output}: report written, {n} pages", err=True)
+    return True

@@ -1,0 +1,542 @@
+"""Joint identification of all axes of a robot from logs of the whole arm moving (a URDF model).
+
+Steps (:func:`fit_robot`):
+
+1. *Motion*: each log's positions are low-pass filtered (zero-phase Butterworth, scipy.signal)
+   and differentiated twice (central differences); the measured torques go through the same
+   filter ("parallel filtering", so both sides of ``tau = Y pi`` see the same gain and phase).
+   Edges are trimmed and the samples decimated to about ten per cut-off period.
+2. *Regressor*: Pinocchio's joint-torque regressor (ten inertial parameters per link) plus
+   per-joint friction (Coulomb-viscous or Stribeck with a fixed Stribeck velocity) and offset.
+3. *Base parameters* (numerical QR, :meth:`RobotModel.base_parameters`): weighted least squares
+   on the base columns gives ``beta`` with its standard deviations; the per-joint weights are the
+   inverse residual standard deviations of a first ordinary fit. Filtered residuals are correlated
+   in time, so these sigma are optimistic: ``metrics.residual_correlation_factor`` is the factor
+   to multiply them by (as in the single-axis fit).
+4. *Physically consistent estimate*: every link's pseudo-inertia ``J = U U^T`` in log-Cholesky
+   coordinates (Rucker & Wensing 2022), so every mass is positive and every inertia satisfies the
+   triangle inequalities by construction; Coulomb and viscous friction >= 0. IPOPT (CasADi)
+   minimises ``chi2 / M + prior_weight * sum_links D(J || J_nominal)``: ``chi2 / M`` is the mean
+   squared weighted residual (about 1 at a good fit), ``D`` the entropic (log-det) divergence of
+   the link from its URDF value, which is zero at the nominal link and grows as it moves away,
+   equally in every direction of the consistent set. The prior only decides what the data leave
+   open; its weight is ``prior_weight``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from kukaid.errors import FitError, ParamFileError
+from kukaid.identify.uncertainty import correlation_factor
+from kukaid.logs import AxisLog
+from kukaid.params.robot import SCHEMA as ROBOT_SCHEMA
+from kukaid.params.robot import validate_robot_params
+from kukaid.models.robot import (BUNDLED, FRICTION_MODELS, LINK_PARAMS, DriveModel, RobotModel, consistency,
+                                 friction_names, friction_regressor, pseudo_inertia)
+
+PRIOR_WEIGHT = 1e-3
+
+
+@dataclass(frozen=True)
+class RobotFitSettings:
+    """Settings of :func:`fit_robot` (all stored in the parameter file).
+
+    cutoff : low-pass cut-off of positions and torques, Hz (None: 5 Hz as the single-axis fit at
+        KR C4 rates, at most fs/10).
+    order : Butterworth order.
+    decimate : keep every n-th sample after filtering (None: about 10 samples per cut-off period).
+    friction : "coulomb-viscous" or "stribeck".
+    vs : Stribeck velocity, rad/s (Stribeck only; fixed, so the model stays linear).
+    offset : fit a constant torque per joint.
+    prior_weight : weight of the divergence from the URDF's nominal links (0: none).
+    consistent : physically consistent estimate (else the least-squares base parameters only).
+    torque_side : "joint" (the log's torques are joint torques) or "motor" (motor-side torques,
+        converted with the URDF's gear ratios and the wrist coupling).
+    rotor : fit rotor inertias (one per motor) as extra parameters.
+    spring : a torque linear in the joint's own angle, ``k_j q_j`` (N·m/rad): what cables, hoses,
+        a balancing spring or a torque sensor's cross-talk add, and what a gravity model that is
+        slightly off leaves (with the offset: its first-order term about the working range).
+    weighting : per-joint weights of the equations: "noise" (1 / the residual standard deviation
+        of a first least-squares fit) or "torque" (1 / the joint's RMS torque: every joint's
+        relative error counts alike) or "none".
+    v_smooth : Coulomb friction as ``Fc tanh(qd / v_smooth)``, rad/s (0: ``Fc sign(qd)``).
+    reversal_window : a joint's equations closer than this many cut-off periods to a reversal of
+        its velocity are not fitted (0: all are).
+    """
+
+    cutoff: float | None = None
+    order: int = 4
+    decimate: int | None = None
+    friction: str = "coulomb-viscous"
+    vs: float = 0.05
+    offset: bool = True
+    prior_weight: float = PRIOR_WEIGHT
+    consistent: bool = True
+    torque_side: str = "joint"
+    rotor: bool = False
+    reversal_window: float = 2.0
+    v_smooth: float = 0.0
+    weighting: str = "noise"
+    spring: bool = True
+
+    def __post_init__(self) -> None:
+        if self.friction not in FRICTION_MODELS:
+            raise FitError(f"friction model '{self.friction}': expected one of {', '.join(FRICTION_MODELS)}")
+        for name, v in (("cutoff", self.cutoff), ("vs", self.vs)):
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise FitError(f"{name} must be a finite number > 0, got {v}")
+        if not (math.isfinite(self.prior_weight) and self.prior_weight >= 0):
+            raise FitError(f"prior weight must be a finite number >= 0, got {self.prior_weight}")
+        if self.weighting not in ("noise", "torque", "none"):
+            raise FitError(f"weighting '{self.weighting}': expected noise, torque or none")
+        if self.torque_side not in ("joint", "motor"):
+            raise FitError(f"torque side '{self.torque_side}': expected joint or motor")
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Filtered signals of one or more logs: positions (N, n) rad, velocities rad/s,
+    accelerations rad/s², joint torques N·m."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    tau: np.ndarray
+    keep: np.ndarray | None = None      # (N, n) bool: the joint's equation is fitted at that sample
+
+
+def away_from_reversals(qd: np.ndarray, time: np.ndarray, window: float) -> np.ndarray:
+    """(N, n) mask: True where joint j's velocity has not changed sign within ``window`` s.
+
+    Near a reversal the low-pass filter smears the Coulomb step of the measured torque over about
+    one cut-off period while ``sign(qd)`` steps at once; those equations are left out."""
+    keep = np.ones(qd.shape, bool)
+    if window <= 0:
+        return keep
+    for j in range(qd.shape[1]):
+        s = np.signbit(qd[:, j])
+        idx = np.flatnonzero(s[1:] != s[:-1])
+        if idx.size == 0:
+            continue
+        tc = time[idx]
+        pos = np.searchsorted(tc, time)
+        near = np.full(time.size, np.inf)
+        for off in (-1, 0):
+            k = np.clip(pos + off, 0, tc.size - 1)
+            near = np.minimum(near, np.abs(time - tc[k]))
+        keep[:, j] = near > window
+    return keep
+
+
+def _joint_columns(log: AxisLog, n: int) -> list[int]:
+    where = log.attrs.get("source_file", "axis log")
+    missing = [a for a in range(1, n + 1) if a not in log.axes]
+    if missing:
+        raise FitError(f"{where}: the robot has {n} axes but the log lacks "
+                       f"{', '.join(f'A{a}' for a in missing)} (axes: {list(log.axes)})")
+    return [log.index(a) for a in range(1, n + 1)]
+
+
+def _cutoff(settings: RobotFitSettings, fs: float) -> float:
+    fc = settings.cutoff if settings.cutoff is not None else 5.0
+    return min(fc, 0.1 * fs) if settings.cutoff is None else fc
+
+
+def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel | None = None,
+           filter_tau: bool = True) -> Motion:
+    """Filtered positions, their derivatives and the (filtered) joint torques of axes A1..An."""
+    from scipy.signal import butter, sosfiltfilt
+
+    cols = _joint_columns(log, n)
+    where = log.attrs.get("source_file", "axis log")
+    fs = 1.0 / log.sample_time
+    fc = _cutoff(settings, fs)
+    if fc >= 0.5 * fs:
+        raise FitError(f"{where}: cut-off {fc:g} Hz must be below half the sample rate ({0.5 * fs:g} Hz)")
+    sos = butter(settings.order, fc, fs=fs, output="sos")
+    need = 3 * (2 * sos.shape[0] + 1)
+    if log.n_samples <= need:
+        raise FitError(f"{where}: {log.n_samples} samples are too few to filter (need more than {need})")
+    q = sosfiltfilt(sos, log.q[:, cols], axis=0)
+    qd = np.gradient(q, log.time, axis=0)
+    qdd = np.gradient(qd, log.time, axis=0)
+    tau = log.tau[:, cols]
+    if settings.torque_side == "motor" and drive is not None:
+        tau = drive.joint_torque(tau)
+    if filter_tau:
+        tau = sosfiltfilt(sos, tau, axis=0)
+    return Motion(q, qd, qdd, tau)
+
+
+def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive: DriveModel) -> Motion:
+    parts = []
+    for log in logs:
+        fs = 1.0 / log.sample_time
+        fc = _cutoff(settings, fs)
+        m = motion(log, n, settings, drive)
+        keep = away_from_reversals(m.qd, log.time, settings.reversal_window * 1.0 / fc)
+        edge = int(math.ceil(2.0 * fs / fc))                     # two cut-off periods at each end
+        step = settings.decimate or max(1, int(round(fs / (10.0 * fc))))
+        rows = slice(edge, log.n_samples - edge, step)
+        parts.append(Motion(m.q[rows], m.qd[rows], m.qdd[rows], m.tau[rows], keep[rows]))
+    out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau", "keep")))
+    if out.q.shape[0] < 10:
+        raise FitError(f"too few samples left after trimming and decimation ({out.q.shape[0]})")
+    return out
+
+
+def _drive(robot: RobotModel, settings: RobotFitSettings, coupling: np.ndarray | None = None) -> DriveModel:
+    if settings.torque_side == "joint" and not settings.rotor:
+        return DriveModel.direct(robot.n)
+    return DriveModel(robot.ratio.copy(), np.zeros((robot.n, robot.n)) if coupling is None else coupling,
+                      np.zeros(robot.n))
+
+
+def design(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel) -> tuple[np.ndarray, np.ndarray]:
+    """Rigid-body regressor (N, n, 10 n) and the extra columns (N, n, k): friction, offset, rotors."""
+    Y = robot.regressor(m.q, m.qd, m.qdd)
+    F = friction_regressor(m.qd, settings.friction, settings.offset, settings.vs, v_smooth=settings.v_smooth)
+    if settings.spring:
+        n = robot.n
+        P = np.zeros((m.q.shape[0], n, n))
+        P[:, np.arange(n), np.arange(n)] = m.q
+        F = np.concatenate([F, P], axis=2)
+    if settings.rotor:
+        F = np.concatenate([F, drive.rotor_regressor(m.qdd)], axis=2)
+    return Y, F
+
+
+def extra_names(robot: RobotModel, settings: RobotFitSettings) -> list[str]:
+    names = friction_names(robot.n, settings.friction, settings.offset)
+    names += [f"A{j + 1}.k" for j in range(robot.n)] if settings.spring else []
+    return names + ([f"M{k + 1}.rotor_inertia" for k in range(robot.n)] if settings.rotor else [])
+
+
+# -- physically consistent estimate ------------------------------------------------------------------
+def _upper_cholesky(J: np.ndarray) -> np.ndarray:
+    """U upper-triangular with J = U U^T."""
+    P = np.eye(4)[::-1]
+    L = np.linalg.cholesky(P @ J @ P)
+    return P @ L @ P
+
+
+def _theta_of(pi10: np.ndarray) -> np.ndarray:
+    """Log-Cholesky coordinates of a consistent link (nudged inside when on the boundary)."""
+    J = pseudo_inertia(pi10)
+    w, V = np.linalg.eigh(J)
+    J = (V * np.maximum(w, 1e-6 * max(w.max(), 1e-9))) @ V.T
+    U = _upper_cholesky(J)
+    a = math.log(U[3, 3])
+    U = U / U[3, 3]
+    return np.array([a, math.log(U[0, 0]), math.log(U[1, 1]), math.log(U[2, 2]), U[0, 1], U[1, 2], U[0, 2],
+                     U[0, 3], U[1, 3], U[2, 3]])
+
+
+def _pi_of_theta(th):
+    """CasADi: ten standard parameters of a link from its log-Cholesky coordinates."""
+    import casadi as ca
+
+    a, d1, d2, d3, s12, s23, s13, t1, t2, t3 = (th[i] for i in range(10))
+    U = ca.vertcat(ca.horzcat(ca.exp(d1), s12, s13, t1), ca.horzcat(0, ca.exp(d2), s23, t2),
+                   ca.horzcat(0, 0, ca.exp(d3), t3), ca.horzcat(0, 0, 0, 1)) * ca.exp(a)
+    J = U @ U.T
+    S = J[:3, :3]
+    tr = S[0, 0] + S[1, 1] + S[2, 2]
+    return ca.vertcat(J[3, 3], J[0, 3], J[1, 3], J[2, 3], tr - S[0, 0], -S[0, 1], tr - S[1, 1], -S[0, 2],
+                      -S[1, 2], tr - S[2, 2]), J
+
+
+def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_extra: int,
+                   nonneg: np.ndarray, prior_weight: float, pi0: np.ndarray, x0_extra: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Minimise ``|R p - z|^2 + c + prior_weight * sum D(J_k || J_k,nominal)`` over
+    physically consistent links (log-Cholesky) and the extra parameters (``nonneg`` ones >= 0).
+
+    Returns the standard parameters (10 n,), the extra parameters and solver statistics."""
+    import casadi as ca
+
+    n = robot.n
+    ts = ca.SX.sym("t", 10)
+    pt, Jt = _pi_of_theta(ts)
+    link = ca.Function("link", [ts], [pt, Jt])          # one link, reused: a small graph
+    th = ca.MX.sym("theta", 10 * n)
+    ex = ca.MX.sym("extra", n_extra)
+    pis, prior = [], 0
+    for k in range(n):
+        p, J = link(th[10 * k: 10 * k + 10])
+        pis.append(p)
+        J0 = pseudo_inertia(robot.pi_nominal[10 * k: 10 * k + 10])
+        w, V = np.linalg.eigh(J0)
+        J0 = (V * np.maximum(w, 1e-9 * max(w.max(), 1e-9))) @ V.T
+        J0inv = np.linalg.inv(J0)
+        logdetJ = 2 * (4 * th[10 * k] + th[10 * k + 1] + th[10 * k + 2] + th[10 * k + 3])
+        prior += ca.trace(ca.mtimes(ca.DM(J0inv), J)) - logdetJ + float(np.linalg.slogdet(J0)[1]) - 4
+    p = ca.vertcat(*pis, ex)
+    x0 = np.concatenate([np.concatenate([_theta_of(pi0[10 * k: 10 * k + 10]) for k in range(n)]), x0_extra])
+    r = ca.mtimes(ca.DM(R), p) - ca.DM(z)
+    wp = ca.MX.sym("w")
+    f = ca.dot(r, r) + c + wp * prior
+    lbx = np.full(x0.size, -np.inf)
+    lbx[10 * n:][nonneg] = 0.0
+    x0[10 * n:] = np.maximum(x0[10 * n:], lbx[10 * n:])
+    nlp = {"x": ca.vertcat(th, ex), "f": f, "p": wp}
+    solver = ca.nlpsol("robot_fit", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": 0,
+                                                   "ipopt.max_iter": 3000, "ipopt.tol": 1e-9})
+    # continuation: a strong prior first (near the nominal links, quick), then down to the weight
+    # asked for, each solve starting at the last; the problem is convex in the pseudo-inertias, so
+    # the end point is the same minimum, reached in fewer iterations
+    iters = 0
+    for w in [x for x in (1e-1, 1e-2) if x > prior_weight] + [prior_weight]:
+        sol = solver(x0=x0, lbx=lbx, p=w)
+        iters += int(solver.stats().get("iter_count") or 0)
+        x0 = np.asarray(sol["x"]).ravel()
+    stats = solver.stats()
+    x = np.asarray(sol["x"]).ravel()
+    pfun = ca.Function("p", [th, ex], [p])
+    pv = np.asarray(pfun(x[:10 * n], x[10 * n:])).ravel()
+    info = {"solver": "ipopt", "status": stats.get("return_status"), "iterations": iters,
+            "objective": float(sol["f"])}
+    ok = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Maximum_Iterations_Exceeded")
+    if stats.get("return_status") not in ok or not np.all(np.isfinite(pv)):
+        raise FitError(f"physically consistent fit did not converge (IPOPT: {stats.get('return_status')})")
+    return pv[:10 * n], pv[10 * n:], info
+
+
+# -- the fit ---------------------------------------------------------------------------------------------
+def _one_blas_thread():
+    """Narrow products (under a hundred columns) and dot products gain nothing from BLAS threads, and on a busy
+    machine OpenBLAS threads that wait for cores make them ~50 times slower: use one."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def _solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Least-squares solution of the normal equations ``G x = g`` (columns scaled first)."""
+    d = 1.0 / np.sqrt(np.maximum(np.diag(G), 1e-300))
+    x, *_ = np.linalg.lstsq(d[:, None] * G * d[None, :], d * g, rcond=1e-13)
+    return d * x
+
+
+def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings | None = None,
+              coupling: np.ndarray | None = None) -> dict:
+    """Identify base parameters, a physically consistent estimate and per-joint friction.
+
+    Parameters
+    ----------
+    logs : axis logs with (at least) axes A1..An, all moving (n = the robot's joints).
+    robot : the robot model (URDF).
+    settings : see :class:`RobotFitSettings`.
+    coupling : wrist coupling for motor-side torques (see :class:`DriveModel`).
+
+    Returns
+    -------
+    The content of a ``kukaid.robot_params/1`` file (see :mod:`kukaid.params.robot`).
+    """
+    settings = settings or RobotFitSettings()
+    if not logs:
+        raise FitError("no logs to fit")
+    n = robot.n
+    drive = _drive(robot, settings, coupling)
+    m = _samples(logs, n, settings, drive)
+    Y, F = design(robot, m, settings, drive)
+    base = robot.base_parameters()
+    N = Y.shape[0]
+    kw = m.keep.astype(float)
+    if np.any(kw.sum(axis=0) < 10):
+        raise FitError("too few samples away from velocity reversals; lower the reversal window")
+    # per-joint normal equations of all columns (standard parameters + extras): everything below
+    # works on these small matrices, whatever the number of samples
+    C = np.concatenate([Y, F], axis=2)
+    tk = m.tau * kw
+    Cj = np.ascontiguousarray(np.moveaxis(C, 1, 0))                             # (n, N, p)
+    with _one_blas_thread():
+        G = np.stack([(Cj[j] * kw[:, j, None]).T @ Cj[j] for j in range(n)])    # (n, p, p)
+        gb = np.stack([Cj[j].T @ tk[:, j] for j in range(n)])                   # (n, p)
+    cc = np.sum(tk * m.tau, axis=0)                                             # (n,)
+    nb = base.size
+    ib = np.concatenate([base.independent, robot.n_std + np.arange(F.shape[2])])
+    Gb, gbb = G[:, ib][:, :, ib], gb[:, ib]
+    # ordinary least squares on the base columns, then per-joint weights 1/sigma_j
+    beta0 = _solve(Gb.sum(0), gbb.sum(0))
+    rss = cc - 2 * gbb @ beta0 + np.einsum("k,jkl,l->j", beta0, Gb, beta0)
+    dof = np.maximum(kw.sum(axis=0) - ib.size / n, 1.0)
+    sig = np.sqrt(np.maximum(rss, 0.0) / dof)
+    if settings.weighting == "torque":
+        sig = np.sqrt(cc / np.maximum(kw.sum(axis=0), 1.0))
+    elif settings.weighting == "none":
+        sig = np.ones(n)
+    sig = np.maximum(sig, 1e-6 * max(sig.max(), 1e-12))
+    w = 1.0 / sig ** 2
+    Gw, gw, cw = np.einsum("j,jkl->kl", w, G), w @ gb, float(w @ cc)
+    Gwb, gwb = Gw[np.ix_(ib, ib)], gw[ib]
+    beta = _solve(Gwb, gwb)
+    M = float(kw.sum())
+    s2 = max(cw - 2 * gwb @ beta + beta @ Gwb @ beta, 0.0) / max(M - ib.size, 1)
+    cov = s2 * np.linalg.pinv(Gwb)
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    dsc = 1.0 / np.sqrt(np.maximum(np.diag(Gwb), 1e-300))
+    cond = float(np.sqrt(np.linalg.cond(dsc[:, None] * Gwb * dsc[None, :])))
+    resid = (m.tau - C[:, :, ib] @ beta) / sig[None, :]
+    with _one_blas_thread():
+        cfac = [correlation_factor(resid[m.keep[:, j], j], 20) for j in range(n)]
+    extra_n = extra_names(robot, settings)
+
+    pi_c = None
+    solver_info = None
+    extra = beta[nb:]
+    if settings.consistent:
+        # chi2 / M = p^T H p - 2 g^T p + c = |R p - z|^2 + c' with H = R^T R (eigenvectors of H)
+        H, g, c = Gw / M, gw / M, cw / M
+        ev, V = np.linalg.eigh(H)
+        pos = ev > 1e-12 * ev.max()
+        R = np.sqrt(ev[pos])[:, None] * V[:, pos].T
+        z = (V[:, pos].T @ g) / np.sqrt(ev[pos])
+        nonneg = np.array(_nonneg(extra_n))
+        pi_c, extra, solver_info = consistent_fit(R, z, float(c - z @ z), robot, len(extra_n), nonneg,
+                                                  settings.prior_weight, robot.pi_nominal, beta[nb:].copy())
+    beta_out = base.of(pi_c) if pi_c is not None else beta[:nb]
+    # metrics on the fitted (filtered) samples
+    pred = Y[:, :, base.independent] @ beta_out + F @ extra
+    rel = np.linalg.norm(m.tau - pred, axis=0) / np.maximum(np.linalg.norm(m.tau, axis=0), 1e-12)
+    at_bound = [nm for nm, v, nn in zip(extra_n, extra, _nonneg(extra_n)) if nn and abs(v) < 1e-7]
+    checks = consistency(pi_c) if pi_c is not None else None
+    # a link on the boundary of the consistent set: its pseudo-inertia (nearly) singular
+    at_bound += [name for name, chk in zip(robot.link_names, checks or [])
+                 if chk["pseudo_inertia_min_eig"] < 1e-8 * max(chk["mass"], 1e-9)]
+    bundled = robot.source in BUNDLED
+    return {
+        "schema": ROBOT_SCHEMA,
+        "robot": {"name": robot.model.name, "urdf": robot.source if bundled else str(Path(robot.path).resolve()),
+                  "sha256": robot.sha256, "joints": list(robot.joint_names), "links": list(robot.link_names)},
+        "axes": list(range(1, n + 1)),
+        "torque_side": settings.torque_side,
+        "base_parameters": {"names": list(base.names), "values": beta_out.tolist(),
+                            "least_squares": beta[:nb].tolist(), "sigma": sd[:nb].tolist(),
+                            "independent": base.independent.tolist(), "dependent": base.dependent.tolist(),
+                            "R": base.R.tolist()},
+        "standard_parameters": None if pi_c is None else {
+            link: dict(zip(LINK_PARAMS, pi_c[10 * k: 10 * k + 10].tolist()))
+            for k, link in enumerate(robot.link_names)},
+        "friction": {"model": settings.friction, "vs": settings.vs if settings.friction == "stribeck" else None,
+                     "offset": settings.offset,
+                     "values": dict(zip(extra_n, np.asarray(extra).tolist())),
+                     "least_squares": dict(zip(extra_n, beta[nb:].tolist())),
+                     "sigma": dict(zip(extra_n, sd[nb:].tolist()))},
+        "drive": None if not (settings.torque_side == "motor" or settings.rotor) else {
+            "ratio": drive.ratio.tolist(), "coupling": np.asarray(drive.coupling).tolist()},
+        "settings": asdict(settings),
+        "metrics": {"samples": int(N), "condition_number": cond, "noise_sigma": sig.tolist(),
+                    "residual_correlation_factor": float(max(cfac)),
+                    "relative_error_fit": rel.tolist(),
+                    "consistency": checks,
+                    "physically_consistent": bool(checks is not None and all(c["ok"] for c in checks)),
+                    "at_bound": at_bound,
+                    "solver": solver_info},
+        "provenance": {"logs": [str(lg.attrs.get("source_file", "")) for lg in logs]},
+    }
+
+
+def _nonneg(names: Sequence[str]) -> list[bool]:
+    return [nm.endswith((".Fc", ".Fv", ".rotor_inertia")) for nm in names]
+
+
+def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -> dict[int, np.ndarray]:
+    """Predicted joint torques of a robot parameter file on ``log``: {axis: (N,) N·m}.
+
+    The positions are filtered and differentiated as in the fit; the prediction is compared with
+    the raw measured torques by the caller (:func:`validate_robot`)."""
+    validate_robot_params(params)
+    robot = robot or RobotModel(params["robot"]["urdf"])
+    sha = params["robot"].get("sha256")
+    if sha and sha != robot.sha256:
+        raise ParamFileError(f"{robot.path}: this URDF is not the one the parameters were fitted with "
+                             f"(sha256 {robot.sha256[:12]}... against {sha[:12]}...)")
+    if robot.n != len(params["axes"]):
+        raise ParamFileError(f"{robot.path}: {robot.n} joints, the parameter file has {len(params['axes'])} axes")
+    s = params["settings"]
+    settings = RobotFitSettings(**{k: s[k] for k in RobotFitSettings.__dataclass_fields__ if k in s})
+    n = robot.n
+    m = motion(log, n, settings, filter_tau=False)
+    Y, F = design(robot, m, settings, DriveModel.direct(n) if not settings.rotor else
+                  DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n)))
+    bp = params["base_parameters"]
+    beta = np.asarray(bp["values"], float)
+    extra = np.array([params["friction"]["values"][k] for k in extra_names(robot, settings)])
+    tau = Y[:, :, np.asarray(bp["independent"], int)] @ beta + F @ extra
+    if settings.torque_side == "motor":
+        drive = DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
+        tau = drive.motor_torque(tau)
+    return {a: tau[:, a - 1] for a in range(1, n + 1)}
+
+
+def robot_predictor(params: dict, log: AxisLog, axis: int | None = None,
+                    robot: RobotModel | None = None) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Measured (raw) and predicted torque per axis, ``{axis: (tau, tau_hat)}``, away from the
+    filter's edges (two cut-off periods): the validation seam's predictor for
+    ``kukaid.robot_params/1`` (``axis``: only that axis; the file is validated here)."""
+    pred = predict_robot(params, log, robot)
+    fs = 1.0 / log.sample_time
+    s = params["settings"]
+    fc = _cutoff(RobotFitSettings(cutoff=s.get("cutoff")), fs)
+    edge = int(math.ceil(2.0 * fs / fc))
+    rows = slice(edge, log.n_samples - edge)
+    axes = [axis] if axis is not None else list(pred)
+    out = {}
+    for a in axes:
+        if a not in pred:
+            raise FitError(f"axis A{a} is not in the robot parameter file (axes: {list(pred)})")
+        out[a] = (log.channel("tau", a)[rows], pred[a][rows])
+    return out
+
+
+def validate_robot(params: dict, logs: Sequence[AxisLog], robot: RobotModel | None = None) -> dict:
+    """Per-axis relative error ``||tau - tau_hat|| / ||tau||`` and RMS error of ``params`` on
+    ``logs`` (raw measured torques, pooled), and the mean relative error over the axes."""
+    robot = robot or RobotModel(params["robot"]["urdf"])
+    pairs: dict[int, list] = {}
+    for log in logs:
+        for a, (t, th) in robot_predictor(params, log, robot=robot).items():
+            pairs.setdefault(a, []).append((t, th))
+    rows = {}
+    for a, lst in pairs.items():
+        t = np.concatenate([x[0] for x in lst])
+        th = np.concatenate([x[1] for x in lst])
+        rows[f"A{a}"] = {"relative_error": float(np.linalg.norm(t - th) / max(np.linalg.norm(t), 1e-12)),
+                         "rms_error": float(np.sqrt(np.mean((t - th) ** 2))),
+                         "rms_torque": float(np.sqrt(np.mean(t ** 2))), "samples": int(t.size)}
+    mean = float(np.mean([r["relative_error"] for r in rows.values()]))
+    return {"axes": rows, "mean_relative_error": mean,
+            "logs": [str(lg.attrs.get("source_file", "")) for lg in logs]}
+
+
+def format_robot_table(params: dict) -> str:
+    """Plain-text table of a robot fit: base parameters (estimate, least squares, σ), friction,
+    condition number and the consistency check."""
+    bp = params["base_parameters"]
+    lines = [f"{'base parameter':<58} {'estimate':>11} {'least sq.':>11} {'sigma':>10}"]
+    for name, v, ls, sd in zip(bp["names"], bp["values"], bp.get("least_squares", bp["values"]),
+                               bp.get("sigma", [float("nan")] * len(bp["values"]))):
+        short = name if len(name) <= 58 else name[:55] + "..."
+        lines.append(f"{short:<58} {v:>11.4g} {ls:>11.4g} {sd if sd is not None else float('nan'):>10.3g}")
+    fr = params["friction"]
+    lines.append(f"{'friction (' + fr['model'] + ')':<58} {'estimate':>11} {'least sq.':>11} {'sigma':>10}")
+    for k, v in fr["values"].items():
+        sd = (fr.get("sigma") or {}).get(k)
+        ls = (fr.get("least_squares") or {}).get(k, v)
+        lines.append(f"{k:<58} {v:>11.4g} {ls:>11.4g} {sd if sd is not None else float('nan'):>10.3g}")
+    mt = params.get("metrics") or {}
+    lines.append(f"sigma: least squares, white residuals; multiply by the residual correlation factor "
+                 f"{mt.get('residual_correlation_factor', float('nan')):.2f} for a less optimistic figure")
+    lines.append(f"condition number {mt.get('condition_number', float('nan')):.4g}; "
+                 f"physically consistent: {'yes' if mt.get('physically_consistent') else 'no'}; "
+                 f"at a bound: {', '.join(mt.get('at_bound') or []) or 'none'}")
+    rel = mt.get("relative_error_fit")
+    if rel:
+        lines.append("relative error on the fitted samples: " +
+                     " ".join(f"A{i + 1} {100 * r:.1f}%" for i, r in enumerate(rel)))
+    return "\n".join(lines)

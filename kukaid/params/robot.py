@@ -1,0 +1,165 @@
+"""The robot parameter file (JSON, ``"schema": "kukaid.robot_params/1"``): a whole robot identified
+from its URDF (``kukaid fit LOG... --robot``), validated on read and write.
+
+Fields
+------
+robot : {name, urdf (bundled name or absolute path), sha256 of the URDF, joints, links}.
+axes : [1..n], KUKA numbering of the URDF's joints in order.
+torque_side : "joint" or "motor".
+base_parameters : {names, values (the estimate used to predict), least_squares (weighted least
+    squares), sigma (standard deviation of the least-squares values), independent, dependent, R
+    (beta = pi[independent] + R pi[dependent])}.
+standard_parameters : {link: {m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz}} of the physically
+    consistent estimate (kg, kg·m, kg·m² at the joint frame), or null.
+friction : {model, vs, offset, values {A1.Fc: ...}, least_squares, sigma}.
+drive : {ratio, coupling} or null.   settings : the fit's settings.   metrics, provenance : objects.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from kukaid.atomic import write_text_atomic
+from kukaid.errors import ParamFileError
+from kukaid.jsonfile import jsonable, read_json
+
+SCHEMA = "kukaid.robot_params/1"
+LINK_KEYS = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+
+
+def _fail(where: str, what: str) -> None:
+    raise ParamFileError(f"{where}: {what}")
+
+
+def _numbers(where: str, name: str, v: Any, size: int | None = None, nonneg: bool = False,
+             allow_null: bool = False) -> None:
+    if not isinstance(v, list):
+        _fail(where, f"'{name}' must be a list of numbers")
+    if size is not None and len(v) != size:
+        _fail(where, f"'{name}' must have {size} entries, has {len(v)}")
+    for i, x in enumerate(v):
+        if x is None and allow_null:
+            continue
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+            _fail(where, f"'{name}[{i}]' must be a finite number, got {json.dumps(x)[:40]}")
+        if nonneg and x < 0:
+            _fail(where, f"'{name}[{i}]' must be >= 0, got {x}")
+
+
+def _object(where: str, name: str, v: Any) -> dict:
+    if not isinstance(v, dict):
+        _fail(where, f"'{name}' must be a JSON object")
+    return v
+
+
+def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
+    """Check a robot parameter dictionary; raise :class:`ParamFileError` naming the field."""
+    if not isinstance(d, dict):
+        _fail(where, "top level must be a JSON object")
+    if d.get("schema") != SCHEMA:
+        _fail(where, f"'schema' must be \"{SCHEMA}\", got {json.dumps(d.get('schema'))[:60]}")
+    for key in ("robot", "axes", "base_parameters", "friction", "settings"):
+        if key not in d:
+            _fail(where, f"missing field '{key}'")
+    rob = _object(where, "robot", d["robot"])
+    if not isinstance(rob.get("urdf"), str) or not rob["urdf"]:
+        _fail(where, "'robot.urdf' must be a bundled robot name or the path of a URDF")
+    axes = d["axes"]
+    if not isinstance(axes, list) or not axes or axes != list(range(1, len(axes) + 1)):
+        _fail(where, f"'axes' must be [1, 2, ..., n], got {json.dumps(axes)[:60]}")
+    n = len(axes)
+    if d.get("torque_side", "joint") not in ("joint", "motor"):
+        _fail(where, "'torque_side' must be \"joint\" or \"motor\"")
+    bp = _object(where, "base_parameters", d["base_parameters"])
+    for key in ("names", "values", "independent", "dependent", "R"):
+        if key not in bp:
+            _fail(where, f"missing field 'base_parameters.{key}'")
+    b = len(bp["values"]) if isinstance(bp["values"], list) else -1
+    _numbers(where, "base_parameters.values", bp["values"])
+    _numbers(where, "base_parameters.independent", bp["independent"], b)
+    if not isinstance(bp["names"], list) or len(bp["names"]) != b:
+        _fail(where, f"'base_parameters.names' must have {b} entries")
+    for key in ("least_squares", "sigma"):
+        if key in bp:
+            _numbers(where, f"base_parameters.{key}", bp[key], b, nonneg=key == "sigma", allow_null=True)
+    if not isinstance(bp["R"], list) or len(bp["R"]) != b:
+        _fail(where, f"'base_parameters.R' must have {b} rows")
+    nd = len(bp["dependent"]) if isinstance(bp["dependent"], list) else -1
+    _numbers(where, "base_parameters.dependent", bp["dependent"])
+    if b + nd != 10 * n:
+        _fail(where, f"base_parameters: {b} independent + {nd} dependent must be 10 per axis ({10 * n})")
+    for i, row in enumerate(bp["R"]):
+        _numbers(where, f"base_parameters.R[{i}]", row, nd)
+    std = d.get("standard_parameters")
+    if std is not None:
+        _object(where, "standard_parameters", std)
+        if len(std) != n:
+            _fail(where, f"'standard_parameters' must have one entry per link ({n}), has {len(std)}")
+        for link, p in std.items():
+            _object(where, f"standard_parameters.{link}", p)
+            for k in LINK_KEYS:
+                if k not in p:
+                    _fail(where, f"missing field 'standard_parameters.{link}.{k}'")
+            _numbers(where, f"standard_parameters.{link}", [p[k] for k in LINK_KEYS])
+            if p["m"] <= 0:
+                _fail(where, f"'standard_parameters.{link}.m' must be > 0 (a mass), got {p['m']}")
+    fr = _object(where, "friction", d["friction"])
+    if fr.get("model") not in ("coulomb-viscous", "stribeck"):
+        _fail(where, "'friction.model' must be \"coulomb-viscous\" or \"stribeck\"")
+    vals = _object(where, "friction.values", fr.get("values"))
+    _numbers(where, "friction.values", list(vals.values()))
+    for k in vals:
+        if not k.startswith(("A", "M")):
+            _fail(where, f"'friction.values' key {k!r} is not 'A<axis>.<parameter>'")
+    if fr["model"] == "stribeck":
+        vs = fr.get("vs")
+        if isinstance(vs, bool) or not isinstance(vs, (int, float)) or not vs > 0:
+            _fail(where, f"'friction.vs' must be a number > 0 for Stribeck friction, got {json.dumps(vs)}")
+    st = _object(where, "settings", d["settings"])
+    for key, lo in (("cutoff", 0.0), ("vs", 0.0), ("prior_weight", None), ("reversal_window", None),
+                    ("v_smooth", None)):
+        v = st.get(key)
+        if v is None and key in ("cutoff", "vs"):
+            continue
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                              or (v <= lo if lo is not None else v < 0)):
+            _fail(where, f"'settings.{key}' must be a finite number {'>' if lo is not None else '>='} 0, "
+                         f"got {json.dumps(v)[:40]}")
+    if "order" in st and (isinstance(st["order"], bool) or not isinstance(st["order"], int)
+                          or not 1 <= st["order"] <= 8):
+        _fail(where, f"'settings.order' must be an integer 1 to 8, got {json.dumps(st['order'])[:40]}")
+    for key in ("offset", "consistent", "rotor", "spring"):
+        if key in st and not isinstance(st[key], bool):
+            _fail(where, f"'settings.{key}' must be true or false")
+    drive = d.get("drive")
+    if drive is not None:
+        _object(where, "drive", drive)
+        _numbers(where, "drive.ratio", drive.get("ratio"), n)
+        if not isinstance(drive.get("coupling"), list) or len(drive["coupling"]) != n:
+            _fail(where, f"'drive.coupling' must be an {n}x{n} matrix")
+        for i, row in enumerate(drive["coupling"]):
+            _numbers(where, f"drive.coupling[{i}]", row, n)
+        if any(r == 0 for r in drive["ratio"]):
+            _fail(where, "'drive.ratio' must not contain 0")
+    for sec in ("metrics", "provenance"):
+        if sec in d and d[sec] is not None:
+            _object(where, sec, d[sec])
+    return d
+
+
+def is_robot_params(d: Any) -> bool:
+    return isinstance(d, dict) and d.get("schema") == SCHEMA
+
+
+def load_robot_params(path: str | Path) -> dict:
+    """Read and validate a robot parameter file."""
+    return validate_robot_params(read_json(path, ParamFileError), str(path))
+
+
+def save_robot_params(path: str | Path, d: dict) -> None:
+    """Validate and write a robot parameter file atomically."""
+    d = jsonable({"schema": SCHEMA, **{k: v for k, v in d.items() if k != "schema"}})
+    validate_robot_params(d, str(path))
+    write_text_atomic(path, json.dumps(d, indent=1) + "\n")

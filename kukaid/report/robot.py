@@ -1,0 +1,109 @@
+"""The report of a whole-robot fit (``kukaid.robot_params/1``): base parameters with σ, friction,
+condition number and the physical-consistency check per link; with logs, the predicted against
+the measured torque of every axis.
+
+Pages: 1. base parameters (estimate, least squares, σ, σ times the residual correlation factor)
+and metrics; 2. friction, offset and spring per joint, consistency per link; 3.. one page per log
+given: measured and predicted torque of each axis over time, with the relative error.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Sequence
+
+from kukaid.report.data import A4
+from kukaid.report.layout import _add_table, write_report
+
+
+def _figure(title: str, source: str):
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=A4)
+    fig.suptitle(title, fontsize=13, weight="bold", y=0.985)
+    fig.text(0.5, 0.008, f"kukaid robot report · {Path(source).name}", ha="center", fontsize=7, color="0.4")
+    return fig
+
+
+def _g(v: Any, digits: int = 4) -> str:
+    return "-" if v is None else f"{v:.{digits}g}"
+
+
+def page_base_parameters(params: dict, source: str):
+    """Base-parameter table and the fit's metrics."""
+    bp, mt = params["base_parameters"], params.get("metrics") or {}
+    cf = mt.get("residual_correlation_factor") or 1.0
+    fig = _figure(f"Robot fit: base parameters ({params['robot'].get('name', '')})", source)
+    cons = "yes" if mt.get("physically_consistent") else "no"
+    fig.text(0.05, 0.955, f"URDF {params['robot']['urdf']}; {len(bp['values'])} base parameters; condition number "
+             f"{_g(mt.get('condition_number'))}; physically consistent: {cons}; at a bound: "
+             f"{', '.join(mt.get('at_bound') or []) or 'none'}; {mt.get('samples', '?')} samples fitted",
+             fontsize=7, wrap=True)
+    cells = []
+    sig = bp.get("sigma") or [None] * len(bp["values"])
+    for name, v, ls, s in zip(bp["names"], bp["values"], bp.get("least_squares", bp["values"]), sig):
+        short = name if len(name) <= 70 else name[:67] + "..."
+        cells.append([short, _g(v), _g(ls), _g(s, 3), _g(None if s is None else s * cf, 3),
+                      "-" if s is None or not ls else f"{100 * s / abs(ls):.2g} %"])
+    ax = fig.add_axes([0.03, 0.06, 0.94, 0.87])
+    _add_table(ax, cells, ["base parameter (kg, kg·m, kg·m²)", "estimate", "least sq.", "σ", f"σ × {cf:.2f}",
+                           "rel. σ"], fontsize=5.5, col_widths=[0.55, 0.09, 0.09, 0.08, 0.09, 0.08])
+    return fig
+
+
+def page_friction_consistency(params: dict, source: str):
+    """Friction/offset/spring per joint and the consistency check per link."""
+    fr, mt = params["friction"], params.get("metrics") or {}
+    fig = _figure("Robot fit: friction per joint, physical consistency per link", source)
+    joints: dict[str, dict[str, str]] = {}
+    for k, v in fr["values"].items():
+        j, p = k.split(".", 1)
+        s = (fr.get("sigma") or {}).get(k)
+        joints.setdefault(j, {})[p] = f"{v:.4g} ± {s:.2g}" if s is not None else f"{v:.4g}"
+    names = sorted({p for d in joints.values() for p in d})
+    ax = fig.add_axes([0.05, 0.55, 0.9, 0.38])
+    _add_table(ax, [[j] + [d.get(p, "-") for p in names] for j, d in joints.items()], ["joint"] + names,
+               fontsize=7)
+    ax.set_title(f"friction model {fr['model']} (N·m, N·m·s/rad, N·m/rad; ± least-squares σ)", fontsize=8)
+    chk = mt.get("consistency") or []
+    links = params["robot"].get("links") or [f"link {i + 1}" for i in range(len(chk))]
+    ax2 = fig.add_axes([0.05, 0.1, 0.9, 0.38])
+    _add_table(ax2, [[ln, _g(c["mass"]), _g(c["triangle_margin"], 3), _g(c["pseudo_inertia_min_eig"], 3),
+                      "yes" if c["ok"] else "NO"] for ln, c in zip(links, chk)],
+               ["link", "mass (kg)", "triangle margin (kg·m²)", "min eig. pseudo-inertia", "consistent"], fontsize=7)
+    ax2.set_title("physical consistency of the estimate (mass > 0, triangle inequalities at the centre of mass)",
+                  fontsize=8)
+    return fig
+
+
+def page_prediction(params: dict, log: Any, source: str, robot: Any):
+    """Measured and predicted torque of every axis on one log."""
+    from kukaid.identify.robot_fit import robot_predictor
+
+    pairs = robot_predictor(params, log, robot=robot)
+    fig = _figure(f"Torque prediction: {Path(str(log.attrs.get('source_file', 'log'))).name}", source)
+    n = len(pairs)
+    for i, (a, (t, th)) in enumerate(pairs.items()):
+        ax = fig.add_subplot(n, 1, i + 1)
+        x = range(t.size)
+        ax.plot(x, t, lw=0.6, label="measured")
+        ax.plot(x, th, lw=0.6, label="predicted")
+        rel = float(((t - th) ** 2).sum() ** 0.5 / max((t ** 2).sum() ** 0.5, 1e-12))
+        ax.set_ylabel(f"A{a} (N·m)", fontsize=7)
+        ax.tick_params(labelsize=6)
+        ax.text(0.99, 0.9, f"rel. error {100 * rel:.1f} %", transform=ax.transAxes, ha="right", fontsize=7)
+        if i == 0:
+            ax.legend(fontsize=6, loc="upper left")
+    fig.axes[-1].set_xlabel("sample", fontsize=7)
+    fig.subplots_adjust(left=0.1, right=0.97, top=0.95, bottom=0.05, hspace=0.35)
+    return fig
+
+
+def make_robot_report(params: dict, output: str | Path, logs: Sequence[Any] = (), source: str = "") -> int:
+    """Draw every page (before any file is created) and write the PDF atomically; returns pages."""
+    from kukaid.models.robot import RobotModel
+
+    figs = [page_base_parameters(params, source), page_friction_consistency(params, source)]
+    if logs:
+        robot = RobotModel(params["robot"]["urdf"])
+        figs += [page_prediction(params, log, source, robot) for log in logs]
+    return write_report(output, figs, title="kukaid robot identification report")

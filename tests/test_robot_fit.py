@@ -1,0 +1,207 @@
+"""Whole-robot identification from a URDF: model, base parameters, consistent fit, file, CLI."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kukaid.errors import FitError, ParamFileError
+from kukaid.identify.robot_fit import RobotFitSettings, fit_robot, validate_robot
+from kukaid.models.robot import DriveModel, RobotModel, consistency, resolve_robot
+from kukaid.params import load_robot_params, save_robot_params, validate_robot_params
+
+from robot_sim_helpers import simulated_log
+
+LWR4 = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "lwr4"
+
+
+@pytest.fixture(scope="module")
+def kr6() -> RobotModel:
+    return RobotModel("kr6-r700-sixx")
+
+
+@pytest.fixture(scope="module")
+def sim_fit(kr6):
+    log, truth = simulated_log(kr6, duration=60.0, fs=250.0, seed=0)
+    return fit_robot([log], kr6), truth
+
+
+def test_bundled_robot_resolves_and_has_data_sheet_reach(kr6):
+    import pinocchio as pin
+
+    assert resolve_robot("kr6-r700-sixx").name == "kr6_r700_sixx.urdf"
+    assert kr6.n == 6 and kr6.joint_names == ("A1", "A2", "A3", "A4", "A5", "A6")
+    data = kr6.model.createData()
+    pin.forwardKinematics(kr6.model, data, np.zeros(6))
+    wrist = data.oMi[5].translation                      # A5 axis: the wrist centre
+    assert np.hypot(wrist[0], wrist[2] - 0.4) == pytest.approx(0.7067, abs=1e-3)
+    assert all(c["ok"] for c in consistency(kr6.pi_nominal))
+
+
+def test_unknown_robot_is_a_clear_error():
+    with pytest.raises(ParamFileError, match="no such robot"):
+        RobotModel("kr-nonexistent")
+
+
+def test_regressor_matches_rnea_and_base_parameters_reproduce_torques(kr6):
+    rng = np.random.default_rng(5)
+    q, qd, qdd = (rng.standard_normal((50, 6)) for _ in range(3))
+    Y = kr6.regressor(q, qd, qdd)
+    assert np.allclose(Y @ kr6.pi_nominal, kr6.rnea(q, qd, qdd), atol=1e-9)
+    base = kr6.base_parameters()
+    assert base.size < kr6.n_std
+    pi = kr6.pi_nominal * rng.uniform(0.5, 1.5, kr6.n_std)
+    assert np.allclose(Y[:, :, base.independent] @ base.of(pi), Y @ pi, atol=1e-8)
+    assert np.allclose(base.K(kr6.n_std) @ pi, base.of(pi))
+
+
+def test_drive_model_round_trip_and_rotor_torque():
+    n = 3
+    cpl = np.zeros((n, n))
+    cpl[2, 1] = 0.3                                       # motor 3 turns with joint 2 (a coupled wrist)
+    d = DriveModel(np.array([100.0, 80.0, 50.0]), cpl, np.array([1e-4, 2e-4, 3e-4]))
+    rng = np.random.default_rng(0)
+    tj = rng.standard_normal((10, n))
+    assert np.allclose(d.joint_torque(d.motor_torque(tj)), tj)
+    qdd = rng.standard_normal((10, n))
+    rot = d.rotor_regressor(qdd) @ d.rotor_inertia
+    assert np.allclose(rot, (qdd @ d.G.T * d.rotor_inertia) @ d.G)
+
+
+def test_simulated_kr6_base_parameters_friction_and_consistency(kr6, sim_fit):
+    params, truth = sim_fit
+    base = kr6.base_parameters()
+    true_beta = base.of(truth["pi"])
+    bp = params["base_parameters"]
+    est, ls, sd = (np.asarray(bp[k]) for k in ("values", "least_squares", "sigma"))
+    well = sd < 0.005 * np.abs(true_beta)                 # well excited: 2 % is at least 4 sigma
+    assert well.sum() >= 10
+    rel = np.abs(est - true_beta) / np.abs(true_beta)
+    assert rel[well].max() < 0.02, dict(zip(np.array(bp["names"])[well], rel[well]))
+    assert np.abs((ls - true_beta) / sd)[well].max() < 6.0      # in units of sigma
+    fr = params["friction"]["values"]
+    for j in range(6):
+        for k in ("Fc", "Fv"):
+            assert fr[f"A{j + 1}.{k}"] == pytest.approx(truth[k][j], rel=0.05), (j + 1, k)
+    assert params["metrics"]["physically_consistent"]
+    std = params["standard_parameters"]
+    pi = np.concatenate([[std[link][k] for k in ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")]
+                         for link in kr6.link_names])
+    assert all(c["ok"] for c in consistency(pi))
+
+
+def test_fit_generalises_to_another_simulated_trajectory(kr6, sim_fit):
+    """The same simulated robot on another trajectory (other frequencies and phases)."""
+    from robot_sim_helpers import multisine, true_friction, true_parameters
+
+    params, _ = sim_fit
+    t, q, qd, qdd = multisine(kr6, 20.0, 250.0, seed=99, f0=0.15)
+    pi, fr = true_parameters(kr6, 1), true_friction(6, 2)
+    tau = np.einsum("sjk,k->sj", kr6.regressor(q, qd, qdd), pi) + fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
+    from kukaid.logs import AxisLog
+    log = AxisLog(time=t, q=q, tau=tau, axes=tuple(range(1, 7)))
+    res = validate_robot(params, [log], kr6)
+    assert res["mean_relative_error"] < 0.05, res
+
+
+def test_robot_params_file_round_trip_and_errors(tmp_path, sim_fit):
+    params, _ = sim_fit
+    path = tmp_path / "p.json"
+    save_robot_params(path, params)
+    back = load_robot_params(path)
+    assert back["schema"] == "kukaid.robot_params/1"
+    assert back["base_parameters"]["values"] == pytest.approx(params["base_parameters"]["values"])
+    other = dict(back, robot={**back["robot"], "sha256": "0" * 64})
+    with pytest.raises(ParamFileError, match="not the one the parameters were fitted with"):
+        validate_robot(other, [simulated_log(RobotModel("kr6-r700-sixx"), duration=5.0)[0]])
+    bad = json.loads(path.read_text())
+    bad["axes"] = [1, 3]
+    with pytest.raises(ParamFileError, match="'axes' must be"):
+        validate_robot_params(bad, "p.json")
+    bad = json.loads(path.read_text())
+    bad["base_parameters"]["values"][0] = "x"
+    with pytest.raises(ParamFileError, match=r"base_parameters.values\[0\]"):
+        validate_robot_params(bad, "p.json")
+    bad = json.loads(path.read_text())
+    next(iter(bad["standard_parameters"].values()))["m"] = -1.0
+    with pytest.raises(ParamFileError, match="must be > 0"):
+        validate_robot_params(bad, "p.json")
+
+
+def test_log_without_all_axes_is_refused(kr6):
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    part = type(log)(time=log.time, q=log.q[:, :3], tau=log.tau[:, :3], axes=(1, 2, 3))
+    with pytest.raises(FitError, match="lacks A4, A5, A6"):
+        fit_robot([part], kr6)
+
+
+def test_settings_are_checked():
+    with pytest.raises(FitError, match="friction model"):
+        RobotFitSettings(friction="dahl")
+    with pytest.raises(FitError, match="prior weight"):
+        RobotFitSettings(prior_weight=-1.0)
+
+
+def test_cli_fit_robot_validate_and_report(tmp_path, kr6):
+    from click.testing import CliRunner
+
+    from kukaid.logs import write_csv
+    from kukaid_cli.main import cli
+
+    log, _ = simulated_log(kr6, duration=20.0, fs=250.0, seed=3)
+    csv = tmp_path / "sim.csv"
+    write_csv(log, csv, angle_unit="rad")
+    out = tmp_path / "p.json"
+    run = CliRunner().invoke
+    r = run(cli, ["fit", str(csv), "--robot", "kr6-r700-sixx", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "condition number" in r.stdout and "physically consistent: yes" in r.stdout
+    r = run(cli, ["validate", "--params", str(out), str(csv), "--json"])
+    assert r.exit_code == 0, r.output
+    res = json.loads(r.stdout)
+    assert set(res["axes"]) == {f"A{i}" for i in range(1, 7)} and res["mean_relative_error"] < 0.05
+    pdf = tmp_path / "r.pdf"
+    r = run(cli, ["report", "--params", str(out), "--log", str(csv), "-o", str(pdf)])
+    assert r.exit_code == 0 and "3 pages" in r.stderr, r.output
+    assert pdf.read_bytes().startswith(b"%PDF")
+    r = run(cli, ["fit", str(csv), "--robot", str(tmp_path / "none.urdf"), "-o", str(tmp_path / "q.json")])
+    assert r.exit_code == 1 and r.stderr.startswith("kukaid: error:") and "no such robot" in r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "q.json").exists()
+    r = run(cli, ["fit", str(csv), "--prior-weight", "0.1", "-o", str(tmp_path / "q.json")])
+    assert r.exit_code == 2 and "need --robot" in r.stderr
+
+
+@pytest.mark.skipif(not LWR4.is_dir(), reason="real LWR4+ data (../shared/datasets/lwr4) not present")
+def test_lwr4_fit_generalises_to_the_other_trajectory():
+    """Fit on lwr4_1, predict lwr4_3 (a different trajectory): the issue's acceptance figures."""
+    from kukaid.logs import read_log
+
+    robot = RobotModel(LWR4 / "kuka_lwr4.urdf")
+    params = fit_robot([read_log(LWR4 / "lwr4_1.csv")], robot)
+    assert params["metrics"]["physically_consistent"]
+    res = validate_robot(params, [read_log(LWR4 / "lwr4_3.csv")], robot)
+    rel = [res["axes"][f"A{i}"]["relative_error"] for i in range(1, 8)]
+    assert np.mean(rel) <= 0.40, rel
+    naive = [0.75, 0.066, 0.51, 0.127, 1.05, 1.14, 1.96]    # the data README's naive least squares
+    # A1 stays about at the naive figure (0.759 against 0.75: README); the others are better
+    assert all(r <= n for r, n in zip(rel[1:], naive[1:])), rel
+    assert rel[0] <= 0.80, rel
+
+
+def test_motor_side_torques_with_coupled_wrist_and_rotors(kr6):
+    """Torques logged on the motor side (gear ratios from the URDF, A4 -> A5/A6 coupling, rotor
+    inertia): the fit converts them to the joint side and predicts them back."""
+    log, truth = simulated_log(kr6, duration=30.0, fs=250.0, seed=4)
+    cpl = np.zeros((6, 6))
+    cpl[4, 3], cpl[5, 3], cpl[5, 4] = -0.2, 0.1, 0.15
+    drive = DriveModel(kr6.ratio, cpl, np.full(6, 5e-5))
+    from robot_sim_helpers import multisine
+    _, q, qd, qdd = multisine(kr6, 30.0, 250.0, seed=4 + 3)
+    tau_joint = log.tau + drive.rotor_regressor(qdd) @ drive.rotor_inertia
+    motor = type(log)(time=log.time, q=log.q, tau=drive.motor_torque(tau_joint), axes=log.axes)
+    params = fit_robot([motor], kr6, RobotFitSettings(torque_side="motor", rotor=True), coupling=cpl)
+    assert params["drive"]["coupling"][5][4] == pytest.approx(0.15)
+    res = validate_robot(params, [motor], kr6)
+    assert res["mean_relative_error"] < 0.05, res
