@@ -55,7 +55,9 @@ def main() -> None:
         adm.step(g, D)
         dc[i] = (time.thread_time_ns() - c0) / 1000.0
         dt[i] = (time.perf_counter_ns() - t0) / 1000.0
-    res = {"steps": n}
+    import os
+
+    res = {"steps": n, "load_average": list(os.getloadavg())}
     for name, x in (("wall", dt), ("cpu", dc)):
         res[name] = {"p50_us": float(np.percentile(x, 50)), "p99_us": float(np.percentile(x, 99)),
                      "max_us": float(x.max())}
@@ -63,7 +65,7 @@ def main() -> None:
         print(json.dumps(res))
     else:
         print(f"control step (estimator + oscillation monitor + RBF damping + admittance), {n} steps "
-              f"(budget p99 < 100 us):")
+              f"(budget p99 < 100 us; load average {res['load_average'][0]:.1f} on {os.cpu_count()} cores):")
         for name in ("cpu", "wall"):
             r = res[name]
             print(f"  {name:4s}: p50 {r['p50_us']:.1f} us, p99 {r['p99_us']:.1f} us, max {r['max_us']:.0f} us")
