@@ -49,7 +49,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
     """
     import signal
 
-    from kukaid.capture import KvpCapture, SimCapture, capture, check_limits, parse_effect, sim_config as make_config
+    from kukaid.capture import KvpCapture, SimCapture, capture, check_limits
     from kukaid.errors import KukaidError
     from kukaid_cli._util import check_outputs
 
@@ -62,17 +62,21 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
                                 ("--mode", mode != "poll")) if v]
         if given:
             raise click.UsageError(f"option {given[0]} is for --backend kvp")
-        from kukaid.excite import Trajectory
+        from kukaid.excite.fourier import load_trajectory
 
-        traj = Trajectory.from_json(trajectory)
+        traj = load_trajectory(trajectory)
         check_limits(traj, where=str(trajectory))
-        parsed = [parse_effect(e) for e in effects]
-        names = [e[0] for e in parsed]
-        if len(set(names)) != len(names):
-            raise click.UsageError(f"--effect {next(n for n in names if names.count(n) > 1)} is given twice")
-        cfg, extra = make_config(sim_config, noise=noise, effects=parsed, seed=seed)
-        extra["trajectory_file"] = str(trajectory)
-        be = SimCapture(traj, config=cfg, seed=seed, chunk=chunk, settle=settle, extra_attrs=extra)
+        if hasattr(traj, "axes"):  # all axes of a robot (kukaid excite fourier): the six-axis virtual KR C4
+            from kukaid.capture import robot_sim_config
+
+            if noise is not None or effects:
+                raise click.UsageError("options --noise and --effect are for one-axis trajectories; set the robot "
+                                       "simulator's noise_rel in --sim-config")
+            cfg = robot_sim_config(sim_config, traj.robot)
+            be = SimCapture(traj, config=cfg, seed=seed, chunk=chunk, settle=settle,
+                            extra_attrs={"trajectory_file": str(trajectory)})
+        else:
+            be = _one_axis_backend(traj, trajectory, sim_config, noise, effects, seed, chunk, settle)
     else:
         given = [n for n, v in (("--sim-config", sim_config), ("--noise", noise is not None), ("--effect", effects))
                  if v]
@@ -80,9 +84,9 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
             raise click.UsageError(f"option {given[0]} is for --backend sim")
         attrs = {}
         if trajectory is not None:
-            from kukaid.excite import Trajectory
+            from kukaid.excite.fourier import load_trajectory
 
-            traj = Trajectory.from_json(trajectory)
+            traj = load_trajectory(trajectory)
             attrs = {"experiment": traj.kind, "trajectory": traj.params, "trajectory_file": str(trajectory)}
         be = KvpCapture(host=host, port=port, axes=axes or (3,), duration=duration, until_interrupt=until_interrupt,
                         mode=mode, attrs=attrs)
@@ -130,3 +134,17 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
         raise SystemExit(130)
     click.echo(f"{result.output}: {result.n_samples} samples, {result.duration:.2f} s "
                f"({be.name}{', seed ' + str(seed) if backend == 'sim' else ''})", err=True)
+
+
+def _one_axis_backend(traj, trajectory: Path, sim_config: Path | None, noise: float | None, effects: tuple[str, ...],
+                      seed: int, chunk: float, settle: float):
+    """The one-axis virtual KR C4 with the requested noise and hidden effects."""
+    from kukaid.capture import SimCapture, parse_effect, sim_config as make_config
+
+    parsed = [parse_effect(e) for e in effects]
+    names = [e[0] for e in parsed]
+    if len(set(names)) != len(names):
+        raise click.UsageError(f"--effect {next(n for n in names if names.count(n) > 1)} is given twice")
+    cfg, extra = make_config(sim_config, noise=noise, effects=parsed, seed=seed)
+    extra["trajectory_file"] = str(trajectory)
+    return SimCapture(traj, config=cfg, seed=seed, chunk=chunk, settle=settle, extra_attrs=extra)

@@ -6,7 +6,8 @@ from typing import Any
 
 import click
 
-KINDS = ("friction", "inertia", "presliding", "validation")
+KINDS = ("friction", "inertia", "presliding", "validation", "fourier")
+_ONE_AXIS = KINDS[:4]
 
 
 def _floats(text: str) -> list[float]:
@@ -26,8 +27,8 @@ def _seconds(v: float) -> float:
 # option -> (generator parameter, conversion, kinds it applies to); None kinds = all
 _DEG = 3.141592653589793 / 180.0
 _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
-    "centre_deg": ("centre", lambda v: v * _DEG, None),
-    "lead": ("lead", _seconds, None),
+    "centre_deg": ("centre", lambda v: v * _DEG, _ONE_AXIS),
+    "lead": ("lead", _seconds, _ONE_AXIS),
     "speeds": ("speeds", _floats, ("friction",)),
     "v_min": ("v_min", float, ("friction",)),
     "v_max": ("v_max", float, ("friction",)),
@@ -38,7 +39,7 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
     "acc": ("acc", float, ("friction", "validation")),
     "cycles": ("cycles", int, ("friction",)),
     "reposition_speed": ("reposition_speed", float, ("friction",)),
-    "period": ("period", _seconds, ("inertia",)),
+    "period": ("period", _seconds, ("inertia", "fourier")),
     "n_periods": ("n_periods", int, ("inertia",)),
     "amplitude_deg": ("amplitude", lambda v: v * _DEG, ("inertia", "validation")),
     "ramp_periods": ("ramp_periods", float, ("inertia",)),
@@ -57,6 +58,14 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
     "ramp": ("ramp", _seconds, ("validation",)),
     "moves_deg": ("moves", lambda v: [x * _DEG for x in _floats(v)], ("validation",)),
     "move_speeds": ("move_speeds", _floats, ("validation",)),
+    "robot": ("robot", str, ("fourier",)),
+    "harmonics": ("harmonics", int, ("fourier",)),
+    "repeat": ("periods", int, ("fourier",)),
+    "margin": ("margin", float, ("fourier",)),
+    "span": ("span", float, ("fourier",)),
+    "iterations": ("iterations", int, ("fourier",)),
+    "seed": ("seed", int, ("fourier",)),
+    "centres_deg": ("centre", lambda v: [x * _DEG for x in _floats(v)], ("fourier",)),
 }
 
 
@@ -67,8 +76,8 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
 @click.option("--krl", "krl_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Also write a KRL program (<name>.src + <name>.dat) into this folder.")
 @click.option("--krl-name", help="KRL module name (default kukaid_<kind>).")
-@click.option("--krl-tol", type=float, default=0.005, show_default=True,
-              help="Largest deviation of the KRL via-point path from the trajectory, degrees.")
+@click.option("--krl-tol", type=float,
+              help="Largest deviation of the KRL via-point path from the trajectory, degrees [0.005; fourier 0.05].")
 @click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="Axis (KUKA numbering).")
 # limits
 @click.option("--limits", "limits_file", type=click.Path(dir_okay=False, path_type=Path),
@@ -114,14 +123,25 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
 @click.option("--ramp", type=float, help="validation: multi-sine ramp in/out, s [3].")
 @click.option("--moves-deg", help="validation: move targets relative to the centre, deg, comma-separated.")
 @click.option("--move-speeds", help="validation: cruise speed of each move, rad/s, comma-separated.")
+# fourier
+@click.option("--robot", help="fourier: bundled robot (kr6-r700-sixx) or URDF file [kr6-r700-sixx].")
+@click.option("--harmonics", type=int, help="fourier: harmonics per joint [5].")
+@click.option("--repeat", type=int, help="fourier: number of periods [3] (--period: the period, s [10]).")
+@click.option("--margin", type=float, help="fourier: fraction of the velocity/acceleration limits used [0.9].")
+@click.option("--span", type=float, help="fourier: fraction of each joint's range used around its centre [0.6].")
+@click.option("--iterations", type=int, help="fourier: optimiser iterations (L-BFGS-B) [10].")
+@click.option("--seed", type=int, help="fourier: seed of the optimiser's random starts [0].")
+@click.option("--centres-deg", help="fourier: centre of each joint's motion, deg, comma-separated [middle of the ranges].")
 def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: float, axis: int,
             limits_file: Path | None, q_min_deg: float | None, q_max_deg: float | None,
             qd_max_deg: float | None, qdd_max_deg: float | None, **opts: Any) -> None:
-    """Write the trajectory of experiment KIND (friction, inertia, presliding, validation).
+    """Write the trajectory of experiment KIND (friction, inertia, presliding, validation, fourier).
 
     The trajectory is the commanded position of the axis at the KR C4's 12 ms IPO rate.  It is
     refused, with nothing written, if it breaks the axis's position, velocity or acceleration
-    limit (A3 of a KR 6 R700 sixx unless overridden).  Defaults in [brackets].
+    limit (A3 of a KR 6 R700 sixx unless overridden).  `fourier` moves every axis of --robot
+    together (limits from the URDF; --limits JSON {"A1": {...}, ...} overrides them, --qdd-max-deg
+    sets every axis's acceleration limit).  Defaults in [brackets].
     """
     from kukaid.excite import AxisLimits, generate
     from kukaid.atomic import write_texts_atomic
@@ -129,6 +149,11 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
 
     check_suffix(output, ".json")
     check_outputs([output], [limits_file])
+    kwargs = _generator_options(kind, opts)
+    if kind == "fourier":
+        _fourier(output, krl_dir, krl_name, krl_tol, limits_file, q_min_deg, q_max_deg, qd_max_deg, qdd_max_deg,
+                 kwargs)
+        return
     limits = AxisLimits.kr6_r700_sixx(axis)
     if limits_file is not None:
         limits = AxisLimits.load(limits_file, base=limits)
@@ -136,6 +161,22 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
                               ("qdd_max_deg", qdd_max_deg)) if v is not None}
     if over:
         limits = AxisLimits.from_dict(over, base=limits, where="limit options")
+    traj = generate(kind, axis=axis, limits=limits, **kwargs)
+    files = {output: traj.json_text()}
+    msg = f"{output}: {kind} trajectory of A{axis}, {traj.n_samples} samples, {traj.duration:.2f} s"
+    if krl_dir is not None:
+        from kukaid.krc.krl import krl_program
+
+        src, dat, summary = krl_program(traj, name=krl_name, limits=limits, tol_deg=krl_tol or 0.005)
+        files.update({krl_dir / f"{summary['name']}.src": src, krl_dir / f"{summary['name']}.dat": dat})
+        msg += f"; KRL {krl_dir / summary['name']}.src/.dat, {summary['points']} via points"
+    check_outputs(files, [limits_file])
+    write_texts_atomic(files)  # all or nothing
+    click.echo(msg, err=True)
+
+
+def _generator_options(kind: str, opts: dict[str, Any]) -> dict[str, Any]:
+    """The generator's keyword arguments from the options given; an option of another kind is refused."""
     kwargs: dict[str, Any] = {}
     for name, value in opts.items():
         if value is None:
@@ -148,15 +189,48 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
             kwargs[param] = conv(value)
         except click.BadParameter as e:
             raise click.BadParameter(e.message, param_hint=flag) from None
-    traj = generate(kind, axis=axis, limits=limits, **kwargs)
-    files = {output: traj.json_text()}
-    msg = f"{output}: {kind} trajectory of A{axis}, {traj.n_samples} samples, {traj.duration:.2f} s"
-    if krl_dir is not None:
-        from kukaid.krc.krl import krl_program
+    return kwargs
 
-        src, dat, summary = krl_program(traj, name=krl_name, limits=limits, tol_deg=krl_tol)
+
+def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: float | None, limits_file: Path | None,
+             q_min_deg: float | None, q_max_deg: float | None, qd_max_deg: float | None, qdd_max_deg: float | None,
+             kwargs: dict[str, Any]) -> None:
+    """`kukaid excite fourier`: every axis of the robot, limits from its URDF."""
+    from kukaid.atomic import write_texts_atomic
+    from kukaid.errors import TrajectoryError
+    from kukaid.excite.fourier import fourier, robot_limits
+    from kukaid.jsonfile import read_json
+    from kukaid.models.limits import AxisLimits
+    from kukaid.models.urdf import load_model
+    from kukaid_cli._util import check_outputs
+
+    ctx = click.get_current_context()
+    if ctx.get_parameter_source("axis") != click.core.ParameterSource.DEFAULT:
+        raise click.UsageError("option --axis does not apply to 'fourier' (it moves every axis of --robot)")
+    for flag, v in (("--q-min-deg", q_min_deg), ("--q-max-deg", q_max_deg), ("--qd-max-deg", qd_max_deg)):
+        if v is not None:
+            raise click.UsageError(f"option {flag} does not apply to 'fourier' (give per-axis limits with --limits)")
+    robot = kwargs.pop("robot", "kr6-r700-sixx")
+    model = load_model(robot)
+    limits = robot_limits(model, None if qdd_max_deg is None else qdd_max_deg * _DEG, robot=robot)
+    if limits_file is not None:
+        over = read_json(limits_file, TrajectoryError)
+        known = {lim.name for lim in limits}
+        if not isinstance(over, dict) or any(k not in known for k in over):
+            raise TrajectoryError(f"{limits_file}: expected an object {{axis name: limits}} with axis names among "
+                                  f"{', '.join(sorted(known))}")
+        limits = [AxisLimits.from_dict(over[lim.name], base=lim, where=f"{limits_file}: {lim.name}")
+                  if lim.name in over else lim for lim in limits]
+    traj = fourier(robot=robot, limits=limits, model=model, **kwargs)
+    files = {output: traj.json_text()}
+    msg = (f"{output}: fourier trajectory of {len(traj.axes)} axes, {traj.n_samples} samples, {traj.duration:.2f} s, "
+           f"regressor condition number {traj.params['cond']:.4g}")
+    if krl_dir is not None:
+        from kukaid.krc.krl import krl_program_robot
+
+        src, dat, summary = krl_program_robot(traj, name=krl_name, tol_deg=krl_tol or 0.05)
         files.update({krl_dir / f"{summary['name']}.src": src, krl_dir / f"{summary['name']}.dat": dat})
         msg += f"; KRL {krl_dir / summary['name']}.src/.dat, {summary['points']} via points"
     check_outputs(files, [limits_file])
-    write_texts_atomic(files)  # all or nothing
+    write_texts_atomic(files)
     click.echo(msg, err=True)

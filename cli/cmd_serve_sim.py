@@ -15,6 +15,8 @@ import click
 @click.option("--trajectory", "traj_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Trajectory JSON the virtual robot runs from the start (like its KRL program); "
                    "without it the axis holds still and follows writes of the global KID_TGT (deg).")
+@click.option("--robot", help="Simulate every axis of this robot (bundled name, e.g. kr6-r700-sixx, or URDF), standing "
+                             "still; a --trajectory of several axes (`kukaid excite fourier`) brings its own robot.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True)
 @click.option("--sim-config", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="JSON overrides of the simulator's truth and settings.")
@@ -41,25 +43,26 @@ import click
               help="--operator human: the person's grip [drawn from --seed].")
 @click.option("--operator-start", type=click.FloatRange(0.0, 86400.0), default=3.0, show_default=True,
               help="--operator: seconds after the start when the hand begins.")
-def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, sim_config: Path | None,
+def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str | None, seed: int, sim_config: Path | None,
             noise: float | None, duration: float | None, speed: float, ring_axes: tuple[int, ...],
             truth_path: Path | None, force: bool, delay: float, q0: float | None, follower_window: tuple[float, float] | None,
             stale_ms: int, operator: str | None, operator_start: float, grip: str | None) -> None:
     """Serve the virtual KR C4's live variables over KUKAVARPROXY until interrupted.
+
+    With --robot or a trajectory of several axes every axis of the robot is simulated
+    (E6AXIS with all axes, $TORQUE_AXIS_ACT[1..6]).
 
     Variables: $AXIS_ACT_MEAS, $AXIS_ACT, $TORQUE_AXIS_ACT[i], $MOT_TEMP[i] (K), $OV_PRO,
     $ROB_TIMER, PING, global variables (KID_TGT commands the axis), and the KRL ring-buffer
     logger's KID_* globals (see `kukaid krl-logger`).
     """
     import math
-    import signal
-    import threading
 
     from kukaid.errors import KukaidError
     from kukaid.atomic import check_writable
     from kukaid.krc.krl_logger import RingLayout
     from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
-    from kukaid.krc.server import Faults, KvpServer, SimSource
+    from kukaid.krc.server import SimSource
     from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite
 
     if truth_path is not None:  # checked now, not after the session
@@ -67,16 +70,22 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, 
         check_outputs([truth_path], [traj_path, sim_config])
         refuse_overwrite(truth_path, force)
         check_writable(truth_path)
-    cfg = load_sim_config(sim_config) if sim_config else SimConfig()
-    if noise is not None:
-        cfg = cfg.replace(noise_sigma=noise)
     traj = None
     if traj_path is not None:
         from kukaid.capture import check_limits
-        from kukaid.excite import Trajectory
+        from kukaid.excite.fourier import load_trajectory
 
-        traj = Trajectory.from_json(traj_path)
+        traj = load_trajectory(traj_path)
         check_limits(traj, where=str(traj_path))
+    if robot is not None or hasattr(traj, "axes"):
+        _serve_robot(host, port, traj, robot, seed, sim_config, duration, speed, ring_axes, truth_path, delay,
+                     dict(axis=axis if click.get_current_context().get_parameter_source("axis").name != "DEFAULT" else None,
+                          noise=noise, q0=q0, follower=follower_window, operator=operator))
+        return
+    cfg = load_sim_config(sim_config) if sim_config else SimConfig()
+    if noise is not None:
+        cfg = cfg.replace(noise_sigma=noise)
+    if traj is not None:
         axis = int(getattr(traj, "axis", axis) or axis)
     sim = VirtualKRC4(cfg, seed=seed, axis=axis)
     if q0 is not None:
@@ -97,11 +106,47 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, 
                                   stale_ms=stale_ms)
     ring = RingLayout(axes=tuple(ring_axes) or (axis,))
     source = SimSource(sim, axis=axis, trajectory=traj, speed=speed, ring=ring, follower=follower).start()
+    _run(source, sim, traj, host, port, duration, delay, truth_path, f"A{axis}")
+
+
+def _serve_robot(host: str, port: int, traj, robot: str | None, seed: int, sim_config: Path | None,
+                 duration: float | None, speed: float, ring_axes: tuple[int, ...], truth_path: Path | None,
+                 delay: float, one_axis: dict) -> None:
+    """serve-sim with every axis of a robot: the six-axis virtual KR C4."""
+    from kukaid.capture import robot_sim_config
+    from kukaid.krc.krl_logger import RingLayout
+    from kukaid.krc.server import SimSource
+    from kukaid.sim.robot_plant import VirtualRobotKRC4
+
+    given = [k for k, v in one_axis.items() if v is not None and v != ()]
+    if given:
+        raise click.UsageError(f"option --{given[0].replace('_', '-')} is for a one-axis simulator (not with --robot "
+                               f"or a trajectory of several axes)")
+    if traj is not None and not hasattr(traj, "axes"):
+        raise click.UsageError("--robot needs a trajectory of all its axes (`kukaid excite fourier`), or none")
+    name = robot or traj.robot
+    if traj is not None and robot is not None and traj.robot and robot != traj.robot:
+        raise click.UsageError(f"--robot {robot} differs from the trajectory's robot {traj.robot}")
+    sim = VirtualRobotKRC4(robot_sim_config(sim_config, name), seed=seed)
+    ring = RingLayout(axes=tuple(ring_axes) or tuple(a for a in sim.axes if a <= 6))
+    source = SimSource(sim, trajectory=traj, speed=speed, ring=ring).start()
+    _run(source, sim, traj, host, port, duration, delay, truth_path, f"A1..A{sim.n}")
+
+
+def _run(source, sim, traj, host: str, port: int, duration: float | None, delay: float, truth_path: Path | None,
+         label: str) -> None:
+    """Serve ``source`` until the duration ends or a signal; write the ground truth."""
+    import signal
+    import threading
+
+    from kukaid.errors import KukaidError
+    from kukaid.krc.server import Faults, KvpServer
+
     stop = threading.Event()
     old = signal.signal(signal.SIGTERM, lambda *_: stop.set())
     try:
         server = KvpServer(source, host=host, port=port, faults=Faults(delay=delay)).start()
-        click.echo(f"serve-sim: virtual KR C4 (A{axis}) listening on {host}:{server.port}", err=True)
+        click.echo(f"serve-sim: virtual KR C4 ({label}) listening on {host}:{server.port}", err=True)
         try:
             stop.wait(duration) if duration is not None else _wait_forever(stop)
         except KeyboardInterrupt:
@@ -114,7 +159,7 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, seed: int, 
     if source.error is not None:
         raise KukaidError(f"serve-sim: the simulation stopped: {source.error}")
     if truth_path is not None:
-        _write_truth(source, sim, traj, truth_path, axis)
+        _write_truth(source, sim, traj, truth_path)
         click.echo(f"serve-sim: ground truth written to {truth_path}", err=True)
 
 
@@ -123,12 +168,12 @@ def _wait_forever(stop) -> None:
         pass
 
 
-def _write_truth(source, sim, traj, path: Path, axis: int) -> None:
+def _write_truth(source, sim, traj, path: Path) -> None:
     from kukaid.logs import AxisLog, write_hdf5
 
     d = source.truth()
     attrs = dict(sim.log_attrs(traj)) if hasattr(sim, "log_attrs") else {}
     attrs.update(source="virtual-krc4 (serve-sim ground truth)", time_base="simulated time, s")
-    log = AxisLog(time=d["time"], q=d["q"], tau=d["tau"], axes=(axis,), q_cmd=d.get("q_cmd"),
+    log = AxisLog(time=d["time"], q=d["q"], tau=d["tau"], axes=source.axes, q_cmd=d.get("q_cmd"),
                   temp=d.get("temp"), tau_ext_true=d.get("tau_ext_true"), attrs=attrs)
     write_hdf5(log, path)

@@ -85,8 +85,11 @@ class SimCapture:
 
     Parameters
     ----------
-    traj : trajectory (``.t`` s, ``.q`` rad, ``.axis``, ``.kind``, ``.params``).
-    config : :class:`kukaid.sim.SimConfig` (default: the paper's A3).
+    traj : trajectory (``.t`` s, ``.q`` rad, ``.axis``, ``.kind``, ``.params``), or a trajectory of
+        several axes (``.axes``, ``.q`` (N, A), ``.robot``; from ``kukaid excite fourier``), run on
+        the six-axis virtual KR C4 (:class:`kukaid.sim.robot_plant.VirtualRobotKRC4`).
+    config : :class:`kukaid.sim.SimConfig` (default: the paper's A3), or for a trajectory of several
+        axes a :class:`kukaid.sim.robot_plant.RobotSimConfig` (default: the trajectory's robot).
     seed : seed of the simulator's random streams.
     chunk : simulated seconds per appended block (1 to 2 s keeps an interrupted log current).
     settle : simulated seconds recorded after the end of the trajectory.
@@ -98,13 +101,17 @@ class SimCapture:
     def __init__(self, traj: Any, config: Any = None, seed: int = 0, chunk: float = 1.5, settle: float = 0.5,
                  extra_attrs: dict[str, Any] | None = None) -> None:
         from kukaid.sim import SimConfig
+        from kukaid.sim.robot_plant import RobotSimConfig
 
         if not (isinstance(chunk, (int, float)) and math.isfinite(chunk) and chunk > 0):
             raise KukaidError(f"capture: chunk must be a positive number of seconds, got {chunk!r}")
         if not (isinstance(settle, (int, float)) and math.isfinite(settle) and settle >= 0):
             raise KukaidError(f"capture: settle must be >= 0 s, got {settle!r}")
         self.traj = traj
-        self.config = config if config is not None else SimConfig()
+        self.robot = hasattr(traj, "axes")
+        if config is None:
+            config = RobotSimConfig(robot=traj.robot or RobotSimConfig.robot) if self.robot else SimConfig()
+        self.config = config
         self.seed = int(seed)
         self.chunk = float(chunk)
         self.settle = float(settle)
@@ -130,10 +137,17 @@ class SimCapture:
         from kukaid.logs import AxisLogWriter
         from kukaid.robot import SimRobot
         from kukaid.sim import VirtualKRC4
+        from kukaid.sim.robot_plant import VirtualRobotKRC4
 
-        axis = int(getattr(self.traj, "axis", self.config.axis))
-        q = np.asarray(self.traj.q, dtype=float)
-        robot = SimRobot(VirtualKRC4(self.config, seed=self.seed, axis=axis), float(q[0]), program=self.traj)
+        if self.robot:
+            sim = VirtualRobotKRC4(self.config, seed=self.seed)
+            axes = sim.axes
+            robot = SimRobot(sim, sim.start_position(self.traj), program=self.traj)
+        else:
+            axis = int(getattr(self.traj, "axis", self.config.axis))
+            axes = (axis,)
+            q = np.asarray(self.traj.q, dtype=float)
+            robot = SimRobot(VirtualKRC4(self.config, seed=self.seed, axis=axis), float(q[0]), program=self.traj)
         total = self.total()
         n_chunks = max(1, int(math.ceil(total / self.chunk - 1e-9)))
         writer = None
@@ -157,7 +171,7 @@ class SimCapture:
                 done = max(end, done)
                 if writer is None:
                     channels = [c for c in ("q", "tau", "q_cmd", "temp", "tau_ext_true") if c in b]
-                    writer = AxisLogWriter(output, axes=(axis,), channels=channels, attrs=self.attrs(robot.sim),
+                    writer = AxisLogWriter(output, axes=axes, channels=channels, attrs=self.attrs(robot.sim),
                                            flush_every=10**9)
                 if b["time"].size:
                     writer.append(b["time"], **{c: b[c] for c in writer.channels})
@@ -256,6 +270,17 @@ def sim_config(path: str | Path | None = None, noise: float | None = None,
     return cfg, attrs
 
 
+def robot_sim_config(path: str | Path | None = None, robot: str = "") -> Any:
+    """The six-axis simulator's configuration: JSON overrides (``RobotSimConfig`` fields) of the
+    defaults, for ``robot`` (the trajectory's) unless the file names one."""
+    from kukaid.sim.robot_plant import RobotSimConfig
+
+    cfg = RobotSimConfig.load(path) if path is not None else RobotSimConfig()
+    if robot and (path is None or cfg.robot == RobotSimConfig.robot):
+        cfg = cfg.replace(robot=robot)
+    return cfg
+
+
 def check_limits(traj: Any, where: str = "trajectory") -> None:
     """Refuse a trajectory that breaks its axis limits (those stored in it, else the robot's).
 
@@ -264,6 +289,17 @@ def check_limits(traj: Any, where: str = "trajectory") -> None:
     """
     from kukaid.errors import LimitError
     from kukaid.models.limits import AxisLimits
+
+    if hasattr(traj, "axes"):  # several axes: the limits excite stored per axis, else the URDF's
+        from kukaid.excite.fourier import robot_limits
+        from kukaid.models.urdf import load_model
+
+        try:
+            robot = traj.robot or "kr6-r700-sixx"
+            traj.check(None if traj.limits else robot_limits(load_model(robot), robot=robot))
+        except LimitError as e:
+            raise LimitError(f"{where}: {e}") from None
+        return
 
     if getattr(traj, "limits", None):
         limits = AxisLimits.from_dict(traj.limits, where=f"{where}: field 'limits'")

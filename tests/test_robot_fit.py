@@ -9,7 +9,8 @@ import pytest
 
 from kukaid.errors import FitError, ParamFileError
 from kukaid.identify.robot_fit import RobotFitSettings, fit_robot, validate_robot
-from kukaid.models.robot import DriveModel, RobotModel, consistency, resolve_robot
+from kukaid.models.robot import DriveModel, RobotModel, consistency
+from kukaid.models.urdf import robot_urdf
 from kukaid.params import load_robot_params, save_robot_params, validate_robot_params
 
 from robot_sim_helpers import simulated_log
@@ -31,7 +32,7 @@ def sim_fit(kr6):
 def test_bundled_robot_resolves_and_has_data_sheet_reach(kr6):
     import pinocchio as pin
 
-    assert resolve_robot("kr6-r700-sixx").name == "kr6_r700_sixx.urdf"
+    assert robot_urdf("kr6-r700-sixx").name == "kr6_r700_sixx.urdf"
     assert kr6.n == 6 and kr6.joint_names == ("A1", "A2", "A3", "A4", "A5", "A6")
     data = kr6.model.createData()
     pin.forwardKinematics(kr6.model, data, np.zeros(6))
@@ -205,3 +206,23 @@ def test_motor_side_torques_with_coupled_wrist_and_rotors(kr6):
     assert params["drive"]["coupling"][5][4] == pytest.approx(0.15)
     res = validate_robot(params, [motor], kr6)
     assert res["mean_relative_error"] < 0.05, res
+
+
+def test_torque_residual_model_predicts_what_validate_predicts(kr6, sim_fit):
+    """One model: the online residual's Γp (control) and the validation's prediction (identify)
+    agree at any state, spring, friction, offset and rotor terms included."""
+    from kukaid.control.robot_residual import RobotTorqueModel
+    from kukaid.identify.robot_fit import Motion, design, extra_names
+
+    params, _ = sim_fit
+    s = params["settings"]
+    settings = RobotFitSettings(**{k: s[k] for k in RobotFitSettings.__dataclass_fields__ if k in s})
+    rng = np.random.default_rng(5)
+    q, qd, qdd = (rng.uniform(-1, 1, (20, kr6.n)) for _ in range(3))
+    Y, F = design(kr6, Motion(q=q, qd=qd, qdd=qdd, tau=np.zeros_like(q)), settings, DriveModel.direct(kr6.n))
+    bp = params["base_parameters"]
+    extra = np.array([params["friction"]["values"][k] for k in extra_names(kr6, settings)])
+    want = Y[:, :, np.asarray(bp["independent"], int)] @ np.asarray(bp["values"]) + F @ extra
+    model = RobotTorqueModel.from_params(params)
+    got = np.array([model(q[i], qd[i], qdd[i]) for i in range(len(q))])
+    assert np.abs(got - want).max() < 1e-6 * max(1.0, np.abs(want).max())

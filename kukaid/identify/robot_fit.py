@@ -36,7 +36,8 @@ from kukaid.identify.uncertainty import correlation_factor
 from kukaid.logs import AxisLog
 from kukaid.params.robot import SCHEMA as ROBOT_SCHEMA
 from kukaid.params.robot import validate_robot_params
-from kukaid.models.robot import (BUNDLED, FRICTION_MODELS, LINK_PARAMS, DriveModel, RobotModel, consistency,
+from kukaid.models.urdf import BUNDLED
+from kukaid.models.robot import (FRICTION_MODELS, LINK_PARAMS, DriveModel, RobotModel, consistency,
                                  friction_names, friction_regressor, pseudo_inertia)
 
 PRIOR_WEIGHT = 1e-3

@@ -43,16 +43,20 @@ def via_points(t: np.ndarray, q: np.ndarray, tol: float, still: float = 1e-9) ->
 
     Parameters
     ----------
-    t, q : samples (s, rad).   tol : largest position deviation of the straight pieces, rad.
+    t : (N,) s.   q : (N,) or (N, A) rad: one axis, or several moving together (a reversal of any
+        axis is a via point, a piece must fit every axis).
+    tol : largest position deviation of the straight pieces, rad.
     still : a sample step smaller than this (rad) counts as standstill.
     """
-    dq = np.diff(q)
-    moving = np.abs(dq) > still
-    sgn = np.sign(dq) * moving
+    q2 = q.reshape(len(q), -1)
+    dq = np.diff(q2, axis=0)
+    mov = np.abs(dq) > still
+    moving = mov.any(axis=1)
+    sgn = np.sign(dq) * mov
     # forced breakpoints: changes between standstill and motion, and direction reversals
     forced = {0, len(q) - 1}
     for i in range(1, len(dq)):
-        if moving[i] != moving[i - 1] or (moving[i] and sgn[i] != sgn[i - 1]):
+        if moving[i] != moving[i - 1] or (moving[i] and np.any(sgn[i] != sgn[i - 1])):
             forced.add(i)
     forced_l = sorted(forced)
     out = [0]
@@ -65,13 +69,13 @@ def via_points(t: np.ndarray, q: np.ndarray, tol: float, still: float = 1e-9) ->
             good, step = i + 1, 1  # a piece of one sample always fits
             while good < b:
                 cand = min(good + step, b)
-                if _fits(t, q, i, cand, tol):
+                if _fits(t, q2, i, cand, tol):
                     good, step = cand, step * 2
                     continue
                 lo, hi = good, cand  # lo fits, hi does not: bisect
                 while hi - lo > 1:
                     mid = (lo + hi) // 2
-                    if _fits(t, q, i, mid, tol):
+                    if _fits(t, q2, i, mid, tol):
                         lo = mid
                     else:
                         hi = mid
@@ -85,7 +89,7 @@ def via_points(t: np.ndarray, q: np.ndarray, tol: float, still: float = 1e-9) ->
 def _fits(t: np.ndarray, q: np.ndarray, i: int, j: int, tol: float) -> bool:
     if j <= i + 1:
         return True
-    s = (t[i:j + 1] - t[i]) / (t[j] - t[i])
+    s = ((t[i:j + 1] - t[i]) / (t[j] - t[i]))[:, None]
     line = q[i] + s * (q[j] - q[i])
     return bool(np.max(np.abs(line - q[i:j + 1])) <= tol)
 
@@ -263,3 +267,122 @@ def export_krl(traj: Any, folder: str | Path, name: str | None = None, **options
     p_src, p_dat = folder / f"{summary['name']}.src", folder / f"{summary['name']}.dat"
     write_texts_atomic({p_src: src, p_dat: dat})
     return p_src, p_dat
+
+
+def krl_program_robot(traj: Any, name: str | None = None, tol_deg: float = 0.05, start_vel_pct: int = 10,
+                      apo_pct: int = 100, max_points: int = 5000) -> tuple[str, str, dict]:
+    """``.src`` and ``.dat`` texts of a trajectory of several axes moving together (e.g. ``fourier``).
+
+    The conventions of :func:`krl_program`, for every axis of ``traj``
+    (:class:`kukaid.excite.fourier.RobotTrajectory`, axes 1 to 6): via points within ``tol_deg`` of
+    every axis, exact stops and dwells at standstills, ``PTP ... C_PTP`` in between; per point and
+    axis the velocity (``VEL_PCT[i, k]``, % of the axis's maximum, so the synchronous PTP moves
+    every axis at its own speed) and per run and axis the acceleration (``ACC_PCT``).  The limits are
+    the trajectory's own (``traj.limits``); the ``.dat`` states them.
+    """
+    axes = tuple(int(a) for a in traj.axes)
+    if not axes or not all(1 <= a <= 6 for a in axes):
+        raise KukaidError(f"KRL export: axes {list(axes)} are not robot axes (1 to 6)")
+    name = name or f"kukaid_{traj.kind}"
+    if not _NAME.match(name):
+        raise KukaidError(f"KRL export: module name '{name}' is not a KRL name (letter or _, then letters, "
+                          f"digits, _; at most 24 characters)")
+    if not tol_deg > 0:
+        raise KukaidError(f"KRL export: tolerance must be positive, got {tol_deg}")
+    limits = traj.axis_limits()
+    qd_max = np.array([lim.qd_max for lim in limits])
+    qdd_max = np.array([lim.qdd_max for lim in limits])
+    t, q = np.asarray(traj.t), np.asarray(traj.q)
+    idx = via_points(t, q, tol_deg * _DEG)
+    qdd = np.abs(np.gradient(np.gradient(q, t, axis=0), t, axis=0))
+    pts: list[dict[str, Any]] = []
+    wait0 = 0.0
+    for a, b in zip(idx[:-1], idx[1:]):
+        dq, dtab = q[b] - q[a], t[b] - t[a]
+        if np.all(np.abs(dq) <= 1e-9):
+            if pts:
+                pts[-1]["wait"] += dtab
+            else:
+                wait0 += dtab
+            continue
+        pts.append({"i": b, "q": q[b], "v": np.abs(dq) / dtab, "dur": dtab, "acc": qdd[a:b + 1].max(axis=0),
+                    "wait": 0.0})
+    if not pts:
+        raise KukaidError("KRL export: the trajectory does not move")
+    if len(pts) > max_points:
+        raise KukaidError(f"KRL export: {len(pts)} via points exceed {max_points}; raise the tolerance "
+                          f"(now {tol_deg:g} deg) or shorten the trajectory")
+    runs: list[list[int]] = [[]]
+    for k, p in enumerate(pts):
+        runs[-1].append(k)
+        if p["wait"] > 0 and k < len(pts) - 1:
+            runs.append([])
+    for run in runs:
+        pct = np.array([pts[k]["v"] / qd_max * 100.0 for k in run])  # (points, axes)
+        if np.any(pct > 100.0 + 1e-6):
+            k, j = np.unravel_index(int(np.argmax(pct / 100.0)), pct.shape)
+            p = pts[run[k]]
+            raise KukaidError(f"KRL export: A{axes[j]} speed {p['v'][j]:.4g} rad/s at t = {t[p['i']]:.3f} s is above "
+                              f"the velocity limit {qd_max[j]:.4g} rad/s")
+        # an axis that hardly moves in a piece does not set the override (its timing error is no matter)
+        dur = np.array([pts[k]["dur"] for k in run])[:, None] * (pct > 0.01)
+        ovr, vel = _speed_split(np.clip(pct, 1e-6, 100.0).ravel(), dur.ravel())
+        vel = vel.reshape(pct.shape)
+        acc = np.max([pts[k]["acc"] for k in run], axis=0)
+        accp = np.clip(np.ceil(1.2 * acc / qdd_max * 100), 1, 100).astype(int)
+        for r, k in enumerate(run):
+            pts[k].update(vel=vel[r], ovr=ovr, accp=accp)
+    n, A = len(pts), len(axes)
+    names = [f"A{a}" for a in axes]
+    src = [
+        "&ACCESS RVP",
+        "&REL 1",
+        f"DEF {name}( )",
+        f"; generated by kukaid {__version__}: '{traj.kind}' excitation of {', '.join(names)} together, {n} via points, "
+        f"{traj.duration:.2f} s",
+        "; Assumes each axis's maximum speed and acceleration ($VEL_AXIS_MA/$ACC_AXIS_MA) equal the limits",
+        f"; in {name}.dat; check them, check the motion for collisions, and run in T1 first.",
+        "  DECL E6AXIS P",
+        "  DECL INT I",
+        "  DECL INT OVR_NOW",
+        "  BAS (#INITMOV, 0)",
+        "  $ADVANCE = 3",
+        f"  $APO.CPTP = {int(apo_pct)}",
+        "  ; move to the start point, exact stop",
+        "  P = $AXIS_ACT",
+    ]
+    src += [f"  P.{x} = Q_START.{x}" for x in names]
+    src += [f"  $VEL_AXIS[{a}] = {int(start_vel_pct)}" for a in axes]
+    src += ["  PTP P", "  OVR_NOW = $OV_PRO", "  WAIT SEC WAIT_START", "  FOR I = 1 TO N_PTS",
+            "    IF OVR_PCT[I] <> OVR_NOW THEN",
+            "      WAIT SEC 0 ; advance-run stop: change the override at standstill only",
+            "      $OV_PRO = OVR_PCT[I]", "      OVR_NOW = OVR_PCT[I]", "    ENDIF"]
+    src += [f"    $VEL_AXIS[{a}] = VEL_PCT[I,{k}]" for k, a in enumerate(axes, 1)]
+    src += [f"    $ACC_AXIS[{a}] = ACC_PCT[I,{k}]" for k, a in enumerate(axes, 1)]
+    src += [f"    P.{x} = XP[I].{x}" for x in names]
+    src += ["    IF WAIT_S[I] > 0.0 THEN", "      PTP P", "      WAIT SEC WAIT_S[I]", "    ELSE", "      PTP P C_PTP",
+            "    ENDIF", "  ENDFOR", "  PTP P", "END", ""]
+
+    def e6(x: np.ndarray) -> str:
+        return "{" + ", ".join(f"{nm} {v / _DEG:.5f}" for nm, v in zip(names, x)) + "}"
+
+    lim_txt = "; ".join(f"A{a} {lim.q_min / _DEG:.2f} .. {lim.q_max / _DEG:.2f} deg, {lim.qd_max / _DEG:.1f} deg/s, "
+                        f"{lim.qdd_max / _DEG:.1f} deg/s^2" for a, lim in zip(axes, limits))
+    dat = ["&ACCESS RVP", "&REL 1", f"DEFDAT {name}",
+           f"; point data of {name}.src, generated by kukaid {__version__}; axes in degrees",
+           f"; limits: {lim_txt}", f"; via-point tolerance {tol_deg:g} deg",
+           f"  DECL INT N_PTS = {n}", f"  DECL REAL WAIT_START = {wait0:.3f}", f"  DECL E6AXIS Q_START = {e6(q[0])}",
+           f"  DECL E6AXIS XP[{n}]"]
+    dat += [f"  XP[{k}] = {e6(p['q'])}" for k, p in enumerate(pts, 1)]
+    dat.append(f"  DECL INT VEL_PCT[{n},{A}]")
+    dat += [f"  VEL_PCT[{k},{j}] = {int(p['vel'][j - 1])}" for k, p in enumerate(pts, 1) for j in range(1, A + 1)]
+    dat.append(f"  DECL INT OVR_PCT[{n}]")
+    dat += [f"  OVR_PCT[{k}] = {p['ovr']}" for k, p in enumerate(pts, 1)]
+    dat.append(f"  DECL INT ACC_PCT[{n},{A}]")
+    dat += [f"  ACC_PCT[{k},{j}] = {int(p['accp'][j - 1])}" for k, p in enumerate(pts, 1) for j in range(1, A + 1)]
+    dat.append(f"  DECL REAL WAIT_S[{n}]")
+    dat += [f"  WAIT_S[{k}] = {p['wait']:.3f}" for k, p in enumerate(pts, 1)]
+    dat += ["ENDDAT", ""]
+    summary = {"name": name, "points": n, "axes": list(axes), "breakpoints": [int(i) for i in idx],
+               "tolerance_deg": tol_deg, "time": [float(t[p["i"]]) for p in pts]}
+    return "\n".join(src), "\n".join(dat), summary

@@ -309,9 +309,11 @@ class SimSource:
 
     Parameters
     ----------
-    sim : a :class:`kukaid.sim.VirtualKRC4` (or anything with ``advance``, ``command``, ``t``).
-    axis : the simulated axis (KUKA numbering); the other axes stand still at :data:`HOME_DEG`
-        with zero torque.
+    sim : a :class:`kukaid.sim.VirtualKRC4` (or anything with ``advance``, ``command``, ``t``), or
+        a simulator of several axes (``sim.axes``, e.g. the six-axis
+        :class:`kukaid.sim.robot_plant.VirtualRobotKRC4`: samples are rows over its axes).
+    axis : the simulated axis of a one-axis simulator (KUKA numbering); the axes not simulated
+        stand still at :data:`HOME_DEG` with zero torque.
     trajectory : optional trajectory to follow from the start (``sim.follow``); otherwise the axis
         holds its position and follows writes of the global ``KID_TGT`` (REAL, degrees).
     speed : simulated seconds per wall-clock second (1.0 = real time).
@@ -333,6 +335,7 @@ class SimSource:
                  tick: float = 0.004, follower: Any = None) -> None:
         self.sim = sim
         self.axis = int(axis)
+        self.axes = tuple(int(a) for a in getattr(sim, "axes", None) or (self.axis,))
         self.speed = float(speed)
         self.tick = float(tick)
         self.temp_kelvin = temp_kelvin
@@ -347,7 +350,8 @@ class SimSource:
         if trajectory is not None:
             import numpy as np
 
-            q0 = float(np.asarray(trajectory.q, dtype=float).ravel()[0])
+            q0 = (sim.start_position(trajectory) if hasattr(sim, "start_position")
+                  else float(np.asarray(trajectory.q, dtype=float).ravel()[0]))
             if hasattr(sim, "reset"):
                 sim.reset(q0)  # standstill at the start of the trajectory, as VirtualKRC4.run does
             sim.follow(trajectory)
@@ -518,10 +522,10 @@ class SimSource:
         if t.size == 0:
             return
         rows = []
-        for i in range(t.size):
-            row = {k: float(np.atleast_1d(blk[k])[i]) for k in ("time", "q", "tau", "q_cmd", "temp", "tau_ext_true")
-                   if k in blk and blk[k] is not None}
-            rows.append(row)
+        keys = [k for k in ("time", "q", "tau", "q_cmd", "temp", "tau_ext_true") if k in blk and blk[k] is not None]
+        cols = {k: np.asarray(blk[k], dtype=float) for k in keys}
+        for i in range(t.size):  # a number per axis: float for one axis, an array over self.axes for several
+            rows.append({k: (float(x[i]) if x.ndim == 1 else x[i].copy()) for k, x in cols.items()})
         with self._lock:
             self._latest = rows[-1]
             if self.keep_truth:
@@ -533,13 +537,21 @@ class SimSource:
     def _timer_ms(self, t: float) -> int:
         return TIMER0_MS + int(round((t - self.t0_sim) * 1000.0))
 
-    def _axis_deg(self, row: dict[str, float], key: str) -> dict[str, float]:
-        out = {f"A{a}": v for a, v in HOME_DEG.items()}
-        out[f"A{self.axis}"] = row.get(key, row["q"]) * _DEG
+    def _value(self, row: dict[str, Any], key: str, axis: int, default: float) -> float:
+        """Channel ``key`` of ``axis`` in a sample row; ``default`` for an axis not simulated."""
+        if axis not in self.axes or key not in row:
+            return default
+        v = row[key]
+        return float(v) if isinstance(v, float) else float(v[self.axes.index(axis)])
+
+    def _axis_deg(self, row: dict[str, Any], key: str) -> dict[str, float]:
+        key = key if key in row else "q"
+        out = {f"A{a}": (self._value(row, key, a, 0.0) * _DEG if a in self.axes else v) for a, v in HOME_DEG.items()}
+        out.update({f"E{a - 6}": self._value(row, key, a, 0.0) * _DEG for a in self.axes if a > 6})  # external axes
         return out
 
-    def _temp(self, row: dict[str, float], axis: int) -> float:
-        c = row.get("temp", 25.0) if axis == self.axis else 25.0
+    def _temp(self, row: dict[str, Any], axis: int) -> float:
+        c = self._value(row, "temp", axis, 25.0)
         return c + 273.15 if self.temp_kelvin else c
 
     def _ring_sample(self, row: dict[str, float]) -> None:
@@ -547,7 +559,7 @@ class SimSource:
 
         ring = self.ring
         q = [self._axis_deg(row, "q")[f"A{a}"] for a in ring.axes]
-        tau = [row["tau"] if a == self.axis else 0.0 for a in ring.axes]
+        tau = [self._value(row, "tau", a, 0.0) for a in ring.axes]
         temp = [self._temp(row, a) for a in ring.axes]
         self._ring_cur.append(format_sample(self._timer_ms(row["time"]), q, tau, temp))
         if len(self._ring_cur) >= ring.bs:
@@ -589,7 +601,7 @@ class SimSource:
         if idx is not None:
             if not 1 <= idx <= 6:
                 return None
-            return format_real(row["tau"] if idx == self.axis else 0.0)
+            return format_real(self._value(row, "tau", idx, 0.0))
         idx = _index(key, "$MOT_TEMP")
         if idx is not None:
             if not 1 <= idx <= 6:
@@ -612,6 +624,8 @@ class SimSource:
             with self._lock:
                 return self._follow(key, value)
         if key == "KID_TGT":
+            if len(self.axes) > 1:
+                return False  # a target of one axis: not for a simulator of several
             try:
                 q = parse_real(value, "KID_TGT") / _DEG
             except Exception:

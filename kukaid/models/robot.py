@@ -13,30 +13,16 @@ As in Pinocchio, the model is built once (:class:`RobotModel`) and every computa
 from __future__ import annotations
 
 import hashlib
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from kukaid.errors import ParamFileError
+from kukaid.models.urdf import gear_ratios, load_model, robot_urdf
 
-#: bundled robots, ``--robot NAME``
-BUNDLED = {"kr6-r700-sixx": "kr6_r700_sixx.urdf"}
 #: names of the ten inertial parameters of a link, Pinocchio's order
 LINK_PARAMS = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 FRICTION_MODELS = ("coulomb-viscous", "stribeck")
-
-
-def resolve_robot(robot: str | Path) -> Path:
-    """The URDF file for ``robot``: a bundled name (``kr6-r700-sixx``) or a path to a ``.urdf``."""
-    name = str(robot)
-    if name in BUNDLED:
-        return Path(__file__).resolve().parent.parent / "robots" / BUNDLED[name]
-    path = Path(name)
-    if not path.is_file():
-        raise ParamFileError(f"{name}: no such robot (a .urdf file or one of: {', '.join(BUNDLED)})")
-    return path
 
 
 @dataclass(frozen=True)
@@ -117,7 +103,7 @@ class RobotModel:
 
     Parameters
     ----------
-    urdf : path of the URDF, or a bundled name (see :data:`BUNDLED`).
+    urdf : path of the URDF, or a bundled name (see :data:`kukaid.models.urdf.BUNDLED`).
 
     Attributes
     ----------
@@ -129,20 +115,11 @@ class RobotModel:
     """
 
     def __init__(self, urdf: str | Path):
-        import pinocchio as pin
-
-        self.path = resolve_robot(urdf)
+        self.path = robot_urdf(urdf)
         self.source = str(urdf)
-        text = self.path.read_bytes()
-        self.sha256 = hashlib.sha256(text).hexdigest()
-        try:
-            self.model = pin.buildModelFromUrdf(str(self.path))
-        except (RuntimeError, ValueError) as e:
-            raise ParamFileError(f"{self.path}: not a URDF Pinocchio can read ({str(e).splitlines()[0]})") from None
+        self.sha256 = hashlib.sha256(self.path.read_bytes()).hexdigest()
+        self.model = load_model(self.path)
         m = self.model
-        if m.nq != m.nv or m.nv == 0:
-            raise ParamFileError(f"{self.path}: kukaid needs a fixed-base robot of revolute/prismatic joints "
-                                 f"(nq={m.nq}, nv={m.nv})")
         self.n = int(m.nv)
         self.joint_names = tuple(m.names[1:])
         self.link_names = tuple(self._child_links())
@@ -151,7 +128,7 @@ class RobotModel:
         self.upper = np.asarray(m.upperPositionLimit, float)
         self.velocity = np.asarray(m.velocityLimit, float)
         self.effort = np.asarray(m.effortLimit, float)
-        self.ratio = self._ratios(text)
+        self.ratio = gear_ratios(self.path, self.joint_names)
         self._base: BaseParameters | None = None
 
     # -- URDF extras ----------------------------------------------------------------------------
@@ -164,23 +141,6 @@ class RobotModel:
             names = [f.name for f in m.frames if f.parentJoint == j and f.type == pin.FrameType.BODY]
             out.append(names[0] if names else m.names[j])
         return out
-
-    def _ratios(self, text: bytes) -> np.ndarray:
-        ratio = np.ones(self.n)
-        try:
-            root = ET.fromstring(text)
-        except ET.ParseError:
-            return ratio
-        for tr in root.iter("transmission"):
-            joint = tr.find("joint")
-            red = tr.find(".//mechanicalReduction")
-            if joint is not None and red is not None and joint.get("name") in self.joint_names:
-                try:
-                    ratio[self.joint_names.index(joint.get("name"))] = float(red.text)
-                except (TypeError, ValueError):
-                    raise ParamFileError(f"{self.path}: transmission {tr.get('name')}: mechanicalReduction "
-                                         f"must be a number, got {red.text!r}") from None
-        return ratio
 
     @property
     def n_std(self) -> int:

@@ -54,7 +54,9 @@ class _Hold:
 
 class _Spline:
     """Interpolation of IPO knots (t, q): a C2 cubic spline (continuous acceleration feedforward,
-    as a KRC's fine interpolator), or linear ramps; holds the last value after the end."""
+    as a KRC's fine interpolator), or linear ramps; holds the last value after the end.
+
+    ``q`` is (N,) for one axis or (N, A) for A axes interpolated together."""
 
     def __init__(self, t: np.ndarray, q: np.ndarray, linear: bool = False) -> None:
         self.t = t
@@ -65,15 +67,16 @@ class _Spline:
             from scipy.interpolate import CubicSpline
 
             # end velocities: zero when the schedule starts/ends at rest, else one-sided differences
-            v0 = 0.0 if abs(q[1] - q[0]) < 1e-15 else (q[1] - q[0]) / (t[1] - t[0])
-            v1 = 0.0 if abs(q[-1] - q[-2]) < 1e-15 else (q[-1] - q[-2]) / (t[-1] - t[-2])
+            v0 = np.where(np.abs(q[1] - q[0]) < 1e-15, 0.0, (q[1] - q[0]) / (t[1] - t[0]))
+            v1 = np.where(np.abs(q[-1] - q[-2]) < 1e-15, 0.0, (q[-1] - q[-2]) / (t[-1] - t[-2]))
             self.cs = CubicSpline(t, q, bc_type=((1, v0), (1, v1)))
 
     def eval(self, tt: np.ndarray):
         t, q = self.t, self.q
-        qo = np.empty(tt.size)
-        vo = np.zeros(tt.size)
-        ao = np.zeros(tt.size)
+        shape = (tt.size,) + q.shape[1:]
+        qo = np.empty(shape)
+        vo = np.zeros(shape)
+        ao = np.zeros(shape)
         before = tt < t[0]  # the knot itself belongs to the segment (velocity feedforward at a new setpoint)
         after = tt >= t[-1]
         qo[before] = q[0]
@@ -83,8 +86,8 @@ class _Spline:
             x = tt[mid]
             if self.cs is None:
                 i = np.clip(np.searchsorted(t, x, side="right") - 1, 0, t.size - 2)
-                hseg = t[i + 1] - t[i]
-                s = (x - t[i]) / hseg
+                hseg = (t[i + 1] - t[i]).reshape((-1,) + (1,) * (q.ndim - 1))
+                s = (x - t[i]).reshape(hseg.shape) / hseg
                 qo[mid] = q[i] + s * (q[i + 1] - q[i])
                 vo[mid] = (q[i + 1] - q[i]) / hseg
             else:

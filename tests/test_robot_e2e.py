@@ -1,0 +1,51 @@
+"""End to end on the six-axis sim: excite fourier -> capture -> fit --robot -> validate (slow).
+
+Needs `kukaid fit --robot` (robot identification); skipped where it is not installed.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+pytest.importorskip("pinocchio")
+pytest.importorskip("kukaid.identify.robot_fit", reason="kukaid fit --robot is not in this installation")
+
+from kukaid.logs import read_hdf5  # noqa: E402
+from kukaid_cli.main import cli  # noqa: E402
+
+
+@pytest.mark.slow
+def test_fourier_capture_fit_validate_recovers_the_simulated_robot(tmp_path):
+    def run(*args):
+        r = CliRunner().invoke(cli, [str(a) for a in args])
+        assert r.exit_code == 0, r.output
+        return r.output
+
+    cfg = tmp_path / "sim.json"
+    cfg.write_text(json.dumps({"armature": False}))
+    run("excite", "fourier", "--robot", "kr6-r700-sixx", "-o", tmp_path / "f.json", "--repeat", 6)
+    run("excite", "fourier", "--robot", "kr6-r700-sixx", "-o", tmp_path / "v.json", "--seed", 7, "--harmonics", 4,
+        "--period", 8, "--repeat", 3)
+    run("capture", tmp_path / "f.json", "-o", tmp_path / "f.h5", "--seed", 1, "--sim-config", cfg)
+    run("capture", tmp_path / "v.json", "-o", tmp_path / "v.h5", "--seed", 2, "--sim-config", cfg)
+    run("fit", tmp_path / "f.h5", "--robot", "kr6-r700-sixx", "-o", tmp_path / "p.json")
+    p = json.loads((tmp_path / "p.json").read_text())
+    truth = read_hdf5(tmp_path / "f.h5").attrs["truth"]
+    pi = np.ravel(truth["pi"])
+    bp = p["base_parameters"]
+    dep = np.asarray(bp["dependent"], int)
+    beta = pi[np.asarray(bp["independent"], int)] + (np.asarray(bp["R"]) @ pi[dep] if dep.size else 0.0)
+    est, sig = np.asarray(bp["values"]), np.asarray(bp["sigma"])
+    well = sig / np.abs(beta) < 0.005
+    assert well.sum() >= 6
+    assert np.max(np.abs(est[well] / beta[well] - 1)) < 0.02
+    fr = p["friction"]["values"]
+    for j in range(6):
+        assert fr[f"A{j + 1}.Fc"] == pytest.approx(truth["friction"]["Fc"][j], rel=0.05)
+        assert fr[f"A{j + 1}.Fv"] == pytest.approx(truth["friction"]["Fv"][j], rel=0.05)
+    assert p["metrics"]["physically_consistent"]
+    val = json.loads(run("validate", "--params", tmp_path / "p.json", tmp_path / "v.h5", "--json"))
+    assert val["mean_relative_error"] < 0.2
