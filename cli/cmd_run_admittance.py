@@ -29,7 +29,9 @@ def _fmt(v):
 @click.option("--D-min", "D_min", type=float, help="adaptive: lower bound of D [0.3 D].")
 @click.option("--D-max", "D_max", type=float, help="adaptive: upper bound of D [2 D].")
 @click.option("--threshold", type=float, default=5.0, show_default=True, help="Detection threshold on |Γr|, N·m.")
-@click.option("--release", type=float, help="|Γr| below which a detection ends, N·m [0.6 threshold].")
+@click.option("--release", type=float,
+              help="|Γr| below which a detection ends, N·m [0.3 threshold: once in contact the axis follows "
+                   "down to this holding torque].")
 @click.option("--duration", type=float, default=10.0, show_default=True,
               help="Seconds of admittance control (after the 1-degree initiation move and rest).")
 @click.option("--cycle", type=float, default=0.012, show_default=True,
@@ -48,9 +50,13 @@ def _fmt(v):
 # backends
 @click.option("--backend", type=click.Choice(["sim", "kvp"]), default="sim", show_default=True,
               help="sim: the virtual KR C4 with a simulated operator; kvp: a real KR C4 over KUKAVARPROXY.")
-@click.option("--operator", type=click.Choice(["push", "pull", "hand", "none"]), default="pull", show_default=True,
-              help="sim: push (smooth 12-18 N·m push, then release) or pull/hand (spring-damper hand dragging "
-                   "the joint 0.25-0.35 rad, then letting go); drawn from --seed.")
+@click.option("--operator", type=click.Choice(["human", "push", "pull", "hand", "none"]), default="human",
+              show_default=True,
+              help="sim: human (a person's arm: impedance around an intended minimum-jerk move, co-contraction, "
+                   "reflex and reaction delays, tremor, lets go on target), push (open-loop 12-18 N·m push) or "
+                   "pull/hand (open-loop spring dragging the joint); drawn from --seed.")
+@click.option("--grip", type=click.Choice(["soft", "ordinary", "firm"]),
+              help="sim, --operator human: the person's grip [drawn from --seed].")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="sim: seed of noise, vibration and operator.")
 @click.option("--q0", type=click.FloatRange(-360.0, 360.0), default=30.0, show_default=True,
@@ -66,7 +72,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
             duration: float, cycle: float, init_move: float, q_min: float | None, q_max: float | None,
             qd_max: float, qdd_max: float, tau_max: float, max_age: float, backend: str, operator: str, seed: int,
-            q0: float, sim_config: Path | None, noise: float | None, enable_motion: bool, host: str, port: int,
+            q0: float, grip: str | None, sim_config: Path | None, noise: float | None, enable_motion: bool, host: str, port: int,
             axis: int) -> None:
     """Push the axis by hand without a force sensor: estimate the external torque Γr from the
     identified model (eqs. 12-14) and let an admittance (eqs. 15-16) with constant or adaptive
@@ -84,6 +90,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     import signal
 
     from kukaid.control.loop import LoopConfig, run_admittance
+    from kukaid.control.metrics import operator_metrics
     from kukaid.control.rbf import RBFConfig
     from kukaid.control.runlog import write_run
     from kukaid.logs import AxisLogWriter
@@ -125,14 +132,15 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     limits = SafetyLimits(q_min=lo, q_max=hi, qd_max=math.radians(qd_max), qdd_max=math.radians(qdd_max),
                           tau_max=tau_max, max_age=max_age)
     check_motion_allowed(backend, enable_motion, limits)
-    cfg = LoopConfig(I=I, D=D, damping=damping,  # checks the admittance's stability, also at D-max threshold=threshold, release=release, cycle=cycle,
+    # LoopConfig checks the admittance's stability (also at D-max) and the detection thresholds
+    cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
                      sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf, limits=limits)
 
     attrs = {"params_file": str(params_path), "backend": backend}
     if backend == "sim":
         from kukaid.robot import SimRobot
         from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
-        from kukaid.sim.operator import make_operator
+        from kukaid.sim.operator import make_operator, operator_params
 
         scfg = load_sim_config(sim_config) if sim_config else SimConfig()
         if noise is not None:
@@ -140,10 +148,16 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if abs(scfg.sample_time - 0.012) > 1e-9:
             cfg = dataclasses.replace(cfg, sample_time=scfg.sample_time)
         q0r = math.radians(q0)
-        op = None if operator == "none" else make_operator(operator, seed, q0r + cfg.init_move,
-                                                           t_start=cfg.init_time + cfg.init_rest + 0.8)
-        be = SimRobot(VirtualKRC4(scfg, seed=seed), q0r, op)
-        attrs.update(seed=seed, operator=operator, operator_params=(op.__dict__ if op is not None else None),
+        if grip is not None and operator != "human":
+            raise click.UsageError("--grip is for --operator human")
+
+        def sim_backend(cfg_):  # the same person and the same noise for every controller (paired)
+            op_ = None if operator == "none" else make_operator(operator, seed, q0r + cfg_.init_move,
+                                                                t_start=cfg_.init_time + cfg_.init_rest + 0.8, grip=grip)
+            return SimRobot(VirtualKRC4(scfg, seed=seed), q0r, op_), op_
+
+        be, op = sim_backend(cfg)
+        attrs.update(seed=seed, operator=operator, operator_params=operator_params(op),
                      sim_config=scfg.to_dict(), truth={**scfg.truth_params(), "axis": scfg.axis})
         axis_id = scfg.axis
     else:
@@ -181,11 +195,27 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     finally:
         signal.signal(signal.SIGTERM, old_handler)
     writer.close()
+    lam = cfg.rbf.lam if cfg.rbf is not None else RBFConfig().lam
+    if backend == "sim":  # the paper's measures over the fixed window of a human operator
+        run.metrics.update(operator_metrics(run.data, op, lam, scfg.sample_time))
     write_run(output, run, axis=axis_id, attrs=attrs)
     if report is not None:
-        from kukaid.control.plots import plot_run
+        from kukaid.control.plots import plot_runs
 
-        plot_run(run.data, run.metrics, report, title=f"kukaid run-admittance ({damping} damping, {backend})")
+        runs = [(f"{damping} damping" + (f" (D {D:g})" if damping == "constant" else f" (D0 {D:g})"), run.data,
+                 run.metrics)]
+        if backend == "sim":  # the other controller on the same operator, side by side
+            other = "adaptive" if damping == "constant" else "constant"
+            cfg2 = dataclasses.replace(cfg, damping=other, rbf=None if other == "constant" else cfg.rbf)
+            be2, op2 = sim_backend(cfg2)
+            run2 = run_admittance(be2, model, cfg2, zeta0=zeta0)
+            run2.metrics.update(operator_metrics(run2.data, op2, lam, scfg.sample_time))
+            runs.append((f"{other} damping (D {D:g}{', for comparison' if other == 'constant' else ''})", run2.data,
+                         run2.metrics))
+            runs.sort(key=lambda r: not r[0].startswith("constant"))
+        who = f", operator {operator} seed {seed}" if backend == "sim" else ""
+        plot_runs(runs, report, title=f"kukaid run-admittance ({damping} damping, {backend}{who}, "
+                                      f"cycle {1000 * cfg.cycle:g} ms)")
     if as_json:
         click.echo(json.dumps(jsonable(run.metrics)))
     else:
@@ -193,7 +223,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         click.echo(f"run-admittance ({damping} damping, {backend}): {run.status}")
         for k in ("detection_delay", "residual_rmse", "residual_rmse_dynamic", "residual_rmse_quasi_static",
                   "false_detections", "mean_sq_dgamma", "mean_cost", "displacement", "peak_speed", "D_range",
-                  "settled", "clipped_cycles"):
+                  "settled", "clipped_cycles", "xi", "dgamma2", "xi_true", "dgamma2_true", "end_error",
+                  "stability_events"):
             if k in m:
                 click.echo(f"  {k:28s} {_fmt(m[k])}")
         click.echo(f"  -> {output}" + (f", {report}" if report else ""))

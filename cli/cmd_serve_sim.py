@@ -36,14 +36,17 @@ import click
               help="Emulate the program of `kukaid krl-follower` with this window (degrees): KID_TGT is "
                    "followed while KID_RUN is TRUE, clamped, and motion stops when KID_HB goes stale.")
 @click.option("--stale-ms", type=int, default=200, show_default=True, help="--follower: heartbeat timeout, ms.")
-@click.option("--operator", type=click.Choice(["push", "pull"]),
-              help="A simulated hand on the link (external torque, drawn from --seed), as for run-admittance.")
+@click.option("--operator", type=click.Choice(["human", "push", "pull"]),
+              help="A simulated person on the link (external torque, drawn from --seed), as for run-admittance: "
+                   "human (an arm that guides the link to a target and lets go there), push or pull (open loop).")
+@click.option("--grip", type=click.Choice(["soft", "ordinary", "firm"]),
+              help="--operator human: the person's grip [drawn from --seed].")
 @click.option("--operator-start", type=click.FloatRange(0.0, 86400.0), default=3.0, show_default=True,
               help="--operator: seconds after the start when the hand begins.")
 def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str | None, seed: int, sim_config: Path | None,
             noise: float | None, duration: float | None, speed: float, ring_axes: tuple[int, ...],
             truth_path: Path | None, force: bool, delay: float, q0: float | None, follower_window: tuple[float, float] | None,
-            stale_ms: int, operator: str | None, operator_start: float) -> None:
+            stale_ms: int, operator: str | None, operator_start: float, grip: str | None) -> None:
     """Serve the virtual KR C4's live variables over KUKAVARPROXY until interrupted.
 
     With --robot or a trajectory of several axes every axis of the robot is simulated
@@ -92,7 +95,9 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
     if operator is not None:
         from kukaid.sim.operator import make_operator
 
-        sim.set_external_torque(make_operator(operator, seed, sim.q, t_start=sim.t + operator_start))
+        if grip is not None and operator != "human":
+            raise KukaidError("serve-sim: --grip is for --operator human")
+        sim.set_external_torque(make_operator(operator, seed, sim.q, t_start=sim.t + operator_start, grip=grip))
     follower = None
     if follower_window:
         from kukaid.krc.krl_follower import FollowerConfig

@@ -241,3 +241,57 @@ def test_a_killed_run_leaves_the_measured_log(files, tmp_path, kukaid_cmd):
     log = read_hdf5(out)
     assert log.n_samples > 100 and log.has("q_cmd") and log.has("tau_ext_true")
     assert np.all(np.diff(log.time) > 0)
+
+
+def test_cycle_threshold_and_release_reach_the_controller(files, tmp_path):
+    """Every detection and timing option changes the run and is written in the log's config."""
+    import h5py
+
+    out = tmp_path / "opts.h5"
+    r = _run(["--params", files / "params.json", "--sim-config", files / "truth.json", "--operator", "push",
+              "--seed", "3", "--duration", "4", "--cycle", "0.024", "--threshold", "8", "--release", "3", "-o", out,
+              "--json"])
+    assert r.exit_code == 0, r.output
+    m = json.loads(r.output.strip().splitlines()[-1])
+    assert (m["cycle"], m["threshold"], m["release"]) == (0.024, 8.0, 3.0)
+    log, control, metrics = read_run(out)
+    assert metrics == m
+    with h5py.File(out, "r") as f:
+        cfg = json.loads(f["control"].attrs["config"])
+    assert (cfg["cycle"], cfg["threshold"], cfg["release"]) == (0.024, 8.0, 3.0)
+    adm = control["phase"] == 2
+    assert np.allclose(np.diff(log.time[adm]), 0.024, atol=1e-9)  # one row per 24 ms cycle
+    g, det = np.abs(control["gamma_r"][adm]), control["detected"][adm].astype(bool)
+    assert det.any() and np.all(g[det & ~np.roll(det, 1)] >= 8.0)  # detections start at 8 N·m ...
+    ends = det[:-1] & ~det[1:]
+    assert ends.any() and np.all(g[1:][ends] < 3.0)  # ... and end below 3 N·m
+    assert np.any(det & (g < 8.0))  # held between the two (hysteresis)
+
+
+@pytest.mark.slow
+def test_kvp_run_with_a_human_arm_in_serve_sim(files, kukaid_cmd, tmp_path):
+    """The KUKAVARPROXY path with a person in the loop: serve-sim runs the simulated human arm (a
+    firm grip), run-admittance (adaptive) follows it to the person's goal, nothing trips."""
+    from kukaid.sim.human import make_human
+
+    seed, start = 5, 4.0
+    proc = subprocess.Popen([*kukaid_cmd, "serve-sim", "--port", "0", "--q0", "30", "--follower", "0", "60",
+                             "--stale-ms", "150", "--operator", "human", "--grip", "firm", "--operator-start",
+                             str(start), "--seed", str(seed), "--sim-config", str(files / "truth.json"),
+                             "--duration", "40"], stderr=subprocess.PIPE, text=True)
+    try:
+        m = re.search(r"listening on 127\.0\.0\.1:(\d+)", proc.stderr.readline())
+        assert m
+        out = tmp_path / "human.h5"
+        r = _run([*_kvp_args(files, m.group(1), out)[:-4], "--duration", "14", "--damping", "adaptive",
+                  "--cycle", "0.024", "--max-age", "0.5", "-o", out])  # a loaded test machine
+        assert r.exit_code == 0, r.output
+        log, control, met = read_run(out)
+        assert met["status"] == "completed" and met["clipped_cycles"] >= 0
+        arm = make_human(seed, 0.0, 0.0, grip="firm")
+        assert np.sign(met["displacement"]) == np.sign(arm.p.goal)  # went the person's way
+        assert np.max(np.abs(log.tau[:, 0])) < 100.0
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+        proc.stderr.close()

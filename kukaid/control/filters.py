@@ -15,23 +15,26 @@ from kukaid.errors import KukaidError
 
 
 class CausalButterworth:
-    """Causal Butterworth low-pass of order ``order`` and cut-off ``cutoff`` Hz at ``fs`` Hz.
+    """Causal Butterworth low-pass of order ``order`` and cut-off ``cutoff`` Hz at ``fs`` Hz (or,
+    with ``btype="bandpass"``, a band-pass between the two frequencies of ``cutoff``).
 
     ``step(x)`` filters one sample.  The first sample initialises the state at steady state
     (output = input), so a filter switched on at a non-zero level has no start-up transient.
     """
 
-    def __init__(self, cutoff: float = 5.0, fs: float = 1.0 / 0.012, order: int = 3) -> None:
+    def __init__(self, cutoff: float | tuple[float, float] = 5.0, fs: float = 1.0 / 0.012, order: int = 3,
+                 btype: str = "lowpass") -> None:
         from scipy.signal import butter, sosfilt_zi
 
         if not (math.isfinite(fs) and fs > 0):
             raise KukaidError(f"filter: sample rate must be > 0 Hz, got {fs}")
-        if not (math.isfinite(cutoff) and 0 < cutoff < fs / 2):
+        cuts = (cutoff,) if btype == "lowpass" else tuple(cutoff)  # type: ignore[arg-type]
+        if btype not in ("lowpass", "bandpass") or not all(math.isfinite(c) and 0 < c < fs / 2 for c in cuts):
             raise KukaidError(f"filter: cut-off {cutoff} Hz must be in (0, {fs / 2:g}) Hz (Nyquist of {fs:g} Hz)")
         if not (isinstance(order, int) and 1 <= order <= 8):
             raise KukaidError(f"filter: order must be an integer 1 to 8, got {order}")
-        self.cutoff, self.fs, self.order = float(cutoff), float(fs), order
-        self._sos = butter(order, cutoff, fs=fs, output="sos")
+        self.cutoff, self.fs, self.order = cutoff, float(fs), order
+        self._sos = butter(order, cutoff, btype=btype, fs=fs, output="sos")
         self._zi0 = sosfilt_zi(self._sos)  # steady state for a unit step
         # direct-form II transposed sections, unrolled into plain floats (fast per-sample steps)
         self._b = [tuple(float(v) for v in s[:3]) for s in self._sos]

@@ -6,7 +6,10 @@ Per control cycle (12 ms = the KRC sample time; the paper's ~24 ms as an option)
 2. the watchdog checks the age of the latest measurement (stale or missing: hold and stop);
 3. while an external torque is detected, the admittance (eqs. 15-16) integrates Γr, with a
    constant or an RBF-adapted damping (eqs. 17-22); otherwise it integrates zero (the reference
-   decelerates with the time constant I/D and stops);
+   decelerates with the time constant I/D and stops), except a torque against the reference's
+   motion (a person braking the coasting axis), which is applied until the reference stands;
+   the damping is at least the floor of the oscillation monitor
+   (:mod:`kukaid.control.stability`);
 4. the reference is clipped by :class:`~kukaid.control.safety.ReferenceLimiter` and sent.
 
 Before the admittance is enabled the axis makes the paper's initiation move (section 3.4: move
@@ -24,7 +27,8 @@ import numpy as np
 from kukaid.control.admittance import Admittance, check_admittance
 from kukaid.control.rbf import RBFConfig, RBFDamping
 from kukaid.control.safety import ReferenceLimiter, SafetyLimits, Watchdog
-from kukaid.control.torque_residual import DYNAMIC, TorqueResidual
+from kukaid.control.stability import OscillationMonitor, StabilityConfig
+from kukaid.control.torque_residual import DYNAMIC, RELEASE_SHARE, TorqueResidual
 from kukaid.errors import KukaidError
 
 PHASE_INIT, PHASE_REST, PHASE_ADMITTANCE, PHASE_STOPPED = 0, 1, 2, 3
@@ -36,7 +40,8 @@ class LoopConfig:
 
     I kg·m², D N·m·s/rad (constant damping, and D0 of the adaptive one); damping "constant" or
     "adaptive"; threshold / release N·m; cycle s; duration s (of the admittance phase);
-    init_move rad, init_time s, init_rest s; rbf (adaptive damping settings); limits (safety).
+    init_move rad, init_time s, init_rest s; rbf (adaptive damping settings); limits (safety);
+    stability (the online oscillation monitor that raises the damping, both modes).
     """
 
     I: float = 20.0
@@ -53,6 +58,7 @@ class LoopConfig:
     u_window: float = 0.12
     rbf: RBFConfig | None = None
     limits: SafetyLimits = field(default_factory=SafetyLimits)
+    stability: StabilityConfig = field(default_factory=StabilityConfig)
 
     def __post_init__(self) -> None:
         if self.damping not in ("constant", "adaptive"):
@@ -67,6 +73,13 @@ class LoopConfig:
             r = self.rbf or RBFConfig(D0=self.D, D_min=0.3 * self.D, D_max=2.0 * self.D)
             check_admittance(self.I, r.D_max, self.cycle)
             object.__setattr__(self, "rbf", r)
+
+
+    @property
+    def release_torque(self) -> float:
+        """|Γr| below which a detection ends, N·m (``release``, default 0.3 ``threshold``: once in contact the axis
+        follows down to this smaller holding torque, not only to the start threshold)."""
+        return RELEASE_SHARE * self.threshold if self.release is None else float(self.release)
 
 
 @dataclass
@@ -103,7 +116,8 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
         for s in samples:
             r = est.update(s.q, s.tau)
         limiter = ReferenceLimiter(cfg.limits, cfg.cycle, samples[-1].q)
-        log, status = _loop(backend, est, r, limiter, samples[-1], cfg, progress, on_row)
+        mon = OscillationMonitor(cfg.stability, cfg.cycle, cfg.D, D_limit=0.9 * 2.0 * cfg.I / cfg.cycle)
+        log, status = _loop(backend, est, r, limiter, mon, samples[-1], cfg, progress, on_row)
     except BaseException:
         backend.hold()
         backend.close()
@@ -115,16 +129,21 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     metrics = run_metrics(data, cfg)
     metrics["status"] = status
     metrics["clipped_cycles"] = int(limiter.clipped)
+    metrics["stability_events"] = len(mon.events)
+    if mon.events:  # when and why the damping was raised (times on the run's time axis)
+        t_adm = (cfg.init_time if cfg.init_move else 0.0) + cfg.init_rest
+        metrics["stability_log"] = [{**e, "time": e["time"] + t_adm} for e in mon.events[:20]]
     if est.ignored_effects:
         metrics["ignored_effects"] = est.ignored_effects
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
 
 
 _KEYS = ("time", "q", "tau", "tau_ext_true", "gamma_r", "gamma_p", "sigma", "sigma_dot", "q_cmd", "D",
-         "dynamic", "detected", "phase", "clipped")
+         "dynamic", "detected", "phase", "clipped", "osc_index", "D_floor")
 
 
-def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, first: Any, cfg: LoopConfig,
+def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, mon: OscillationMonitor,
+          first: Any, cfg: LoopConfig,
           progress: Callable[[float], None] | None,
           on_row: Callable[[dict[str, Any]], None] | None) -> tuple[dict[str, list], str]:
     """The control cycles from the estimator's latest step ``r`` and measurement ``first``; returns
@@ -134,6 +153,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
     q_start, t0, last = first.q, first.t, first
     adm = Admittance(cfg.I, cfg.D, cfg.cycle, sigma0=q_start)
     rbf = RBFDamping(cfg.rbf) if cfg.damping == "adaptive" else None
+    if rbf is not None:
+        rbf.set_cycle(cfg.cycle)
     t_init_end = cfg.init_time if cfg.init_move else 0.0
     t_adm = t_init_end + cfg.init_rest
     log: dict[str, list] = {k: [] for k in _KEYS}
@@ -149,11 +170,22 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             sd = 0.0
         else:
             phase = PHASE_ADMITTANCE
-            gamma = r.gamma_r if r.detected else 0.0
-            if rbf is not None:
-                D_now = rbf.step(r.gamma_r, direction=adm.sigma_dot if adm.sigma_dot != 0 else gamma,
-                                 adapt=r.detected)
-            sigma, sd = adm.step(gamma, D_now if rbf is not None else None)
+            sd0 = adm.sigma_dot
+            # a detected push drives the admittance; below the detection only a torque against
+            # the reference's motion is applied (a person braking the coasting axis), and never
+            # so far that it reverses it: it can only take energy out
+            braking = not r.detected and sd0 * r.gamma_r < 0.0
+            gamma = r.gamma_r if (r.detected or braking) else 0.0
+            floor = mon.step(r.gamma_r, D_now, contact=r.detected)
+            D_base = cfg.D
+            if rbf is not None:  # no learning while the monitor damps an oscillation
+                D_base = rbf.step(r.gamma_r, direction=adm.sigma_dot if adm.sigma_dot != 0 else gamma,
+                                  adapt=r.detected and not mon.oscillating)
+            D_now = max(D_base, floor)
+            sigma, sd = adm.step(gamma, D_now)
+            if braking and sd * sd0 < 0.0:  # braked to a stop
+                adm.reset(sigma, 0.0)
+                sd = 0.0
             q_cmd, clipped = limiter.apply(sigma)
             if clipped:  # no wind-up: the admittance continues from what was sent
                 adm.reset(q_cmd, limiter.v)
@@ -181,7 +213,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             t_row = max(last.t, backend.now())  # a stale measurement: the row is the moment motion stopped
         row = {"time": t_row - t0, "q": last.q, "tau": last.tau, "tau_ext_true": last.tau_ext_true,
                "gamma_r": r.gamma_r, "gamma_p": r.gamma_p, "sigma": adm.sigma, "sigma_dot": sd, "q_cmd": q_cmd,
-               "D": D_now, "dynamic": r.mode == DYNAMIC, "detected": r.detected, "phase": phase, "clipped": clipped}
+               "D": D_now, "dynamic": r.mode == DYNAMIC, "detected": r.detected, "phase": phase, "clipped": clipped,
+               "osc_index": mon.index, "D_floor": mon.floor}
         for key, v in row.items():
             log[key].append(v)
         if on_row is not None:
@@ -209,8 +242,8 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     ph = data["phase"] == PHASE_ADMITTANCE
     t, gr, te = data["time"], data["gamma_r"], data["tau_ext_true"]
     det, dyn = data["detected"], data["dynamic"]
-    out: dict[str, Any] = {"lambda": lam, "threshold": cfg.threshold, "damping": cfg.damping, "I": cfg.I,
-                           "D": cfg.D, "cycle": cfg.cycle}
+    out: dict[str, Any] = {"lambda": lam, "threshold": cfg.threshold, "release": cfg.release_torque,
+                           "damping": cfg.damping, "I": cfg.I, "D": cfg.D, "cycle": cfg.cycle}
     has_truth = bool(np.any(np.isfinite(te[ph])))
     idx = np.flatnonzero(ph)
     if idx.size == 0:

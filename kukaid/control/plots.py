@@ -1,60 +1,115 @@
-"""Figures of an admittance run (matplotlib, written to a PDF)."""
+"""Figures of admittance runs (matplotlib, written to a PDF).
+
+:func:`plot_runs` draws what the paper's hand-guiding figures show, one column per run (both
+controllers side by side on the same operator): the torque residual Γr (with the true hand
+torque in simulation and the detection), the damping (with the stability monitor's floor and
+when it acted), the reference velocity σ̇, and the position; below, a table of the metrics.
+"""
 from __future__ import annotations
 
+import math
+import textwrap
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
 from kukaid.atomic import atomic_path
 
+_TABLE_KEYS = (("status", "status"), ("xi", "mean ξ (Γr, window)"), ("dgamma2", "mean dΓr² (window)"),
+               ("xi_true", "mean ξ (true hand torque)"), ("dgamma2_true", "mean dΓ² (true)"),
+               ("residual_rmse", "Γr RMSE vs truth, N·m"), ("false_after_release", "detections after release"),
+               ("end_error", "end error (of the move)"), ("D_range", "D range, N·m·s/rad"),
+               ("stability_events", "stability events"), ("first_event", "first stability event"))
 
-def plot_run(data: dict[str, np.ndarray], metrics: dict[str, Any], path: str | Path, title: str = "") -> None:
-    """Four panels: torques (Γr, true external), position and reference, speed, damping/mode."""
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, float):
+        return "—" if math.isnan(v) else f"{v:.4g}"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_fmt(x) for x in v) + "]"
+    return textwrap.shorten(str(v), 38, placeholder="…")
+
+
+def plot_runs(runs: Sequence[tuple[str, dict[str, np.ndarray], dict[str, Any]]], path: str | Path,
+              title: str = "") -> None:
+    """One column per ``(label, data, metrics)``: Γr, damping, σ̇, position; a metrics table below."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_pdf import PdfPages
 
-    t = data["time"]
-    fig, ax = plt.subplots(4, 1, figsize=(8.3, 10.5), sharex=True)
-    a = ax[0]
-    a.plot(t, data["gamma_r"], label="Γr (estimated)", lw=1)
-    if np.any(np.isfinite(data["tau_ext_true"])):
-        a.plot(t, data["tau_ext_true"], label="external torque (truth)", lw=1, ls="--")
-    thr = metrics.get("threshold")
-    if thr:
-        for s in (1, -1):
-            a.axhline(s * thr, color="0.6", lw=0.6, ls=":")
-    det = data["detected"].astype(bool)
-    if det.any():
-        a.fill_between(t, 0, 1, where=det, transform=a.get_xaxis_transform(), color="C2", alpha=0.12,
-                       label="detected")
-    a.set_ylabel("torque, N·m")
-    a.legend(loc="upper right", fontsize=8)
-    a = ax[1]
-    a.plot(t, np.degrees(data["q"]), label="q measured", lw=1)
-    a.plot(t, np.degrees(data["q_cmd"]), label="reference sent", lw=1, ls="--")
-    a.set_ylabel("angle, deg")
-    a.legend(loc="upper right", fontsize=8)
-    a = ax[2]
-    a.plot(t, data["sigma_dot"], lw=1, label="σ̇")
-    a.set_ylabel("reference speed, rad/s")
-    a = ax[3]
-    a.plot(t, data["D"], lw=1, label="D")
-    a.set_ylabel("damping, N·m·s/rad")
-    a2 = a.twinx()
-    a2.step(t, data["dynamic"].astype(float), where="post", color="C3", lw=0.6, alpha=0.6)
-    a2.set_yticks([0, 1], ["quasi-static", "dynamic"])
-    a.set_xlabel("time, s")
-    keys = ("damping", "detection_delay", "residual_rmse", "mean_sq_dgamma", "mean_cost", "displacement",
-            "settled", "status")
-    txt = ", ".join(f"{k} = {metrics[k]:.4g}" if isinstance(metrics.get(k), float) else f"{k} = {metrics.get(k)}"
-                    for k in keys if k in metrics)
-    fig.suptitle((title + "\n" if title else "") + txt, fontsize=8)
-    fig.tight_layout()
+    n = len(runs)
+    fig = plt.figure(figsize=(11.69, 8.27) if n > 1 else (8.27, 11.69))
+    gs = fig.add_gridspec(5, n, height_ratios=[1, 1, 1, 1, 1.6], hspace=0.4, wspace=0.25,
+                          left=0.08, right=0.98, top=0.9, bottom=0.02)
+    axes = [[fig.add_subplot(gs[r, c]) for r in range(4)] for c in range(n)]
+    for c in range(1, n):  # same scales side by side
+        for r in range(4):
+            axes[c][r].sharex(axes[0][r])
+            axes[c][r].sharey(axes[0][r])
+    for c, (label, d, m) in enumerate(runs):
+        t = d["time"]
+        a = axes[c][0]
+        a.set_title(textwrap.shorten(label, 70, placeholder="…"), fontsize=9)
+        a.plot(t, d["gamma_r"], lw=0.9, label="Γr (estimated)")
+        if np.any(np.isfinite(d["tau_ext_true"])):
+            a.plot(t, d["tau_ext_true"], lw=0.8, ls="--", label="hand torque (truth)")
+        det = d["detected"].astype(bool)
+        if det.any():
+            a.fill_between(t, 0, 1, where=det, transform=a.get_xaxis_transform(), color="C2", alpha=0.12,
+                           label="detected")
+        a.set_ylabel("torque, N·m", fontsize=8)
+        a.legend(loc="upper right", fontsize=6)
+        a = axes[c][1]
+        a.plot(t, d["D"], lw=0.9, label="D in use")
+        if "D_floor" in d and np.any(d["D_floor"] > 0):
+            a.plot(t, np.where(d["D_floor"] > 0, d["D_floor"], np.nan), lw=0.8, color="C3",
+                   label="stability floor")
+            for e in m.get("stability_log", []):
+                a.axvline(e["time"], color="C3", lw=0.5, ls=":")
+        a.set_ylabel("damping, N·m·s/rad", fontsize=8)
+        a.legend(loc="upper right", fontsize=6)
+        a = axes[c][2]
+        a.plot(t, d["sigma_dot"], lw=0.9)
+        a.set_ylabel("reference velocity σ̇, rad/s", fontsize=8)
+        a = axes[c][3]
+        a.plot(t, np.degrees(d["q"]), lw=0.9, label="q measured")
+        a.plot(t, np.degrees(d["q_cmd"]), lw=0.8, ls="--", label="reference sent")
+        goal = m.get("goal")
+        if goal is not None and math.isfinite(goal):
+            a.axhline(math.degrees(goal), color="0.5", lw=0.6, ls=":", label="person's goal")
+        a.set_ylabel("position, deg", fontsize=8)
+        a.set_xlabel("time, s", fontsize=8)
+        a.legend(loc="lower right", fontsize=6)
+        for a in axes[c]:
+            a.tick_params(labelsize=7)
+    # metrics table across the bottom row
+    ta = fig.add_subplot(gs[4, :])
+    ta.axis("off")
+    metrics = []
+    for _, _, m in runs:
+        ev = m.get("stability_log") or []
+        metrics.append({**m, "first_event": (f"t = {ev[0]['time']:.2f} s: index {ev[0]['index']:.1f} N·m, "
+                                             f"floor {ev[0]['D_floor']:.0f}") if ev else "none"})
+    rows = [(name, [_fmt(m.get(k, "—")) for m in metrics]) for k, name in _TABLE_KEYS
+            if any(k in m for m in metrics)]
+    tab = ta.table(cellText=[[name, *vals] for name, vals in rows],
+                   colLabels=["", *[textwrap.shorten(lbl, 40, placeholder="…") for lbl, _, _ in runs]],
+                   loc="upper center", cellLoc="left", colWidths=[0.28] + [0.72 / n] * n)
+    tab.auto_set_font_size(False)
+    tab.set_fontsize(7)
+    tab.scale(1.0, 0.78)
+    fig.suptitle("\n".join(textwrap.wrap(title, 110)) if title else "", fontsize=10)
     with atomic_path(path) as tmp:
         with PdfPages(tmp) as pdf:
             pdf.savefig(fig)
     plt.close(fig)
+
+
+def plot_run(data: dict[str, np.ndarray], metrics: dict[str, Any], path: str | Path, title: str = "") -> None:
+    """A single run (see :func:`plot_runs`)."""
+    plot_runs([(str(metrics.get("damping", "run")), data, metrics)], path, title=title)

@@ -12,7 +12,10 @@ Choices this module makes where the paper leaves room (stated, not hidden):
   paper's sum alone starts from whatever the initial weights give;
 * input scaling: Γr in units of ``force_scale`` (N·m), dΓr in units of ``dforce_scale`` (N·m per
   step), one width ``width`` in those units; centres on a grid of expected force levels and
-  force-change levels (the same level on every lag);
+  force-change levels (the same level on every lag).  With ``scale_to_seen`` the scales grow
+  with the torques actually seen (an envelope of |Γr| and |dΓr| that forgets over
+  ``scale_memory`` s), so the outermost centres sit at the largest recent torque and a firm
+  grip's 60 N·m does not fall outside the network (the fixed scales are the minimum);
 * the sign ``s`` of the unknown sensitivities ∂Γr/∂D, ∂dΓr/∂D: for Γr = I σ̈ + D σ̇ it is the sign
   of σ̇ (η1, η2 absorb the magnitudes, as in eq. 21); the paper's eq. (20) is the case s = +1.
   So a steady push lowers the damping (the robot gives way) and a growing contact force change
@@ -24,6 +27,7 @@ Choices this module makes where the paper leaves room (stated, not hidden):
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,6 +51,8 @@ class RBFConfig:
     force_scale: float = 10.0
     dforce_scale: float = 0.5
     width: float = 1.0
+    scale_to_seen: bool = True
+    scale_memory: float = 10.0
 
     def __post_init__(self) -> None:
         checks = [("D_min", self.D_min > 0), ("D_max", self.D_max >= self.D_min),
@@ -78,8 +84,17 @@ class RBFDamping:
         # centres: every (force level, force-change level) pair, repeated on all lags
         pairs = list(itertools.product(c.force_levels, c.dforce_levels))
         self.centres = np.array([[f / c.force_scale] * n_lag + [d / c.dforce_scale] * n_lag for f, d in pairs])
-        self.w = np.zeros(len(pairs))
+        self._wl = [0.0] * len(pairs)
+        self._fl = [f / c.force_scale for f in c.force_levels]  # centre levels in scaled units
+        self._dl = [d / c.dforce_scale for d in c.dforce_levels]
+        self._f_top = max(abs(f) for f in c.force_levels) / c.force_scale or 1.0
+        self._d_top = max(abs(d) for d in c.dforce_levels) / c.dforce_scale or 1.0
         self.reset_history()
+
+    @property
+    def w(self) -> np.ndarray:
+        """The weights w_i, N·m·s/rad (one per centre)."""
+        return np.asarray(self._wl)
 
     def reset_history(self, gamma_r0: float = 0.0) -> None:
         n = self.config.m + 1
@@ -87,12 +102,29 @@ class RBFDamping:
         self._dg = [0.0] * n
         self._prev = float(gamma_r0)
         self.D = self.config.D0
+        self._peak_g = 0.0
+        self._peak_dg = 0.0
 
-    def _features(self) -> np.ndarray:
+    def _features(self) -> list[float]:
+        """G_i of every centre for the present inputs (plain floats: 15 small centres are faster
+        than numpy's per-call overhead; G factorises over the force and force-change levels)."""
         c = self.config
-        x = np.array([v / c.force_scale for v in self._g] + [v / c.dforce_scale for v in self._dg])
-        d2 = np.sum((self.centres - x) ** 2, axis=1)
-        return np.exp(-0.5 * d2 / (c.width ** 2))
+        fs, ds = c.force_scale, c.dforce_scale
+        if c.scale_to_seen:  # the outermost centre level sits at the largest recent torque
+            fs = max(fs, self._peak_g / self._f_top)
+            ds = max(ds, self._peak_dg / self._d_top)
+        k = -0.5 / (c.width * c.width)
+        xg = [v / fs for v in self._g]
+        xd = [v / ds for v in self._dg]
+        ef = [math.exp(k * sum((x - y) * (x - y) for x in xg)) for y in self._fl]
+        ed = [math.exp(k * sum((x - y) * (x - y) for x in xd)) for y in self._dl]
+        return [a * b for a in ef for b in ed]
+
+    _fade = 0.0  # per-step forgetting of the envelopes, set by :meth:`set_cycle`
+
+    def set_cycle(self, cycle: float) -> None:
+        """Tell the network its control cycle (s), for the envelopes' memory."""
+        self._fade = min(float(cycle) / self.config.scale_memory, 1.0)
 
     def step(self, gamma_r: float, direction: float = 1.0, adapt: bool = True) -> float:
         """Feed Γr (N·m) of this cycle; return the damping D (N·m·s/rad) to use in it.
@@ -106,15 +138,20 @@ class RBFDamping:
         self._prev = g
         self._g = self._g[1:] + [g]
         self._dg = self._dg[1:] + [dg]
+        if c.scale_to_seen:
+            fade = 1.0 - self._fade
+            self._peak_g = max(abs(g), self._peak_g * fade)
+            self._peak_dg = max(abs(dg), self._peak_dg * fade)
         G = self._features()
-        D_raw = c.D0 + float(self.w @ G)
+        w = self._wl
+        D_raw = c.D0 + sum(wi * gi for wi, gi in zip(w, G))
         D = min(max(D_raw, c.D_min), c.D_max)
         if adapt:
             s = 1.0 if direction >= 0 else -1.0
-            dw = -(c.eta1 * dg + c.lam * c.eta2 * g) * s * G
-            trend = float(dw @ G)
+            a = -(c.eta1 * dg + c.lam * c.eta2 * g) * s
+            trend = a * sum(gi * gi for gi in G)  # the change of D this update makes
             # no wind-up: at a bound, do not push further out
             if not ((D_raw <= c.D_min and trend < 0) or (D_raw >= c.D_max and trend > 0)):
-                self.w += dw
+                self._wl = [wi + a * gi for wi, gi in zip(w, G)]
         self.D = D
         return D

@@ -3,7 +3,8 @@
 Top level: the axis-log contract (``time``, ``q``, ``tau``, ``q_cmd``, ``tau_ext_true`` as (N, 1)
 arrays, attribute ``axes``), so ``kukaid.logs.axislog.read_hdf5`` reads it.  Group ``control``:
 per-cycle datasets ``gamma_r``, ``gamma_p`` (N·m), ``sigma`` (rad), ``sigma_dot`` (rad/s), ``D``
-(N·m·s/rad), ``dynamic``, ``detected``, ``clipped`` (0/1), ``phase`` (0 initiation move, 1 rest,
+(N·m·s/rad), ``osc_index`` (N·m, the oscillation index), ``D_floor`` (N·m·s/rad, the damping the
+stability monitor imposes, 0 when inactive), ``dynamic``, ``detected``, ``clipped`` (0/1), ``phase`` (0 initiation move, 1 rest,
 2 admittance, 3 stopped), and attributes ``metrics`` and ``config`` (JSON).
 """
 from __future__ import annotations
@@ -41,14 +42,15 @@ def write_run(path: str | Path, run: Any, axis: int = 3, attrs: dict[str, Any] |
         write_hdf5(log, tmp)
         with h5py.File(tmp, "a") as f:
             g = f.create_group("control")
-            for k in ("gamma_r", "gamma_p", "sigma", "sigma_dot", "D"):
-                g.create_dataset(k, data=d[k][keep])
+            for k in ("gamma_r", "gamma_p", "sigma", "sigma_dot", "D", "osc_index", "D_floor"):
+                if k in d:
+                    g.create_dataset(k, data=d[k][keep])
             for k in ("dynamic", "detected", "clipped", "phase"):
                 g.create_dataset(k, data=d[k][keep].astype(np.int8))
             g.attrs["metrics"] = _json(run.metrics)
             g.attrs["config"] = _json(config_dict(run.config))
             g.attrs["units"] = _json({"gamma_r": "N*m", "gamma_p": "N*m", "sigma": "rad", "sigma_dot": "rad/s",
-                                      "D": "N*m*s/rad"})
+                                      "D": "N*m*s/rad", "osc_index": "N*m", "D_floor": "N*m*s/rad"})
 
 
 def read_run(path: str | Path) -> tuple[Any, dict[str, np.ndarray], dict[str, Any]]:

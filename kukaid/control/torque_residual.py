@@ -13,13 +13,27 @@ Online, causal version (what a controller can do):
 
 * torque, position and the velocity and acceleration obtained by differencing positions all pass
   through the same causal 3rd-order Butterworth low-pass (5 Hz), so they stay aligned in time;
-* Γu, the unmodelled quasi-static torque, is set to minus the mean raw residual over the first
-  ``u_window`` seconds of every quasi-static phase (and after :meth:`TorqueResidual.reset`);
-  during that window the running mean is used, so Γr starts at zero in quasi-static mode;
+* Γu, the unmodelled quasi-static torque, is minus the raw residual's mean over the first
+  ``u_window`` seconds after :meth:`TorqueResidual.reset` (the axis at rest, nobody touching it),
+  then tracked by a slow first-order observer (time constant ``u_tau``) **only while nobody is in
+  contact**: quasi-static mode, no detection, ``u_holdoff`` s since the last contact ended, and
+  |Γr| below half the threshold (so a push building up is not learnt as an offset).
+  In contact it is frozen, so a push that is still there when the axis stops is never absorbed
+  into Γu (and cannot come back with the opposite sign at the release);
+* friction is continuous across the mode switch: up to ``qd_thr`` the Maxwell-slip torque, from
+  ``3 qd_thr`` on the Stribeck curve, linearly blended in between (on the differenced speed,
+  ``BLEND``); and every change of mode
+  (Γu added or removed, the Maxwell-slip elements re-initialised, eq. 12) is bumpless: the jump of
+  Γp at the switch is carried as an offset that fades with the time constant ``switch_tau``;
 * at every dynamic -> quasi-static transition the Maxwell-slip elements are re-initialised
   saturated in the direction of the last motion, relative to the stop position (eq. 12);
 * detection: Γr is "detected" when |Γr| >= ``threshold`` and stays so until |Γr| < ``release``
-  (hysteresis), so a residual hovering at the threshold does not chatter.
+  (hysteresis), so a residual hovering at the threshold does not chatter; for ``regrip_time`` s
+  after a detection ended, a new one starts already at ``regrip_share`` x ``threshold`` (the
+  person is probably still holding on: the start threshold does not hold the axis short of
+  where they push), except within ``switch_quiet`` s of the axis starting or stopping (a change
+  of mode, or the differenced speed crossing ``qd_thr``: starts and stops leave short spikes in
+  Γr, the paper's backlash spikes, that must not restart it).
 
 Effects a diagnosis added to the parameter file are included when they depend on position only
 (``gravity_sine``, ``torque_offset``, ``position_ripple``); others are listed in
@@ -39,6 +53,10 @@ from kukaid.models.joint import AxisModel
 
 DYNAMIC = "dynamic"
 QUASI_STATIC = "quasi-static"
+#: speeds (multiples of qd_thr) between which the friction model goes from Maxwell-slip to Stribeck
+BLEND = (1.0, 3.0)
+#: default holding threshold (end of a detection) as a share of the start threshold
+RELEASE_SHARE = 0.3
 #: effects of a parameter file that the online residual evaluates
 SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
 
@@ -77,9 +95,15 @@ class TorqueResidual:
     model : the identified axis model (:func:`kukaid.params.axis.model_from_params`).
     sample_time : measurement interval, s (12 ms on a KR C4).
     threshold : detection threshold on |Γr|, N·m (paper: 3 quasi-static, 5 mode switching).
-    release : |Γr| below which a detection ends, N·m (default 0.6 * threshold).
+    release : |Γr| below which a detection ends, N·m (default 0.3 * threshold:
+        a smaller holding threshold, so a person in contact is followed down to small torques).
     cutoff, order : causal Butterworth low-pass, Hz and order (paper: 5 Hz, 3).
-    u_window : length of the Γu averaging at the start of each quasi-static phase, s.
+    u_window : length of the initial Γu averaging (at rest, after a reset), s.
+    u_tau : time constant of the Γu observer out of contact, s.
+    u_holdoff : Γu stays frozen this long after a contact ended, s.
+    switch_tau : time constant with which the jump of Γp at a mode switch fades, s.
+    regrip_time, regrip_share : for this long (s) after a detection ended, the start threshold is
+        this share of ``threshold`` (but not within ``switch_quiet`` s of a start or stop).
     zeta0 : Maxwell-slip element positions relative to the start position, rad (parameter file's
         ``maxwell_slip.zeta0``); default zero (Γu absorbs the unknown initial state).
     qd_thr : mode-switching velocity threshold, rad/s (default the model's).
@@ -87,15 +111,23 @@ class TorqueResidual:
 
     def __init__(self, model: AxisModel, sample_time: float = 0.012, threshold: float = 5.0,
                  release: float | None = None, cutoff: float = 5.0, order: int = 3, u_window: float = 0.12,
-                 zeta0: Any = None, qd_thr: float | None = None) -> None:
+                 zeta0: Any = None, qd_thr: float | None = None, u_tau: float = 1.0, u_holdoff: float = 1.0,
+                 switch_tau: float = 0.15, regrip_time: float = 1.0, regrip_share: float = 0.6,
+                 switch_quiet: float = 1.0) -> None:
         self.model = model
         self.sample_time = _check("sample_time", sample_time, 0.0, 1.0)
         self.threshold = _check("threshold", threshold, 0.0)
-        self.release = 0.6 * self.threshold if release is None else _check("release", release, 0.0, open_lo=False)
+        self.release = RELEASE_SHARE * self.threshold if release is None else _check("release", release, 0.0, open_lo=False)
         if self.release > self.threshold:
             raise KukaidError(f"torque residual: release = {self.release} N·m must not exceed threshold = "
                               f"{self.threshold} N·m")
         self.u_window = _check("u_window", u_window, 0.0, 60.0, open_lo=False)
+        self.u_tau = _check("u_tau", u_tau, 0.0, 600.0)
+        self.u_holdoff = _check("u_holdoff", u_holdoff, 0.0, 60.0, open_lo=False)
+        self.switch_tau = _check("switch_tau", switch_tau, 0.0, 10.0)
+        self.regrip_time = _check("regrip_time", regrip_time, 0.0, 60.0, open_lo=False)
+        self.regrip_share = _check("regrip_share", regrip_share, 0.0, 1.0)
+        self.switch_quiet = _check("switch_quiet", switch_quiet, 0.0, 10.0, open_lo=False)
         self.qd_thr = _check("qd_thr", model.qd_thr if qd_thr is None else qd_thr, 0.0, open_lo=False)
         self.cutoff, self.order = float(cutoff), int(order)
         fs = 1.0 / self.sample_time
@@ -108,6 +140,7 @@ class TorqueResidual:
         if z0.size != self._k.size:
             raise KukaidError(f"torque residual: zeta0 has {z0.size} values, the Maxwell-slip model {self._k.size} elements")
         self._zeta0 = z0
+        self._k_lim = [(float(k), float(w) / float(k)) for k, w in zip(self._k, self._W)]
         # effects a diagnosis stored in the rigid body (inertial.My, offset; marked stored_as) are
         # already in the model
         eff = {k: v for k, v in (model.effects or {}).items() if "stored_as" not in v}
@@ -134,14 +167,17 @@ class TorqueResidual:
         return g
 
     def _maxwell_slip(self, z: float) -> float:
-        if self._k.size == 0:
-            return 0.0
-        lim = self._W / self._k
-        d = z - self._zeta
-        over = np.abs(d) >= lim
-        if over.any():
-            self._zeta = np.where(over, z - np.sign(d) * lim, self._zeta)
-        return float(np.sum(self._k * (z - self._zeta)))
+        """Eqs. (9)-(10) for the common displacement ``z`` rad (element positions updated)."""
+        total = 0.0
+        zeta = self._zeta
+        for i, (k, lim) in enumerate(self._k_lim):  # a few elements: plain floats are fastest
+            d = z - zeta[i]
+            if d >= lim:
+                zeta[i] = z - lim
+            elif d <= -lim:
+                zeta[i] = z + lim
+            total += k * (z - zeta[i])
+        return total
 
     # -- state ----------------------------------------------------------------------------------
     def reset(self, q0: float | None = None) -> None:
@@ -152,21 +188,22 @@ class TorqueResidual:
     def _start(self, q: float, tau: float) -> None:
         self._q_prev = q
         self._qd_prev = 0.0
-        self._zeta = q + self._zeta0
-        fp0 = float(np.sum(self._k * (q - self._zeta))) if self._k.size else 0.0
+        self._zeta = [q + float(v) for v in self._zeta0]
+        fp0 = self._maxwell_slip(q)  # elements beyond their saturation slip back to it
         for f, x0 in zip(self._filters, (q, 0.0, 0.0, tau, self.static_torque(q) + fp0)):
             f.reset(x0)
         self._mode = QUASI_STATIC
         self._last_sign = 0.0
-        self._begin_quasi_static()
-        self._detected = False
-        self._started = True
-
-    def _begin_quasi_static(self) -> None:
         self._u_sum = 0.0
         self._u_n = 0
         self._u_need = max(1, int(round(self.u_window / self.sample_time)))
         self._gamma_u = 0.0
+        self._since_contact = math.inf  # s since the last detection ended
+        self._bump = 0.0  # Γp jump of the last mode switch, fading
+        self._since_switch = math.inf  # s since the axis last started or stopped
+        self._moving = False
+        self._detected = False
+        self._started = True
 
     @property
     def mode(self) -> str:
@@ -200,36 +237,63 @@ class TorqueResidual:
         # and the Maxwell-slip hysteresis would leave spikes).  The mode is chosen on the filtered
         # speed, as in the paper.
         fp_raw = self._maxwell_slip(q)
-        fric_raw = float(self.model.friction(qd_raw)) if abs(qd_raw) >= self.qd_thr else fp_raw
+        v = abs(qd_raw)
+        thr = self.qd_thr
+        lo, hi = BLEND[0] * thr, BLEND[1] * thr
+        if v <= lo:
+            fric_raw = fp_raw
+        else:
+            fs = float(self.model.friction(qd_raw))
+            fric_raw = fs if v >= hi else fp_raw + (fs - fp_raw) * (v - lo) / (hi - lo)
         pred_raw = self.model.rigid.Izz * qdd_raw + self.static_torque(q) + fric_raw
         q_f, qd_f, qdd_f, tau_f = fq.step(q), fqd.step(qd_raw), fqdd.step(qdd_raw), ftau.step(tau)
         pred_f = fpred.step(pred_raw)
 
+        old_mode, old_u = self._mode, (self._gamma_u if self._mode == QUASI_STATIC else 0.0)
         if abs(qd_f) >= self.qd_thr:
             self._mode = DYNAMIC
             self._last_sign = math.copysign(1.0, qd_f)
-            gamma_p = pred_f
-        else:
-            if self._mode == DYNAMIC:
-                # eq. (12): elements saturated in the direction of the last motion, relative to the
-                # stop position (a no-op when the motion was long enough to saturate them all)
-                self._mode = QUASI_STATIC
-                if self._k.size:
-                    self._zeta = q - self._last_sign * (self._W / self._k)
-                self._begin_quasi_static()
-            raw = pred_f - tau_f
-            if self._u_n < self._u_need:
+        elif self._mode == DYNAMIC:
+            # eq. (12): elements saturated in the direction of the last motion, relative to the
+            # stop position (a no-op when the motion was long enough to saturate them all); they
+            # enter the prediction from the next sample, through the filter
+            self._mode = QUASI_STATIC
+            if self._k.size:
+                self._zeta = q - self._last_sign * (self._W / self._k)
+        quasi = self._mode == QUASI_STATIC
+        raw = tau_f - pred_f  # what Γu must add for Γr = 0
+        if (quasi and not self._detected and self._since_contact >= self.u_holdoff
+                and (self._u_n < self._u_need or abs(raw - self._gamma_u) < 0.5 * self.threshold)):
+            if self._u_n < self._u_need:  # first estimate after a reset: the mean
                 self._u_sum += raw
                 self._u_n += 1
-                self._gamma_u = -self._u_sum / self._u_n
-            gamma_p = pred_f + self._gamma_u
+                self._gamma_u = self._u_sum / self._u_n
+            else:
+                self._gamma_u += min(h / self.u_tau, 1.0) * (raw - self._gamma_u)
+        new_u = self._gamma_u if quasi else 0.0
+        if self._mode != old_mode:  # bumpless: the prediction does not jump at a switch
+            self._bump += old_u - new_u
+        moving = v > thr  # the axis starting or stopping (on the differenced speed)
+        if self._mode != old_mode or moving != self._moving:
+            self._since_switch = 0.0
+        else:
+            self._since_switch += h
+        self._moving = moving
+        self._bump *= math.exp(-h / self.switch_tau)
+        gamma_p = pred_f + new_u + self._bump
         gamma_r = gamma_p - tau_f
         a = abs(gamma_r)
         if self._detected:
             self._detected = a >= self.release
+            if not self._detected:
+                self._since_contact = 0.0
         else:
-            self._detected = a >= self.threshold
-        return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, self._gamma_u)
+            start = self.threshold
+            if self._since_contact < self.regrip_time and self._since_switch >= self.switch_quiet:
+                start = max(self.release, self.regrip_share * self.threshold)
+            self._detected = a >= start
+            self._since_contact += h
+        return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, new_u)
 
 
 def torque_residual(time: np.ndarray, q: np.ndarray, tau: np.ndarray, model: AxisModel,

@@ -30,6 +30,8 @@ class SimRobot:
 
     def start(self) -> Block:
         self.sim.reset(self.q0)
+        if hasattr(self.operator, "reset"):
+            self.operator.reset()  # a stateful operator (a human arm) starts afresh
         if self.operator is not None:
             self.sim.set_external_torque(self.operator)
         if self.program is not None:

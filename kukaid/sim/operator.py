@@ -11,7 +11,9 @@ Positive torque pushes the joint towards positive q.
   it lets go at ``t_release``.  The torque depends on how readily the robot follows, so it is the
   operator on which damping choices differ (the paper's experiment 4: a point-to-point move by hand).
 
-:func:`make_operator` draws a seeded variation (size, timing) of either kind.
+:func:`make_operator` draws a seeded variation (size, timing) of either kind, or (``"human"``, the
+default of the admittance experiments) a person's arm of :mod:`kukaid.sim.human`: an impedance
+around an intended minimum-jerk motion that reacts, co-contracts and lets go when on target.
 """
 from __future__ import annotations
 
@@ -22,7 +24,7 @@ import numpy as np
 
 from kukaid.errors import KukaidError
 
-OPERATORS = ("push", "pull", "hand")
+OPERATORS = ("human", "push", "pull", "hand")
 
 
 def _ramp(x: float) -> float:
@@ -92,8 +94,9 @@ class HandOperator:
 
 
 def make_operator(kind: str, seed: int = 0, q0: float = 0.0, t_start: float = 2.0,
-                  amplitude: float | None = None, distance: float | None = None):
-    """A seeded operator of ``kind`` ("push", or "pull"/"hand": the spring-damper hand).
+                  amplitude: float | None = None, distance: float | None = None, grip: str | None = None):
+    """A seeded operator of ``kind`` ("human": :func:`kukaid.sim.human.make_human`, with ``grip``;
+    "push"; or "pull"/"hand": the open-loop spring-damper hand).
 
     The seed varies the push size (12-18 N·m) and duration (2.5-3.5 s), or the hand's travel
     (0.25-0.35 rad, sign from the seed), move time (2.5-3.5 s) and stiffness (120-180 N·m/rad).
@@ -104,6 +107,10 @@ def make_operator(kind: str, seed: int = 0, q0: float = 0.0, t_start: float = 2.
         sign = 1.0 if rng.random() < 0.5 else -1.0
         return PushOperator(amplitude=sign * amp if amplitude is None else amp, t_start=t_start,
                             duration=float(rng.uniform(2.5, 3.5)), ramp=0.5)
+    if kind == "human":
+        from kukaid.sim.human import make_human
+
+        return make_human(seed, q0, t_start, grip=grip, distance=distance)
     if kind in ("pull", "hand"):
         d = float(rng.uniform(0.25, 0.35)) * (1.0 if rng.random() < 0.5 else -1.0)
         if distance is not None:
@@ -113,3 +120,10 @@ def make_operator(kind: str, seed: int = 0, q0: float = 0.0, t_start: float = 2.
                             stiffness=float(rng.uniform(120.0, 180.0)), damping=10.0,
                             t_release=t_start + mt + 1.5)
     raise KukaidError(f"operator: unknown kind {kind!r}; choose one of {', '.join(OPERATORS)}")
+
+
+def operator_params(op) -> dict | None:
+    """What defines ``op`` (JSON-able), for a run's log."""
+    if op is None:
+        return None
+    return op.params() if hasattr(op, "params") else dict(op.__dict__)

@@ -1,0 +1,294 @@
+"""The paper's hand-guiding experiment (experiment 4) as a paired benchmark with a human arm.
+
+Usage: python benchmarks/admittance_paper.py [--operators 30] [--cycles 0.024,0.012] [--json]
+                                             [--sweep] [--params PARAMS.json] [--save RESULTS.json]
+
+Every operator (a seeded person from kukaid.sim.human: a third each soft, ordinary and firm
+grips) meets every controller with the same seed (the same person, the same sensor noise and
+vibration): constant D in {35, 50, 70} and the adaptive (RBF) damping from D0 = 50, each at
+24 ms and 12 ms control cycles.  Over a fixed window (from the grasp to the release + 1 s) it
+computes the paper's mean cost xi = mean(1/2 dG^2 + 1/2 lambda G^2) and mean squared dG (eq. 19)
+on the estimated residual Gr and on the true hand torque; then, per pair (adaptive vs constant),
+the mean paired difference with its 95 % confidence interval (t), paired wins and the Wilcoxon
+signed-rank p-value; and per controller oscillations (runs of at least 4 successive half-cycles
+of the hand torque's content above 0.6 Hz beyond 10 N·m peak to peak, kukaid.control.metrics;
+counted when one lasts more than 1.5 s after the stability monitor first acted on it, or more
+than 2 s if it never acted), the longest such time (damp time), torque-stop trips, false detections after the release, end error (relative to the
+person's move) and the estimated/true mean squared dG ratio.
+
+The controller's model is the simulator's truth with fixed errors (Fc -5 %, Fs +4 %, Fv +6 %,
+Izz +5 %, Mx -2 %, Maxwell-slip W -10 %), as an identified model would be, unless --params.
+--sweep varies each of the paper's unstated constants (lambda, eta1, eta2, centres, width, m)
+around the chosen value, at 24 ms, and reports adaptive vs D 50 on the true hand torque (a
+changed lambda changes the cost too: both sides of the pair are then scored with it).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+import time
+
+import numpy as np
+
+GRIPS = ("soft", "ordinary", "firm")
+
+
+def controller_model(params: dict | None = None):
+    from kukaid.params import model_from_params
+    from kukaid.sim import SimConfig
+
+    if params is None:
+        c = SimConfig()
+        params = c.replace(Fc=c.Fc * 0.95, Fs=c.Fs * 1.04, Fv=c.Fv * 1.06, Izz=c.Izz * 1.05, Mx=c.Mx * 0.98,
+                           ms_W=tuple(w * 0.9 for w in c.ms_W)).truth_params()
+    return model_from_params(params), (params.get("maxwell_slip") or {}).get("zeta0")
+
+
+def run_one(model, zeta0, seed: int, damping: str, D: float, cycle: float, rbf=None, grip: str | None = None,
+            duration: float = 13.0, lam: float = 0.05) -> dict:
+    """One paired run; returns the window metrics (cost with ``lam``) plus run-level checks."""
+    from kukaid.robot import SimRobot
+    from kukaid.control.loop import LoopConfig, run_admittance
+    from kukaid.control.metrics import damping_delay, window_metrics
+    from kukaid.sim import SimConfig, VirtualKRC4
+    from kukaid.sim.operator import make_operator
+
+    q0 = math.radians(30.0)
+    kw = {"rbf": rbf} if rbf is not None else {}
+    cfg = LoopConfig(damping=damping, D=D, cycle=cycle, duration=duration, **kw)
+    op = make_operator("human", seed, q0 + cfg.init_move, t_start=cfg.init_time + cfg.init_rest + 0.8, grip=grip)
+    be = SimRobot(VirtualKRC4(SimConfig(), seed=seed), q0, op)
+    run = run_admittance(be, model, cfg, zeta0=zeta0)
+    d = run.data
+    t0 = 0.012  # the run's time axis starts at the first measurement
+    t_rel = op.t_release if math.isfinite(op.t_release) else math.inf
+    t_to = min(t_rel + 1.0 - t0, float(d["time"][-1]))
+    m = window_metrics(d, op.p.t_grasp - t0, t_to, lam)
+    after = d["time"] > t_rel - t0 + op.p.release_time + 0.05
+    damp, sustained = damping_delay(m["osc_runs"], [e["time"] for e in run.metrics.get("stability_log", [])])
+    move = op.p.goal - op.p.q_start
+    m.update(seed=seed, grip=op.p.grip, status=run.status,
+             torque_stop=run.status.startswith("stopped: measured torque"),
+             false_after_release=int(np.sum(d["detected"][after])) if math.isfinite(t_rel) else 0,
+             end_error=float(abs(d["q"][-1] - op.p.goal) / abs(move)),
+             released_on_target=bool(op.released_on_target), K_peak=float(op.K_peak),
+             oscillating=bool(sustained), damp_time=float(damp),
+             stab_events=int(run.metrics.get("stability_events", 0)))
+    return m
+
+
+def paired(a: np.ndarray, b: np.ndarray) -> dict:
+    """Adaptive ``a`` vs constant ``b`` (lower is better): mean difference a - b with 95 % CI (t),
+    relative difference of the means, wins (a < b), Wilcoxon signed-rank p."""
+    from scipy import stats
+
+    ok = np.isfinite(a) & np.isfinite(b)
+    a, b = a[ok], b[ok]
+    d = a - b
+    n = d.size
+    mean = float(np.mean(d))
+    half = float(stats.t.ppf(0.975, n - 1) * np.std(d, ddof=1) / math.sqrt(n)) if n > 1 else math.nan
+    try:
+        p = float(stats.wilcoxon(a, b).pvalue)
+    except ValueError:
+        p = math.nan
+    return {"n": int(n), "mean_a": float(np.mean(a)), "mean_b": float(np.mean(b)), "diff": mean,
+            "ci": [mean - half, mean + half], "rel": mean / float(np.mean(b)), "wins": int(np.sum(d < 0)),
+            "wilcoxon_p": p}
+
+
+CONTROLLERS = (("D35", "constant", 35.0), ("D50", "constant", 50.0), ("D70", "constant", 70.0),
+               ("adaptive", "adaptive", 50.0))
+
+
+def benchmark(n_ops: int, cycles: tuple[float, ...], model, zeta0, rbf=None, controllers=CONTROLLERS) -> dict:
+    out: dict = {}
+    for cyc in cycles:
+        runs: dict[str, list[dict]] = {name: [] for name, _, _ in controllers}
+        for i in range(n_ops):
+            grip = GRIPS[i % 3]
+            for name, damping, D in controllers:
+                runs[name].append(run_one(model, zeta0, i, damping, D, cyc, rbf=rbf if damping == "adaptive" else None,
+                                          grip=grip))
+        res: dict = {"runs": runs, "per_controller": {}, "paired": {}}
+        for name, rs in runs.items():
+            col = lambda k: np.array([r[k] for r in rs], dtype=float)  # noqa: E731
+            res["per_controller"][name] = {
+                "xi": float(np.mean(col("xi"))), "dgamma2": float(np.mean(col("dgamma2"))),
+                "xi_true": float(np.mean(col("xi_true"))), "dgamma2_true": float(np.mean(col("dgamma2_true"))),
+                "dgamma2_ratio": float(np.mean(col("dgamma2") ) / np.mean(col("dgamma2_true"))),
+                "dgamma2_ratio_max": float(np.max(col("dgamma2_ratio"))),
+                "oscillating": int(np.sum(col("oscillating"))), "torque_stop": int(np.sum(col("torque_stop"))),
+                "false_after_release": int(np.sum(col("false_after_release"))),
+                "end_error_median": float(np.median(col("end_error"))), "end_error_max": float(np.max(col("end_error"))),
+                "end_error_soft_max": float(np.max([r["end_error"] for r in rs if r["grip"] == "soft"] or [math.nan])),
+                "stab_events": int(np.sum(col("stab_events"))), "osc_ptp_max": float(np.max(col("osc_ptp"))),
+                "damp_time_max": float(np.max(col("damp_time"))),
+                "xi_true_by_grip": {g: float(np.mean([r["xi_true"] for r in rs if r["grip"] == g])) for g in GRIPS},
+            }
+        ad = runs.get("adaptive")
+        if ad:
+            for name, rs in runs.items():
+                if name == "adaptive":
+                    continue
+                res["paired"][name] = {}
+                for key in ("xi", "dgamma2", "xi_true", "dgamma2_true"):
+                    a = np.array([r[key] for r in ad])
+                    b = np.array([r[key] for r in rs])
+                    pr = paired(a, b)
+                    for g in GRIPS:
+                        sel = np.array([r["grip"] == g for r in ad])
+                        pr[f"wins_{g}"] = int(np.sum(a[sel] < b[sel]))
+                        pr[f"n_{g}"] = int(np.sum(sel))
+                    res["paired"][name][key] = pr
+        out[f"{cyc:g}"] = res
+    return out
+
+
+def print_table(res: dict, n_ops: int) -> None:
+    for cyc, r in res.items():
+        print(f"\n== control cycle {float(cyc) * 1000:.0f} ms, {n_ops} operators (soft/ordinary/firm by thirds) ==")
+        print(f"{'controller':>9} | {'xi Gr':>7} {'dG2 Gr':>7} | {'xi true':>7} {'dG2 true':>8} | {'dG2 est/true':>12} |"
+              f" {'osc':>3} {'stop':>4} {'false':>5} | {'end err med/max (soft max)':>26} | {'stab ev':>7} {'damp s':>6}")
+        for name, p in r["per_controller"].items():
+            print(f"{name:>9} | {p['xi']:7.3f} {p['dgamma2']:7.4f} | {p['xi_true']:7.3f} {p['dgamma2_true']:8.4f} |"
+                  f" {p['dgamma2_ratio']:5.2f} (max {p['dgamma2_ratio_max']:4.2f}) | {p['oscillating']:3d} {p['torque_stop']:4d}"
+                  f" {p['false_after_release']:5d} | {100 * p['end_error_median']:6.1f}% / {100 * p['end_error_max']:5.1f}%"
+                  f" ({100 * p['end_error_soft_max']:5.1f}%) | {p['stab_events']:7d} {p['damp_time_max']:6.2f}")
+        if r["paired"]:
+            print("adaptive - constant (paired; negative = adaptive costs the person less):")
+            print(f"{'vs':>4} {'measure':>12} | {'mean diff':>9} {'95% CI':>21} {'rel':>7} | {'wins':>6} "
+                  f"{'soft/ord/firm':>13} | {'Wilcoxon p':>10}")
+            for name, per in r["paired"].items():
+                for key, pr in per.items():
+                    print(f"{name:>4} {key:>12} | {pr['diff']:+9.4f} [{pr['ci'][0]:+9.4f}, {pr['ci'][1]:+9.4f}]"
+                          f" {100 * pr['rel']:+6.1f}% | {pr['wins']:2d}/{pr['n']:2d} "
+                          f"{pr['wins_soft']:>3d}/{pr['wins_ordinary']:d}/{pr['wins_firm']:d}{'':>6} | {pr['wilcoxon_p']:10.2g}")
+
+
+def sweep(n_ops: int, model, zeta0, cycle: float = 0.024) -> list[dict]:
+    """Adaptive vs D 50 on the true hand torque, one unstated constant changed at a time."""
+    from kukaid.control.rbf import RBFConfig
+
+    base = RBFConfig(D0=50.0, D_min=15.0, D_max=100.0)
+    variants = [("chosen", {})]
+    variants += [(f"lam={v:.3g}", {"lam": v}) for v in (base.lam / 3, base.lam * 3)]
+    variants += [(f"eta1={v:.3g}", {"eta1": v}) for v in (base.eta1 / 3, base.eta1 * 3)]
+    variants += [(f"eta2={v:.3g}", {"eta2": v}) for v in (base.eta2 / 3, base.eta2 * 3)]
+    variants += [(f"width={v:g}", {"width": v}) for v in (base.width / 2, base.width * 2)]
+    variants += [(f"m={v}", {"m": v}) for v in (0, 3)]
+    variants += [("centres x0.5", {"force_levels": tuple(0.5 * f for f in base.force_levels),
+                                   "dforce_levels": tuple(0.5 * f for f in base.dforce_levels)}),
+                 ("centres x2", {"force_levels": tuple(2 * f for f in base.force_levels),
+                                 "dforce_levels": tuple(2 * f for f in base.dforce_levels)})]
+    ref = [run_one(model, zeta0, i, "constant", 50.0, cycle, grip=GRIPS[i % 3]) for i in range(n_ops)]
+    rows = []
+    for label, ch in variants:
+        rbf = dataclasses.replace(base, **ch)
+        ad = [run_one(model, zeta0, i, "adaptive", 50.0, cycle, rbf=rbf, grip=GRIPS[i % 3], lam=rbf.lam)
+              for i in range(n_ops)]
+        if rbf.lam != base.lam:  # the cost the law minimises, for both sides of the pair
+            ref_l = [run_one(model, zeta0, i, "constant", 50.0, cycle, grip=GRIPS[i % 3], lam=rbf.lam)
+                     for i in range(n_ops)]
+        else:
+            ref_l = ref
+        row = {"variant": label}
+        for key in ("xi_true", "dgamma2_true"):
+            pr = paired(np.array([r[key] for r in ad]), np.array([r[key] for r in ref_l]))
+            row[key] = {k: pr[k] for k in ("rel", "wins", "n", "ci", "wilcoxon_p")}
+        row["oscillating"] = int(sum(r["oscillating"] for r in ad))
+        row["torque_stop"] = int(sum(r["torque_stop"] for r in ad))
+        rows.append(row)
+    return rows
+
+
+def print_sweep(rows: list[dict]) -> None:
+    print("\n== sensitivity of adaptive vs D 50 (true hand torque, 24 ms) to the unstated constants ==")
+    print(f"{'variant':>14} | {'xi rel':>7} {'wins':>6} | {'dG2 rel':>7} {'wins':>6} | osc stop")
+    for r in rows:
+        x, d = r["xi_true"], r["dgamma2_true"]
+        print(f"{r['variant']:>14} | {100 * x['rel']:+6.1f}% {x['wins']:2d}/{x['n']:2d} | {100 * d['rel']:+6.1f}% "
+              f"{d['wins']:2d}/{d['n']:2d} | {r['oscillating']:3d} {r['torque_stop']:4d}")
+
+
+def print_markdown(doc: dict) -> None:
+    """The README's tables from :func:`benchmark` / :func:`sweep` results (JSON as saved)."""
+    res = doc["results"]
+    print("| cycle | vs | measure | mean diff [95 % CI] | rel | wins (s/o/f) | Wilcoxon p |")
+    print("|---|---|---|---|---|---|---|")
+    for cyc, r in res.items():
+        for name in ("D35", "D50", "D70"):
+            for key in ("xi", "dgamma2", "xi_true", "dgamma2_true"):
+                pr = r["paired"][name][key]
+                print(f"| {float(cyc) * 1000:.0f} ms | {name} | {key} | {pr['diff']:+.3f} [{pr['ci'][0]:+.3f}, "
+                      f"{pr['ci'][1]:+.3f}] | {100 * pr['rel']:+.1f} % | {pr['wins']}/{pr['n']} "
+                      f"({pr['wins_soft']}/{pr['wins_ordinary']}/{pr['wins_firm']}) | {pr['wilcoxon_p']:.2g} |")
+    print()
+    print("| controller | cycle | mean ξ (true) | dΓ² est/true (largest run) | osc | stop | false | end error median / max "
+          "(soft max) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in res[next(iter(res))]["per_controller"]:
+        for cyc, r in res.items():
+            p = r["per_controller"][name]
+            print(f"| {name} | {float(cyc) * 1000:.0f} ms | {p['xi_true']:.2f} | {p['dgamma2_ratio']:.2f} "
+                  f"({p['dgamma2_ratio_max']:.2f}) | {p['oscillating']} | {p['torque_stop']} | {p['false_after_release']} "
+                  f"| {100 * p['end_error_median']:.1f} / {100 * p['end_error_max']:.1f} "
+                  f"({100 * p['end_error_soft_max']:.1f}) % |")
+    if doc.get("sweep"):
+        print()
+        print("| variant | ξ rel | ξ wins | dΓ² rel | dΓ² wins | osc | stop |")
+        print("|---|---|---|---|---|---|---|")
+        for row in doc["sweep"]:
+            x, d = row["xi_true"], row["dgamma2_true"]
+            print(f"| {row['variant']} | {100 * x['rel']:+.1f} % | {x['wins']}/{x['n']} | {100 * d['rel']:+.1f} % | "
+                  f"{d['wins']}/{d['n']} | {row['oscillating']} | {row['torque_stop']} |")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--operators", type=int, default=30)
+    ap.add_argument("--cycles", default="0.024,0.012")
+    ap.add_argument("--params", help="parameter file of the controller's model [simulator truth with errors]")
+    ap.add_argument("--sweep", action="store_true", help="also the sensitivity sweep (24 ms)")
+    ap.add_argument("--sweep-operators", type=int, default=15)
+    ap.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
+    ap.add_argument("--save", help="also write the JSON results to this file")
+    ap.add_argument("--markdown", metavar="RESULTS.json",
+                    help="print the README's markdown tables from saved results (no runs)")
+    a = ap.parse_args()
+    if a.markdown:
+        with open(a.markdown) as f:
+            print_markdown(json.load(f))
+        return
+    params = None
+    if a.params:
+        from kukaid.params import load_params
+
+        params = load_params(a.params)
+    model, zeta0 = controller_model(params)
+    cycles = tuple(float(c) for c in a.cycles.split(","))
+    t = time.perf_counter()
+    res = benchmark(a.operators, cycles, model, zeta0)
+    rows = sweep(a.sweep_operators, model, zeta0) if a.sweep else None
+    secs = time.perf_counter() - t
+    from kukaid.jsonfile import jsonable
+
+    doc = jsonable({"operators": a.operators, "results": res, "sweep": rows, "seconds": secs})
+    if a.save:
+        with open(a.save, "w") as f:
+            json.dump(doc, f)
+    if a.json:
+        json.dump(doc, sys.stdout)
+        print()
+        return
+    print_table(res, a.operators)
+    if rows is not None:
+        print_sweep(rows)
+    print(f"\n({secs:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()

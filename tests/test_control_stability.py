@@ -1,0 +1,65 @@
+"""The oscillation monitor (kukaid.control.stability) and the paper's measures (kukaid.control.metrics)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from kukaid.control.metrics import oscillation_runs, paper_costs
+from kukaid.control.stability import OscillationMonitor, StabilityConfig
+
+CYCLE = 0.024
+
+
+def _feed(signal, D=50.0, contact=True):
+    mon = OscillationMonitor(StabilityConfig(), CYCLE, D, D_limit=1500.0)
+    floors = [mon.step(x, D, contact=contact) for x in signal]
+    return mon, np.array(floors)
+
+
+def test_an_alternating_torque_raises_the_damping_within_a_second():
+    t = np.arange(0.0, 4.0, CYCLE)
+    osc = np.where(t > 1.0, 15.0 * np.sin(2 * math.pi * 1.5 * (t - 1.0)), 0.0)
+    mon, floor = _feed(osc)
+    assert mon.events and 1.0 < mon.events[0]["time"] < 2.0  # three half-cycles of 0.33 s
+    assert floor.max() == pytest.approx(500.0)  # doubled while it goes on, up to 10 D
+    assert "alternating half-cycles" in mon.events[0]["reason"]
+
+
+@pytest.mark.parametrize("shape", ["step", "pulse"])
+def test_a_quick_push_or_a_guiding_move_is_not_an_oscillation(shape):
+    t = np.arange(0.0, 6.0, CYCLE)
+    if shape == "step":  # a firm grasp: 0 -> 40 N·m in 0.2 s
+        x = 40.0 * np.clip((t - 1.0) / 0.2, 0.0, 1.0)
+    else:  # pull, then brake: one minimum-jerk-like move of 2 s
+        x = 20.0 * np.sin(2 * math.pi * (t - 1.0) / 2.0) * ((t > 1.0) & (t < 3.0))
+    mon, floor = _feed(x)
+    assert not mon.events and floor.max() == 0.0
+
+
+def test_the_floor_stays_during_the_contact_and_relaxes_after_it():
+    t = np.arange(0.0, 3.0, CYCLE)
+    osc = 15.0 * np.sin(2 * math.pi * 1.5 * t)
+    mon, _ = _feed(osc)
+    held = [mon.step(0.0, 50.0, contact=True) for _ in range(200)]
+    assert min(held) == pytest.approx(500.0)  # still gripping: kept
+    after = [mon.step(0.0, 50.0, contact=False) for _ in range(1000)]
+    assert after[-1] == 0.0 and not mon.active
+
+
+def test_paper_costs_are_eq_19_per_cycle():
+    g = np.array([0.0, 1.0, 3.0, 2.0])
+    xi, dg2 = paper_costs(g, lam=0.5)
+    d = np.array([1.0, 2.0, -1.0])
+    assert dg2 == pytest.approx(np.mean(d ** 2))
+    assert xi == pytest.approx(np.mean(0.5 * d ** 2 + 0.25 * g[1:] ** 2))
+
+
+def test_oscillation_runs_find_alternations_not_moves():
+    t = np.arange(0.0, 8.0, 0.012)
+    move = 30.0 * np.sin(math.pi * np.clip((t - 1.0) / 2.5, 0.0, 1.0)) ** 2  # a guiding push
+    assert oscillation_runs(t, move) == []
+    osc = move + 12.0 * np.sin(2 * math.pi * 1.2 * t) * ((t > 4.0) & (t < 7.0))
+    runs = oscillation_runs(t, osc)
+    assert len(runs) == 1 and runs[0][0] == pytest.approx(4.0, abs=0.6) and runs[0][1] == pytest.approx(7.0, abs=0.6)
