@@ -57,6 +57,14 @@ class CausalButterworth:
             y = out
         return y
 
+    def phase_delay(self, w: float) -> float:
+        """The filter's phase delay at ``w`` rad/s: -(phase of its response) / w, s."""
+        from scipy.signal import sosfreqz
+
+        f = min(max(float(w), 1e-6) / (2 * math.pi), 0.499 * self.fs)
+        _, h = sosfreqz(self._sos, worN=[f], fs=self.fs)
+        return float(-np.unwrap([0.0, np.angle(h[0])])[1] % (2 * math.pi)) / (2 * math.pi * f)
+
     def filter(self, x: np.ndarray) -> np.ndarray:
         """Filter a whole array causally (from the present state)."""
         return np.array([self.step(v) for v in np.asarray(x, dtype=float).ravel()])

@@ -18,6 +18,7 @@ Before the admittance is enabled the axis makes the paper's initiation move (sec
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field, asdict
 from typing import Any, Callable
@@ -25,9 +26,10 @@ from typing import Any, Callable
 import numpy as np
 
 from kukaid.control.admittance import Admittance, check_admittance
+from kukaid.control.filters import CausalButterworth
 from kukaid.control.rbf import RBFConfig, RBFDamping
 from kukaid.control.safety import ReferenceLimiter, SafetyLimits, Watchdog
-from kukaid.control.stability import OscillationMonitor, StabilityConfig
+from kukaid.control.stability import CouplingConfig, CouplingFloor, OscillationMonitor, StabilityConfig
 from kukaid.control.torque_residual import DYNAMIC, RELEASE_SHARE, TorqueResidual
 from kukaid.errors import KukaidError
 
@@ -41,7 +43,8 @@ class LoopConfig:
     I kg·m², D N·m·s/rad (constant damping, and D0 of the adaptive one); damping "constant" or
     "adaptive"; threshold / release N·m; cycle s; duration s (of the admittance phase);
     init_move rad, init_time s, init_rest s; rbf (adaptive damping settings); limits (safety);
-    stability (the online oscillation monitor that raises the damping, both modes).
+    stability (the online oscillation monitor that raises the damping, both modes); passivity
+    (the adaptive law's floor: the damping the person must feel at the coupled mode's frequency).
     """
 
     I: float = 20.0
@@ -59,6 +62,7 @@ class LoopConfig:
     rbf: RBFConfig | None = None
     limits: SafetyLimits = field(default_factory=SafetyLimits)
     stability: StabilityConfig = field(default_factory=StabilityConfig)
+    coupling: CouplingConfig = field(default_factory=CouplingConfig)
 
     def __post_init__(self) -> None:
         if self.damping not in ("constant", "adaptive"):
@@ -116,8 +120,16 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
         for s in samples:
             r = est.update(s.q, s.tau)
         limiter = ReferenceLimiter(cfg.limits, cfg.cycle, samples[-1].q)
-        mon = OscillationMonitor(cfg.stability, cfg.cycle, cfg.D, D_limit=0.9 * 2.0 * cfg.I / cfg.cycle)
-        log, status = _loop(backend, est, r, limiter, mon, samples[-1], cfg, progress, on_row)
+        stab = cfg.stability
+        if cfg.damping == "adaptive" and cfg.coupling.enabled:
+            # the grip floor acts on the second half-cycle; the monitor backs it up one half-cycle later
+            stab = dataclasses.replace(stab, lobes=max(stab.lobes, 4))
+        mon = OscillationMonitor(stab, cfg.cycle, cfg.D, D_limit=0.9 * 2.0 * cfg.I / cfg.cycle)
+        grip = None
+        if cfg.damping == "adaptive" and cfg.coupling.enabled:  # the constant damping stays the paper's
+            lp = CausalButterworth(est.cutoff, 1.0 / est.sample_time, est.order)  # the estimator's low-pass
+            grip = CouplingFloor(cfg.coupling, cfg.cycle, cfg.I, D_cap=mon.D_cap, filter_delay=lp.phase_delay)
+        log, status = _loop(backend, est, r, limiter, mon, grip, samples[-1], cfg, progress, on_row)
     except BaseException:
         backend.hold()
         backend.close()
@@ -129,20 +141,26 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     metrics = run_metrics(data, cfg)
     metrics["status"] = status
     metrics["clipped_cycles"] = int(limiter.clipped)
-    metrics["stability_events"] = len(mon.events)
-    if mon.events:  # when and why the damping was raised (times on the run's time axis)
+    events = sorted(mon.events + (grip.events if grip is not None else []), key=lambda e: e["time"])
+    metrics["stability_events"] = len(events)
+    if events:  # when and why the damping was raised (times on the run's time axis)
         t_adm = (cfg.init_time if cfg.init_move else 0.0) + cfg.init_rest
-        metrics["stability_log"] = [{**e, "time": e["time"] + t_adm} for e in mon.events[:20]]
+        metrics["stability_log"] = [{**e, "time": e["time"] + t_adm} for e in events[:20]]
+    if grip is not None:
+        metrics["grip_stiffness"] = grip.K_est
+        metrics["loop_delay"] = grip.T_est
+        metrics["robot_lag"] = grip.robot_lag
     if est.ignored_effects:
         metrics["ignored_effects"] = est.ignored_effects
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
 
 
 _KEYS = ("time", "q", "tau", "tau_ext_true", "gamma_r", "gamma_p", "sigma", "sigma_dot", "q_cmd", "D",
-         "dynamic", "detected", "phase", "clipped", "osc_index", "D_floor")
+         "dynamic", "detected", "phase", "clipped", "osc_index", "D_floor", "D_grip")
 
 
 def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, mon: OscillationMonitor,
+          grip: CouplingFloor | None,
           first: Any, cfg: LoopConfig,
           progress: Callable[[float], None] | None,
           on_row: Callable[[dict[str, Any]], None] | None) -> tuple[dict[str, list], str]:
@@ -181,6 +199,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             if rbf is not None:  # no learning while the monitor damps an oscillation
                 D_base = rbf.step(r.gamma_r, direction=adm.sigma_dot if adm.sigma_dot != 0 else gamma,
                                   adapt=r.detected and not mon.oscillating)
+            if grip is not None:
+                floor = max(floor, grip.step(r.gamma_r, contact=r.detected))
             D_now = max(D_base, floor)
             sigma, sd = adm.step(gamma, D_now)
             if braking and sd * sd0 < 0.0:  # braked to a stop
@@ -201,6 +221,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             r = est.update(s.q, s.tau, (s.t - last.t) if s.t > last.t else None)
             last = s
             dog.feed(s.t)
+        if grip is not None and phase == PHASE_ADMITTANCE and new:
+            grip.observe_robot(q_cmd, last.q)
         if stop is None and not dog.check(backend.now()):
             stop = dog.tripped
         if stop is None and abs(last.tau) > cfg.limits.tau_max:
@@ -214,7 +236,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
         row = {"time": t_row - t0, "q": last.q, "tau": last.tau, "tau_ext_true": last.tau_ext_true,
                "gamma_r": r.gamma_r, "gamma_p": r.gamma_p, "sigma": adm.sigma, "sigma_dot": sd, "q_cmd": q_cmd,
                "D": D_now, "dynamic": r.mode == DYNAMIC, "detected": r.detected, "phase": phase, "clipped": clipped,
-               "osc_index": mon.index, "D_floor": mon.floor}
+               "osc_index": mon.index, "D_floor": mon.floor,
+               "D_grip": grip.floor if grip is not None else 0.0}
         for key, v in row.items():
             log[key].append(v)
         if on_row is not None:

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 from kukaid.control.filters import CausalButterworth
 from kukaid.errors import KukaidError
@@ -140,3 +141,157 @@ class OscillationMonitor:
                     self.floor = 0.0
                     self.active = False
         return self.floor
+
+
+def critical_damping(K: float, I: float, T: float) -> float:
+    """The damping below which the admittance I σ̈ + D σ̇ = Γ, reached by a spring K through the
+    loop delay T, oscillates with growing amplitude (N·m·s/rad).
+
+    The coupled loop's characteristic equation is I s² + D s + K e^{-sT} = 0; on the stability
+    boundary s = jω: K cos ωT = I ω² and D = K sin(ωT) / ω (for small ωT, D ≈ K T: a stiffer arm
+    or a longer delay needs proportionally more damping).  ω is found by bisection on (0, π/2T).
+    """
+    if K <= 0 or T <= 0:
+        return 0.0
+    lo, hi = 0.0, 0.5 * math.pi / T
+    for _ in range(40):
+        w = 0.5 * (lo + hi)
+        if K * math.cos(w * T) > I * w * w:
+            lo = w
+        else:
+            hi = w
+    w = 0.5 * (lo + hi)
+    return K * math.sin(w * T) / w
+
+
+@dataclass(frozen=True)
+class CouplingConfig:
+    """Settings of :class:`CouplingFloor` (Hz, s, N·m)."""
+
+    enabled: bool = True
+    f_lo: float = 0.6
+    f_hi: float = 6.0
+    threshold: float = 4.0
+    max_half_period: float = 0.8
+    zeta: float = 0.1
+    relax: float = 4.0
+    hold: float = 1.0
+
+    def __post_init__(self) -> None:
+        ok = (0 < self.f_lo < self.f_hi and self.threshold > 0 and self.max_half_period > 0 and self.zeta >= 0
+              and self.relax > 0 and self.hold >= 0)
+        if not ok:
+            raise KukaidError(f"coupling floor: settings out of range: {self}")
+
+
+class CouplingFloor:
+    """The adaptive law's damping floor from the stiffness of the person's grip, estimated online
+    from the interaction's own ringing; :meth:`step` once per control cycle.
+
+    Physics.  Around the intended motion the arm is a spring K (plus damping and the hand's
+    inertia); holding the link couples it to the admittance I σ̈ + D σ̇ = Γr, which reaches the
+    arm only after the loop's delay T (the estimator's low-pass, the control cycle, the robot's
+    interpolation and position loop).  The coupled mode rings at ω ≈ sqrt(K / I) and is unstable
+    once D < D_crit(K, T) (:func:`critical_damping`, ≈ K T): a firm grip (K up to ~1200 N·m/rad)
+    with I = 20 kg·m² and T ≈ 0.1 s needs D ≈ 120 N·m·s/rad whatever an RBF network wants, a soft
+    one (K ≈ 100) only ≈ 10.  Neither K nor T are known in advance:
+
+    * K: as soon as Γr's band-passed content ([``f_lo``, ``f_hi``] Hz, above a person's guiding
+      motion) makes two successive half-cycles beyond ``threshold`` N·m, each shorter than
+      ``max_half_period`` s (a push and its rebound: the mode ringing; the stability monitor waits
+      for three and then doubles the damping), their mean half-period t_h gives ω = π / t_h and
+      K_est = I ω² (the largest seen during the contact is kept: stiffness only rises with
+      co-contraction while the grip lasts);
+    * T: the filter's delay at ω (its phase / ω, exact from its coefficients), plus one control
+      cycle (Γr of cycle k moves the reference of cycle k+1), plus the robot's lag behind its
+      reference, measured online from the sent reference and the measured position while the
+      axis moves (so a slower robot behind KUKAVARPROXY gets a larger floor).
+
+    The floor is D_crit(K_est, T) + 2 ``zeta`` sqrt(K_est I) (a margin of damping ratio
+    ``zeta`` on top of the stability limit), kept while the contact lasts and relaxed (``relax``
+    s) once the person has let go for ``hold`` s.  A soft grip never rings, so the network keeps
+    lowering the damping for it.
+    """
+
+    def __init__(self, config: CouplingConfig, cycle: float, I: float, D_cap: float,
+                 filter_delay: Callable[[float], float] | None = None) -> None:
+        self.config = c = config
+        fs = 1.0 / cycle
+        hi = min(c.f_hi, 0.45 * fs)
+        self._bp = CausalButterworth((c.f_lo, hi), fs, 2, btype="bandpass")
+        self.cycle, self.I, self.D_cap = float(cycle), float(I), float(D_cap)
+        self._filter_delay = filter_delay or (lambda w: 0.0)
+        self._relax = math.exp(-cycle / c.relax)
+        self.reset()
+
+    def reset(self) -> None:
+        self.floor = 0.0
+        self.K_est = 0.0
+        self.T_est = math.nan
+        self.events: list[dict] = []
+        self._t = 0.0
+        self._sign = 0.0
+        self._peak = 0.0
+        self._t_cross = 0.0
+        self._halves: list[float] = []
+        self._lag_num = 0.0
+        self._lag_den = 0.0
+        self._q_prev: float | None = None
+        self._quiet = 0.0
+
+    @property
+    def robot_lag(self) -> float:
+        """The robot's measured lag behind the sent reference, s (0 until it has moved)."""
+        return min(max(self._lag_num / self._lag_den, 0.0), 0.3) if self._lag_den > 0 else 0.0
+
+    def observe_robot(self, q_sent: float, q: float) -> None:
+        """Feed the reference sent last cycle and the position measured since (rad), for the lag."""
+        if self._q_prev is not None:
+            v = (q - self._q_prev) / self.cycle
+            if abs(v) > 0.02:  # moving: (reference - position) ≈ lag · velocity
+                a = min(self.cycle / 2.0, 1.0)
+                self._lag_num += a * ((q_sent - q) * v - self._lag_num)
+                self._lag_den += a * (v * v - self._lag_den)
+        self._q_prev = q
+
+    def step(self, gamma_r: float, contact: bool) -> float:
+        """Feed this cycle's Γr (N·m) and whether a person is in contact; returns the floor
+        (N·m·s/rad, 0 when inactive)."""
+        c = self.config
+        self._t += self.cycle
+        band = self._bp.step(gamma_r)
+        sg = 1.0 if band > 0 else -1.0 if band < 0 else self._sign
+        if sg != self._sign:
+            dur = self._t - self._t_cross
+            if self._peak > c.threshold and dur <= c.max_half_period:
+                self._halves = (self._halves + [dur])[-2:]
+            else:
+                self._halves = []
+            self._sign, self._peak, self._t_cross = sg, 0.0, self._t
+            if contact and len(self._halves) == 2 and c.enabled:
+                self._raise(math.pi / (0.5 * sum(self._halves)))
+        self._peak = max(self._peak, abs(band))
+        if contact:
+            self._quiet = 0.0
+        else:
+            self._quiet += self.cycle
+            if self._quiet >= c.hold:
+                self.floor *= self._relax
+                if self.floor < 1.0:
+                    self.floor, self.K_est = 0.0, 0.0
+        return self.floor if c.enabled else 0.0
+
+    def _raise(self, w: float) -> None:
+        c = self.config
+        K = self.I * w * w
+        if K <= self.K_est:
+            return
+        self.K_est = K
+        self.T_est = T = self._filter_delay(w) + self.cycle + self.robot_lag
+        new = min(critical_damping(K, self.I, T) + 2.0 * c.zeta * math.sqrt(K * self.I), self.D_cap)
+        if new > self.floor + 1e-9:
+            self.floor = new
+            self.events.append({"time": self._t, "index": K, "D_floor": new,
+                                "reason": (f"coupled mode at {w / (2 * math.pi):.2f} Hz: grip stiffness about "
+                                           f"{K:.0f} N·m/rad, loop delay {1000 * T:.0f} ms: damping floor "
+                                           f"{new:.0f} N·m·s/rad")})
