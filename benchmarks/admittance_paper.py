@@ -48,7 +48,7 @@ def controller_model(params: dict | None = None):
 
 
 def run_one(model, zeta0, seed: int, damping: str, D: float, cycle: float, rbf=None, grip: str | None = None,
-            duration: float = 13.0, lam: float = 0.05) -> dict:
+            duration: float = 13.0, lam: float = 0.05, coupling=None, arm: str = "human") -> dict:
     """One paired run; returns the window metrics (cost with ``lam``) plus run-level checks."""
     from kukaid.robot import SimRobot
     from kukaid.control.loop import LoopConfig, run_admittance
@@ -58,6 +58,8 @@ def run_one(model, zeta0, seed: int, damping: str, D: float, cycle: float, rbf=N
 
     q0 = math.radians(30.0)
     kw = {"rbf": rbf} if rbf is not None else {}
+    if coupling is not None:
+        kw["coupling"] = coupling
     cfg = LoopConfig(damping=damping, D=D, cycle=cycle, duration=duration, **kw)
     op = make_operator("human", seed, q0 + cfg.init_move, t_start=cfg.init_time + cfg.init_rest + 0.8, grip=grip)
     be = SimRobot(VirtualKRC4(SimConfig(), seed=seed), q0, op)
@@ -172,6 +174,7 @@ def print_table(res: dict, n_ops: int) -> None:
 def sweep(n_ops: int, model, zeta0, cycle: float = 0.024) -> list[dict]:
     """Adaptive vs D 50 on the true hand torque, one unstated constant changed at a time."""
     from kukaid.control.rbf import RBFConfig
+    from kukaid.control.stability import CouplingConfig
 
     base = RBFConfig(D0=50.0, D_min=15.0, D_max=100.0)
     variants = [("chosen", {})]
@@ -185,10 +188,12 @@ def sweep(n_ops: int, model, zeta0, cycle: float = 0.024) -> list[dict]:
                  ("centres x2", {"force_levels": tuple(2 * f for f in base.force_levels),
                                  "dforce_levels": tuple(2 * f for f in base.dforce_levels)})]
     ref = [run_one(model, zeta0, i, "constant", 50.0, cycle, grip=GRIPS[i % 3]) for i in range(n_ops)]
+    variants += [(f"grip zeta={v:g}", {"zeta": v}) for v in (0.1, 0.4)]
     rows = []
     for label, ch in variants:
-        rbf = dataclasses.replace(base, **ch)
-        ad = [run_one(model, zeta0, i, "adaptive", 50.0, cycle, rbf=rbf, grip=GRIPS[i % 3], lam=rbf.lam)
+        cpl = CouplingConfig(**ch) if "zeta" in ch else None
+        rbf = base if cpl is not None else dataclasses.replace(base, **ch)
+        ad = [run_one(model, zeta0, i, "adaptive", 50.0, cycle, rbf=rbf, grip=GRIPS[i % 3], lam=rbf.lam, coupling=cpl)
               for i in range(n_ops)]
         if rbf.lam != base.lam:  # the cost the law minimises, for both sides of the pair
             ref_l = [run_one(model, zeta0, i, "constant", 50.0, cycle, grip=GRIPS[i % 3], lam=rbf.lam)

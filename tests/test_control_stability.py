@@ -63,3 +63,67 @@ def test_oscillation_runs_find_alternations_not_moves():
     osc = move + 12.0 * np.sin(2 * math.pi * 1.2 * t) * ((t > 4.0) & (t < 7.0))
     runs = oscillation_runs(t, osc)
     assert len(runs) == 1 and runs[0][0] == pytest.approx(4.0, abs=0.6) and runs[0][1] == pytest.approx(7.0, abs=0.6)
+
+
+# --- the adaptive law's grip-stiffness floor (CouplingFloor) ---------------------------------------
+
+from kukaid.control.stability import CouplingConfig, CouplingFloor, critical_damping  # noqa: E402
+
+
+def test_critical_damping_is_the_delayed_loops_stability_boundary():
+    """I s² + D s + K e^{-sT} has a root on the imaginary axis at D = critical_damping(K, I, T):
+    ≈ K T for small ωT, growing with K and T, 0 without delay."""
+    K, I, T = 1200.0, 20.0, 0.09
+    D = critical_damping(K, I, T)
+    w = np.linspace(0.1, 30.0, 200001)
+    char = -I * w ** 2 + 1j * D * w + K * np.exp(-1j * w * T)
+    assert np.min(np.abs(char)) < 1e-3 * K
+    assert 0.7 * K * T < D < K * T
+    assert critical_damping(400.0, I, T) < D and critical_damping(K, I, 0.05) < D
+    assert critical_damping(K, I, 1e-9) == pytest.approx(0.0, abs=1e-3)
+
+
+def _ring(K, D=50.0, I=20.0, T=0.09, seconds=3.0):
+    """Γr of a grip K ringing against the admittance: a decaying oscillation at sqrt(K / I)."""
+    w = math.sqrt(K / I)
+    t = np.arange(0.0, seconds, CYCLE)
+    return np.where(t > 0.5, 30.0 * np.exp(-0.3 * (t - 0.5)) * np.sin(w * (t - 0.5)), 0.0)
+
+
+@pytest.mark.parametrize("K", [600.0, 900.0, 1200.0])
+def test_the_grip_floor_follows_the_stiffness_from_the_ringing(K):
+    cf = CouplingFloor(CouplingConfig(), CYCLE, 20.0, D_cap=1000.0, filter_delay=lambda w: 0.064)
+    floors = [cf.step(x, contact=True) for x in _ring(K)]
+    first = next(i for i, f in enumerate(floors) if f > 0)
+    half = math.pi / math.sqrt(K / 20.0)
+    assert first * CYCLE < 0.5 + 2 * half + 0.25  # on the second half-cycle, not the third
+    assert K <= cf.K_est <= 1.6 * K  # the band-pass shortens the first lobes: on the safe side
+    T = 0.064 + CYCLE
+    assert cf.floor >= critical_damping(cf.K_est, 20.0, T)
+    assert cf.floor == pytest.approx(critical_damping(cf.K_est, 20.0, T) + 0.2 * math.sqrt(cf.K_est * 20.0))
+    assert "N·m/rad" in cf.events[0]["reason"]
+
+
+def test_a_guiding_move_or_no_contact_gives_no_grip_floor():
+    t = np.arange(0.0, 6.0, CYCLE)
+    move = 20.0 * np.sin(2 * math.pi * (t - 1.0) / 2.0) * ((t > 1.0) & (t < 3.0))
+    cf = CouplingFloor(CouplingConfig(), CYCLE, 20.0, D_cap=1000.0)
+    assert max(cf.step(x, contact=True) for x in move) == 0.0
+    cf = CouplingFloor(CouplingConfig(), CYCLE, 20.0, D_cap=1000.0)
+    assert max(cf.step(x, contact=False) for x in _ring(1200.0)) == 0.0
+
+
+def test_the_grip_floor_rises_with_a_slower_robot_and_relaxes_after_the_release():
+    floors = []
+    for lag in (0.0, 0.05):
+        cf = CouplingFloor(CouplingConfig(), CYCLE, 20.0, D_cap=1000.0, filter_delay=lambda w: 0.064)
+        for k in range(100):  # the axis moves at 0.1 rad/s, lag s behind the reference
+            q = 0.1 * k * CYCLE
+            cf.observe_robot(q + 0.1 * lag, q)
+        assert cf.robot_lag == pytest.approx(lag, abs=1e-6)
+        for x in _ring(1000.0):
+            cf.step(x, contact=True)
+        floors.append(cf.floor)
+    assert floors[1] > 1.2 * floors[0]
+    after = [cf.step(0.0, contact=False) for _ in range(1000)]
+    assert after[-1] == 0.0

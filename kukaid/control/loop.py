@@ -123,7 +123,8 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
         stab = cfg.stability
         if cfg.damping == "adaptive" and cfg.coupling.enabled:
             # the grip floor acts on the second half-cycle; the monitor backs it up one half-cycle later
-            stab = dataclasses.replace(stab, lobes=max(stab.lobes, 4))
+            stab = dataclasses.replace(stab, lobes=max(stab.lobes, cfg.coupling.monitor_lobes),
+                                       enabled=stab.enabled and cfg.coupling.monitor_lobes < 100)
         mon = OscillationMonitor(stab, cfg.cycle, cfg.D, D_limit=0.9 * 2.0 * cfg.I / cfg.cycle)
         grip = None
         if cfg.damping == "adaptive" and cfg.coupling.enabled:  # the constant damping stays the paper's
@@ -200,7 +201,7 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
                 D_base = rbf.step(r.gamma_r, direction=adm.sigma_dot if adm.sigma_dot != 0 else gamma,
                                   adapt=r.detected and not mon.oscillating)
             if grip is not None:
-                floor = max(floor, grip.step(r.gamma_r, contact=r.detected))
+                floor = max(floor, grip.step(r.gamma_r, contact=r.detected, D_in_use=D_now))
             D_now = max(D_base, floor)
             sigma, sd = adm.step(gamma, D_now)
             if braking and sd * sd0 < 0.0:  # braked to a stop

@@ -173,12 +173,15 @@ class CouplingConfig:
     f_hi: float = 6.0
     threshold: float = 4.0
     max_half_period: float = 0.8
-    zeta: float = 0.1
+    zeta: float = 0.2
     relax: float = 4.0
     hold: float = 1.0
+    escalate: float = 1.3
+    monitor_lobes: int = 4
 
     def __post_init__(self) -> None:
         ok = (0 < self.f_lo < self.f_hi and self.threshold > 0 and self.max_half_period > 0 and self.zeta >= 0
+              and self.escalate >= 1 and self.monitor_lobes >= 2
               and self.relax > 0 and self.hold >= 0)
         if not ok:
             raise KukaidError(f"coupling floor: settings out of range: {self}")
@@ -238,6 +241,8 @@ class CouplingFloor:
         self._lag_den = 0.0
         self._q_prev: float | None = None
         self._quiet = 0.0
+        self._T_gain = 1.0
+        self._t_first = -math.inf
 
     @property
     def robot_lag(self) -> float:
@@ -254,9 +259,9 @@ class CouplingFloor:
                 self._lag_den += a * (v * v - self._lag_den)
         self._q_prev = q
 
-    def step(self, gamma_r: float, contact: bool) -> float:
-        """Feed this cycle's Γr (N·m) and whether a person is in contact; returns the floor
-        (N·m·s/rad, 0 when inactive)."""
+    def step(self, gamma_r: float, contact: bool, D_in_use: float = 0.0) -> float:
+        """Feed this cycle's Γr (N·m), whether a person is in contact and the damping used in the
+        last cycle (N·m·s/rad); returns the floor (N·m·s/rad, 0 when inactive)."""
         c = self.config
         self._t += self.cycle
         band = self._bp.step(gamma_r)
@@ -269,7 +274,7 @@ class CouplingFloor:
                 self._halves = []
             self._sign, self._peak, self._t_cross = sg, 0.0, self._t
             if contact and len(self._halves) == 2 and c.enabled:
-                self._raise(math.pi / (0.5 * sum(self._halves)))
+                self._raise(math.pi / (0.5 * sum(self._halves)), D_in_use)
         self._peak = max(self._peak, abs(band))
         if contact:
             self._quiet = 0.0
@@ -278,20 +283,32 @@ class CouplingFloor:
             if self._quiet >= c.hold:
                 self.floor *= self._relax
                 if self.floor < 1.0:
-                    self.floor, self.K_est = 0.0, 0.0
+                    self.floor, self.K_est, self._T_gain = 0.0, 0.0, 1.0
         return self.floor if c.enabled else 0.0
 
-    def _raise(self, w: float) -> None:
+    def _raise(self, w: float, D_in_use: float) -> None:
+        """A pair of half-cycles at ω rad/s: raise the floor to what the stiffness they show needs;
+        if the mode still rings a period after the floor was set and in use, the loop is slower
+        than estimated: assume ``escalate`` times its delay."""
         c = self.config
+        persists = (self.floor > 0 and D_in_use >= 0.99 * self.floor
+                    and self._t - self._t_first >= 2.0 * math.pi / w)
+        if persists:
+            self._T_gain *= c.escalate
+        T = (self._filter_delay(w) + self.cycle + self.robot_lag) * self._T_gain
         K = self.I * w * w
-        if K <= self.K_est:
+        K /= max(math.cos(min(w * T, 1.4)), 0.17)  # the delayed loop rings below sqrt(K/I): K cos ωT = I ω²
+        if K <= self.K_est and not persists:
             return
-        self.K_est = K
-        self.T_est = T = self._filter_delay(w) + self.cycle + self.robot_lag
-        new = min(critical_damping(K, self.I, T) + 2.0 * c.zeta * math.sqrt(K * self.I), self.D_cap)
+        self.K_est, self.T_est = max(K, self.K_est), T
+        new = min(critical_damping(self.K_est, self.I, T) + 2.0 * c.zeta * math.sqrt(self.K_est * self.I),
+                  self.D_cap)
         if new > self.floor + 1e-9:
+            if self.floor == 0.0:
+                self._t_first = self._t
             self.floor = new
-            self.events.append({"time": self._t, "index": K, "D_floor": new,
+            why = (f"still ringing at {self.floor:.0f}: loop delay taken as {1000 * T:.0f} ms" if persists else
+                   f"loop delay {1000 * T:.0f} ms")
+            self.events.append({"time": self._t, "index": self.K_est, "D_floor": new,
                                 "reason": (f"coupled mode at {w / (2 * math.pi):.2f} Hz: grip stiffness about "
-                                           f"{K:.0f} N·m/rad, loop delay {1000 * T:.0f} ms: damping floor "
-                                           f"{new:.0f} N·m·s/rad")})
+                                           f"{self.K_est:.0f} N·m/rad, {why}: damping floor {new:.0f} N·m·s/rad")})
