@@ -36,6 +36,60 @@ import numpy as np
 GRIPS = ("soft", "ordinary", "firm")
 
 
+@dataclasses.dataclass(frozen=True)
+class _SpringParams:
+    grip: str
+    q_start: float
+    goal: float
+    t_grasp: float
+    move_time: float
+    release_time: float
+    K: float
+    B: float
+    delay: float
+    max_torque: float
+
+
+class SpringArm:
+    """A second operator model, deliberately unlike kukaid.sim.human (the controller was never tuned
+    on it): a pure spring-damper around a minimum-jerk move, the whole impedance acting through
+    one transport delay, no co-contraction, no noise, no tremor, let go at a fixed time wherever
+    the link is.  Stiffness log-uniform 60-1200 N·m/rad at the axis, damping ratio 0.05-0.3 of
+    the arm + admittance inertia (20 kg·m²), delay 20-100 ms, move 0.2-0.5 rad in 1.5-3.5 s,
+    force limit 40-80 N·m.  Grip class from K: soft < 150, ordinary < 400, firm above.
+    """
+
+    def __init__(self, seed: int, q0: float, t_start: float) -> None:
+        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x51]))
+        K = float(math.exp(rng.uniform(math.log(60.0), math.log(1200.0))))
+        d = float(rng.uniform(0.2, 0.5)) * (1.0 if rng.random() < 0.5 else -1.0)
+        grip = "soft" if K < 150 else "ordinary" if K < 400 else "firm"
+        self.p = _SpringParams(grip=grip, q_start=q0, goal=q0 + d, t_grasp=t_start,
+                               move_time=float(rng.uniform(1.5, 3.5)), release_time=0.2, K=K,
+                               B=2.0 * float(rng.uniform(0.05, 0.3)) * math.sqrt(K * 20.0),
+                               delay=float(rng.uniform(0.02, 0.1)), max_torque=float(rng.uniform(40.0, 80.0)))
+        self.t_release = t_start + self.p.move_time + 1.5
+        self.released_on_target = False
+        self.K_peak = K
+        self._hist: list[tuple[float, float, float]] = []
+
+    def __call__(self, t: float, q: float, qd: float) -> float:
+        p = self.p
+        self._hist.append((t, q, qd))
+        while len(self._hist) > 2 and self._hist[1][0] <= t - p.delay:
+            self._hist.pop(0)
+        _, qs, qds = self._hist[0]
+        if t < p.t_grasp or t > self.t_release + p.release_time:
+            return 0.0
+        x = min(max((t - p.t_grasp) / p.move_time, 0.0), 1.0)
+        s, ds = x ** 3 * (10 - 15 * x + 6 * x * x), 30 * x * x * (1 - x) ** 2 / p.move_time
+        xd, vd = p.q_start + (p.goal - p.q_start) * s, (p.goal - p.q_start) * ds
+        g = min(1.0, (t - p.t_grasp) / 0.2, max(0.0, (self.t_release + p.release_time - t) / p.release_time))
+        if t >= self.t_release and not self.released_on_target:
+            self.released_on_target = abs(qs - p.goal) < max(0.01, 0.05 * abs(p.goal - p.q_start))
+        return g * min(max(p.K * (xd - qs) + p.B * (vd - qds), -p.max_torque), p.max_torque)
+
+
 def controller_model(params: dict | None = None):
     from kukaid.params import model_from_params
     from kukaid.sim import SimConfig
@@ -61,7 +115,9 @@ def run_one(model, zeta0, seed: int, damping: str, D: float, cycle: float, rbf=N
     if coupling is not None:
         kw["coupling"] = coupling
     cfg = LoopConfig(damping=damping, D=D, cycle=cycle, duration=duration, **kw)
-    op = make_operator("human", seed, q0 + cfg.init_move, t_start=cfg.init_time + cfg.init_rest + 0.8, grip=grip)
+    t_op = cfg.init_time + cfg.init_rest + 0.8
+    op = (SpringArm(seed, q0 + cfg.init_move, t_op) if arm == "spring" else
+          make_operator("human", seed, q0 + cfg.init_move, t_start=t_op, grip=grip))
     be = SimRobot(VirtualKRC4(SimConfig(), seed=seed), q0, op)
     run = run_admittance(be, model, cfg, zeta0=zeta0)
     d = run.data
@@ -106,7 +162,8 @@ CONTROLLERS = (("D35", "constant", 35.0), ("D50", "constant", 50.0), ("D70", "co
                ("adaptive", "adaptive", 50.0))
 
 
-def benchmark(n_ops: int, cycles: tuple[float, ...], model, zeta0, rbf=None, controllers=CONTROLLERS) -> dict:
+def benchmark(n_ops: int, cycles: tuple[float, ...], model, zeta0, rbf=None, controllers=CONTROLLERS,
+              arm: str = "human") -> dict:
     out: dict = {}
     for cyc in cycles:
         runs: dict[str, list[dict]] = {name: [] for name, _, _ in controllers}
@@ -114,7 +171,7 @@ def benchmark(n_ops: int, cycles: tuple[float, ...], model, zeta0, rbf=None, con
             grip = GRIPS[i % 3]
             for name, damping, D in controllers:
                 runs[name].append(run_one(model, zeta0, i, damping, D, cyc, rbf=rbf if damping == "adaptive" else None,
-                                          grip=grip))
+                                          grip=grip, arm=arm))
         res: dict = {"runs": runs, "per_controller": {}, "paired": {}}
         for name, rs in runs.items():
             col = lambda k: np.array([r[k] for r in rs], dtype=float)  # noqa: E731
@@ -258,6 +315,9 @@ def main() -> None:
     ap.add_argument("--cycles", default="0.024,0.012")
     ap.add_argument("--params", help="parameter file of the controller's model [simulator truth with errors]")
     ap.add_argument("--sweep", action="store_true", help="also the sensitivity sweep (24 ms)")
+    ap.add_argument("--arm", choices=("human", "spring"), default="human",
+                    help="operator model: the human arm of kukaid.sim.human, or the independent SpringArm")
+    ap.add_argument("--controllers", default="D35,D50,D70,adaptive", help="which controllers to run")
     ap.add_argument("--sweep-operators", type=int, default=15)
     ap.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     ap.add_argument("--save", help="also write the JSON results to this file")
@@ -276,7 +336,8 @@ def main() -> None:
     model, zeta0 = controller_model(params)
     cycles = tuple(float(c) for c in a.cycles.split(","))
     t = time.perf_counter()
-    res = benchmark(a.operators, cycles, model, zeta0)
+    ctl = tuple(c for c in CONTROLLERS if c[0] in a.controllers.split(","))
+    res = benchmark(a.operators, cycles, model, zeta0, controllers=ctl, arm=a.arm)
     rows = sweep(a.sweep_operators, model, zeta0) if a.sweep else None
     secs = time.perf_counter() - t
     from kukaid.jsonfile import jsonable

@@ -12,7 +12,7 @@ from kukaid.robot import SimRobot
 from kukaid.control.loop import PHASE_ADMITTANCE, LoopConfig, run_admittance
 from kukaid.control.metrics import operator_metrics
 from kukaid.control.safety import SafetyLimits
-from kukaid.control.stability import StabilityConfig
+from kukaid.control.stability import CouplingConfig, StabilityConfig
 from kukaid.params import model_from_params
 from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid.sim.human import make_human
@@ -25,7 +25,8 @@ MODEL = model_from_params(SIM.truth_params())
 
 
 def _human_run(seed, grip, damping="adaptive", stability=True, duration=11.0):
-    cfg = LoopConfig(damping=damping, cycle=0.024, duration=duration, stability=StabilityConfig(enabled=stability))
+    cfg = LoopConfig(damping=damping, cycle=0.024, duration=duration, stability=StabilityConfig(enabled=stability),
+                     coupling=CouplingConfig(enabled=stability))
     op = make_human(seed, Q0 + cfg.init_move, cfg.init_time + cfg.init_rest + 0.8, grip=grip)
     run = run_admittance(SimRobot(VirtualKRC4(SIM, seed=seed), Q0, op), MODEL, cfg)
     return run, {**run.metrics, **operator_metrics(run.data, op, 0.05, SIM.sample_time)}
@@ -58,15 +59,16 @@ def test_soft_grip_ends_on_goal_and_nothing_is_detected_after_the_release(seed):
 
 
 def test_firm_grip_is_damped_instead_of_oscillating():
-    """Without the monitor the stiff arm and the delays oscillate (the test can fail); with it the
-    damping is raised within about a second, logged, and the torque stop is never reached."""
+    """Without the monitor and the grip floor the stiff arm and the delays oscillate (the test can
+    fail); with them the damping is raised within about a second, logged, and the torque stop is
+    never reached."""
     off, m_off = _human_run(0, "firm", stability=False)
     assert off.status.startswith("stopped: measured torque") or m_off["osc_seconds"] > 5.0
     on, m_on = _human_run(0, "firm")
     assert on.status == "completed"
     assert m_on["osc_ptp"] < 0.5 * m_off["osc_ptp"]  # the oscillation is much smaller ...
     assert m_on["osc_seconds"] < 3.5  # ... and over within seconds (the person lets go at ~6.5 s)
-    assert m_on["stability_events"] >= 1 and "alternating half-cycles" in m_on["stability_log"][0]["reason"]
+    assert m_on["stability_events"] >= 1 and "grip stiffness" in m_on["stability_log"][0]["reason"]
     ph = on.data["phase"] == PHASE_ADMITTANCE
-    assert np.max(on.data["D_floor"][ph]) > 2 * 50.0
+    assert np.max(np.maximum(on.data["D_floor"], on.data["D_grip"])[ph]) > 2 * 50.0
     assert np.max(np.abs(on.data["tau"][ph])) < 100.0

@@ -83,9 +83,13 @@ def test_critical_damping_is_the_delayed_loops_stability_boundary():
     assert critical_damping(K, I, 1e-9) == pytest.approx(0.0, abs=1e-3)
 
 
-def _ring(K, D=50.0, I=20.0, T=0.09, seconds=3.0):
-    """Γr of a grip K ringing against the admittance: a decaying oscillation at sqrt(K / I)."""
-    w = math.sqrt(K / I)
+def _ring(K, I=20.0, T=0.064 + CYCLE, seconds=3.0):
+    """Γr of a grip K ringing against the admittance through the loop delay T: a slowly decaying
+    oscillation at the frequency where K cos ωT = I ω² (the delayed loop's mode)."""
+    lo, hi = 0.0, 0.5 * math.pi / T
+    for _ in range(60):
+        w = 0.5 * (lo + hi)
+        lo, hi = (w, hi) if K * math.cos(w * T) > I * w * w else (lo, w)
     t = np.arange(0.0, seconds, CYCLE)
     return np.where(t > 0.5, 30.0 * np.exp(-0.3 * (t - 0.5)) * np.sin(w * (t - 0.5)), 0.0)
 
@@ -97,10 +101,10 @@ def test_the_grip_floor_follows_the_stiffness_from_the_ringing(K):
     first = next(i for i, f in enumerate(floors) if f > 0)
     half = math.pi / math.sqrt(K / 20.0)
     assert first * CYCLE < 0.5 + 2 * half + 0.25  # on the second half-cycle, not the third
-    assert K <= cf.K_est <= 1.6 * K  # the band-pass shortens the first lobes: on the safe side
+    assert K <= cf.K_est <= 1.7 * K  # the band-pass shortens the first lobes: on the safe side
     T = 0.064 + CYCLE
     assert cf.floor >= critical_damping(cf.K_est, 20.0, T)
-    assert cf.floor == pytest.approx(critical_damping(cf.K_est, 20.0, T) + 0.2 * math.sqrt(cf.K_est * 20.0))
+    assert cf.floor == pytest.approx(critical_damping(cf.K_est, 20.0, T) + 0.4 * math.sqrt(cf.K_est * 20.0))
     assert "N·m/rad" in cf.events[0]["reason"]
 
 
@@ -125,5 +129,5 @@ def test_the_grip_floor_rises_with_a_slower_robot_and_relaxes_after_the_release(
             cf.step(x, contact=True)
         floors.append(cf.floor)
     assert floors[1] > 1.2 * floors[0]
-    after = [cf.step(0.0, contact=False) for _ in range(1000)]
+    after = [cf.step(0.0, contact=False) for _ in range(2000)]
     assert after[-1] == 0.0

@@ -295,3 +295,29 @@ def test_kvp_run_with_a_human_arm_in_serve_sim(files, kukaid_cmd, tmp_path):
         proc.terminate()
         proc.wait(timeout=10)
         proc.stderr.close()
+
+
+@pytest.mark.parametrize("seed", [8, 14])
+def test_adaptive_damping_with_a_firm_grip_through_the_cli(files, tmp_path, seed):
+    """`kukaid run-admittance --damping adaptive` on the virtual KR C4 with a firm-grip person: the
+    grip floor estimates the stiffness from the first rebound and raises the damping (logged with
+    its reason and per cycle), no oscillation outlasts it, the torque stop is never reached, the
+    person gets to the goal."""
+    from kukaid.control.metrics import damping_delay
+
+    out = tmp_path / "firm.h5"
+    r = _run(["--params", files / "params.json", "--sim-config", files / "truth.json", "--operator", "human",
+              "--grip", "firm", "--seed", seed, "--duration", "11", "--damping", "adaptive", "--cycle", "0.024",
+              "-o", out, "--json"])
+    assert r.exit_code == 0, r.output
+    m = json.loads(r.output.strip().splitlines()[-1])
+    assert m["status"] == "completed"
+    assert m["grip_stiffness"] > 500.0  # a firm grip (the person's arm: 300-1200 N·m/rad)
+    assert any("grip stiffness" in e["reason"] for e in m["stability_log"])
+    _, sustained = damping_delay(m["osc_runs"], [e["time"] for e in m["stability_log"]])
+    assert not sustained
+    log, control, _ = read_run(out)
+    adm = control["phase"] == 2
+    assert np.max(control["D_grip"][adm]) > 80.0 and np.all(control["D"][adm] >= control["D_grip"][adm] - 1e-9)
+    assert np.max(np.abs(log.tau[:, 0])) < 100.0
+    assert m["end_error"] < 0.1

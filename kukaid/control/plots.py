@@ -20,7 +20,8 @@ _TABLE_KEYS = (("status", "status"), ("xi", "mean ξ (Γr, window)"), ("dgamma2"
                ("xi_true", "mean ξ (true hand torque)"), ("dgamma2_true", "mean dΓ² (true)"),
                ("residual_rmse", "Γr RMSE vs truth, N·m"), ("false_after_release", "detections after release"),
                ("end_error", "end error (of the move)"), ("D_range", "D range, N·m·s/rad"),
-               ("stability_events", "stability events"), ("first_event", "first stability event"))
+               ("grip_stiffness", "grip stiffness est., N·m/rad"), ("stability_events", "stability events"),
+               ("first_event", "first stability event"))
 
 
 def _fmt(v: Any) -> str:
@@ -69,8 +70,11 @@ def plot_runs(runs: Sequence[tuple[str, dict[str, np.ndarray], dict[str, Any]]],
         if "D_floor" in d and np.any(d["D_floor"] > 0):
             a.plot(t, np.where(d["D_floor"] > 0, d["D_floor"], np.nan), lw=0.8, color="C3",
                    label="stability floor")
-            for e in m.get("stability_log", []):
-                a.axvline(e["time"], color="C3", lw=0.5, ls=":")
+        if "D_grip" in d and np.any(d["D_grip"] > 0):
+            a.plot(t, np.where(d["D_grip"] > 0, d["D_grip"], np.nan), lw=0.8, color="C4", ls="--",
+                   label="grip floor")
+        for e in m.get("stability_log", []):
+            a.axvline(e["time"], color="C3", lw=0.5, ls=":")
         a.set_ylabel("damping, N·m·s/rad", fontsize=8)
         a.legend(loc="upper right", fontsize=6)
         a = axes[c][2]
@@ -93,8 +97,9 @@ def plot_runs(runs: Sequence[tuple[str, dict[str, np.ndarray], dict[str, Any]]],
     metrics = []
     for _, _, m in runs:
         ev = m.get("stability_log") or []
-        metrics.append({**m, "first_event": (f"t = {ev[0]['time']:.2f} s: index {ev[0]['index']:.1f} N·m, "
-                                             f"floor {ev[0]['D_floor']:.0f}") if ev else "none"})
+        metrics.append({**m, "first_event": (f"t = {ev[0]['time']:.2f} s: "
+                                             + ("grip" if "grip stiffness" in ev[0]["reason"] else "oscillation")
+                                             + f", floor {ev[0]['D_floor']:.0f}") if ev else "none"})
     rows = [(name, [_fmt(m.get(k, "—")) for m in metrics]) for k, name in _TABLE_KEYS
             if any(k in m for m in metrics)]
     tab = ta.table(cellText=[[name, *vals] for name, vals in rows],

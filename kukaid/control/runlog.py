@@ -42,7 +42,7 @@ def write_run(path: str | Path, run: Any, axis: int = 3, attrs: dict[str, Any] |
         write_hdf5(log, tmp)
         with h5py.File(tmp, "a") as f:
             g = f.create_group("control")
-            for k in ("gamma_r", "gamma_p", "sigma", "sigma_dot", "D", "osc_index", "D_floor"):
+            for k in ("gamma_r", "gamma_p", "sigma", "sigma_dot", "D", "osc_index", "D_floor", "D_grip"):
                 if k in d:
                     g.create_dataset(k, data=d[k][keep])
             for k in ("dynamic", "detected", "clipped", "phase"):
@@ -50,7 +50,8 @@ def write_run(path: str | Path, run: Any, axis: int = 3, attrs: dict[str, Any] |
             g.attrs["metrics"] = _json(run.metrics)
             g.attrs["config"] = _json(config_dict(run.config))
             g.attrs["units"] = _json({"gamma_r": "N*m", "gamma_p": "N*m", "sigma": "rad", "sigma_dot": "rad/s",
-                                      "D": "N*m*s/rad", "osc_index": "N*m", "D_floor": "N*m*s/rad"})
+                                      "D": "N*m*s/rad", "osc_index": "N*m", "D_floor": "N*m*s/rad",
+                                      "D_grip": "N*m*s/rad"})
 
 
 def read_run(path: str | Path) -> tuple[Any, dict[str, np.ndarray], dict[str, Any]]:
