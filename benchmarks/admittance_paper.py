@@ -246,9 +246,11 @@ def sweep(n_ops: int, model, zeta0, cycle: float = 0.024) -> list[dict]:
                                  "dforce_levels": tuple(2 * f for f in base.dforce_levels)})]
     ref = [run_one(model, zeta0, i, "constant", 50.0, cycle, grip=GRIPS[i % 3]) for i in range(n_ops)]
     variants += [(f"grip zeta={v:g}", {"zeta": v}) for v in (0.1, 0.4)]
+    variants += [("grip escalate=1.6", {"escalate": 1.6}), ("no probe", {"probe": False}),
+                 ("no grip floor", {"enabled": False})]
     rows = []
     for label, ch in variants:
-        cpl = CouplingConfig(**ch) if "zeta" in ch else None
+        cpl = CouplingConfig(**ch) if set(ch) <= {f.name for f in dataclasses.fields(CouplingConfig)} and ch else None
         rbf = base if cpl is not None else dataclasses.replace(base, **ch)
         ad = [run_one(model, zeta0, i, "adaptive", 50.0, cycle, rbf=rbf, grip=GRIPS[i % 3], lam=rbf.lam, coupling=cpl)
               for i in range(n_ops)]

@@ -67,7 +67,7 @@ def test_oscillation_runs_find_alternations_not_moves():
 
 # --- the adaptive law's grip-stiffness floor (CouplingFloor) ---------------------------------------
 
-from kukaid.control.stability import CouplingConfig, CouplingFloor, critical_damping  # noqa: E402
+from kukaid.control.stability import CouplingConfig, CouplingFloor, critical_damping, probe_time  # noqa: E402
 
 
 def test_critical_damping_is_the_delayed_loops_stability_boundary():
@@ -111,7 +111,7 @@ def test_the_grip_floor_follows_the_stiffness_from_the_ringing(K):
 def test_a_guiding_move_or_no_contact_gives_no_grip_floor():
     t = np.arange(0.0, 6.0, CYCLE)
     move = 20.0 * np.sin(2 * math.pi * (t - 1.0) / 2.0) * ((t > 1.0) & (t < 3.0))
-    cf = CouplingFloor(CouplingConfig(), CYCLE, 20.0, D_cap=1000.0)
+    cf = CouplingFloor(CouplingConfig(probe=False), CYCLE, 20.0, D_cap=1000.0)
     assert max(cf.step(x, contact=True) for x in move) == 0.0
     cf = CouplingFloor(CouplingConfig(), CYCLE, 20.0, D_cap=1000.0)
     assert max(cf.step(x, contact=False) for x in _ring(1200.0)) == 0.0
@@ -131,3 +131,19 @@ def test_the_grip_floor_rises_with_a_slower_robot_and_relaxes_after_the_release(
     assert floors[1] > 1.2 * floors[0]
     after = [cf.step(0.0, contact=False) for _ in range(2000)]
     assert after[-1] == 0.0
+
+
+def test_a_new_contact_keeps_d0_until_a_rebound_would_have_shown():
+    """For one period of the slowest mode D0 cannot hold the floor ramps down from D0; a stiffer
+    grip would have rebounded by then."""
+    T = 0.064 + CYCLE
+    P = probe_time(50.0, 20.0, T)
+    K = 50.0 / T  # about the stiffness D0 holds: its mode's period
+    assert critical_damping(K, 20.0, T) == pytest.approx(50.0, rel=0.25)
+    assert 2 * math.pi / math.sqrt(1.5 * K / 20.0) < P < 2 * math.pi / math.sqrt(0.5 * K / 20.0)
+    assert probe_time(50.0, 20.0, 2 * T) > P  # a slower loop: a longer wait
+    cf = CouplingFloor(CouplingConfig(), CYCLE, 20.0, D_cap=1000.0, filter_delay=lambda w: 0.064, D0=50.0)
+    floors = np.array([cf.step(0.0, contact=True) for _ in range(200)])
+    assert floors[0] == pytest.approx(50.0, rel=0.05) and cf.probe_time == pytest.approx(P)
+    n = int(P / CYCLE)
+    assert np.all(np.diff(floors[:n]) < 0) and np.all(floors[n + 1:] == 0.0)

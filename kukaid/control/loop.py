@@ -129,7 +129,7 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
         grip = None
         if cfg.damping == "adaptive" and cfg.coupling.enabled:  # the constant damping stays the paper's
             lp = CausalButterworth(est.cutoff, 1.0 / est.sample_time, est.order)  # the estimator's low-pass
-            grip = CouplingFloor(cfg.coupling, cfg.cycle, cfg.I, D_cap=mon.D_cap, filter_delay=lp.phase_delay)
+            grip = CouplingFloor(cfg.coupling, cfg.cycle, cfg.I, D_cap=mon.D_cap, filter_delay=lp.phase_delay, D0=cfg.D)
         log, status = _loop(backend, est, r, limiter, mon, grip, samples[-1], cfg, progress, on_row)
     except BaseException:
         backend.hold()

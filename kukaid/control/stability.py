@@ -164,6 +164,22 @@ def critical_damping(K: float, I: float, T: float) -> float:
     return K * math.sin(w * T) / w
 
 
+def probe_time(D: float, I: float, T: float) -> float:
+    """One period (s) of the slowest coupled mode that the damping D cannot hold: the grip
+    stiffness K_D with critical_damping(K_D, I, T) = D rings at ω with K_D cos ωT = I ω²; any
+    stiffer grip rings faster, so a rebound shows within this time of a contact's start."""
+    lo, hi = 1e-3, 1e6
+    for _ in range(60):
+        K = math.sqrt(lo * hi)
+        lo, hi = (K, hi) if critical_damping(K, I, T) < D else (lo, K)
+    K = math.sqrt(lo * hi)
+    a, b = 0.0, 0.5 * math.pi / T
+    for _ in range(40):
+        w = 0.5 * (a + b)
+        a, b = (w, b) if K * math.cos(w * T) > I * w * w else (a, w)
+    return 2.0 * math.pi / max(0.5 * (a + b), 1e-6)
+
+
 @dataclass(frozen=True)
 class CouplingConfig:
     """Settings of :class:`CouplingFloor` (Hz, s, N·m)."""
@@ -178,6 +194,7 @@ class CouplingConfig:
     hold: float = 1.0
     escalate: float = 1.3
     monitor_lobes: int = 4
+    probe: bool = True
 
     def __post_init__(self) -> None:
         ok = (0 < self.f_lo < self.f_hi and self.threshold > 0 and self.max_half_period > 0 and self.zeta >= 0
@@ -217,7 +234,8 @@ class CouplingFloor:
     """
 
     def __init__(self, config: CouplingConfig, cycle: float, I: float, D_cap: float,
-                 filter_delay: Callable[[float], float] | None = None) -> None:
+                 filter_delay: Callable[[float], float] | None = None, D0: float = 50.0) -> None:
+        self.D0 = float(D0)
         self.config = c = config
         fs = 1.0 / cycle
         hi = min(c.f_hi, 0.45 * fs)
@@ -243,6 +261,8 @@ class CouplingFloor:
         self._quiet = 0.0
         self._T_gain = 1.0
         self._t_first = -math.inf
+        self._contact = 0.0
+        self.probe_time = 0.0
 
     @property
     def robot_lag(self) -> float:
@@ -277,14 +297,24 @@ class CouplingFloor:
                 self._raise(math.pi / (0.5 * sum(self._halves)), D_in_use)
         self._peak = max(self._peak, abs(band))
         if contact:
+            self._contact += self.cycle
             self._quiet = 0.0
         else:
             self._quiet += self.cycle
             if self._quiet >= c.hold:
+                self._contact = 0.0
                 self.floor *= self._relax
                 if self.floor < 1.0:
                     self.floor, self.K_est, self._T_gain = 0.0, 0.0, 1.0
-        return self.floor if c.enabled else 0.0
+        if not c.enabled:
+            return 0.0
+        if c.probe and contact:
+            if self._contact <= self.cycle:  # a new contact: how long a rebound would take to show
+                T = self._filter_delay(3.0) + self.cycle + self.robot_lag
+                self.probe_time = probe_time(self.D0, self.I, T)
+            if self._contact < self.probe_time:
+                return max(self.floor, self.D0 * (1.0 - self._contact / self.probe_time))
+        return self.floor
 
     def _raise(self, w: float, D_in_use: float) -> None:
         """A pair of half-cycles at ω rad/s: raise the floor to what the stiffness they show needs;
