@@ -25,6 +25,10 @@ D σ̇² is never negative); the instability addressed here is the delayed coupl
 arm, which passivity of the admittance alone does not prevent.
 
 Every raise is an event (time, index, new floor, reason) that the loop records.
+
+:class:`CouplingFloor` is the adaptive law's own floor: it estimates the grip's stiffness from
+the first rebound of the coupled mode and keeps the damping above the delayed loop's stability
+limit for it (:func:`critical_damping`), one half-cycle before the monitor would act.
 """
 from __future__ import annotations
 
@@ -229,8 +233,13 @@ class CouplingFloor:
 
     The floor is D_crit(K_est, T) + 2 ``zeta`` sqrt(K_est I) (a margin of damping ratio
     ``zeta`` on top of the stability limit), kept while the contact lasts and relaxed (``relax``
-    s) once the person has let go for ``hold`` s.  A soft grip never rings, so the network keeps
-    lowering the damping for it.
+    s) once the person has let go for ``hold`` s.  If the mode still rings a period after the
+    floor is in use, the loop is slower than estimated: T is taken ``escalate`` times longer.
+    With ``probe``, a new contact first keeps the damping D0 (ramping down to nothing) for
+    :func:`probe_time`: one period of the slowest mode D0 cannot hold, the time within which any
+    grip too stiff for D0 shows its rebound, so the network does not lower the damping under a
+    firm grip before its stiffness can be seen.  A soft grip never rings, so after that the
+    network keeps lowering the damping for it.
     """
 
     def __init__(self, config: CouplingConfig, cycle: float, I: float, D_cap: float,
