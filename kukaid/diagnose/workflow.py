@@ -28,11 +28,13 @@ import numpy as np
 from kukaid.diagnose import candidates as C
 from kukaid.diagnose import heldout
 from kukaid.diagnose import selection as S
-from kukaid.diagnose.model import DiagModel
+from kukaid.diagnose.refit import refit
 from kukaid.diagnose.noise import noise_floor, noise_sigma
 from kukaid.diagnose.signals import LogSignals, decimation, prepare
 from kukaid.errors import FitError, KukaidError
 from kukaid.jsonfile import jsonable
+from kukaid.models.torque import JointTorqueModel as Model
+from kukaid.params.axis import model_from_params, model_to_params
 
 
 @dataclass
@@ -75,8 +77,8 @@ class Step:
     gap_closed: float
     rel_before: float
     rel_after: float
-    model_before: DiagModel = field(repr=False, default=None)
-    model_after: DiagModel = field(repr=False, default=None)
+    model_before: Model = field(repr=False, default=None)
+    model_after: Model = field(repr=False, default=None)
 
     def to_json(self) -> dict[str, Any]:
         ev = self.test.evidence()
@@ -101,8 +103,8 @@ class Diagnosis:
     rmse_refit: float
     last_round: list[CandidateTest]
     sigs: list[LogSignals] = field(repr=False, default_factory=list)
-    model_given: DiagModel = field(repr=False, default=None)
-    model_final: DiagModel = field(repr=False, default=None)
+    model_given: Model = field(repr=False, default=None)
+    model_final: Model = field(repr=False, default=None)
     notes: list[str] = field(default_factory=list)
     tested: bool = True
     rejected: list[dict] = field(default_factory=list)
@@ -180,7 +182,7 @@ def _fmt_param(k: str, v: Any, sd: Any) -> str:
 
 
 # -- helpers ---------------------------------------------------------------------------------
-def rmse_of(model: DiagModel, sigs: Sequence[LogSignals]) -> tuple[float, float]:
+def rmse_of(model: Model, sigs: Sequence[LogSignals]) -> tuple[float, float]:
     """(RMSE, relative error ||tau - tau_hat|| / ||tau||) of the filtered comparison."""
     r = np.concatenate([model.residual(s) for s in sigs])
     y = np.concatenate([s.filtw(s.tau_raw)[s.rows] for s in sigs])
@@ -191,7 +193,7 @@ def rmse_of(model: DiagModel, sigs: Sequence[LogSignals]) -> tuple[float, float]
 class _Round:
     """Residual, Jacobian basis and filtered candidate columns on the decimated rows."""
 
-    def __init__(self, model: DiagModel, sigs: Sequence[LogSignals]):
+    def __init__(self, model: Model, sigs: Sequence[LogSignals]):
         self.model, self.sigs = model, sigs
         self.dec = [decimation(s) for s in sigs]
         self.r = np.concatenate([model.residual(s)[d] for s, d in zip(sigs, self.dec)])
@@ -310,7 +312,7 @@ class _Round:
         return S.wald_test(self.r, a._Z, self.groups, U).p_value
 
 
-def hac_std(model: DiagModel, sigs: Sequence[LogSignals]) -> dict[str, float]:
+def hac_std(model: Model, sigs: Sequence[LogSignals]) -> dict[str, float]:
     """HAC standard deviations of every parameter of ``model`` (decimated rows), SI."""
     rd = _Round(model, sigs)
     J, e = rd.J, rd.r
@@ -325,11 +327,11 @@ def hac_std(model: DiagModel, sigs: Sequence[LogSignals]) -> dict[str, float]:
     return dict(zip(rd.names, (float(x) for x in sd)))
 
 
-def _add(model: DiagModel, test: CandidateTest, coefs: dict, sigs: Sequence[LogSignals], rmse_before: float,
+def _add(model: Model, test: CandidateTest, coefs: dict, sigs: Sequence[LogSignals], rmse_before: float,
          rel_before: float, floor: float) -> Step:
     """Add the tested effect to ``model`` (start: ``coefs``), refit everything, measure the gap."""
     cand = C.get(test.name)
-    new = model.with_effect(test.name, test.nl, coefs).refit(sigs)
+    new = refit(model.with_effect(test.name, test.nl, coefs), sigs)
     new.std = hac_std(new, sigs)
     r_after, rel_after = rmse_of(new, sigs)
     gap = rmse_before - floor
@@ -347,19 +349,10 @@ def _add(model: DiagModel, test: CandidateTest, coefs: dict, sigs: Sequence[LogS
     return Step(test.name, desc, rmse_before, r_after, test, closed, rel_before, rel_after, model, new)
 
 
-def _term(model: DiagModel, name: str) -> tuple[dict, dict] | None:
-    """(settings, coefficients) of the effect ``name`` in ``model``; None when it is not there."""
-    native = C.get(name).native
-    if native:
-        return ({}, {native: model.lin[native]}) if native in model.lin else None
-    term = next((e for e in model.effects if e.name == name), None)
-    return (dict(term.nl), dict(term.coefs)) if term else None
-
-
-def term_rms(model: DiagModel, name: str, sigs: Sequence[LogSignals]) -> float:
+def term_rms(model: Model, name: str, sigs: Sequence[LogSignals]) -> float:
     """RMS (compared rows, filtered) of the torque the effect ``name`` of ``model`` adds, N·m."""
     cand = C.get(name)
-    nl, coefs = _term(model, name)
+    nl, coefs = C.get(name).term(model)
     parts = []
     for s in sigs:
         Z = cand.columns(s, nl, model)
@@ -368,17 +361,17 @@ def term_rms(model: DiagModel, name: str, sigs: Sequence[LogSignals]) -> float:
     return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
 
 
-def _final_terms(model: DiagModel, sigs: Sequence[LogSignals]) -> dict[str, tuple[float, dict, dict]]:
+def _final_terms(model: Model, sigs: Sequence[LogSignals]) -> dict[str, tuple[float, dict, dict]]:
     """name -> (size N·m, settings, coefficients) of every effect of ``model``."""
     out = {}
     for name, cand in C.CANDIDATES.items():
-        t = _term(model, name)
+        t = cand.term(model)
         if t is not None:
             out[name] = (cand.size(*t, sigs, model), *t)
     return out
 
 
-def _backfit(model: DiagModel, sigs: Sequence[LogSignals]) -> DiagModel:
+def _backfit(model: Model, sigs: Sequence[LogSignals]) -> Model:
     """Search each effect's discrete settings (backlash shape and time constant, drift coordinate)
     again given all the other effects: an effect found first was searched while the later ones
     were still in the residual.  A ripple's order needs no search: every refit refines it."""
@@ -389,12 +382,12 @@ def _backfit(model: DiagModel, sigs: Sequence[LogSignals]) -> DiagModel:
         rest = model.without(term.name)
         nl, _ = _Round(rest, sigs).best_option(cand)
         if any(term.nl.get(k) != v for k, v in nl.items()):
-            model = rest.with_effect(term.name, nl, term.coefs).refit(sigs)
+            model = refit(rest.with_effect(term.name, nl, term.coefs), sigs)
     return model
 
 
-def _prune(steps: list[Step], model: DiagModel, sigs: Sequence[LogSignals], alpha: float,
-           min_rms: float) -> tuple[DiagModel, list[str]]:
+def _prune(steps: list[Step], model: Model, sigs: Sequence[LogSignals], alpha: float,
+           min_rms: float) -> tuple[Model, list[str]]:
     """Backward step: drop, one at a time (the weakest first), every effect that is no longer
     significant given all the others or whose refitted torque RMS fell below ``min_rms`` (an
     effect found early can be made redundant by the ones found after it)."""
@@ -404,7 +397,7 @@ def _prune(steps: list[Step], model: DiagModel, sigs: Sequence[LogSignals], alph
         for s in steps:
             if s.name in dropped:
                 continue
-            t = _Round(model.without(s.name), sigs).test_fixed(C.get(s.name), _term(model, s.name)[0],
+            t = _Round(model.without(s.name), sigs).test_fixed(C.get(s.name), C.get(s.name).term(model)[0],
                                                                s.test.n_effective)
             p = 1.0 if term_rms(model, s.name, sigs) < min_rms else t.p_candidate
             if p >= alpha and p > worst_p:
@@ -412,10 +405,10 @@ def _prune(steps: list[Step], model: DiagModel, sigs: Sequence[LogSignals], alph
         if weakest is None:
             return model, dropped
         dropped.append(weakest)
-        model = model.without(weakest).refit(sigs)
+        model = refit(model.without(weakest), sigs)
 
 
-def _in_order_of_size(steps: list[Step], base: DiagModel, final: DiagModel, sigs: Sequence[LogSignals],
+def _in_order_of_size(steps: list[Step], base: Model, final: Model, sigs: Sequence[LogSignals],
                       floor: float, n_candidates: int) -> list[Step]:
     """The steps redone from ``base`` in order of the effects' sizes in ``final`` (largest first).
 
@@ -448,7 +441,7 @@ def _reject(rejected: list[dict], name: str, reason: str) -> None:
     rejected[:] = [r for r in rejected if r["name"] != name] + [{"name": name, "reason": reason}]
 
 
-def _search(model: DiagModel, sigs: Sequence[LogSignals], cand: C.Candidate) -> dict:
+def _search(model: Model, sigs: Sequence[LogSignals], cand: C.Candidate) -> dict:
     """The candidate's best discrete settings given ``model`` on ``sigs`` (held-out folds)."""
     return _Round(model, sigs).best_option(cand)[0]
 
@@ -462,11 +455,11 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     if sum(s.rows.size for s in sigs) < 50:
         raise FitError("fewer than 50 dynamic-mode samples in the logs: the axis barely moves; nothing to diagnose")
     joint = sigs[0].joint
-    given = DiagModel.from_params(params, joint)
+    given = model_from_params(params, joint).within_bounds()
     rmse0, rel0 = rmse_of(given, sigs)
     floor = noise_floor(sigs)
     sigma = noise_sigma(sigs)
-    model = given.refit(sigs)
+    model = refit(given, sigs)
     model.std = hac_std(model, sigs)
     rmse_r, rel_r = rmse_of(model, sigs)
     found_base = model
@@ -572,7 +565,7 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
         model, cur_rmse, cur_rel = steps[-1].model_after, steps[-1].rmse_after, steps[-1].rel_after
     added = [s.name for s in steps]
     # nothing named: the parameter file stays as it was (a refit without new effects is no finding)
-    out_params = model.to_params(params, added) if added else copy.deepcopy(params)
+    out_params = model_to_params(model, params, added) if added else copy.deepcopy(params)
     if not added:
         model, cur_rmse, cur_rel = given, rmse0, rel0
     prov = dict(out_params.get("provenance") or {})

@@ -42,13 +42,6 @@ _STOPPED_STATUS = ("Maximum_Iterations_Exceeded", "Search_Direction_Becomes_Too_
                    "Restoration_Failed", "Maximum_CpuTime_Exceeded")
 
 
-def stribeck_column(v: np.ndarray, vs: float, delta: float) -> np.ndarray:
-    """sign(v) exp(-|v/vs|^delta): the column multiplying Fs - Fc in eq. (1)."""
-    v = np.asarray(v, dtype=float)
-    with np.errstate(over="ignore", under="ignore", divide="ignore"):
-        return np.sign(v) * np.exp(-np.power(np.abs(v) / vs, delta))
-
-
 @dataclass
 class SeparableResult:
     """Solution of a separable Stribeck least-squares problem (natural parameters)."""

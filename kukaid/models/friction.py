@@ -6,6 +6,30 @@ from dataclasses import dataclass
 import numpy as np
 
 
+def stribeck_column(v: np.ndarray, vs: float, delta: float) -> np.ndarray:
+    """sign(v) exp(-|v/vs|^delta): the regressor column multiplying Fs - Fc in eq. (1)."""
+    v = np.asarray(v, dtype=float)
+    with np.errstate(over="ignore", under="ignore", divide="ignore"):
+        return np.sign(v) * np.exp(-np.power(np.abs(v) / vs, delta))
+
+
+def friction_columns(kind: str, qd: np.ndarray, qd_lin: np.ndarray | None = None, vs: float = 0.04,
+                     delta: float = 1.0) -> tuple[list[str], np.ndarray]:
+    """Regressor of the sliding friction, linear in its levels: names and (n, k) columns.
+
+    Stribeck (``kind`` "stribeck"): Fc sign(qd) (1 - E) + Fs sign(qd) E + Fv qd with
+    E = exp(-(|qd|/vs)^delta) at fixed ``vs``, ``delta``; Coulomb + viscous: Fc sign(qd) + Fv qd.
+    ``qd_lin`` is the velocity of the viscous column (default ``qd``).
+    """
+    s = np.sign(qd)
+    if kind == "stribeck":
+        e = stribeck_column(qd, vs, delta)
+        names, cols = ["Fc", "Fs"], [s - e, e]
+    else:
+        names, cols = ["Fc"], [s]
+    return names + ["Fv"], np.column_stack(cols + [qd if qd_lin is None else qd_lin])
+
+
 @dataclass(frozen=True)
 class Stribeck:
     """Stribeck friction, eq. (1): F(v) = (Fc + (Fs - Fc) exp(-|v/vs|^delta)) sign(v) + Fv v.
