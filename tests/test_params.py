@@ -40,6 +40,18 @@ def test_round_trip_and_model(tmp_path):
     assert tau[0] == pytest.approx(1.7 + 22.0 + m.friction(0.1))
 
 
+def test_the_model_writes_back_the_file_it_read():
+    """One model class in and out: the base sections come back byte for byte, a plain write-back
+    adds only the empty uncertainty and effects sections."""
+    from kukaid.params import model_sections, model_to_params
+
+    d = {**good(), "offset": -0.25}
+    m = model_from_params(d)
+    sec = model_sections(m)
+    assert json.dumps(sec) == json.dumps({k: d[k] for k in sec})
+    assert model_to_params(m, d) == {**d, "uncertainty": {}, "effects": {}}
+
+
 @pytest.mark.parametrize("mutate, msg", [
     (lambda d: d.pop("schema"), "'schema' must be"),
     (lambda d: d["friction"].pop("Fc"), "missing field friction.Fc"),
