@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from kukaid.models import effects as E
-from kukaid.models.effects import NAMES, TAG, reversals  # noqa: F401  (TAG, NAMES: the names the file knows)
+from kukaid.models.effects import NAMES, reversals
 
 if TYPE_CHECKING:  # pragma: no cover
     from kukaid.models.signals import LogSignals

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from kukaid.diagnose import candidates as C
-from kukaid.diagnose.workflow import Diagnosis
+from kukaid.diagnose.result import Diagnosis
 from kukaid.atomic import atomic_path
 from kukaid.models.torque import JointTorqueModel
 
