@@ -56,6 +56,8 @@ class Effect:
     native: str | None = None
     #: keys written for the reader only (recomputed from the coefficients)
     derived: tuple[str, ...] = ()
+    #: nonlinear settings a stored effect must have (besides its coefficients)
+    settings: tuple[str, ...] = ()
 
     def columns(self, sig: "LogSignals", nl: dict, model: "JointTorqueModel") -> np.ndarray:
         """Regressor columns (n, len(coef_keys(nl))) on the full grid, unfiltered."""
@@ -111,6 +113,7 @@ class PositionRipple(Effect):
     meaning = "A sin(n q + phi): gear or cogging ripple with position"
     coef_names = ("a", "b")
     derived = ("A", "phi")
+    settings = ("n",)
 
     def columns(self, sig, nl, model):
         n = nl["n"]
@@ -141,6 +144,7 @@ class ThermalDrift(Effect):
     meaning = "friction changing over the run (temperature, elapsed time or dissipated energy)"
     coef_names = ("c",)
     derived = ("unit",)
+    settings = ("coordinate", "form")
 
     def x(self, sig, coordinate, model, friction=None):
         """The drift coordinate on the full grid: temperature °C, elapsed time s or energy J."""
@@ -218,6 +222,7 @@ class Backlash(Effect):
     name = "backlash"
     meaning = "a decaying transient after every velocity reversal (backlash in the reducer)"
     coef_names = ("A",)
+    settings = ("tau",)
 
     def columns(self, sig, nl, model):
         def shape(i, j):
@@ -231,6 +236,7 @@ class StribeckRise(Effect):
     name = "stribeck"
     meaning = "friction rising above Coulomb at low speed (Stribeck), on a Coulomb + viscous model"
     coef_names = ("dF",)
+    settings = ("vs", "delta")
 
     def columns(self, sig, nl, model):
         return stribeck_column(sig.qd, nl["vs"], nl["delta"])[:, None]
@@ -241,6 +247,7 @@ class PreSliding(Effect):
     meaning = ("pre-sliding friction: after a reversal friction builds up over a small displacement "
                "(Dahl-like), not at once")
     coef_names = ("A",)
+    settings = ("x0",)
 
     def columns(self, sig, nl, model):
         """s_r exp(-|q - q_r| / x0) from each reversal r (position q_r, new direction s_r) on."""

@@ -69,13 +69,9 @@ _EFFECT_KEYS: dict[str, tuple[str, Any]] = {
     "T_ref": ("number|null", (-INF, INF)),                  # simulator truth: null = ambient
     "mu": ("number|null", (-INF, INF)),                     # derived Fc_load / |Mx| (null: Mx = 0)
 }
-# keys an effect needs in any format (the online torque residual reads them), and the settings a
-# diagnosis-format effect ("model": "kukaid.diagnose/1") needs besides its coefficients
+# keys an effect needs in any format (the online torque residual reads them); a diagnosis-format
+# effect ("model": "kukaid.diagnose/1") needs its term's coefficients and settings (models.effects)
 _EFFECT_NEEDS: dict[str, tuple[str, ...]] = {"position_ripple": ("n",)}
-_EFFECT_SETTINGS: dict[str, tuple[str, ...]] = {
-    "position_ripple": ("n",), "thermal_drift": ("coordinate", "form"), "backlash": ("tau",),
-    "stribeck": ("vs", "delta"), "presliding": ("x0",),
-}
 
 
 def _show(v: Any, limit: int = 60) -> str:
@@ -148,7 +144,7 @@ def _effects(where: str, effects: Any) -> None:
                 _number(f"{where}: {field}", v, *rng)
         need = _EFFECT_NEEDS.get(name, ())
         if e.get("model") == TAG:  # the diagnosis reads these back (kukaid diagnose, effects_torque)
-            need = COEFFICIENTS[name] + _EFFECT_SETTINGS.get(name, ())
+            need = COEFFICIENTS[name] + EFFECTS[name].settings
         for k in need:
             if k not in e:
                 raise ParamFileError(f"{where}: missing field effects.{name}.{k}")
