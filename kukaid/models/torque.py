@@ -26,7 +26,7 @@ from kukaid.models.friction import CoulombViscous, MaxwellSlip, Stribeck, fricti
 from kukaid.models.joint import RigidBody, rigid_regressor
 from kukaid.models.signals import LogSignals
 
-#: the base terms and their parameters (the linear ones in regressor order, then vs and delta)
+#: the base terms and their parameters, in the parameter file's order
 TERMS: dict[str, tuple[str, ...]] = {"friction": ("Fc", "Fs", "vs", "delta", "Fv"), "rigid_body": ("Izz", "Mx", "My"),
                                      "offset": ("offset",), "maxwell_slip": ("k", "W", "zeta0")}
 #: physical bounds of the base parameters (the refit's; the others are free)
