@@ -28,9 +28,28 @@ from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
 from kukaid.identify.stribeck_fit import extract_friction, natural_uncertainty, solve_separable
 from kukaid.identify.uncertainty import correlation_factor, covariance
 from kukaid.jsonfile import jsonable
-from kukaid.models.friction import CoulombViscous, Stribeck
+from kukaid.models.friction import MaxwellSlip
+from kukaid.models.torque import JointTorqueModel
+from kukaid.params.axis import model_sections
 
 METHODS = ("joint", "staged")
+FRICTION_MODELS = ("auto", "stribeck", "coulomb-viscous")
+#: the Stribeck parameters beyond Coulomb-viscous (and Fc, which a degenerate Stribeck trades for them)
+_STRIBECK_EXTRA = ("Fc", "Fs", "Fs-Fc", "vs", "delta")
+
+
+def _model_options(joint: str, gravity: str | None, offset: bool | None) -> tuple[str, bool]:
+    """Gravity terms and offset from the joint type when not given.
+
+    A revolute axis: ``Mx cos q``, no offset.  A prismatic axis: gravity along it is a constant force
+    (m g sin of the slide's incline) that no fit can tell from an offset, so the default is one
+    constant term, the offset, and cos/sin terms of a position in metres are refused."""
+    if joint == "prismatic":
+        if gravity not in (None, "none"):
+            raise FitError(f"--gravity {gravity}: a prismatic axis has no cos/sin gravity terms (its gravity is "
+                           "a constant force along the slide, fitted as --offset); use --gravity none")
+        return "none", True if offset is None else bool(offset)
+    return gravity or "cos", bool(offset)
 
 
 def _load(x: Any, options: dict) -> Any:
@@ -67,16 +86,13 @@ def staged_friction(preps: Sequence[Any], friction_model: str = "stribeck",
 
 
 def _adequacy(ax: int, raw_logs: Sequence[Any], preps: Sequence[Any], fit_joint: Any, staged_at_bound: list,
-              friction: Any, rigid: dict) -> dict[str, Any]:
+              model: JointTorqueModel) -> dict[str, Any]:
     """Parameters on bounds, solver status and single-axis adequacy (:func:`kukaid.identify.adequacy.assess`)."""
     from kukaid.identify.adequacy import assess, moving_axes, noise_floor
-    from kukaid.models.joint import RigidBody
-
     on_bound = list(staged_at_bound) + (list(fit_joint.at_bound_) if fit_joint is not None else [])
     converged = fit_joint.converged if fit_joint is not None else True
     status = fit_joint.ipopt_status if fit_joint is not None else ""
-    rb = RigidBody(Izz=rigid.get("Izz", 0.0), Mx=rigid.get("Mx", 0.0), My=rigid.get("My", 0.0),
-                   offset=rigid.get("offset", 0.0))
+    rb, friction = model.rigid, model.friction
     res = np.concatenate([(pr.tau - rb.torque(pr.q, pr.qdd) - friction(pr.qd))[pr.dynamic] for pr in preps])
     rms = float(np.sqrt(np.mean(res ** 2))) if res.size else 0.0
     others = sorted({a for lg in raw_logs for a in moving_axes(lg, ax)})
@@ -84,15 +100,15 @@ def _adequacy(ax: int, raw_logs: Sequence[Any], preps: Sequence[Any], fit_joint:
     return {"at_bound": on_bound, "converged": converged, "warnings": warnings, **figures}
 
 
-def _friction_model(p: dict, model: str) -> Stribeck | CoulombViscous:
-    if model == "stribeck":
-        return Stribeck(p["Fc"], p["Fs"], p["vs"], p["delta"], p["Fv"])
-    return CoulombViscous(p["Fc"], p["Fv"])
+def _model(fp: dict, rigid: dict, friction_model: str) -> JointTorqueModel:
+    """The joint-torque model of the fitted friction ``fp`` and rigid-body ``rigid`` parameters."""
+    lin = {k: float(v) for k, v in {**fp, **rigid}.items() if k not in ("vs", "delta")}
+    return JointTorqueModel(friction_model, lin, float(fp.get("vs", 0.04)), float(fp.get("delta", 1.0)))
 
 
 def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Sequence[Any] = (),
              presliding: Any = None, axis: int | None = None, method: str = "joint",
-             friction_model: str = "stribeck", gravity: str = "cos", offset: bool = False,
+             friction_model: str = "stribeck", gravity: str | None = None, offset: bool | None = None,
              n_elements: int = 3, bounds: dict | None = None, cutoff: float | None = None,
              order: int | None = None, qd_thr: float | None = None, edge: int | None = None,
              decimate: int = 1, reversal_window: float | None = None, diff: str | None = None,
@@ -106,8 +122,11 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     presliding : log of the pre-sliding experiment (Maxwell-slip), optional.
     axis : KUKA axis number (default: the logs' only axis, or A3).
     method : "joint" (default) or "staged" (the paper's eqs. 2-5; needs friction sweeps).
-    friction_model : "stribeck" or "coulomb-viscous".   gravity : "cos", "cos+sin", "none".
-    offset : fit a constant torque.   n_elements : Maxwell-slip elements.
+    friction_model : "stribeck", "coulomb-viscous" or "auto": Stribeck when the data determine it,
+        else Coulomb-viscous (:func:`fit_axis_auto`).
+    gravity : "cos", "cos+sin", "none"; offset : fit a constant torque.  Default from the joint
+        type (:func:`_model_options`): revolute "cos" without offset, prismatic an offset only.
+    n_elements : Maxwell-slip elements.
     bounds : {name: (lo, hi)} overriding the data-derived bounds.
     cutoff, order, qd_thr, edge, decimate, reversal_window, diff : pre-processing
         (:func:`~kukaid.identify.preprocess`).
@@ -118,6 +137,14 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     """
     if method not in METHODS:
         raise FitError(f"method must be one of {METHODS}, got '{method}'")
+    if friction_model not in FRICTION_MODELS:
+        raise FitError(f"friction model must be one of {FRICTION_MODELS}, got '{friction_model}'")
+    if friction_model == "auto":
+        kw = dict(logs=logs, friction=friction, inertia=inertia, presliding=presliding, axis=axis, method=method,
+                  gravity=gravity, offset=offset, n_elements=n_elements, bounds=bounds, cutoff=cutoff, order=order,
+                  qd_thr=qd_thr, edge=edge, decimate=decimate, reversal_window=reversal_window, diff=diff,
+                  read_options=read_options)
+        return fit_axis_auto(**kw)
     ro = dict(read_options or {})
     pre = dict(axis=axis, cutoff=cutoff, order=order, qd_thr=qd_thr, edge=edge, decimate=decimate,
                reversal_window=reversal_window, diff=diff)
@@ -139,6 +166,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     if len(axes) > 1:
         raise FitError(f"the logs are of different axes {sorted(axes)}; choose one with --axis")
     ax = axes.pop()
+    gravity, offset = _model_options(all_preps[0].joint, gravity, offset)
     qd_thr_used = all_preps[0].qd_thr
     std: dict[str, float] = {}
     metrics: dict[str, Any] = {}
@@ -178,9 +206,8 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         std.update(fit_joint.std_)
         metrics.update(friction_fit_mse=fit_joint.mse_, torque_prediction_mse=fit_joint.mse_,
                        ipopt_status=fit_joint.ipopt_status, condition_number=fit_joint.uncertainty_.cond)
-    fmodel = _friction_model(fp, friction_model)
     if ine and (fr or general):
-        rf = fit_rigid(ine, fmodel, gravity, offset)
+        rf = fit_rigid(ine, _model(fp, {}, friction_model).friction, gravity, offset)
         rigid = dict(rf.params_)
         for k in ("Izz", "Mx", "My", "offset"):
             std.pop(k, None)
@@ -196,22 +223,15 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
                        "with accelerations")
     if rigid["Izz"] <= 0:
         raise FitError(f"fitted Izz = {rigid['Izz']:.4g} is not positive: the data do not excite the inertia")
+    model = _model(fp, rigid, friction_model)
+    model.qd_thr = qd_thr_used
     metrics.update(_adequacy(ax, raw_logs, [p for p in (general + fr + ine) if p is not None], fit_joint,
-                             staged_at_bound, _friction_model(fp, friction_model), rigid))
-    out: dict[str, Any] = {"schema": "kukaid.params/1", "axis": int(ax)}
-    out["friction"] = {"model": friction_model, **{k: _r(fp[k]) for k in ("Fc", "Fs", "vs", "delta", "Fv") if k in fp}}
-    out["inertial"] = {k: _r(rigid[k]) for k in ("Izz", "Mx", "My") if k in rigid}
-    if "offset" in rigid:
-        out["offset"] = _r(rigid["offset"])
+                             staged_at_bound, model))
     if psl is not None:
-        from kukaid.models.joint import RigidBody
-
-        rb = RigidBody(Izz=rigid["Izz"], Mx=rigid.get("Mx", 0.0), My=rigid.get("My", 0.0))
-        ms = fit_maxwell_slip(psl, n_elements, gravity=rb.gravity)
-        out["maxwell_slip"] = {"k": [_r(x) for x in ms.k], "W": [_r(x) for x in ms.W],
-                               "zeta0": [_r(x) for x in ms.zeta0]}
+        ms = fit_maxwell_slip(psl, n_elements, gravity=model.rigid.gravity)
+        model.maxwell_slip, model.zeta0 = MaxwellSlip(ms.k, ms.W), tuple(ms.zeta0)
         metrics.update(maxwell_slip_rms=ms.rms, maxwell_slip_sum_W=sum(ms.W), maxwell_slip_samples=ms.n_samples)
-    out["mode_switch"] = {"qd_thr": qd_thr_used}
+    out: dict[str, Any] = {"schema": "kukaid.params/1", "axis": int(ax), **model_sections(model, digits=8)}
     values = {**fp, **rigid}
     out["uncertainty"] = {k: _r(v, 4) for k, v in std.items() if k in values}
     metrics["relative_std"] = {k: _r(std[k] / abs(values[k]), 4) for k in out["uncertainty"] if values[k] != 0}
@@ -226,6 +246,25 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         "preprocess": jsonable({**all_preps[0].settings, "why": settings_reason(all_preps[0].settings)}),
     }
     return out
+
+
+def fit_axis_auto(**kw: Any) -> dict:
+    """Stribeck when the data determine it, else the Coulomb-viscous model it contains.
+
+    The Stribeck model adds Fs, vs and delta to Coulomb-viscous.  When its fit leaves any of
+    them, or Fc, on a bound (Fc -> 0 with a wide Stribeck bump standing in for the Coulomb level,
+    Fs = Fc, delta at its limit), those parameters are not determined by the data and the nested
+    Coulomb-viscous model is fitted instead.  The choice and its reason are in
+    ``metrics.friction_model_choice``."""
+    st = fit_axis(friction_model="stribeck", **kw)
+    loose = [b["name"] for b in st["metrics"].get("at_bound", []) if b["name"] in _STRIBECK_EXTRA]
+    if not loose:
+        st["metrics"]["friction_model_choice"] = "stribeck: every Stribeck parameter is inside its bounds"
+        return st
+    cv = fit_axis(friction_model="coulomb-viscous", **kw)
+    cv["metrics"]["friction_model_choice"] = (f"coulomb-viscous: the Stribeck fit left {', '.join(loose)} on a bound "
+                                              "(not determined by these data)")
+    return cv
 
 
 def format_table(params: dict) -> str:
@@ -268,6 +307,8 @@ def format_table(params: dict) -> str:
         line = (f"  pre-processing: low-pass {pre.get('cutoff', 0):.4g} Hz (order {pre.get('order')}), "
                 f"{pre.get('edge')} edge samples trimmed, decimation {pre.get('decimate', 1)}")
         tail.append(line + (f" ({pre['why']})" if pre.get("why") else ""))
+    if m.get("friction_model_choice"):
+        tail.append(f"  friction model: {m['friction_model_choice']}")
     tail += [f"  warning: {w}" for w in m.get("warnings", [])]
     return "\n".join([f"axis A{params['axis']}, friction model {params['friction']['model']}", *rows,
                       "  " + "; ".join(extra), *tail])

@@ -52,6 +52,17 @@ class _Hold:
         return np.full(n, self.q), np.zeros(n), np.zeros(n)
 
 
+def trajectory_attrs(traj: Any) -> dict[str, Any]:
+    """A simulated log's record of the trajectory it ran: experiment kind and parameters."""
+    if traj is None:
+        return {}
+    attrs: dict[str, Any] = {"experiment": str(getattr(traj, "kind", "unknown"))}
+    params = getattr(traj, "params", None)
+    if params is not None:
+        attrs["trajectory"] = json.loads(json.dumps(params, default=str))
+    return attrs
+
+
 class _Spline:
     """Interpolation of IPO knots (t, q): a C2 cubic spline (continuous acceleration feedforward,
     as a KRC's fine interpolator), or linear ramps; holds the last value after the end.
@@ -384,7 +395,7 @@ class VirtualKRC4:
         return {"q": q, "tau": tau, "temp": round(float(self._st[K.S_T]), 2)}
 
     def run(self, traj: Any, progress: Callable[[float], None] | None = None, settle: float = 0.5):
-        """Follow ``traj`` to its end plus ``settle`` s; return the :class:`~kukaid.logs.axislog.AxisLog`.
+        """Follow ``traj`` to its end plus ``settle`` s; return the :class:`~kukaid.logs.core.AxisLog`.
 
         If the commanded position now differs from ``traj.q[0]`` the simulator is first reset
         to a standstill at ``traj.q[0]``.  ``progress(done_s)`` is called with the simulated
@@ -425,9 +436,4 @@ class VirtualKRC4:
             "sample_time": self.cfg.sample_time,
             "kukaid_version": __version__,
         }
-        if traj is not None:
-            attrs["experiment"] = str(getattr(traj, "kind", "unknown"))
-            params = getattr(traj, "params", None)
-            if params is not None:
-                attrs["trajectory"] = json.loads(json.dumps(params, default=str))
-        return attrs
+        return {**attrs, **trajectory_attrs(traj)}
