@@ -1,5 +1,5 @@
 """Speed of one control step: torque-residual estimator + adaptive (RBF) damping + admittance
-+ oscillation monitor, as the loop runs them every cycle.
++ oscillation monitor + grip floor, as the loop runs them every cycle.
 
 Usage: python benchmarks/admittance_step_speed.py [--steps 100000] [--json]
 
@@ -22,7 +22,8 @@ import numpy as np
 def main() -> None:
     from kukaid.control.admittance import Admittance
     from kukaid.control.rbf import RBFConfig, RBFDamping
-    from kukaid.control.stability import OscillationMonitor, StabilityConfig
+    from kukaid.control.filters import CausalButterworth
+    from kukaid.control.stability import CouplingConfig, CouplingFloor, OscillationMonitor, StabilityConfig
     from kukaid.control.torque_residual import TorqueResidual
     from kukaid.params import model_from_params
     from kukaid.sim import SimConfig
@@ -36,6 +37,7 @@ def main() -> None:
     rbf = RBFDamping(RBFConfig())
     rbf.set_cycle(0.012)
     mon = OscillationMonitor(StabilityConfig(), 0.012, 50.0, 3000.0)
+    grip = CouplingFloor(CouplingConfig(), 0.012, 20.0, 500.0, CausalButterworth(5.0, 1 / 0.012, 3).phase_delay)
     adm = Admittance(20.0, 50.0, 0.012, sigma0=0.5)
     rng = np.random.default_rng(0)
     n = a.steps
@@ -50,7 +52,8 @@ def main() -> None:
         c0 = time.thread_time_ns()
         r = est.update(q[i], tau[i])
         g = r.gamma_r if r.detected else 0.0
-        floor = mon.step(r.gamma_r, D)
+        floor = max(mon.step(r.gamma_r, D), grip.step(r.gamma_r, r.detected, D))
+        grip.observe_robot(adm.sigma, q[i])
         D = max(rbf.step(r.gamma_r, direction=adm.sigma_dot or g, adapt=r.detected and not mon.oscillating), floor)
         adm.step(g, D)
         dc[i] = (time.thread_time_ns() - c0) / 1000.0
@@ -64,7 +67,7 @@ def main() -> None:
     if a.json:
         print(json.dumps(res))
     else:
-        print(f"control step (estimator + oscillation monitor + RBF damping + admittance), {n} steps "
+        print(f"control step (estimator + oscillation monitor + grip floor + RBF damping + admittance), {n} steps "
               f"(budget p99 < 100 us; load average {res['load_average'][0]:.1f} on {os.cpu_count()} cores):")
         for name in ("cpu", "wall"):
             r = res[name]
