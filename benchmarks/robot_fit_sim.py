@@ -24,11 +24,13 @@ def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, nargs="*", default=[0, 1, 2])
     ap.add_argument("--duration", type=float, default=60.0)
+    ap.add_argument("--prior-weight", type=float, default=None, help="fit setting (default: the fit's default)")
+    ap.add_argument("--cutoff", type=float, default=None, help="fit setting, Hz (default: the fit's default)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     from robot_sim_helpers import simulated_log
 
-    from kukaid.identify.robot_fit import fit_robot
+    from kukaid.identify.robot_fit import RobotFitSettings, fit_robot
     from kukaid.models.robot import RobotModel
 
     robot = RobotModel("kr6-r700-sixx")
@@ -36,7 +38,8 @@ def main() -> int:
     rows = []
     for seed in a.seeds:
         log, truth = simulated_log(robot, duration=a.duration, seed=seed)
-        p = fit_robot([log], robot)
+        kw = {k: v for k, v in (("prior_weight", a.prior_weight), ("cutoff", a.cutoff)) if v is not None}
+        p = fit_robot([log], robot, RobotFitSettings(**kw))
         tb = base.of(truth["pi"])
         bp = p["base_parameters"]
         est, ls, sd = (np.asarray(bp[k]) for k in ("values", "least_squares", "sigma"))

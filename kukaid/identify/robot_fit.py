@@ -41,14 +41,20 @@ from kukaid.models.robot import (FRICTION_MODELS, LINK_PARAMS, DriveModel, Robot
                                  friction_names, friction_regressor, pseudo_inertia)
 
 PRIOR_WEIGHT = 1e-3
+#: default low-pass cut-off, Hz. Parallel filtering (the same filter on positions and torques) is
+#: exact only for the terms linear in the signals; Coriolis, gravity and Coulomb friction are not,
+#: so wherever the filter cuts into the motion's band it biases the fit. The cut-off sits well above
+#: the band of identification trajectories (a few Hz) and below the torque noise: 10 Hz (at most
+#: fs/10). At 5 Hz the simulated KR 6 R700 sixx left well-excited base parameters up to 2.1 % off,
+#: at 10 Hz within 1.9 % (``benchmarks/robot_fit_sim.py``, five seeds).
+CUTOFF = 10.0
 
 
 @dataclass(frozen=True)
 class RobotFitSettings:
     """Settings of :func:`fit_robot` (all stored in the parameter file).
 
-    cutoff : low-pass cut-off of positions and torques, Hz (None: 5 Hz as the single-axis fit at
-        KR C4 rates, at most fs/10).
+    cutoff : low-pass cut-off of positions and torques, Hz (None: :data:`CUTOFF`, at most fs/10).
     order : Butterworth order.
     decimate : keep every n-th sample after filtering (None: about 10 samples per cut-off period).
     friction : "coulomb-viscous" or "stribeck".
@@ -144,8 +150,30 @@ def _joint_columns(log: AxisLog, n: int) -> list[int]:
 
 
 def _cutoff(settings: RobotFitSettings, fs: float) -> float:
-    fc = settings.cutoff if settings.cutoff is not None else 5.0
+    fc = settings.cutoff if settings.cutoff is not None else CUTOFF
     return min(fc, 0.1 * fs) if settings.cutoff is None else fc
+
+
+def sample_grid(time: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The time base to differentiate on: the log's time stamps, or an even grid over the same span.
+
+    The low-pass filter treats the samples as evenly spaced. A controller samples its axes at a
+    fixed rate, but a PC that records them often stamps each sample when it arrives, with jitter
+    (the LWR4+ recordings: stamps 3.2 to 6.8 ms apart at 5 ms while the position increments stay
+    smooth). Differentiating on such stamps turns the jitter into velocity and acceleration spikes
+    (tens of rad/s² and, through the inertia, tens of N·m of torque that no joint felt). The even
+    grid is used when it makes the positions smoother (smaller second differences) than the
+    stamps do; a log with truly uneven samples keeps its stamps.
+    """
+    time = np.asarray(time, float)
+    grid = np.linspace(time[0], time[-1], time.size)
+    if time.size < 3 or np.allclose(np.diff(time), grid[1] - grid[0], rtol=1e-3, atol=0.0):
+        return time
+
+    def rough(t: np.ndarray) -> float:
+        return float(np.sum(np.gradient(np.gradient(q, t, axis=0), t, axis=0) ** 2))
+
+    return grid if rough(grid) < rough(time) else time
 
 
 def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel | None = None,
@@ -164,8 +192,9 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
     if log.n_samples <= need:
         raise FitError(f"{where}: {log.n_samples} samples are too few to filter (need more than {need})")
     q = sosfiltfilt(sos, log.q[:, cols], axis=0)
-    qd = np.gradient(q, log.time, axis=0)
-    qdd = np.gradient(qd, log.time, axis=0)
+    t = sample_grid(log.time, log.q[:, cols])
+    qd = np.gradient(q, t, axis=0)
+    qdd = np.gradient(qd, t, axis=0)
     tau = log.tau[:, cols]
     if settings.torque_side == "motor" and drive is not None:
         tau = drive.joint_torque(tau)
