@@ -67,7 +67,8 @@ def _fmt(v):
 @click.option("--enable-motion", is_flag=True, help="kvp: really move the robot (required with --backend kvp).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
 @click.option("--port", type=int, default=7000, show_default=True, help="kvp: KUKAVARPROXY port.")
-@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="kvp: axis to control.")
+@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True,
+              help="kvp, or a robot parameter file: axis to control.")
 def command(params_path: Path, output: Path, report: Path | None, as_json: bool, force: bool, damping: str,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
             duration: float, cycle: float, init_move: float, q_min: float | None, q_max: float | None,
@@ -89,6 +90,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     import math
     import signal
 
+    import numpy as np
+
     from kukaid.control.loop import LoopConfig, run_admittance
     from kukaid.control.metrics import operator_metrics
     from kukaid.control.rbf import RBFConfig
@@ -97,7 +100,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.control.safety import SafetyLimits, check_motion_allowed
     from kukaid.errors import KukaidError
     from kukaid.jsonfile import jsonable
-    from kukaid.params import load_params, model_from_params
+    from kukaid.errors import ParamFileError
+    from kukaid.jsonfile import read_json
+    from kukaid.params import is_robot_params, load_params, model_from_params, validate_robot_params
     from kukaid.atomic import check_writable
     from kukaid_cli._util import check_outputs, check_suffix, progress, refuse_overwrite
 
@@ -110,8 +115,19 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             check_writable(p)  # before the robot moves: the record of the run must be writable
     if backend == "kvp" and (sim_config is not None or noise is not None):
         raise click.UsageError("--sim-config and --noise are for --backend sim")
-    params = load_params(params_path)
-    model = model_from_params(params)
+    raw = read_json(params_path, ParamFileError)
+    robot_file = is_robot_params(raw)  # a whole robot (`kukaid fit --robot`): Γr of the axis from every axis
+    if robot_file:
+        from kukaid.control.robot_residual import RobotTorqueModel
+
+        params = validate_robot_params(raw, str(params_path))
+        model = RobotTorqueModel.from_params(params, str(params_path))
+        if backend == "kvp":
+            raise KukaidError(f"{params_path}: a robot parameter file needs every axis's torque; "
+                              "--backend kvp reads one axis (use a one-axis parameter file)")
+    else:
+        params = load_params(params_path)
+        model = model_from_params(params)
     zeta0 = (params.get("maxwell_slip") or {}).get("zeta0")
     rbf = None
     if damping == "adaptive":
@@ -151,15 +167,37 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if grip is not None and operator != "human":
             raise click.UsageError("--grip is for --operator human")
 
+        if robot_file:  # the six-axis virtual KR C4 of that robot, the other axes standing at their mid range
+            from kukaid.sim.robot_plant import RobotSimConfig, VirtualRobotKRC4
+
+            if sim_config is not None or noise is not None:
+                raise click.UsageError("--sim-config and --noise are for one-axis parameter files")
+            plant = VirtualRobotKRC4(RobotSimConfig(robot=params["robot"]["urdf"]), seed=seed)
+            cfg = dataclasses.replace(cfg, sample_time=plant.cfg.sample_time)
+            if not 1 <= axis <= plant.n:
+                raise KukaidError(f"run-admittance: --axis {axis}: the robot has axes A1..A{plant.n}")
+            lo_, hi_ = (np.asarray(x, float) for x in (plant.model_nominal.lowerPositionLimit,
+                                                       plant.model_nominal.upperPositionLimit))
+            q_start = np.where(np.isfinite(lo_) & np.isfinite(hi_), 0.5 * (lo_ + hi_), 0.0)
+            q_start[axis - 1] = math.radians(q0)
+        else:
+            q_start = None
+
         def sim_backend(cfg_):  # the same person and the same noise for every controller (paired)
             op_ = None if operator == "none" else make_operator(operator, seed, q0r + cfg_.init_move,
                                                                 t_start=cfg_.init_time + cfg_.init_rest + 0.8, grip=grip)
+            if robot_file:
+                return SimRobot(VirtualRobotKRC4(plant.cfg, seed=seed), q_start, op_, axis=axis), op_
             return SimRobot(VirtualKRC4(scfg, seed=seed), q0r, op_), op_
 
         be, op = sim_backend(cfg)
-        attrs.update(seed=seed, operator=operator, operator_params=operator_params(op),
-                     sim_config=scfg.to_dict(), truth={**scfg.truth_params(), "axis": scfg.axis})
-        axis_id = scfg.axis
+        attrs.update(seed=seed, operator=operator, operator_params=operator_params(op))
+        if robot_file:
+            attrs.update(robot=params["robot"]["urdf"], truth=plant.truth.to_dict())
+            axis_id = axis
+        else:
+            attrs.update(sim_config=scfg.to_dict(), truth={**scfg.truth_params(), "axis": scfg.axis})
+            axis_id = scfg.axis
     else:
         from kukaid.robot import KvpRobot
         from kukaid.krc.kvp import KvpClient

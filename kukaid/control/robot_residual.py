@@ -293,6 +293,58 @@ class RobotResidual:
         return RobotResidualSample(gamma_r, pred, tau_f, y[:n], y[n:2 * n], y[2 * n:3 * n], self._detected)
 
 
+@dataclass(frozen=True)
+class GuidedAxisSample:
+    """One step of :class:`GuidedAxisResidual` for the admittance loop (the fields it reads, as
+    :class:`kukaid.control.torque_residual.ResidualSample`): ``gamma_r``, ``gamma_p``, ``tau_f`` N·m
+    and ``q`` rad, ``qd`` rad/s, ``qdd`` rad/s² of the guided axis, ``mode`` ("dynamic": the robot
+    model has one mode), ``detected``, and the whole vector step ``robot``."""
+
+    gamma_r: float
+    gamma_p: float
+    tau_f: float
+    q: float
+    qd: float
+    qdd: float
+    mode: str
+    detected: bool
+    robot: RobotResidualSample
+
+
+class GuidedAxisResidual:
+    """The admittance loop's estimator for one guided axis of a robot: the robot model's Γr of that
+    axis, from the positions and torques of every axis, so the torque the others' motion couples
+    into the guided axis is predicted rather than taken for a push.
+
+    Parameters
+    ----------
+    model : :class:`RobotTorqueModel`.
+    axis : the guided axis, 1..n.
+    sample_time, cutoff, order : as :class:`RobotResidual` (s, Hz).
+    threshold, release : detection on the guided axis's |Γr| with hysteresis, N·m.
+    """
+
+    ignored_effects: tuple[str, ...] = ()
+
+    def __init__(self, model: RobotTorqueModel, axis: int, sample_time: float = 0.012, threshold: float = 5.0,
+                 release: float | None = None, cutoff: float = 5.0, order: int = 3) -> None:
+        if not 1 <= int(axis) <= model.n:
+            raise KukaidError(f"robot residual: guided axis A{axis} is not an axis of the robot (A1..A{model.n})")
+        self.axis = int(axis)
+        th = np.full(model.n, math.inf)
+        th[self.axis - 1] = float(threshold)
+        rel = None if release is None else np.where(np.arange(model.n) == self.axis - 1, float(release), math.inf)
+        self.residual = RobotResidual(model, sample_time=sample_time, cutoff=cutoff, order=order, threshold=th,
+                                      release=rel)
+
+    def update(self, q: np.ndarray, tau: np.ndarray, dt: float | None = None) -> GuidedAxisSample:
+        """Feed the positions (rad) and torques (N·m) of every axis; the guided axis's step."""
+        r = self.residual.update(q, tau, dt)
+        j = self.axis - 1
+        return GuidedAxisSample(float(r.gamma_r[j]), float(r.gamma_p[j]), float(r.tau_f[j]), float(r.q[j]),
+                                float(r.qd[j]), float(r.qdd[j]), "dynamic", bool(r.detected[j]), r)
+
+
 def robot_residual(q: np.ndarray, tau: np.ndarray, model: RobotTorqueModel, sample_time: float,
                    **options: Any) -> dict[str, np.ndarray]:
     """Run :class:`RobotResidual` over recorded samples (causally, as online): (N, n) arrays
