@@ -19,11 +19,13 @@ import click
               help="Parameter file to write (JSON, kukaid.params/1).")
 @click.option("--method", type=click.Choice(["joint", "staged"]), default="joint", show_default=True,
               help="Stribeck fit: joint (all dynamic samples) or staged (the paper's eqs. 2-5).")
-@click.option("--friction-model", type=click.Choice(["stribeck", "coulomb-viscous"]), default=None,
-              help="Friction model [default: stribeck; with --robot: coulomb-viscous].")
-@click.option("--gravity", type=click.Choice(["cos", "cos+sin", "none"]), default="cos", show_default=True,
-              help="Gravity terms: Mx cos q, + My sin q, or none (horizontal/prismatic axis).")
-@click.option("--offset", is_flag=True, help="Fit a constant torque offset.")
+@click.option("--friction-model", type=click.Choice(["auto", "stribeck", "coulomb-viscous"]), default=None,
+              help="Friction model [default: auto, Stribeck when the data determine it, else Coulomb-viscous; "
+                   "with --robot: coulomb-viscous].")
+@click.option("--gravity", type=click.Choice(["cos", "cos+sin", "none"]), default=None,
+              help="Gravity terms: Mx cos q, + My sin q, or none [default: cos; none for a prismatic axis].")
+@click.option("--offset/--no-offset", default=None,
+              help="Fit a constant torque offset [default: no; yes for a prismatic axis, whose gravity is constant].")
 @click.option("--elements", type=click.IntRange(1, 10), default=3, show_default=True, help="Maxwell-slip elements.")
 @click.option("--cutoff", type=float, default=None, help="Low-pass cut-off, Hz (default 5 Hz at KRC rates; --robot: 10 Hz, at most fs/10).")
 @click.option("--order", type=click.IntRange(1, 8), default=None, help="Butterworth order (default 3 at KRC rates).")
@@ -68,7 +70,7 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
         return
     if prior_weight is not None or rotor_inertia or torque_side != "joint" or coupling is not None:
         raise click.UsageError("--prior-weight, --torque-side, --rotor-inertia and --coupling need --robot")
-    friction_model = friction_model or "stribeck"
+    friction_model = friction_model or "auto"
     decimate = decimate or 1
 
     from kukaid.errors import FitError

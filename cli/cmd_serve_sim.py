@@ -62,7 +62,7 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
     from kukaid.atomic import check_writable
     from kukaid.krc.krl_logger import RingLayout
     from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
-    from kukaid.krc.server import SimSource
+    from kukaid.krc.sim_source import SimSource
     from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite
 
     if truth_path is not None:  # checked now, not after the session
@@ -115,7 +115,7 @@ def _serve_robot(host: str, port: int, traj, robot: str | None, seed: int, sim_c
     """serve-sim with every axis of a robot: the six-axis virtual KR C4."""
     from kukaid.capture import robot_sim_config
     from kukaid.krc.krl_logger import RingLayout
-    from kukaid.krc.server import SimSource
+    from kukaid.krc.sim_source import SimSource
     from kukaid.sim.robot_plant import VirtualRobotKRC4
 
     given = [k for k, v in one_axis.items() if v is not None and v != ()]

@@ -6,7 +6,7 @@ HDF5 axis log at ``output`` and returns a :class:`CaptureResult`.  Two sources:
 :class:`SimCapture`
     The virtual KR C4 as a :class:`kukaid.robot.SimRobot` running the trajectory as its program;
     its cycles (``chunk`` seconds of simulated time each) are appended to the log with
-    :class:`~kukaid.logs.axislog.AxisLogWriter` and flushed, so a capture that is interrupted
+    :class:`~kukaid.logs.writer.AxisLogWriter` and flushed, so a capture that is interrupted
     (Ctrl-C, SIGTERM, a killed process) leaves a readable log of everything recorded up to the
     last chunk.  The log carries the truth of the simulation (``truth``), the seed, the
     experiment kind, the trajectory's parameters and the simulator configuration.

@@ -21,3 +21,14 @@ def test_only_krc_opens_sockets():
     offenders = [str(p.relative_to(ROOT)) for p in list((ROOT / "kukaid").rglob("*.py")) + list((ROOT / "cli").rglob("*.py"))
                  if "krc" not in p.parts and ("import socket" in p.read_text() or "from socket" in p.read_text())]
     assert offenders == []
+
+
+def test_readme_architecture_names_every_module():
+    """README "Architecture" has one line per module: a module added or removed must be listed there."""
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("## Architecture", 1)[1].split("\n## ", 1)[0]
+    modules = sorted(p.relative_to(ROOT).as_posix() for p in list((ROOT / "kukaid").rglob("*.py")) + list((ROOT / "cli").rglob("*.py"))
+                     if p.name != "__init__.py")
+    listed = {line.split("`")[1] for line in section.splitlines() if line.startswith("| `")}
+    assert [m for m in modules if m not in listed] == []
+    assert sorted(m for m in listed if m not in modules) == []

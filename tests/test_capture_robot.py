@@ -15,7 +15,8 @@ pytest.importorskip("pinocchio")
 from kukaid.excite.fourier import fourier  # noqa: E402
 from kukaid.krc.krl_logger import RingLayout  # noqa: E402
 from kukaid.krc.kvp import KvpClient, parse_e6axis, parse_real  # noqa: E402
-from kukaid.krc.server import KvpServer, SimSource  # noqa: E402
+from kukaid.krc.server import KvpServer  # noqa: E402
+from kukaid.krc.sim_source import SimSource  # noqa: E402
 from kukaid.logs import read_hdf5  # noqa: E402
 from kukaid.sim.robot_plant import RobotSimConfig, VirtualRobotKRC4  # noqa: E402
 from kukaid_cli.main import cli  # noqa: E402

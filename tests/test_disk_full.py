@@ -119,7 +119,8 @@ def test_kvp_capture_keeps_the_samples(tmp_path, monkeypatch):
 
     from kukaid.krc.kvp_capture import capture_kvp
     from kukaid.sim import SimConfig, VirtualKRC4
-    from kukaid.krc.server import KvpServer, SimSource
+    from kukaid.krc.server import KvpServer
+    from kukaid.krc.sim_source import SimSource
 
     t = np.arange(0.0, 30.0, 0.012)
     traj = SimpleNamespace(t=t, q=0.3 + 0.1 * np.sin(2 * np.pi * t / 4.0) * np.minimum(t, 1.0), axis=3)

@@ -17,7 +17,8 @@ from kukaid.errors import ControllerError, KukaidError
 from kukaid.logs import read_hdf5
 from kukaid.krc.krl_logger import RingLayout
 from kukaid.krc.kvp_capture import capture_kvp
-from kukaid.krc.server import KvpServer, SimSource
+from kukaid.krc.server import KvpServer
+from kukaid.krc.sim_source import SimSource
 from live_helpers import CountingSource, wait_for_samples
 
 

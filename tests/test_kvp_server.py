@@ -10,7 +10,8 @@ import pytest
 from kukaid.krc.krl_logger import RingLayout, parse_block, parse_config
 from kukaid.krc.kvp import (KvpClient, KvpConnectionError, KvpProtocolError, KvpTimeoutError, KvpVariableError,
                            parse_e6axis)
-from kukaid.krc.server import KvpServer, SimSource, StaticSource
+from kukaid.krc.server import KvpServer, StaticSource
+from kukaid.krc.sim_source import SimSource
 from live_helpers import wait_sim, wait_until
 
 

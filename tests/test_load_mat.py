@@ -1,6 +1,8 @@
 """MAT files as axis logs (`kukaid load`), and the EMPS real-data check of identification."""
 from __future__ import annotations
 
+import json
+
 from pathlib import Path
 
 import numpy as np
@@ -67,6 +69,25 @@ def test_emps_published_recipe_within_2_percent(emps):
     got = {"M": p["inertial"]["Izz"], "Fv": p["friction"]["Fv"], "Fc": p["friction"]["Fc"], "OF": p["offset"]}
     for k in ref:
         assert got[k] == pytest.approx(ref[k], rel=0.02), (k, got[k], ref[k])
+
+
+def test_emps_default_fit_within_2_percent(emps, tmp_path):
+    """No options at all through the CLI: the Stribeck fit is not determined by these data (Fc and
+    delta end on bounds), so Coulomb-viscous is kept; the prismatic axis's constant force is the
+    offset; pre-processing from the sample rate."""
+    from kukaid.logs import write_hdf5
+
+    write_hdf5(emps, tmp_path / "emps.h5")
+    r = CliRunner().invoke(cli, ["fit", str(tmp_path / "emps.h5"), "-o", str(tmp_path / "p.json")])
+    assert r.exit_code == 0, r.output
+    assert "friction model: coulomb-viscous: the Stribeck fit left" in r.output
+    p = json.loads((tmp_path / "p.json").read_text())
+    ref = {"M": 95.1089, "Fv": 203.5034, "Fc": 20.3935, "OF": -3.1648}
+    got = {"M": p["inertial"]["Izz"], "Fv": p["friction"]["Fv"], "Fc": p["friction"]["Fc"], "OF": p["offset"]}
+    for k in ref:
+        assert got[k] == pytest.approx(ref[k], rel=0.02), (k, got[k], ref[k])
+    r = CliRunner().invoke(cli, ["fit", str(tmp_path / "emps.h5"), "--gravity", "cos", "-o", str(tmp_path / "q.json")])
+    _one_line_error(r, "prismatic")
 
 
 def test_emps_stribeck_runs(emps, tmp_path):

@@ -16,7 +16,7 @@ from kukaid.control.runlog import read_run
 from kukaid.krc.krl_follower import STOP_BY_PC, STOP_STALE, FollowerConfig
 from kukaid.params import save_params
 from kukaid.sim import SimConfig, VirtualKRC4
-from kukaid.krc.server import SimSource
+from kukaid.krc.sim_source import SimSource
 from kukaid_cli.main import cli
 from live_helpers import wait_sim, wait_until
 

@@ -1,7 +1,7 @@
 """The run log of ``kukaid run-admittance``: an HDF5 axis log plus a ``control`` group.
 
 Top level: the axis-log contract (``time``, ``q``, ``tau``, ``q_cmd``, ``tau_ext_true`` as (N, 1)
-arrays, attribute ``axes``), so ``kukaid.logs.axislog.read_hdf5`` reads it.  Group ``control``:
+arrays, attribute ``axes``), so ``kukaid.logs.read_hdf5`` reads it.  Group ``control``:
 per-cycle datasets ``gamma_r``, ``gamma_p`` (N·m), ``sigma`` (rad), ``sigma_dot`` (rad/s), ``D``
 (N·m·s/rad), ``osc_index`` (N·m, the oscillation index), ``D_floor`` (N·m·s/rad, the damping the
 stability monitor imposes, 0 when inactive), ``dynamic``, ``detected``, ``clipped`` (0/1), ``phase`` (0 initiation move, 1 rest,

@@ -109,7 +109,7 @@ def _dilate(mask: np.ndarray, k: int) -> np.ndarray:
 def prepare(log: Any, axis: int | None = None, cutoff: float | None = None, order: int | None = None,
             qd_thr: float = 0.0017, reversal_window: float | None = None, edge: int | None = None,
             still_guard: float | None = None, name: str | None = None) -> LogSignals:
-    """Filter one axis of an :class:`~kukaid.logs.axislog.AxisLog` for the comparison.
+    """Filter one axis of an :class:`~kukaid.logs.core.AxisLog` for the comparison.
 
     The samples compared are dynamic-mode samples as identification selects them:
     ``|qd| >= qd_thr``, ``edge`` samples away from the log's ends, and at least

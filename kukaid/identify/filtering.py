@@ -215,7 +215,7 @@ def preprocess(log: Any, axis: int | None = None, cutoff: float | None = None, o
 
     Parameters
     ----------
-    log : :class:`kukaid.logs.axislog.AxisLog`.
+    log : :class:`kukaid.logs.core.AxisLog`.
     axis : KUKA axis number (default: the log's only axis, or A3 if it has several).
     cutoff : low-pass cut-off, Hz (default from the sample rate, :func:`filter_defaults`).
     order : Butterworth order (default from the sample rate).

@@ -31,6 +31,23 @@ from kukaid.jsonfile import jsonable
 from kukaid.models.friction import CoulombViscous, Stribeck
 
 METHODS = ("joint", "staged")
+FRICTION_MODELS = ("auto", "stribeck", "coulomb-viscous")
+#: the Stribeck parameters beyond Coulomb-viscous (and Fc, which a degenerate Stribeck trades for them)
+_STRIBECK_EXTRA = ("Fc", "Fs", "Fs-Fc", "vs", "delta")
+
+
+def _model_options(joint: str, gravity: str | None, offset: bool | None) -> tuple[str, bool]:
+    """Gravity terms and offset from the joint type when not given.
+
+    A revolute axis: ``Mx cos q``, no offset.  A prismatic axis: gravity along it is a constant force
+    (m g sin of the slide's incline) that no fit can tell from an offset, so the default is one
+    constant term, the offset, and cos/sin terms of a position in metres are refused."""
+    if joint == "prismatic":
+        if gravity not in (None, "none"):
+            raise FitError(f"--gravity {gravity}: a prismatic axis has no cos/sin gravity terms (its gravity is "
+                           "a constant force along the slide, fitted as --offset); use --gravity none")
+        return "none", True if offset is None else bool(offset)
+    return gravity or "cos", bool(offset)
 
 
 def _load(x: Any, options: dict) -> Any:
@@ -92,7 +109,7 @@ def _friction_model(p: dict, model: str) -> Stribeck | CoulombViscous:
 
 def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Sequence[Any] = (),
              presliding: Any = None, axis: int | None = None, method: str = "joint",
-             friction_model: str = "stribeck", gravity: str = "cos", offset: bool = False,
+             friction_model: str = "stribeck", gravity: str | None = None, offset: bool | None = None,
              n_elements: int = 3, bounds: dict | None = None, cutoff: float | None = None,
              order: int | None = None, qd_thr: float | None = None, edge: int | None = None,
              decimate: int = 1, reversal_window: float | None = None, diff: str | None = None,
@@ -106,8 +123,11 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     presliding : log of the pre-sliding experiment (Maxwell-slip), optional.
     axis : KUKA axis number (default: the logs' only axis, or A3).
     method : "joint" (default) or "staged" (the paper's eqs. 2-5; needs friction sweeps).
-    friction_model : "stribeck" or "coulomb-viscous".   gravity : "cos", "cos+sin", "none".
-    offset : fit a constant torque.   n_elements : Maxwell-slip elements.
+    friction_model : "stribeck", "coulomb-viscous" or "auto": Stribeck when the data determine it,
+        else Coulomb-viscous (:func:`fit_axis_auto`).
+    gravity : "cos", "cos+sin", "none"; offset : fit a constant torque.  Default from the joint
+        type (:func:`_model_options`): revolute "cos" without offset, prismatic an offset only.
+    n_elements : Maxwell-slip elements.
     bounds : {name: (lo, hi)} overriding the data-derived bounds.
     cutoff, order, qd_thr, edge, decimate, reversal_window, diff : pre-processing
         (:func:`~kukaid.identify.preprocess`).
@@ -118,6 +138,14 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     """
     if method not in METHODS:
         raise FitError(f"method must be one of {METHODS}, got '{method}'")
+    if friction_model not in FRICTION_MODELS:
+        raise FitError(f"friction model must be one of {FRICTION_MODELS}, got '{friction_model}'")
+    if friction_model == "auto":
+        kw = dict(logs=logs, friction=friction, inertia=inertia, presliding=presliding, axis=axis, method=method,
+                  gravity=gravity, offset=offset, n_elements=n_elements, bounds=bounds, cutoff=cutoff, order=order,
+                  qd_thr=qd_thr, edge=edge, decimate=decimate, reversal_window=reversal_window, diff=diff,
+                  read_options=read_options)
+        return fit_axis_auto(**kw)
     ro = dict(read_options or {})
     pre = dict(axis=axis, cutoff=cutoff, order=order, qd_thr=qd_thr, edge=edge, decimate=decimate,
                reversal_window=reversal_window, diff=diff)
@@ -139,6 +167,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     if len(axes) > 1:
         raise FitError(f"the logs are of different axes {sorted(axes)}; choose one with --axis")
     ax = axes.pop()
+    gravity, offset = _model_options(all_preps[0].joint, gravity, offset)
     qd_thr_used = all_preps[0].qd_thr
     std: dict[str, float] = {}
     metrics: dict[str, Any] = {}
@@ -228,6 +257,25 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     return out
 
 
+def fit_axis_auto(**kw: Any) -> dict:
+    """Stribeck when the data determine it, else the Coulomb-viscous model it contains.
+
+    The Stribeck model adds Fs, vs and delta to Coulomb-viscous.  When its fit leaves any of
+    them, or Fc, on a bound (Fc -> 0 with a wide Stribeck bump standing in for the Coulomb level,
+    Fs = Fc, delta at its limit), those parameters are not determined by the data and the nested
+    Coulomb-viscous model is fitted instead.  The choice and its reason are in
+    ``metrics.friction_model_choice``."""
+    st = fit_axis(friction_model="stribeck", **kw)
+    loose = [b["name"] for b in st["metrics"].get("at_bound", []) if b["name"] in _STRIBECK_EXTRA]
+    if not loose:
+        st["metrics"]["friction_model_choice"] = "stribeck: every Stribeck parameter is inside its bounds"
+        return st
+    cv = fit_axis(friction_model="coulomb-viscous", **kw)
+    cv["metrics"]["friction_model_choice"] = (f"coulomb-viscous: the Stribeck fit left {', '.join(loose)} on a bound "
+                                              "(not determined by these data)")
+    return cv
+
+
 def format_table(params: dict) -> str:
     """A short text table of the parameters with their standard deviations."""
     unc = params.get("uncertainty", {})
@@ -268,6 +316,8 @@ def format_table(params: dict) -> str:
         line = (f"  pre-processing: low-pass {pre.get('cutoff', 0):.4g} Hz (order {pre.get('order')}), "
                 f"{pre.get('edge')} edge samples trimmed, decimation {pre.get('decimate', 1)}")
         tail.append(line + (f" ({pre['why']})" if pre.get("why") else ""))
+    if m.get("friction_model_choice"):
+        tail.append(f"  friction model: {m['friction_model_choice']}")
     tail += [f"  warning: {w}" for w in m.get("warnings", [])]
     return "\n".join([f"axis A{params['axis']}, friction model {params['friction']['model']}", *rows,
                       "  " + "; ".join(extra), *tail])

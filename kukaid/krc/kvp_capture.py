@@ -18,7 +18,7 @@ Read-only: capture never writes a robot variable.  The single exception is ring 
 writes ``KID_RD`` -- the acknowledgement counter of kukaid's own logger -- to hand consumed blocks
 back to the SUB program.
 
-The log is written incrementally (:class:`kukaid.logs.axislog.AxisLogWriter`), flushed at least
+The log is written incrementally (:class:`kukaid.logs.writer.AxisLogWriter`), flushed at least
 every 0.5 s (``flush_interval``), so a killed capture leaves a readable file holding every sample
 up to the last flush.  A dropped connection is survived: the client reconnects with back-off,
 the interval without samples is recorded with ``writer.mark_gap`` (dataset ``gaps``), and nothing

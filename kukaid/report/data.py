@@ -104,7 +104,7 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
     Parameters
     ----------
     params : parameter dictionary or path of a ``kukaid.params/1`` file.
-    friction, inertia, logs : axis logs (paths or :class:`~kukaid.logs.axislog.AxisLog`).
+    friction, inertia, logs : axis logs (paths or :class:`~kukaid.logs.core.AxisLog`).
     presliding : pre-sliding log, optional.
     axis : axis to report (default: the parameter file's ``axis``, else 3).
 

@@ -384,7 +384,7 @@ class VirtualKRC4:
         return {"q": q, "tau": tau, "temp": round(float(self._st[K.S_T]), 2)}
 
     def run(self, traj: Any, progress: Callable[[float], None] | None = None, settle: float = 0.5):
-        """Follow ``traj`` to its end plus ``settle`` s; return the :class:`~kukaid.logs.axislog.AxisLog`.
+        """Follow ``traj`` to its end plus ``settle`` s; return the :class:`~kukaid.logs.core.AxisLog`.
 
         If the commanded position now differs from ``traj.q[0]`` the simulator is first reset
         to a standstill at ``traj.q[0]``.  ``progress(done_s)`` is called with the simulated

@@ -461,7 +461,7 @@ class VirtualRobotKRC4:
 
     def run(self, traj: Any, settle: float = 0.5, progress: Callable[[float], None] | None = None):
         """Reset to ``traj``'s start, follow it to its end plus ``settle`` s; the :class:`AxisLog`."""
-        from kukaid.logs.axislog import AxisLog
+        from kukaid.logs.core import AxisLog
 
         self.reset(self.start_position(traj))
         self.follow(traj)
