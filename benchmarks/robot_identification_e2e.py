@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-WELL = 0.005  # relative standard deviation of a well-excited base parameter
+WELL = 0.005  # (corrected) relative standard deviation of a well-excited base parameter
 
 
 def run(cmd: list[str], kukaid: list[str]) -> str:
@@ -49,6 +49,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=6, help="periods of the fitted excitation (10 s each)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
+    from kukaid.identify.robot_fit import well_excited
     from kukaid.logs import read_hdf5
 
     kk = shlex.split(a.kukaid)
@@ -80,7 +81,7 @@ def main() -> None:
     ind, dep = np.asarray(bp["independent"], int), np.asarray(bp["dependent"], int)
     beta = pi[ind] + (np.asarray(bp["R"], float) @ pi[dep] if dep.size else 0.0)
     sig = np.asarray(bp["sigma"], float)
-    well = sig / np.abs(beta) < WELL
+    well = well_excited(p, WELL)
     res = {"folder": str(out), "base_parameters": len(beta), "well_excited": int(well.sum()),
            "physically_consistent": bool(p["metrics"].get("physically_consistent"))}
     for key in ("values", "least_squares"):
