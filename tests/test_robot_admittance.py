@@ -97,3 +97,72 @@ def test_robot_model_needs_every_axis():
     with pytest.raises(KukaidError, match="every axis"):
         run_admittance(OneAxis(), RobotTorqueModel.from_truth(sim.truth.to_dict()), LoopConfig(duration=1.0))
     assert math.isfinite(sim.t)
+
+
+def test_kvp_robot_reads_every_axis_for_a_robot_model():
+    from kukaid.robot.kvp import KvpRobot
+
+    class Client:
+        def __init__(self):
+            self.k = 0
+            self.written = {}
+
+        def read_axis(self, name):
+            self.k += 1
+            return {f"A{j}": 10.0 * j + 0.01 * self.k for j in range(1, 7)}
+
+        def read_real(self, name):
+            j = int(name[name.index("[") + 1:-1])
+            return 100.0 + j + self.k
+
+        def write(self, name, value):
+            self.written[name] = value
+
+        def close(self):
+            pass
+
+    be = KvpRobot(Client(), axis=3, n_axes=6)
+    s = be.start()[-1]
+    assert s.q_all.shape == (6,) and s.tau_all.shape == (6,)
+    assert s.q == pytest.approx(math.radians(30.01)) and s.q_all[2] == s.q
+    assert s.tau == s.tau_all[2] == 104.0 and s.tau_all[0] == 102.0
+    one = KvpRobot(Client(), axis=3).start()[-1]
+    assert one.q_all is None and one.tau == 104.0
+
+
+@pytest.mark.slow
+def test_cli_with_a_robot_parameter_file_and_the_other_axes_moving(tmp_path):
+    """`kukaid run-admittance --params robot.json --program traj.json --axis 2`: the model fitted on a
+    capture of the virtual robot, the other axes on a Fourier excitation, a push on A2."""
+    import json
+
+    from click.testing import CliRunner
+
+    from kukaid.control.runlog import read_run
+    from kukaid.excite.fourier import fourier
+    from kukaid.identify.robot_fit import RobotFitSettings, fit_robot
+    from kukaid.models.robot import RobotModel
+    from kukaid.params import save_robot_params
+    from kukaid_cli.main import cli
+
+    fit_traj = fourier(ROBOT, harmonics=4, period=8.0, periods=2, iterations=0, starts=1)
+    log = VirtualRobotKRC4(RobotSimConfig(robot=ROBOT), seed=1).run(fit_traj)
+    save_robot_params(tmp_path / "robot.json", fit_robot([log], RobotModel(ROBOT), RobotFitSettings(rotor=True)))
+    fourier(ROBOT, harmonics=3, period=6.0, periods=2, iterations=0, starts=1, seed=5).to_json(tmp_path / "prog.json")
+    out = tmp_path / "run.h5"
+    r = CliRunner().invoke(cli, ["run-admittance", "--params", str(tmp_path / "robot.json"), "--program",
+                                 str(tmp_path / "prog.json"), "--axis", "2", "--q0", "-90", "--operator", "push",
+                                 "--seed", "4", "--duration", "6", "-o", str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    m = json.loads(r.output.strip().splitlines()[-1])
+    assert m["status"] == "completed"
+    log, control, _ = read_run(out)
+    ph = control["phase"] == PHASE_ADMITTANCE
+    te = log.tau_ext_true[:, 0]
+    push, quiet = ph & (np.abs(te) > 5.0), ph & (np.abs(te) < 0.5)
+    # a fitted model of a standing axis: its Coulomb friction (about 10 N·m on A2) is undetermined at rest
+    assert np.sqrt(np.mean(control["gamma_r"][quiet] ** 2)) < 0.15 * np.abs(np.median(te[push]))
+    assert control["detected"][quiet].mean() < 0.05
+    assert control["detected"][push].mean() > 0.9
+    assert np.median(control["gamma_r"][push]) == pytest.approx(np.median(te[push]), rel=0.15)
+    assert np.sign(m["displacement"]) == np.sign(np.median(te[push]))

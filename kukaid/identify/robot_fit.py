@@ -487,7 +487,8 @@ def well_excited(params: dict, share: float = WELL_EXCITED) -> np.ndarray:
     bp = params["base_parameters"]
     sd = np.asarray(bp["sigma"], float)
     cf = float((params.get("metrics") or {}).get("residual_correlation_factor") or 1.0)
-    return max(cf, 1.0) * sd < share * np.abs(np.asarray(bp["values"], float))
+    # sigma 0: a direction the regressor does not see at all (the pseudo-inverse gives it no variance)
+    return (sd > 0) & (max(cf, 1.0) * sd < share * np.abs(np.asarray(bp["values"], float)))
 
 
 def _nonneg(names: Sequence[str]) -> list[bool]:

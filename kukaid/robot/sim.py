@@ -44,7 +44,7 @@ class SimRobot:
             self.operator.reset()  # a stateful operator (a human arm) starts afresh
         if self.operator is not None:
             self.sim.set_external_torque(self._on_axis(self.operator) if self._guided() else self.operator)
-        if self.program is not None:
+        if self.program is not None and not self._guided():  # guided: the program goes out with each cycle
             self.sim.follow(self.program)
         self._t_start = float(self.sim.t)
         return self._block(self.sim.advance(self.sim.cfg.sample_time))
