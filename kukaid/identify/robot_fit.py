@@ -410,7 +410,13 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     cov = s2 * np.linalg.pinv(Gwb)
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     dsc = 1.0 / np.sqrt(np.maximum(np.diag(Gwb), 1e-300))
-    cond = float(np.sqrt(np.linalg.cond(dsc[:, None] * Gwb * dsc[None, :])))
+    Gs = dsc[:, None] * Gwb * dsc[None, :]
+    cond = float(np.sqrt(np.linalg.cond(Gs)))
+    # directions the data do not see (A1's rotor inertia and link 1's Izz are one column): the
+    # pseudo-inverse gives them no variance, but their parameters have no standard deviation (null)
+    ev, V = np.linalg.eigh(Gs)
+    null = V[:, ev < 1e-10 * ev.max()]
+    sd[np.any(np.abs(null) > 1e-6, axis=1)] = np.nan
     resid = (m.tau - C[:, :, ib] @ beta) / sig[None, :]
     with _one_blas_thread():
         cfac = [correlation_factor(resid[m.keep[:, j], j], 20) for j in range(n)]
@@ -446,7 +452,7 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
         "axes": list(range(1, n + 1)),
         "torque_side": settings.torque_side,
         "base_parameters": {"names": list(base.names), "values": beta_out.tolist(),
-                            "least_squares": beta[:nb].tolist(), "sigma": sd[:nb].tolist(),
+                            "least_squares": beta[:nb].tolist(), "sigma": _nulls(sd[:nb]),
                             "independent": base.independent.tolist(), "dependent": base.dependent.tolist(),
                             "R": base.R.tolist()},
         "standard_parameters": None if pi_c is None else {
@@ -456,7 +462,7 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
                      "offset": settings.offset,
                      "values": dict(zip(extra_n, np.asarray(extra).tolist())),
                      "least_squares": dict(zip(extra_n, beta[nb:].tolist())),
-                     "sigma": dict(zip(extra_n, sd[nb:].tolist()))},
+                     "sigma": dict(zip(extra_n, _nulls(sd[nb:])))},
         "drive": None if not (settings.torque_side == "motor" or settings.rotor) else {
             "ratio": drive.ratio.tolist(), "coupling": np.asarray(drive.coupling).tolist()},
         "settings": asdict(settings),
@@ -485,10 +491,15 @@ def well_excited(params: dict, share: float = WELL_EXCITED) -> np.ndarray:
     error is then a 2-sigma event, as on one simulated seed where a parameter with sigma 0.49 %
     came out 2.1 % off)."""
     bp = params["base_parameters"]
-    sd = np.asarray(bp["sigma"], float)
+    sd = np.asarray(bp["sigma"], float)                  # None (no standard deviation): NaN, never well excited
     cf = float((params.get("metrics") or {}).get("residual_correlation_factor") or 1.0)
     # sigma 0: a direction the regressor does not see at all (the pseudo-inverse gives it no variance)
     return (sd > 0) & (max(cf, 1.0) * sd < share * np.abs(np.asarray(bp["values"], float)))
+
+
+def _nulls(x: np.ndarray) -> list:
+    """A list for JSON: NaN (no value) as None."""
+    return [None if not math.isfinite(v) else float(v) for v in x]
 
 
 def _nonneg(names: Sequence[str]) -> list[bool]:
