@@ -395,7 +395,8 @@ def _one_blas_thread():
 
 def _solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Least-squares solution of the normal equations ``G x = g`` (columns scaled first)."""
-    d = 1.0 / np.sqrt(np.maximum(np.diag(G), 1e-300))
+    dg = np.diag(G)
+    d = np.where(dg > 0, 1.0 / np.sqrt(np.where(dg > 0, dg, 1.0)), 0.0)   # an empty column: its value 0
     x, *_ = np.linalg.lstsq(d[:, None] * G * d[None, :], d * g, rcond=1e-13)
     return d * x
 
