@@ -80,7 +80,7 @@ def main(argv=None) -> int:
         base = read_mat(EMPS, time="t", q="qm", tau="vir", tau_scale_var="gtau", joint="prismatic", q_cmd="qg")
         for k in a.repeats:
             log = repeated(base, k)
-            p, tf = timed(lambda: fit_axis(logs=[log], friction_model="coulomb-viscous", gravity="none"))
+            p, tf = timed(lambda: fit_axis(logs=[log], friction_model="coulomb-viscous", gravity="none", offset=False))
             d, td = timed(lambda: diagnose(p, [log]))
             rows.append({"case": f"EMPS x{k}", "samples": log.n_samples, "fit_s": tf, "diagnose_s": td,
                          "named": d.names})

@@ -47,13 +47,13 @@ def test_emps_offset_is_found_and_error_drops():
 
 def test_emps_gravity_candidates_do_not_apply_to_a_prismatic_axis():
     from kukaid.diagnose import candidates as C
-    from kukaid.diagnose.model import DiagModel
     from kukaid.diagnose.signals import prepare
+    from kukaid.params import model_from_params
 
     log = load_emps()
     sig = prepare(log, 1)
-    m = DiagModel.from_params({"friction": {"model": "coulomb-viscous", "Fc": 20.0, "Fv": 200.0},
-                               "inertial": {"Izz": 95.0}}, sig.joint)
+    m = model_from_params({"friction": {"model": "coulomb-viscous", "Fc": 20.0, "Fv": 200.0},
+                           "inertial": {"Izz": 95.0}}, sig.joint)
     assert sig.joint == "prismatic"
     for name in ("gravity_sine", "load_dependent_friction"):
         ok, why = C.get(name).applies([sig], m)

@@ -7,10 +7,10 @@ import pytest
 
 from kukaid.diagnose import candidates as C
 from kukaid.diagnose import heldout
-from kukaid.diagnose.model import DiagModel
 from kukaid.diagnose.signals import prepare
 from kukaid.diagnose.workflow import diagnose
 from kukaid.logs import AxisLog
+from kukaid.params import model_from_params
 
 
 def multisine_log(seed=0, T=40.0, fs=200.0, offset=0.0, axes=(2,), other=None):
@@ -71,14 +71,14 @@ def test_gravity_none_is_kept_by_the_refit():
     log = multisine_log(3, offset=1.5)
     p = params_of(log, gravity="none", offset=False)
     assert "Mx" not in p["inertial"]
-    assert "Mx" not in DiagModel.from_params(p).lin
+    assert "Mx" not in model_from_params(p).lin
     d = diagnose(p, [log], max_steps=2)
     assert "Mx" not in d.params["inertial"] and "gravity_sine" not in d.names, d.lines()
 
 
 def test_thermal_drift_needs_temperature_or_a_long_log():
     s = prepare(multisine_log(4, T=30.0), 2)
-    m = DiagModel.from_params(params_of(multisine_log(4, T=30.0)))
+    m = model_from_params(params_of(multisine_log(4, T=30.0)))
     m2 = m.with_effect("thermal_drift", {"coordinate": "time", "form": "coulomb"}, {"c": 0.01})
     why = C.get("thermal_drift").rule(m2, [s], m2.effects[0].nl, {"c": 0.01})
     assert "too short" in why

@@ -6,12 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kukaid.diagnose.model import DiagModel, effects_torque
 from kukaid.diagnose.noise import noise_floor
+from kukaid.diagnose.refit import refit
 from kukaid.diagnose.signals import prepare
 from kukaid.diagnose.workflow import diagnose, rmse_of
 from kukaid.logs import AxisLog
 from kukaid.models.friction import Stribeck
+from kukaid.params import model_from_params
 
 TRUE = {"schema": "kukaid.params/1", "axis": 3,
         "friction": {"model": "stribeck", "Fc": 11.3, "Fs": 13.9, "vs": 0.07, "delta": 1.3, "Fv": 8.7},
@@ -37,7 +38,7 @@ def synthetic_log(extra=None, noise=0.0, seed=0, dt=0.012):
 def test_correct_model_leaves_no_residual():
     log = synthetic_log()
     sig = prepare(log, 3)
-    r = DiagModel.from_params(TRUE).residual(sig)
+    r = model_from_params(TRUE).residual(sig)
     assert np.sqrt(np.mean(r**2)) < 0.02  # N*m, on torques of about 40 N*m
 
 
@@ -45,7 +46,7 @@ def test_refit_recovers_parameters_from_a_poor_start():
     sigs = [prepare(synthetic_log(noise=0.3, seed=1), 3)]
     start = {"friction": {"model": "stribeck", "Fc": 5.0, "Fs": 5.0, "vs": 0.2, "delta": 1.0, "Fv": 1.0},
              "inertial": {"Izz": 1.0, "Mx": 0.0}}
-    m = DiagModel.from_params(start).refit(sigs)
+    m = refit(model_from_params(start), sigs)
     assert m.lin["Izz"] == pytest.approx(1.62, rel=0.02)
     assert m.lin["Mx"] == pytest.approx(27.4, rel=0.01)
     assert m.lin["Fc"] == pytest.approx(11.3, rel=0.03)
@@ -62,6 +63,6 @@ def test_synthetic_ripple_is_found_and_round_trips():
     assert e["n"] == pytest.approx(n, abs=0.05) and e["A"] == pytest.approx(A, rel=0.05)
     t = np.linspace(0, 3, 300)
     q = 0.2 * np.sin(t)
-    assert np.allclose(effects_torque(d.params, t, q, 0.2 * np.cos(t)), e["A"] * np.sin(e["n"] * q + e["phi"]))
+    assert np.allclose(model_from_params(d.params).effects_torque(t, q, 0.2 * np.cos(t)), e["A"] * np.sin(e["n"] * q + e["phi"]))
     again = diagnose(d.params, [log])
     assert again.names == [] and again.rmse_before == pytest.approx(d.rmse_after, rel=0.02)

@@ -40,6 +40,18 @@ def test_round_trip_and_model(tmp_path):
     assert tau[0] == pytest.approx(1.7 + 22.0 + m.friction(0.1))
 
 
+def test_the_model_writes_back_the_file_it_read():
+    """One model class in and out: the base sections come back byte for byte, a plain write-back
+    adds only the empty uncertainty and effects sections."""
+    from kukaid.params import model_sections, model_to_params
+
+    d = {**good(), "offset": -0.25}
+    m = model_from_params(d)
+    sec = model_sections(m)
+    assert json.dumps(sec) == json.dumps({k: d[k] for k in sec})
+    assert model_to_params(m, d) == {**d, "uncertainty": {}, "effects": {}}
+
+
 @pytest.mark.parametrize("mutate, msg", [
     (lambda d: d.pop("schema"), "'schema' must be"),
     (lambda d: d["friction"].pop("Fc"), "missing field friction.Fc"),
@@ -137,7 +149,8 @@ def test_invalid_effects(tmp_path, effects, msg):
 def test_what_the_toolkit_writes_validates(tmp_path):
     """Simulator truth with every hidden effect, and a diagnosis with every candidate, round-trip."""
     from kukaid.diagnose.candidates import NAMES
-    from kukaid.diagnose.model import DiagModel, EffectTerm
+    from kukaid.models.torque import EffectTerm
+    from kukaid.params import model_to_params
     from kukaid.sim import SimConfig
     from kukaid.sim.effects import EFFECTS, draw_effect
 
@@ -148,7 +161,7 @@ def test_what_the_toolkit_writes_validates(tmp_path):
     assert load_params(tmp_path / "truth.json") == truth
 
     base = {k: v for k, v in truth.items() if k != "effects"}
-    m = DiagModel.from_params(base)
+    m = model_from_params(base)
     m.lin.update(My=0.3, offset=-0.2)
     m.effects = [EffectTerm("position_ripple", {"n": 12.3}, {"a": 0.1, "b": 0.2}),
                  EffectTerm("thermal_drift", {"coordinate": "energy", "form": "friction",
@@ -159,15 +172,15 @@ def test_what_the_toolkit_writes_validates(tmp_path):
                  EffectTerm("coupling", {"axes": "2,4"}, {f"{p}_A{a}": 0.1 for a in (2, 4)
                                                           for p in ("cos_sum", "sin_sum", "cos", "sin", "qdd")})]
     m.std = {"Fc": 0.1, "vs": float("nan"), "position_ripple.a": 0.01, "My": 0.02}  # nan -> null
-    refined = m.to_params(base, ["gravity_sine", "torque_offset"])
+    refined = model_to_params(m, base, ["gravity_sine", "torque_offset"])
     assert set(refined["effects"]) == set(NAMES) - {"stribeck"} and refined["effects"]["torque_offset"]["std"]["offset"] is None
     save_params(tmp_path / "refined.json", refined)
-    again = DiagModel.from_params(load_params(tmp_path / "refined.json"))
+    again = model_from_params(load_params(tmp_path / "refined.json"))
     assert again.effect_names == ["position_ripple", "thermal_drift", "load_dependent_friction", "backlash",
                                   "presliding", "coupling"]
     assert again.effects[-1].nl == {"axes": "2,4"} and len(again.effects[-1].coefs) == 10
     # re-diagnosed on a prismatic log the derived mu has no Mx: null, still valid
-    prism = DiagModel.from_params(refined, "prismatic").to_params(refined)
+    prism = model_to_params(model_from_params(refined, "prismatic"), refined)
     assert prism["effects"]["load_dependent_friction"]["mu"] is None
     save_params(tmp_path / "prism.json", prism)
 

@@ -49,7 +49,7 @@ import numpy as np
 
 from kukaid.control.filters import CausalButterworth
 from kukaid.errors import KukaidError
-from kukaid.models.joint import AxisModel
+from kukaid.models.torque import JointTorqueModel
 
 DYNAMIC = "dynamic"
 QUASI_STATIC = "quasi-static"
@@ -109,12 +109,13 @@ class TorqueResidual:
     qd_thr : mode-switching velocity threshold, rad/s (default the model's).
     """
 
-    def __init__(self, model: AxisModel, sample_time: float = 0.012, threshold: float = 5.0,
+    def __init__(self, model: JointTorqueModel, sample_time: float = 0.012, threshold: float = 5.0,
                  release: float | None = None, cutoff: float = 5.0, order: int = 3, u_window: float = 0.12,
                  zeta0: Any = None, qd_thr: float | None = None, u_tau: float = 1.0, u_holdoff: float = 1.0,
                  switch_tau: float = 0.15, regrip_time: float = 1.0, regrip_share: float = 0.6,
                  switch_quiet: float = 1.0) -> None:
         self.model = model
+        self._rigid, self._friction = model.rigid, model.friction  # the model's terms as functions
         self.sample_time = _check("sample_time", sample_time, 0.0, 1.0)
         self.threshold = _check("threshold", threshold, 0.0)
         self.release = RELEASE_SHARE * self.threshold if release is None else _check("release", release, 0.0, open_lo=False)
@@ -143,7 +144,7 @@ class TorqueResidual:
         self._k_lim = [(float(k), float(w) / float(k)) for k, w in zip(self._k, self._W)]
         # effects a diagnosis stored in the rigid body (inertial.My, offset; marked stored_as) are
         # already in the model
-        eff = {k: v for k, v in (model.effects or {}).items() if "stored_as" not in v}
+        eff = {k: v for k, v in model.stored_effects.items() if "stored_as" not in v}
         self.ignored_effects = sorted(k for k in eff if k not in SUPPORTED_EFFECTS)
         self._My_extra = float(eff["gravity_sine"].get("My", 0.0)) if "gravity_sine" in eff else 0.0
         self._off_extra = float(eff["torque_offset"].get("offset", 0.0)) if "torque_offset" in eff else 0.0
@@ -159,7 +160,7 @@ class TorqueResidual:
     # -- model pieces ---------------------------------------------------------------------------
     def static_torque(self, q: float) -> float:
         """Position-only part of Γp: gravity, offset and supported effects, N·m."""
-        rb = self.model.rigid
+        rb = self._rigid
         g = rb.Mx * math.cos(q) + (rb.My + self._My_extra) * math.sin(q) + rb.offset + self._off_extra
         if self._ripple is not None:
             n, a, b = self._ripple
@@ -243,9 +244,9 @@ class TorqueResidual:
         if v <= lo:
             fric_raw = fp_raw
         else:
-            fs = float(self.model.friction(qd_raw))
+            fs = float(self._friction(qd_raw))
             fric_raw = fs if v >= hi else fp_raw + (fs - fp_raw) * (v - lo) / (hi - lo)
-        pred_raw = self.model.rigid.Izz * qdd_raw + self.static_torque(q) + fric_raw
+        pred_raw = self._rigid.Izz * qdd_raw + self.static_torque(q) + fric_raw
         q_f, qd_f, qdd_f, tau_f = fq.step(q), fqd.step(qd_raw), fqdd.step(qdd_raw), ftau.step(tau)
         pred_f = fpred.step(pred_raw)
 
@@ -296,7 +297,7 @@ class TorqueResidual:
         return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, new_u)
 
 
-def torque_residual(time: np.ndarray, q: np.ndarray, tau: np.ndarray, model: AxisModel,
+def torque_residual(time: np.ndarray, q: np.ndarray, tau: np.ndarray, model: JointTorqueModel,
                     **options: Any) -> dict[str, np.ndarray]:
     """Run :class:`TorqueResidual` over recorded samples (causally, as online).
 

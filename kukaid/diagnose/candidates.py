@@ -1,112 +1,60 @@
-"""The library of candidate physical effects a diagnosis tests the residual against.
+"""The search side of the diagnosis: which effects to try, with which options, and when one is plausible.
 
-Every candidate is a small parametric torque term with a meaning.  For fixed values of its
-nonlinear parameters (the ripple order n, the backlash time constant, the drift coordinate) the
-term is linear in its coefficients, so a candidate offers a small grid of ``options`` and, per
-option, regressor ``columns`` on a log's full sample grid (unfiltered; the workflow filters them
-like the torque).  The names are fixed: tests and users rely on them.
-
-=========================  ==================================================================
-name                       term (sign s = sign(qd))
-=========================  ==================================================================
-gravity_sine               My sin(q): centre of mass off the model's axis (revolute only)
-torque_offset              offset: a constant torque while moving (asymmetric Coulomb friction)
-position_ripple            a sin(n q) + b cos(n q) = A sin(n q + phi), n searched (gear/cogging)
-thermal_drift              friction changing over the run: c * x * s (Coulomb) or c * x * F(qd)
-                           (whole friction), x = temperature, elapsed time or dissipated energy
-load_dependent_friction    Fc_load |cos q| s: Coulomb friction growing with the gravity load
-                           |Mx cos q| (revolute, Mx != 0); mu = Fc_load / |Mx|
-backlash                   A * s_r * shape((t - t_r) / tau) after every velocity reversal at t_r
-                           (s_r the new direction): shape "pulse" x exp(1 - x) (peak A at tau)
-                           or "decay" exp(-x); shape and tau searched
-=========================  ==================================================================
+The effect terms themselves (names, coefficients, regressor columns, how they are stored) are
+the joint-torque model's (:mod:`kukaid.models.effects`).  Each candidate here is such an effect
+plus what the search needs: whether it applies to the logs and the model (``applies``), the grid
+of nonlinear settings to try (``options``) and its effective size for the multiple-testing
+correction (``n_effective``), the coordinate it lives on (for plots), its size and the
+plausibility rules a refitted model with it must pass (``implausible``).
 """
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from kukaid.models import effects as E
+from kukaid.models.effects import NAMES, reversals
+
 if TYPE_CHECKING:  # pragma: no cover
-    from kukaid.diagnose.model import DiagModel
-    from kukaid.diagnose.signals import LogSignals
-
-from kukaid.models.effects import COEFFICIENTS, NAMES, TAG  # noqa: F401  (the names the parameter file knows)
+    from kukaid.models.signals import LogSignals
+    from kukaid.models.torque import JointTorqueModel as Model
 
 
-def _sign(sig: "LogSignals") -> np.ndarray:
-    return np.sign(sig.qd)
+class Candidate(E.Effect):
+    """Base class: the search side of one named effect."""
 
-
-class Candidate:
-    """Base class: one named effect."""
-
-    name: str = ""
-    meaning: str = ""
-    coef_names: tuple[str, ...] = ()
-    #: a candidate stored as a native parameter of the rigid body ("My", "offset") or None
-    native: str | None = None
-
-    def applies(self, sigs: Sequence["LogSignals"], model: "DiagModel") -> tuple[bool, str]:
+    def applies(self, sigs: Sequence["LogSignals"], model: "Model") -> tuple[bool, str]:
         return True, ""
 
-    def options(self, sigs: Sequence["LogSignals"], model: "DiagModel") -> list[dict]:
+    def options(self, sigs: Sequence["LogSignals"], model: "Model") -> list[dict]:
         return [{}]
 
     def n_effective(self, sigs: Sequence["LogSignals"], options: list[dict]) -> float:
         """Effective number of independent options (for the multiple-testing correction)."""
         return 1.0
 
-    def columns(self, sig: "LogSignals", nl: dict, model: "DiagModel") -> np.ndarray:
-        raise NotImplementedError
-
     def coordinate(self, sig: "LogSignals", nl: dict) -> tuple[np.ndarray, str]:
         """The coordinate the effect lives on (for plots): values on the full grid and a label."""
         return sig.q, "position q (rad)"
 
-    def describe(self, nl: dict, coefs: dict[str, float], std: dict[str, float],
-                 model: "DiagModel") -> dict[str, Any]:
-        """The effect's parameters for the parameter file and the report (JSON-able)."""
-        d: dict[str, Any] = {"model": TAG}
-        d.update({k: _num(v) for k, v in nl.items()})
-        d.update({k: float(v) for k, v in coefs.items()})
-        d["std"] = {k: float(std.get(k, math.nan)) for k in coefs}
-        return d
-
-    def size(self, nl: dict, coefs: dict[str, float], sigs: Sequence["LogSignals"], model: "DiagModel") -> float:
+    def size(self, nl: dict, coefs: dict[str, float], sigs: Sequence["LogSignals"], model: "Model") -> float:
         """The effect's size, N·m: its amplitude or peak, as the simulator documents sizes
         (:data:`kukaid.sim.effects.EFFECTS`), not only the part of it the base model cannot mimic."""
         return abs(float(coefs[self.coef_keys(nl)[0]]))
 
-    def freeze(self, nl: dict, model: "DiagModel") -> dict:
-        """Settings to store when the effect joins the model (fix what depends on the model)."""
-        return nl
-
-    def coef_keys(self, nl: dict) -> tuple[str, ...]:
-        """Names of the coefficients at settings ``nl`` (fixed, except for ``coupling``)."""
-        return self.coef_names
-
-    def from_params(self, d: dict) -> tuple[dict, dict[str, float]]:
-        """(nonlinear settings, coefficients) of a stored effect."""
-        coefs = {k: float(d[k]) for k in self.coef_names}
-        nl = {k: v for k, v in d.items() if k not in self.coef_names and k not in ("model", "std")
-              and not k.startswith("_") and k not in self.derived}
-        return nl, coefs
-
-    derived: tuple[str, ...] = ()
-
     #: the largest plausible size of the effect, as a share of the torque scale (99th percentile of |tau|)
     max_share: float = 0.5
 
-    def term(self, model: "DiagModel") -> tuple[dict, dict[str, float]] | None:
+    def term(self, model: "Model") -> tuple[dict, dict[str, float]] | None:
         """(settings, coefficients) of this effect in ``model``; None when it is not there."""
         if self.native:
             return ({}, {self.native: model.lin[self.native]}) if self.native in model.lin else None
         e = next((e for e in model.effects if e.name == self.name), None)
         return (dict(e.nl), dict(e.coefs)) if e else None
 
-    def implausible(self, model: "DiagModel", sigs: Sequence["LogSignals"], given: "DiagModel") -> str:
+    def implausible(self, model: "Model", sigs: Sequence["LogSignals"], given: "Model") -> str:
         """Why the refitted ``model`` with this effect is not physical ("" when it is).
 
         Common rules: friction levels and the inertia stay positive; the effect's size is at most
@@ -131,7 +79,7 @@ class Candidate:
             return f"its coefficient cancels {other} (correlation {worst:.4f}): the two cannot be told apart"
         return self.rule(model, sigs, *t)
 
-    def rule(self, model: "DiagModel", sigs: Sequence["LogSignals"], nl: dict, coefs: dict[str, float]) -> str:
+    def rule(self, model: "Model", sigs: Sequence["LogSignals"], nl: dict, coefs: dict[str, float]) -> str:
         """The effect's own size / time-scale rule ("" when it holds)."""
         return ""
 
@@ -146,7 +94,7 @@ def torque_scale(sigs: Sequence["LogSignals"]) -> float:
     return float(np.percentile(x, 99)) if x.size else 0.0
 
 
-def cancelling(model: "DiagModel", sigs: Sequence["LogSignals"], cand: "Candidate") -> tuple[float, str]:
+def cancelling(model: "Model", sigs: Sequence["LogSignals"], cand: "Candidate") -> tuple[float, str]:
     """Largest |correlation| between a coefficient of ``cand`` and any other parameter in the
     refit of ``model`` (from the filtered Jacobian on decimated rows), and that parameter's name."""
     from kukaid.diagnose.signals import decimation
@@ -170,18 +118,7 @@ def cancelling(model: "DiagModel", sigs: Sequence["LogSignals"], cand: "Candidat
     return worst, other
 
 
-def _num(v: Any) -> Any:
-    if isinstance(v, (np.floating, np.integer)):
-        return v.item()
-    return v
-
-
-class GravitySine(Candidate):
-    name = "gravity_sine"
-    meaning = "My sin(q): the centre of mass is off the model's axis"
-    coef_names = ("My",)
-    native = "My"
-
+class GravitySine(Candidate, E.GravitySine):
     def applies(self, sigs, model):
         if any(s.joint != "revolute" for s in sigs):
             return False, "prismatic axis: no gravity angle"
@@ -191,31 +128,15 @@ class GravitySine(Candidate):
             return False, "the model already has My"
         return True, ""
 
-    def columns(self, sig, nl, model):
-        return np.sin(sig.q)[:, None]
 
-
-class TorqueOffset(Candidate):
-    name = "torque_offset"
-    meaning = "a constant torque while moving (also asymmetric Coulomb friction)"
-    coef_names = ("offset",)
-    native = "offset"
-
+class TorqueOffset(Candidate, E.TorqueOffset):
     def applies(self, sigs, model):
         if "offset" in model.lin:
             return False, "the model already has an offset"
         return True, ""
 
-    def columns(self, sig, nl, model):
-        return np.ones((sig.n, 1))
 
-
-class PositionRipple(Candidate):
-    name = "position_ripple"
-    meaning = "A sin(n q + phi): gear or cogging ripple with position"
-    coef_names = ("a", "b")
-    derived = ("A", "phi")
-
+class PositionRipple(Candidate, E.PositionRipple):
     def _range(self, sigs):
         q = np.concatenate([s.q[s.rows] for s in sigs if s.rows.size])
         speed = np.concatenate([np.abs(s.qd[s.rows]) for s in sigs if s.rows.size])
@@ -257,15 +178,6 @@ class PositionRipple(Candidate):
         R, lo, hi = self._limits(sigs)
         return max(1.0, (hi - lo) * R / (2 * math.pi))
 
-    def columns(self, sig, nl, model):
-        n = nl["n"]
-        return np.column_stack([np.sin(n * sig.q), np.cos(n * sig.q)])
-
-    def columns_at(self, q: np.ndarray, options: list[dict]) -> tuple[np.ndarray, np.ndarray]:
-        """The sin and cos columns of many options at positions ``q``: two (len(q), len(options))."""
-        ph = np.outer(q, [o["n"] for o in options])
-        return np.sin(ph), np.cos(ph)
-
     def coordinate(self, sig, nl):
         return np.mod(nl["n"] * sig.q, 2 * math.pi), f"ripple phase n q mod 2 pi (n = {nl['n']:.3g})"
 
@@ -288,26 +200,8 @@ class PositionRipple(Candidate):
                                             "positions)" if coupled else ""))
         return ""
 
-    def describe(self, nl, coefs, std, model):
-        d = super().describe(nl, coefs, std, model)
-        a, b = coefs["a"], coefs["b"]
-        d["A"] = float(math.hypot(a, b))
-        d["phi"] = float(math.atan2(b, a))
-        return d
 
-
-def dissipated_energy(sig: "LogSignals", model: "DiagModel", friction: dict | None = None) -> np.ndarray:
-    """Friction energy dissipated since the log started, J: integral of |F(qd) qd| dt."""
-    p = np.abs(model.friction_torque(sig, friction) * sig.qd)
-    dt = np.diff(sig.time, prepend=sig.time[0])
-    return np.cumsum(p * dt)
-
-
-class ThermalDrift(Candidate):
-    name = "thermal_drift"
-    meaning = "friction changing over the run (temperature, elapsed time or dissipated energy)"
-    coef_names = ("c",)
-
+class ThermalDrift(Candidate, E.ThermalDrift):
     def _coords(self, sigs):
         out = []
         if all(s.temp is not None and np.ptp(s.temp) > 0.05 for s in sigs):
@@ -325,24 +219,6 @@ class ThermalDrift(Candidate):
 
     def n_effective(self, sigs, options):
         return float(len(options))
-
-    def x(self, sig, coordinate, model, friction=None):
-        if coordinate == "temperature":
-            return sig.filt(sig.temp) if sig.temp is not None else np.zeros(sig.n)
-        if coordinate == "time":
-            return sig.elapsed
-        return dissipated_energy(sig, model, friction)
-
-    def freeze(self, nl, model):
-        # the drift term scales the friction the model had when the effect was found
-        return {**nl, "friction_ref": model.friction_dict()}
-
-    def columns(self, sig, nl, model):
-        fr = nl.get("friction_ref")
-        x = self.x(sig, nl["coordinate"], model, fr)
-        if nl["form"] == "coulomb":
-            return (x * _sign(sig))[:, None]
-        return (x * model.friction_torque(sig, fr))[:, None]
 
     def coordinate(self, sig, nl):
         lab = {"temperature": "temperature (degC)", "time": "elapsed time (s)", "energy": "dissipated energy (J)"}
@@ -381,22 +257,8 @@ class ThermalDrift(Candidate):
                     f"{level:.3g} over the logs")
         return ""
 
-    def describe(self, nl, coefs, std, model):
-        d = super().describe(nl, coefs, std, model)
-        unit = {"temperature": "degC", "time": "s", "energy": "J"}[nl["coordinate"]]
-        d["unit"] = (f"N*m per {unit} of Coulomb friction" if nl["form"] == "coulomb"
-                     else f"fraction of the friction per {unit}")
-        return d
 
-    derived = ("unit",)
-
-
-class LoadDependentFriction(Candidate):
-    name = "load_dependent_friction"
-    meaning = "Coulomb friction growing with the gravity load |Mx cos q|"
-    coef_names = ("Fc_load",)
-    derived = ("mu",)
-
+class LoadDependentFriction(Candidate, E.LoadDependentFriction):
     def applies(self, sigs, model):
         if any(s.joint != "revolute" for s in sigs):
             return False, "prismatic axis: no gravity load"
@@ -405,9 +267,6 @@ class LoadDependentFriction(Candidate):
         if "load_dependent_friction" in model.effect_names:
             return False, "already in the model"
         return True, ""
-
-    def columns(self, sig, nl, model):
-        return (np.abs(np.cos(sig.q)) * _sign(sig))[:, None]
 
     def coordinate(self, sig, nl):
         return np.abs(np.cos(sig.q)), "gravity load |cos q|"
@@ -424,35 +283,8 @@ class LoadDependentFriction(Candidate):
             return f"mu = Fc_load / |Mx| = {c / mx:.3g} is above {self.MAX_MU:g}"
         return ""
 
-    def describe(self, nl, coefs, std, model):
-        d = super().describe(nl, coefs, std, model)
-        mx = abs(model.lin.get("Mx", 0.0))
-        d["mu"] = float(coefs["Fc_load"] / mx) if mx > 0 else math.nan
-        return d
 
-
-def reversals(sig: "LogSignals", qd_thr: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Indices where the axis starts moving in the direction opposite to its previous motion.
-
-    Returns (indices into the full grid, new direction +1/-1).  ``qd_thr`` defaults to
-    0.01 rad/s (m/s), at most 5 % of the 95th percentile of |qd|.
-    """
-    qd = sig.qd
-    if qd_thr is None:
-        qd_thr = min(0.01, 0.05 * float(np.percentile(np.abs(qd), 95))) if qd.size else 0.0
-    s = np.where(qd > qd_thr, 1, np.where(qd < -qd_thr, -1, 0))
-    idx = np.flatnonzero(s)
-    if idx.size < 2:
-        return np.zeros(0, int), np.zeros(0)
-    ss = s[idx]
-    ch = np.flatnonzero(ss[1:] != ss[:-1]) + 1
-    return idx[ch], ss[ch].astype(float)
-
-
-class Backlash(Candidate):
-    name = "backlash"
-    meaning = "a decaying transient after every velocity reversal (backlash in the reducer)"
-    coef_names = ("A",)
+class Backlash(Candidate, E.Backlash):
     taus = (0.02, 0.04, 0.07, 0.1, 0.14, 0.2, 0.3, 0.5)
     shapes = ("pulse", "decay")
 
@@ -470,18 +302,6 @@ class Backlash(Candidate):
     def n_effective(self, sigs, options):
         return max(1.0, len(options) / 3.0)
 
-    def columns(self, sig, nl, model):
-        tau = nl["tau"]
-        idx, new = reversals(sig)
-        col = np.zeros(sig.n)
-        bounds = list(idx) + [sig.n]
-        for k, i in enumerate(idx):
-            j = bounds[k + 1]
-            x = (sig.time[i:j] - sig.time[i]) / tau
-            shape = np.exp(-x) if nl.get("shape", "decay") == "decay" else x * np.exp(1.0 - np.minimum(x, 50.0))
-            col[i:j] = new[k] * shape
-        return col[:, None]
-
     def coordinate(self, sig, nl):
         idx, _ = reversals(sig)
         since = np.full(sig.n, np.nan)
@@ -489,7 +309,6 @@ class Backlash(Candidate):
         for k, i in enumerate(idx):
             since[i:bounds[k + 1]] = sig.time[i:bounds[k + 1]] - sig.time[i]
         return since, "time since the last reversal (s)"
-
 
     def rule(self, model, sigs, nl, coefs):
         if not separable_backlash(sigs):
@@ -506,11 +325,7 @@ def separable_backlash(sigs: Sequence["LogSignals"]) -> bool:
     return all(getattr(s, "q_load", None) is not None for s in sigs)
 
 
-class StribeckRise(Candidate):
-    name = "stribeck"
-    meaning = "friction rising above Coulomb at low speed (Stribeck), on a Coulomb + viscous model"
-    coef_names = ("dF",)
-
+class StribeckRise(Candidate, E.StribeckRise):
     def applies(self, sigs, model):
         if model.friction_kind != "coulomb-viscous":
             return False, "the model's friction is already Stribeck"
@@ -528,10 +343,6 @@ class StribeckRise(Candidate):
     def n_effective(self, sigs, options):
         return max(1.0, len(options) / 3.0)
 
-    def columns(self, sig, nl, model):
-        with np.errstate(over="ignore", under="ignore"):
-            return (_sign(sig) * np.exp(-np.power(np.abs(sig.qd) / nl["vs"], nl["delta"])))[:, None]
-
     def coordinate(self, sig, nl):
         return sig.qd, "velocity (rad/s)"
 
@@ -541,11 +352,7 @@ class StribeckRise(Candidate):
         return ""
 
 
-class PreSliding(Candidate):
-    name = "presliding"
-    meaning = ("pre-sliding friction: after a reversal friction builds up over a small displacement "
-               "(Dahl-like), not at once")
-    coef_names = ("A",)
+class PreSliding(Candidate, E.PreSliding):
     taus = Backlash.taus
 
     def applies(self, sigs, model):
@@ -564,16 +371,6 @@ class PreSliding(Candidate):
     def n_effective(self, sigs, options):
         return max(1.0, len(options) / 3.0)
 
-    def columns(self, sig, nl, model):
-        """s_r exp(-|q - q_r| / x0) from each reversal r (position q_r, new direction s_r) on."""
-        idx, new = reversals(sig)
-        col = np.zeros(sig.n)
-        bounds = list(idx) + [sig.n]
-        for k, i in enumerate(idx):
-            j = bounds[k + 1]
-            col[i:j] = new[k] * np.exp(-np.abs(sig.q[i:j] - sig.q[i]) / nl["x0"])
-        return col[:, None]
-
     def coordinate(self, sig, nl):
         idx, _ = reversals(sig)
         since = np.full(sig.n, np.nan)
@@ -591,15 +388,7 @@ class PreSliding(Candidate):
         return ""
 
 
-class Coupling(Candidate):
-    """Torque from the motion of the other axes of a multi-body robot, without a robot model:
-    per other moving axis j, gravity on the relative angle (cos and sin of q + q_j), gravity of
-    the links it moves (cos, sin of q_j) and inertial coupling (qdd_j)."""
-
-    name = "coupling"
-    meaning = "torque from the other axes' motion (multi-body gravity and inertia, no robot model)"
-    coef_names = ()
-    parts = ("cos_sum", "sin_sum", "cos", "sin", "qdd")
+class Coupling(Candidate, E.Coupling):
     max_share = 2.0
 
     def applies(self, sigs, model):
@@ -613,32 +402,8 @@ class Coupling(Candidate):
     def options(self, sigs, model):
         return [{"axes": ",".join(str(a) for a in sorted(sigs[0].others))}]
 
-    @staticmethod
-    def _axes(nl: dict) -> list[int]:
-        return [int(a) for a in str(nl["axes"]).split(",") if a]
-
-    def coef_keys(self, nl):
-        return tuple(f"{p}_A{a}" for a in self._axes(nl) for p in self.parts)
-
-    def from_params(self, d):
-        coefs = {k: float(v) for k, v in d.items() if any(k.startswith(p + "_A") for p in self.parts)}
-        axes = sorted({int(k.rsplit("_A", 1)[1]) for k in coefs})
-        return {"axes": ",".join(map(str, axes))}, coefs
-
-    def columns(self, sig, nl, model):
-        others = sig.others or {}
-        cols = []
-        for a in self._axes(nl):
-            if a not in others:
-                from kukaid.errors import ParamFileError
-
-                raise ParamFileError(f"coupling: the log has no axis A{a} (its motion is part of the model)")
-            qj, qddj = others[a]
-            cols += [np.cos(sig.q_raw + qj), np.sin(sig.q_raw + qj), np.cos(qj), np.sin(qj), qddj]
-        return np.column_stack(cols)
-
     def coordinate(self, sig, nl):
-        a = self._axes(nl)[0]
+        a = self.axes(nl)[0]
         return (sig.others or {})[a][0], f"position of A{a} (rad)"
 
     def size(self, nl, coefs, sigs, model):
@@ -647,17 +412,11 @@ class Coupling(Candidate):
         x = np.concatenate([(self.columns(s, nl, model) @ np.array([coefs[k] for k in keys]))[s.rows] for s in sigs])
         return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
 
-    def describe(self, nl, coefs, std, model):
-        d: dict[str, Any] = {"model": TAG}
-        d.update({k: float(v) for k, v in coefs.items()})
-        d["std"] = {k: float(std.get(k, math.nan)) for k in coefs}
-        return d
-
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in (GravitySine(), TorqueOffset(), PositionRipple(),
                                                         ThermalDrift(), LoadDependentFriction(), Backlash(),
                                                         StribeckRise(), PreSliding(), Coupling())}
-assert {n: c.coef_names for n, c in CANDIDATES.items()} == COEFFICIENTS, "models.effects and the candidates disagree"
+
 
 def get(name: str) -> Candidate:
     """The candidate called ``name`` (KeyError listing the names otherwise)."""

@@ -32,8 +32,8 @@ from kukaid.errors import KukaidError
 LOLO_MIN_LOGS = 3
 
 if TYPE_CHECKING:  # pragma: no cover
-    from kukaid.diagnose.model import DiagModel
-    from kukaid.diagnose.signals import LogSignals
+    from kukaid.models.signals import LogSignals
+    from kukaid.models.torque import JointTorqueModel
 
 
 @dataclass
@@ -105,12 +105,13 @@ def _dm_p(d: np.ndarray, groups: np.ndarray) -> float:
     return float(norm.sf(m / se)) if se > 0 else (0.0 if m > 0 else 1.0)
 
 
-def evaluate(model: "DiagModel", name: str, nl: dict, coefs: dict, sigs: Sequence["LogSignals"],
-             search: Callable[["DiagModel", list, object], dict], n_blocks: int = 4) -> HeldOut | None:
+def evaluate(model: "JointTorqueModel", name: str, nl: dict, coefs: dict, sigs: Sequence["LogSignals"],
+             search: Callable[["JointTorqueModel", list, object], dict], n_blocks: int = 4) -> HeldOut | None:
     """Held-out evidence for adding the effect ``name`` to ``model`` (None when no fold can be
     formed: too few compared rows).  ``search(model, signals, candidate)`` returns the candidate's
     best discrete settings on those signals (the workflow's option search)."""
     from kukaid.diagnose import candidates as C
+    from kukaid.diagnose.refit import refit
     from kukaid.diagnose.signals import decimation
 
     cand = C.get(name)
@@ -120,12 +121,12 @@ def evaluate(model: "DiagModel", name: str, nl: dict, coefs: dict, sigs: Sequenc
     ds, gs, sse0, sse1, n, improved = [], [], 0.0, 0.0, 0, 0
     for k, (train, test) in enumerate(fs):
         try:
-            base = model.refit(train)
+            base = refit(model, train)
             ok, _ = cand.applies(train, base)
             # discrete settings searched again on the fit part; a continuous order (ripple n) is
             # refined by the refit itself, from the whole-data value
             nl_k = search(base, train, cand) if ok and "n" not in nl and len(cand.options(train, base)) > 1 else nl
-            new = base.with_effect(name, nl_k, coefs).refit(train)
+            new = refit(base.with_effect(name, nl_k, coefs), train)
         except (KukaidError, np.linalg.LinAlgError, ValueError):  # a fold the model cannot be fitted on: no evidence
             continue
         f0, f1 = 0.0, 0.0

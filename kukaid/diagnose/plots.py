@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from kukaid.diagnose import candidates as C
-from kukaid.diagnose.model import DiagModel
-from kukaid.diagnose.workflow import Diagnosis
+from kukaid.diagnose.result import Diagnosis
 from kukaid.atomic import atomic_path
+from kukaid.models.torque import JointTorqueModel
 
 
 def _binned(x: np.ndarray, y: np.ndarray, bins: int = 30) -> tuple[np.ndarray, np.ndarray]:
@@ -45,7 +45,7 @@ def page_table(result: Diagnosis):
     return fig
 
 
-def _residual_rows(model: DiagModel, result: Diagnosis):
+def _residual_rows(model: JointTorqueModel, result: Diagnosis):
     return [model.residual(s) for s in result.sigs]
 
 

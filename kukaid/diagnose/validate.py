@@ -15,8 +15,8 @@ schema; nothing else changes (``kukaid.robot_params/1``: the six-axis robot fit)
 The single-axis predictor (:func:`predict_axis`, schema ``kukaid.params/1``) evaluates exactly
 the model ``kukaid fit`` fits: the log pre-processed with the fit's own settings (filter, mode
 threshold, reversal window from the file's provenance; :func:`kukaid.identify.preprocess`),
-Γ̂ = Izz qdd + Mx cos q (+ My sin q) + offset + F(qd) (:meth:`kukaid.models.joint.AxisModel.
-predict_dynamic`) plus the diagnosed effects (:func:`kukaid.diagnose.model.effects_torque`), on
+Γ̂ = Izz qdd + Mx cos q (+ My sin q) + offset + F(qd) (:meth:`kukaid.models.torque.JointTorqueModel.
+predict_dynamic`) plus the diagnosed effects (:meth:`~kukaid.models.torque.JointTorqueModel.effects_torque`), on
 the dynamic-mode samples (``Prepared.dynamic``) away from the filter's edges.
 """
 from __future__ import annotations
@@ -113,7 +113,6 @@ def predict_axis(params: dict, log: Any, axis: int | None = None) -> dict[int, t
     the log pre-processed with the fit's settings; effects are evaluated on the whole log (their
     time and energy coordinates start with it).
     """
-    from kukaid.diagnose.model import effects_torque
     from kukaid.identify.filtering import preprocess
     from kukaid.params import model_from_params
 
@@ -133,7 +132,7 @@ def predict_axis(params: dict, log: Any, axis: int | None = None) -> dict[int, t
         temp = None if log.temp is None else np.asarray(log.temp[:, log.index(ax)], dtype=float)
         others = ({a: preprocess(log, a, edge=0, **st).q for a in log.axes if a != ax}
                   if "coupling" in params["effects"] else None)
-        tau_hat = tau_hat + effects_torque(params, pr.time, pr.q, pr.qd, temp, pr.joint, others)
+        tau_hat = tau_hat + model.effects_torque(pr.time, pr.q, pr.qd, temp, others)
     return {ax: (pr.tau[keep], tau_hat[keep])}
 
 

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
@@ -28,308 +27,24 @@ import numpy as np
 from kukaid.diagnose import candidates as C
 from kukaid.diagnose import heldout
 from kukaid.diagnose import selection as S
-from kukaid.diagnose.model import DiagModel
+from kukaid.diagnose.evidence import CandidateTest, Round, hac_std, rmse_of
 from kukaid.diagnose.noise import noise_floor, noise_sigma
-from kukaid.diagnose.signals import LogSignals, decimation, prepare
+from kukaid.diagnose.refit import refit
+from kukaid.diagnose.result import Diagnosis, Step
+from kukaid.diagnose.signals import LogSignals, prepare
 from kukaid.errors import FitError, KukaidError
 from kukaid.jsonfile import jsonable
+from kukaid.models.torque import JointTorqueModel as Model
+from kukaid.params.axis import model_from_params, model_to_params
+
+__all__ = ["CandidateTest", "Diagnosis", "Step", "diagnose", "diagnose_signals", "hac_std", "rmse_of"]
 
 
-@dataclass
-class CandidateTest:
-    """The evidence for one candidate in one round."""
-
-    name: str
-    nl: dict
-    wald: S.WaldResult
-    n_effective: float
-    p_candidate: float          # corrected for the candidate's own grid
-    p_adjusted: float = 1.0     # also corrected for the number of candidates (Holm)
-    effect_rms: float = 0.0     # RMS of the torque of the fitted term, N·m
-    size: float = math.nan      # amplitude / peak of the effect in the final joint fit, N·m
-    significant: bool = False
-    reason: str = ""
-    held_out: "heldout.HeldOut | None" = None
-
-    def evidence(self) -> dict[str, Any]:
-        return jsonable({
-            "test": "HAC Wald (Bartlett, Andrews bandwidth), decimated rows",
-            "statistic": float(self.wald.stat), "dof": int(self.wald.dof),
-            "p_value": float(self.p_adjusted), "p_uncorrected": float(self.wald.p_value),
-            "n_effective_options": float(self.n_effective), "bandwidth": int(self.wald.bandwidth),
-            "effect_rms": float(self.effect_rms), "size": float(self.size),
-            "rss_share": float(self.wald.delta_rss / self.wald.rss) if self.wald.rss > 0 else 0.0,
-            "held_out": self.held_out.to_json() if self.held_out is not None else None,
-        })
-
-
-@dataclass
-class Step:
-    """One effect added: its parameters, the gap before and after, the evidence."""
-
-    name: str
-    params: dict
-    rmse_before: float
-    rmse_after: float
-    test: CandidateTest
-    gap_closed: float
-    rel_before: float
-    rel_after: float
-    model_before: DiagModel = field(repr=False, default=None)
-    model_after: DiagModel = field(repr=False, default=None)
-
-    def to_json(self) -> dict[str, Any]:
-        ev = self.test.evidence()
-        ev["share_of_gap_closed"] = float(self.gap_closed)
-        return jsonable({"name": self.name, "params": self.params, "rmse_before": float(self.rmse_before),
-                        "rmse_after": float(self.rmse_after), "evidence": ev})
-
-
-@dataclass
-class Diagnosis:
-    """Result of :func:`diagnose`.  ``to_json()`` gives the documented JSON; ``lines()`` the text."""
-
-    steps: list[Step]
-    rmse_before: float
-    rmse_after: float
-    noise_floor: float
-    noise_sigma: float
-    ambiguous: list[dict]
-    params: dict
-    rel_before: float
-    rel_after: float
-    rmse_refit: float
-    last_round: list[CandidateTest]
-    sigs: list[LogSignals] = field(repr=False, default_factory=list)
-    model_given: DiagModel = field(repr=False, default=None)
-    model_final: DiagModel = field(repr=False, default=None)
-    notes: list[str] = field(default_factory=list)
-    tested: bool = True
-    rejected: list[dict] = field(default_factory=list)
-    scheme: str = ""
-
-    @property
-    def names(self) -> list[str]:
-        return [s.name for s in self.steps]
-
-    def __iter__(self):  # unpacks as ``steps, params = diagnose(...)``
-        return iter((self.steps, self.params))
-
-    def to_json(self) -> dict[str, Any]:
-        return jsonable({"effects": [s.to_json() for s in self.steps], "rmse_before": float(self.rmse_before),
-                        "rmse_after": float(self.rmse_after), "noise_floor": float(self.noise_floor),
-                        "ambiguous": self.ambiguous, "rejected": self.rejected, "tested": self.tested,
-                        "held_out_scheme": self.scheme, "verdict": self.verdict})
-
-    @property
-    def verdict(self) -> str:
-        """One sentence: what was found, or why nothing was named."""
-        if not self.tested:
-            return "no candidate tested (--max-steps 0): the gap above is all this run measured"
-        if self.steps:
-            return "named: " + ", ".join(self.names)
-        if self.ambiguous:
-            return "nothing named: candidates are ambiguous"
-        if self.rejected:
-            return ("no candidate improved the held-out error (" + self.scheme + "): "
-                    + ", ".join(r["name"] for r in self.rejected) + " rejected")
-        return "no candidate improved the held-out error: none is significant against the noise in the fit"
-
-    def lines(self) -> list[str]:
-        """Human-readable summary, one string per line."""
-        u = "N" if self.sigs and self.sigs[0].joint == "prismatic" else "N*m"
-        out = [f"gap before: RMSE {self.rmse_before:.4g} {u} = {self.rmse_before / self.noise_floor:.2f} x noise "
-               f"floor {self.noise_floor:.4g} {u} (raw torque noise {self.noise_sigma:.4g} {u}); relative error "
-               f"{100 * self.rel_before:.2f} %" if self.noise_floor > 0 else
-               f"gap before: RMSE {self.rmse_before:.4g} {u}; relative error {100 * self.rel_before:.2f} %"]
-        if abs(self.rmse_refit - self.rmse_before) > 1e-3 * max(self.rmse_before, 1e-12):
-            out.append(f"refit without new effects: RMSE {self.rmse_refit:.4g} {u}")
-        for i, s in enumerate(self.steps, 1):
-            ev = s.test
-            par = ", ".join(_fmt_param(k, v, s.params.get("std", {}).get(k)) for k, v in s.params.items()
-                            if k not in ("model", "std", "stored_as", "unit"))
-            out.append(f"step {i}: {s.name} ({C.get(s.name).meaning}); size in the final fit {ev.size:.3g} {u}")
-            out.append(f"    parameters: {par}")
-            out.append(f"    RMSE {s.rmse_before:.4g} -> {s.rmse_after:.4g} {u}, {100 * s.gap_closed:.0f} % of the "
-                       f"gap to the noise floor closed; relative error {100 * s.rel_before:.2f} % -> "
-                       f"{100 * s.rel_after:.2f} %")
-            out.append(f"    evidence: HAC Wald {ev.wald.stat:.1f} (dof {ev.wald.dof}), corrected p = "
-                       f"{ev.p_adjusted:.2g}, effect RMS {ev.effect_rms:.3g} {u}")
-            if ev.held_out is not None:
-                h = ev.held_out
-                out.append(f"    held out ({h.scheme}): RMSE {h.rmse_without:.4g} -> {h.rmse_with:.4g} {u}, "
-                           f"better in {h.folds_improved}/{h.n_folds} folds, p = {h.p_value:.2g}")
-        for a in self.ambiguous:
-            out.append(f"ambiguous: {' or '.join(a['candidates'])} explain the same residual ({a['reason']}); "
-                       "not guessing")
-        for r in self.rejected:
-            out.append(f"not named: {r['name']}: {r['reason']}")
-        if not self.steps and not self.ambiguous:
-            out.append(self.verdict)
-        out.append(f"gap after: RMSE {self.rmse_after:.4g} {u}"
-                   + (f" = {self.rmse_after / self.noise_floor:.2f} x noise floor" if self.noise_floor > 0 else "")
-                   + f"; relative error {100 * self.rel_after:.2f} %")
-        out += [f"note: {n}" for n in self.notes]
-        return out
-
-
-def _fmt_param(k: str, v: Any, sd: Any) -> str:
-    if isinstance(v, float):
-        return f"{k} = {v:.4g}" + (f" +/- {sd:.2g}" if isinstance(sd, float) and math.isfinite(sd) else "")
-    return f"{k} = {v}"
-
-
-# -- helpers ---------------------------------------------------------------------------------
-def rmse_of(model: DiagModel, sigs: Sequence[LogSignals]) -> tuple[float, float]:
-    """(RMSE, relative error ||tau - tau_hat|| / ||tau||) of the filtered comparison."""
-    r = np.concatenate([model.residual(s) for s in sigs])
-    y = np.concatenate([s.filtw(s.tau_raw)[s.rows] for s in sigs])
-    ny = float(np.linalg.norm(y))
-    return float(np.sqrt(np.mean(r * r))), (float(np.linalg.norm(r)) / ny if ny > 0 else math.nan)
-
-
-class _Round:
-    """Residual, Jacobian basis and filtered candidate columns on the decimated rows."""
-
-    def __init__(self, model: DiagModel, sigs: Sequence[LogSignals]):
-        self.model, self.sigs = model, sigs
-        self.dec = [decimation(s) for s in sigs]
-        self.r = np.concatenate([model.residual(s)[d] for s, d in zip(sigs, self.dec)])
-        Js = []
-        for s, d in zip(sigs, self.dec):
-            self.names, J = model.design(s)
-            Js.append(J[d])
-        self.J = np.vstack(Js)
-        self.U = S.basis(self.J)
-        self.groups = np.concatenate([np.full(d.size, i) for i, d in enumerate(self.dec)])
-        self.rp = S.partial_out(self.U, self.r[:, None])[:, 0]
-
-    def columns(self, cand: C.Candidate, nl: dict, filtered: bool = True) -> np.ndarray:
-        out = []
-        for s, d in zip(self.sigs, self.dec):
-            Z = cand.columns(s, nl, self.model)
-            if filtered:
-                Z = np.column_stack([s.filtw(Z[:, k]) for k in range(Z.shape[1])])
-            out.append(Z[s.rows][d])
-        return np.vstack(out)
-
-    def delta_rss(self, Z: np.ndarray) -> float:
-        Zp = S.partial_out(self.U, Z)
-        b, *_ = np.linalg.lstsq(Zp, self.rp, rcond=None)
-        f = Zp @ b
-        return float(2 * f @ self.rp - f @ f)
-
-    #: the prescan of a long option grid uses at most this many (evenly spaced) decimated rows
-    PRESCAN_ROWS = 20000
-
-    def prescan(self, cand: C.Candidate, opts: list[dict]) -> np.ndarray:
-        """Residual sum of squares each option would remove, unfiltered, on at most
-        :data:`PRESCAN_ROWS` rows: a ranking (the best few are then scored exactly), at a cost
-        that does not grow with the log.  Candidates with a pointwise ``columns_at(q, options)``
-        (the ripple) are scored for all options at once."""
-        idx = np.unique(np.linspace(0, self.r.size - 1, min(self.r.size, self.PRESCAN_ROWS)).astype(int))
-        U = S.basis(self.J[idx])
-        r = S.partial_out(U, self.r[idx][:, None])[:, 0]
-        if not hasattr(cand, "columns_at"):
-            out = []
-            for o in opts:
-                Zp = S.partial_out(U, self.columns(cand, o, filtered=False)[idx])
-                b, *_ = np.linalg.lstsq(Zp, r, rcond=None)
-                f = Zp @ b
-                out.append(float(2 * f @ r - f @ f))
-            return np.array(out)
-        q = np.concatenate([s.q[s.rows][d] for s, d in zip(self.sigs, self.dec)])[idx]
-        out = np.zeros(len(opts))
-        for a in range(0, len(opts), 100):  # options in chunks: (rows x 100) matrices
-            X, Y = cand.columns_at(q, opts[a:a + 100])
-            X, Y = X - U @ (U.T @ X), Y - U @ (U.T @ Y)
-            g11, g22, g12 = (X * X).sum(0), (Y * Y).sum(0), (X * Y).sum(0)
-            b1, b2 = X.T @ r, Y.T @ r
-            det = g11 * g22 - g12 ** 2
-            with np.errstate(divide="ignore", invalid="ignore"):
-                dr = (g22 * b1 ** 2 - 2 * g12 * b1 * b2 + g11 * b2 ** 2) / det
-            out[a:a + 100] = np.where(det > 1e-12 * np.maximum(g11 * g22, 1e-300), dr, 0.0)
-        return out
-
-    def best_option(self, cand: C.Candidate) -> tuple[dict, np.ndarray]:
-        opts = cand.options(self.sigs, self.model)
-        if len(opts) > 24:  # prescan without the filter (cheap), refine the best few with it
-            scores = self.prescan(cand, opts)
-            top = np.argsort(scores)[::-1][:6]
-            opts_f = [opts[i] for i in top]
-        else:
-            opts_f = opts
-        scored = [(self.delta_rss(Z), o, Z) for o in opts_f for Z in [self.columns(cand, o)]]
-        dr, best, Z = max(scored, key=lambda x: x[0])
-        if "n" in best and len(opts) > 1:  # refine a continuous order by golden-section search
-            step = abs(opts[1]["n"] - opts[0]["n"])
-            best, Z = self._refine_n(cand, best, step, opts[0]["n"], opts[-1]["n"])
-        return best, Z
-
-    def _refine_n(self, cand, best, step, lo, hi):
-        a, b = max(best["n"] - step, lo), min(best["n"] + step, hi)
-        g = (math.sqrt(5) - 1) / 2
-        f = lambda n: -self.delta_rss(self.columns(cand, {**best, "n": n}))  # noqa: E731
-        c, d = b - g * (b - a), a + g * (b - a)
-        fc, fd = f(c), f(d)
-        for _ in range(14):
-            if fc < fd:
-                b, d, fd = d, c, fc
-                c = b - g * (b - a)
-                fc = f(c)
-            else:
-                a, c, fc = c, d, fd
-                d = a + g * (b - a)
-                fd = f(d)
-        n = c if fc < fd else d
-        if -min(fc, fd) < self.delta_rss(self.columns(cand, best)):
-            n = best["n"]
-        nl = {**best, "n": float(n)}
-        return nl, self.columns(cand, nl)
-
-    def test(self, cand: C.Candidate) -> CandidateTest:
-        """Search the candidate's options, test the best (its p corrected for the search)."""
-        nl, Z = self.best_option(cand)
-        return self._wald(cand, nl, Z, cand.n_effective(self.sigs, cand.options(self.sigs, self.model)))
-
-    def test_fixed(self, cand: C.Candidate, nl: dict, n_effective: float) -> CandidateTest:
-        """Test the candidate at settings ``nl`` found by an earlier search over ``n_effective`` options."""
-        return self._wald(cand, nl, self.columns(cand, nl), n_effective)
-
-    def _wald(self, cand: C.Candidate, nl: dict, Z: np.ndarray, m: float) -> CandidateTest:
-        w = S.wald_test(self.r, Z, self.groups, self.U)
-        # size of the effect: the torque the fitted term adds (not only its part the model cannot mimic)
-        rms = float(np.sqrt(np.mean((Z @ w.coef) ** 2))) if Z.size else 0.0
-        t = CandidateTest(cand.name, nl, w, m, S.bonferroni(w.p_value, m), effect_rms=rms)
-        t._Z = Z  # kept for the ambiguity check
-        return t
-
-    def conditional_p(self, a: CandidateTest, b: CandidateTest) -> float:
-        """p-value of candidate a given the model and candidate b."""
-        U = S.basis(np.column_stack([self.J, b._Z]))
-        return S.wald_test(self.r, a._Z, self.groups, U).p_value
-
-
-def hac_std(model: DiagModel, sigs: Sequence[LogSignals]) -> dict[str, float]:
-    """HAC standard deviations of every parameter of ``model`` (decimated rows), SI."""
-    rd = _Round(model, sigs)
-    J, e = rd.J, rd.r
-    scale = np.linalg.norm(J, axis=0)
-    scale[scale == 0] = 1.0
-    Js = J / scale
-    A = np.linalg.pinv(Js.T @ Js)
-    scores = Js * e[:, None]
-    L = S.andrews_bandwidth(scores, rd.groups)
-    V = A @ S.hac_meat(scores, rd.groups, L) @ A
-    sd = np.sqrt(np.clip(np.diag(V), 0, None)) / scale
-    return dict(zip(rd.names, (float(x) for x in sd)))
-
-
-def _add(model: DiagModel, test: CandidateTest, coefs: dict, sigs: Sequence[LogSignals], rmse_before: float,
+def _add(model: Model, test: CandidateTest, coefs: dict, sigs: Sequence[LogSignals], rmse_before: float,
          rel_before: float, floor: float) -> Step:
     """Add the tested effect to ``model`` (start: ``coefs``), refit everything, measure the gap."""
     cand = C.get(test.name)
-    new = model.with_effect(test.name, test.nl, coefs).refit(sigs)
+    new = refit(model.with_effect(test.name, test.nl, coefs), sigs)
     new.std = hac_std(new, sigs)
     r_after, rel_after = rmse_of(new, sigs)
     gap = rmse_before - floor
@@ -347,19 +62,10 @@ def _add(model: DiagModel, test: CandidateTest, coefs: dict, sigs: Sequence[LogS
     return Step(test.name, desc, rmse_before, r_after, test, closed, rel_before, rel_after, model, new)
 
 
-def _term(model: DiagModel, name: str) -> tuple[dict, dict] | None:
-    """(settings, coefficients) of the effect ``name`` in ``model``; None when it is not there."""
-    native = C.get(name).native
-    if native:
-        return ({}, {native: model.lin[native]}) if native in model.lin else None
-    term = next((e for e in model.effects if e.name == name), None)
-    return (dict(term.nl), dict(term.coefs)) if term else None
-
-
-def term_rms(model: DiagModel, name: str, sigs: Sequence[LogSignals]) -> float:
+def term_rms(model: Model, name: str, sigs: Sequence[LogSignals]) -> float:
     """RMS (compared rows, filtered) of the torque the effect ``name`` of ``model`` adds, N·m."""
     cand = C.get(name)
-    nl, coefs = _term(model, name)
+    nl, coefs = C.get(name).term(model)
     parts = []
     for s in sigs:
         Z = cand.columns(s, nl, model)
@@ -368,17 +74,17 @@ def term_rms(model: DiagModel, name: str, sigs: Sequence[LogSignals]) -> float:
     return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
 
 
-def _final_terms(model: DiagModel, sigs: Sequence[LogSignals]) -> dict[str, tuple[float, dict, dict]]:
+def _final_terms(model: Model, sigs: Sequence[LogSignals]) -> dict[str, tuple[float, dict, dict]]:
     """name -> (size N·m, settings, coefficients) of every effect of ``model``."""
     out = {}
     for name, cand in C.CANDIDATES.items():
-        t = _term(model, name)
+        t = cand.term(model)
         if t is not None:
             out[name] = (cand.size(*t, sigs, model), *t)
     return out
 
 
-def _backfit(model: DiagModel, sigs: Sequence[LogSignals]) -> DiagModel:
+def _backfit(model: Model, sigs: Sequence[LogSignals]) -> Model:
     """Search each effect's discrete settings (backlash shape and time constant, drift coordinate)
     again given all the other effects: an effect found first was searched while the later ones
     were still in the residual.  A ripple's order needs no search: every refit refines it."""
@@ -387,14 +93,14 @@ def _backfit(model: DiagModel, sigs: Sequence[LogSignals]) -> DiagModel:
         if "n" in term.nl or len(cand.options(sigs, model)) < 2:
             continue
         rest = model.without(term.name)
-        nl, _ = _Round(rest, sigs).best_option(cand)
+        nl, _ = Round(rest, sigs).best_option(cand)
         if any(term.nl.get(k) != v for k, v in nl.items()):
-            model = rest.with_effect(term.name, nl, term.coefs).refit(sigs)
+            model = refit(rest.with_effect(term.name, nl, term.coefs), sigs)
     return model
 
 
-def _prune(steps: list[Step], model: DiagModel, sigs: Sequence[LogSignals], alpha: float,
-           min_rms: float) -> tuple[DiagModel, list[str]]:
+def _prune(steps: list[Step], model: Model, sigs: Sequence[LogSignals], alpha: float,
+           min_rms: float) -> tuple[Model, list[str]]:
     """Backward step: drop, one at a time (the weakest first), every effect that is no longer
     significant given all the others or whose refitted torque RMS fell below ``min_rms`` (an
     effect found early can be made redundant by the ones found after it)."""
@@ -404,7 +110,7 @@ def _prune(steps: list[Step], model: DiagModel, sigs: Sequence[LogSignals], alph
         for s in steps:
             if s.name in dropped:
                 continue
-            t = _Round(model.without(s.name), sigs).test_fixed(C.get(s.name), _term(model, s.name)[0],
+            t = Round(model.without(s.name), sigs).test_fixed(C.get(s.name), C.get(s.name).term(model)[0],
                                                                s.test.n_effective)
             p = 1.0 if term_rms(model, s.name, sigs) < min_rms else t.p_candidate
             if p >= alpha and p > worst_p:
@@ -412,10 +118,10 @@ def _prune(steps: list[Step], model: DiagModel, sigs: Sequence[LogSignals], alph
         if weakest is None:
             return model, dropped
         dropped.append(weakest)
-        model = model.without(weakest).refit(sigs)
+        model = refit(model.without(weakest), sigs)
 
 
-def _in_order_of_size(steps: list[Step], base: DiagModel, final: DiagModel, sigs: Sequence[LogSignals],
+def _in_order_of_size(steps: list[Step], base: Model, final: Model, sigs: Sequence[LogSignals],
                       floor: float, n_candidates: int) -> list[Step]:
     """The steps redone from ``base`` in order of the effects' sizes in ``final`` (largest first).
 
@@ -448,9 +154,9 @@ def _reject(rejected: list[dict], name: str, reason: str) -> None:
     rejected[:] = [r for r in rejected if r["name"] != name] + [{"name": name, "reason": reason}]
 
 
-def _search(model: DiagModel, sigs: Sequence[LogSignals], cand: C.Candidate) -> dict:
+def _search(model: Model, sigs: Sequence[LogSignals], cand: C.Candidate) -> dict:
     """The candidate's best discrete settings given ``model`` on ``sigs`` (held-out folds)."""
-    return _Round(model, sigs).best_option(cand)[0]
+    return Round(model, sigs).best_option(cand)[0]
 
 
 def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float = 0.01, min_effect: float = 0.15,
@@ -462,11 +168,11 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     if sum(s.rows.size for s in sigs) < 50:
         raise FitError("fewer than 50 dynamic-mode samples in the logs: the axis barely moves; nothing to diagnose")
     joint = sigs[0].joint
-    given = DiagModel.from_params(params, joint)
+    given = model_from_params(params, joint).within_bounds()
     rmse0, rel0 = rmse_of(given, sigs)
     floor = noise_floor(sigs)
     sigma = noise_sigma(sigs)
-    model = given.refit(sigs)
+    model = refit(given, sigs)
     model.std = hac_std(model, sigs)
     rmse_r, rel_r = rmse_of(model, sigs)
     found_base = model
@@ -484,7 +190,7 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     excluded: set[str] = set()
     tested = max_steps > 0
     for _ in range(max_steps):
-        rd = _Round(model, sigs)
+        rd = Round(model, sigs)
         tests = []
         for n in names:
             cand = C.get(n)
@@ -572,7 +278,7 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
         model, cur_rmse, cur_rel = steps[-1].model_after, steps[-1].rmse_after, steps[-1].rel_after
     added = [s.name for s in steps]
     # nothing named: the parameter file stays as it was (a refit without new effects is no finding)
-    out_params = model.to_params(params, added) if added else copy.deepcopy(params)
+    out_params = model_to_params(model, params, added) if added else copy.deepcopy(params)
     if not added:
         model, cur_rmse, cur_rel = given, rmse0, rel0
     prov = dict(out_params.get("provenance") or {})

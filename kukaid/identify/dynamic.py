@@ -17,11 +17,11 @@ from typing import Any, Sequence
 import numpy as np
 
 from kukaid.errors import FitError
-from kukaid.identify.least_squares import GRAVITY_OPTIONS, rigid_columns
+from kukaid.models.joint import GRAVITY_OPTIONS, rigid_columns
 from kukaid.identify.stribeck_fit import _merge_bounds, at_bounds, default_bounds, natural_uncertainty, solve_separable
 from kukaid.identify.uncertainty import Uncertainty, covariance
-from kukaid.models.friction import CoulombViscous, Stribeck
-from kukaid.models.joint import RigidBody
+from kukaid.models.friction import friction_columns
+from kukaid.models.torque import JointTorqueModel
 
 FRICTION_MODELS = ("stribeck", "coulomb-viscous")
 
@@ -30,8 +30,9 @@ def _columns(pr: Any, friction_model: str, gravity: str, offset: bool,
              extra_cols: dict[str, np.ndarray] | None, rows: np.ndarray | slice) -> tuple[list[str], np.ndarray]:
     q, qd, qdd = pr.q[rows], pr.qd[rows], pr.qdd[rows]
     names, R = rigid_columns(q, qdd, gravity, offset)
-    names = [*names, "Fc", "Fv"]
-    cols = [R, np.sign(qd)[:, None], qd[:, None]]
+    fn, F = friction_columns("coulomb-viscous", qd)  # the Stribeck column is the separable solver's
+    names = [*names, *fn]
+    cols = [R, F]
     for k, x in (extra_cols or {}).items():
         names.append(k)
         cols.append(np.asarray(x, dtype=float)[rows][:, None])
@@ -73,23 +74,18 @@ class DynamicFit:
     at_bound_: list[dict[str, Any]] = field(default_factory=list)
 
     @property
-    def friction_(self) -> Stribeck | CoulombViscous:
+    def model_(self) -> JointTorqueModel:
+        """The fitted joint-torque model (without the extra columns)."""
         p = self.params_
-        if self.friction_model == "stribeck":
-            return Stribeck(p["Fc"], p["Fs"], p["vs"], p["delta"], p["Fv"])
-        return CoulombViscous(p["Fc"], p["Fv"])
-
-    @property
-    def rigid_(self) -> RigidBody:
-        p = self.params_
-        return RigidBody(Izz=p["Izz"], Mx=p.get("Mx", 0.0), My=p.get("My", 0.0), offset=p.get("offset", 0.0))
+        lin = {k: p[k] for k in ("Fc", "Fs", "Fv", "Izz", "Mx", "My", "offset") if k in p}
+        return JointTorqueModel(self.friction_model, lin, p.get("vs", 0.04), p.get("delta", 1.0))
 
     def predict(self, prepared: Any, extra: dict[str, np.ndarray] | None = None) -> np.ndarray:
         """Predicted torque on every sample of ``prepared`` (N·m); ``extra`` columns as in the fit."""
         missing = [k for k in self.extra_names if not extra or k not in extra]
         if missing:
             raise FitError(f"predict: extra regressor(s) {missing} needed (they were fitted)")
-        out = self.rigid_.torque(prepared.q, prepared.qdd) + self.friction_(prepared.qd)
+        out = self.model_.predict_dynamic(prepared.q, prepared.qd, prepared.qdd)
         for k in self.extra_names:
             out = out + self.params_[k] * np.asarray(extra[k], dtype=float)
         return out

@@ -28,7 +28,9 @@ from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
 from kukaid.identify.stribeck_fit import extract_friction, natural_uncertainty, solve_separable
 from kukaid.identify.uncertainty import correlation_factor, covariance
 from kukaid.jsonfile import jsonable
-from kukaid.models.friction import CoulombViscous, Stribeck
+from kukaid.models.friction import MaxwellSlip
+from kukaid.models.torque import JointTorqueModel
+from kukaid.params.axis import model_sections
 
 METHODS = ("joint", "staged")
 FRICTION_MODELS = ("auto", "stribeck", "coulomb-viscous")
@@ -84,16 +86,13 @@ def staged_friction(preps: Sequence[Any], friction_model: str = "stribeck",
 
 
 def _adequacy(ax: int, raw_logs: Sequence[Any], preps: Sequence[Any], fit_joint: Any, staged_at_bound: list,
-              friction: Any, rigid: dict) -> dict[str, Any]:
+              model: JointTorqueModel) -> dict[str, Any]:
     """Parameters on bounds, solver status and single-axis adequacy (:func:`kukaid.identify.adequacy.assess`)."""
     from kukaid.identify.adequacy import assess, moving_axes, noise_floor
-    from kukaid.models.joint import RigidBody
-
     on_bound = list(staged_at_bound) + (list(fit_joint.at_bound_) if fit_joint is not None else [])
     converged = fit_joint.converged if fit_joint is not None else True
     status = fit_joint.ipopt_status if fit_joint is not None else ""
-    rb = RigidBody(Izz=rigid.get("Izz", 0.0), Mx=rigid.get("Mx", 0.0), My=rigid.get("My", 0.0),
-                   offset=rigid.get("offset", 0.0))
+    rb, friction = model.rigid, model.friction
     res = np.concatenate([(pr.tau - rb.torque(pr.q, pr.qdd) - friction(pr.qd))[pr.dynamic] for pr in preps])
     rms = float(np.sqrt(np.mean(res ** 2))) if res.size else 0.0
     others = sorted({a for lg in raw_logs for a in moving_axes(lg, ax)})
@@ -101,10 +100,10 @@ def _adequacy(ax: int, raw_logs: Sequence[Any], preps: Sequence[Any], fit_joint:
     return {"at_bound": on_bound, "converged": converged, "warnings": warnings, **figures}
 
 
-def _friction_model(p: dict, model: str) -> Stribeck | CoulombViscous:
-    if model == "stribeck":
-        return Stribeck(p["Fc"], p["Fs"], p["vs"], p["delta"], p["Fv"])
-    return CoulombViscous(p["Fc"], p["Fv"])
+def _model(fp: dict, rigid: dict, friction_model: str) -> JointTorqueModel:
+    """The joint-torque model of the fitted friction ``fp`` and rigid-body ``rigid`` parameters."""
+    lin = {k: float(v) for k, v in {**fp, **rigid}.items() if k not in ("vs", "delta")}
+    return JointTorqueModel(friction_model, lin, float(fp.get("vs", 0.04)), float(fp.get("delta", 1.0)))
 
 
 def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Sequence[Any] = (),
@@ -207,9 +206,8 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         std.update(fit_joint.std_)
         metrics.update(friction_fit_mse=fit_joint.mse_, torque_prediction_mse=fit_joint.mse_,
                        ipopt_status=fit_joint.ipopt_status, condition_number=fit_joint.uncertainty_.cond)
-    fmodel = _friction_model(fp, friction_model)
     if ine and (fr or general):
-        rf = fit_rigid(ine, fmodel, gravity, offset)
+        rf = fit_rigid(ine, _model(fp, {}, friction_model).friction, gravity, offset)
         rigid = dict(rf.params_)
         for k in ("Izz", "Mx", "My", "offset"):
             std.pop(k, None)
@@ -225,22 +223,15 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
                        "with accelerations")
     if rigid["Izz"] <= 0:
         raise FitError(f"fitted Izz = {rigid['Izz']:.4g} is not positive: the data do not excite the inertia")
+    model = _model(fp, rigid, friction_model)
+    model.qd_thr = qd_thr_used
     metrics.update(_adequacy(ax, raw_logs, [p for p in (general + fr + ine) if p is not None], fit_joint,
-                             staged_at_bound, _friction_model(fp, friction_model), rigid))
-    out: dict[str, Any] = {"schema": "kukaid.params/1", "axis": int(ax)}
-    out["friction"] = {"model": friction_model, **{k: _r(fp[k]) for k in ("Fc", "Fs", "vs", "delta", "Fv") if k in fp}}
-    out["inertial"] = {k: _r(rigid[k]) for k in ("Izz", "Mx", "My") if k in rigid}
-    if "offset" in rigid:
-        out["offset"] = _r(rigid["offset"])
+                             staged_at_bound, model))
     if psl is not None:
-        from kukaid.models.joint import RigidBody
-
-        rb = RigidBody(Izz=rigid["Izz"], Mx=rigid.get("Mx", 0.0), My=rigid.get("My", 0.0))
-        ms = fit_maxwell_slip(psl, n_elements, gravity=rb.gravity)
-        out["maxwell_slip"] = {"k": [_r(x) for x in ms.k], "W": [_r(x) for x in ms.W],
-                               "zeta0": [_r(x) for x in ms.zeta0]}
+        ms = fit_maxwell_slip(psl, n_elements, gravity=model.rigid.gravity)
+        model.maxwell_slip, model.zeta0 = MaxwellSlip(ms.k, ms.W), tuple(ms.zeta0)
         metrics.update(maxwell_slip_rms=ms.rms, maxwell_slip_sum_W=sum(ms.W), maxwell_slip_samples=ms.n_samples)
-    out["mode_switch"] = {"qd_thr": qd_thr_used}
+    out: dict[str, Any] = {"schema": "kukaid.params/1", "axis": int(ax), **model_sections(model, digits=8)}
     values = {**fp, **rigid}
     out["uncertainty"] = {k: _r(v, 4) for k, v in std.items() if k in values}
     metrics["relative_std"] = {k: _r(std[k] / abs(values[k]), 4) for k in out["uncertainty"] if values[k] != 0}

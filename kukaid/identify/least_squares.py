@@ -13,33 +13,7 @@ import numpy as np
 
 from kukaid.errors import FitError
 from kukaid.identify.uncertainty import Uncertainty, covariance
-
-GRAVITY_OPTIONS = ("cos", "cos+sin", "none")
-
-
-def rigid_columns(q: np.ndarray, qdd: np.ndarray, gravity: str = "cos", offset: bool = False,
-                  inertia: bool = True) -> tuple[list[str], np.ndarray]:
-    """Regressor columns of the rigid body: names and the (n, k) matrix.
-
-    ``gravity``: "cos" (Mx cos q), "cos+sin" (+ My sin q) or "none" (horizontal or prismatic
-    axis); ``offset`` adds a constant torque; ``inertia`` the Izz qdd column.
-    """
-    if gravity not in GRAVITY_OPTIONS:
-        raise FitError(f"gravity must be one of {GRAVITY_OPTIONS}, got '{gravity}'")
-    names, cols = [], []
-    if inertia:
-        names.append("Izz")
-        cols.append(qdd)
-    if gravity in ("cos", "cos+sin"):
-        names.append("Mx")
-        cols.append(np.cos(q))
-    if gravity == "cos+sin":
-        names.append("My")
-        cols.append(np.sin(q))
-    if offset:
-        names.append("offset")
-        cols.append(np.ones_like(q))
-    return names, (np.column_stack(cols) if cols else np.zeros((q.size, 0)))
+from kukaid.models.joint import rigid_columns
 
 
 @dataclass

@@ -32,6 +32,7 @@ import numpy as np
 
 from kukaid.errors import FitError
 from kukaid.identify.uncertainty import Uncertainty, covariance, transform
+from kukaid.models.friction import stribeck_columns_at, stribeck_power
 
 INF = float("inf")
 DELTA_BOUNDS = (0.5, 2.0)
@@ -40,13 +41,6 @@ _OK_STATUS = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 #: the best point is kept and the result is marked not converged (the fit says why and warns)
 _STOPPED_STATUS = ("Maximum_Iterations_Exceeded", "Search_Direction_Becomes_Too_Small",
                    "Restoration_Failed", "Maximum_CpuTime_Exceeded")
-
-
-def stribeck_column(v: np.ndarray, vs: float, delta: float) -> np.ndarray:
-    """sign(v) exp(-|v/vs|^delta): the column multiplying Fs - Fc in eq. (1)."""
-    v = np.asarray(v, dtype=float)
-    with np.errstate(over="ignore", under="ignore", divide="ignore"):
-        return np.sign(v) * np.exp(-np.power(np.abs(v) / vs, delta))
 
 
 @dataclass
@@ -131,15 +125,12 @@ def prediction_and_jac(A: np.ndarray, v: np.ndarray, p: np.ndarray) -> tuple[np.
     """Prediction and its Jacobian for natural parameters p = [theta (m), dF, vs, delta]."""
     m = A.shape[1]
     theta, dF, vs, delta = p[:m], p[m], p[m + 1], p[m + 2]
-    av = np.abs(v)
+    s, pw = stribeck_power(v, vs, delta)
     with np.errstate(divide="ignore", under="ignore", over="ignore", invalid="ignore"):
-        ratio = av / vs
-        pw = np.power(ratio, delta)
-        e = np.exp(-pw)
-        s = np.sign(v) * e
+        ratio = np.abs(v) / vs
         lr = np.where(ratio > 0, np.log(np.where(ratio > 0, ratio, 1.0)), 0.0)
-        d_vs = dF * np.sign(v) * e * pw * delta / vs
-        d_delta = -dF * np.sign(v) * e * pw * lr
+        d_vs = dF * s * pw * delta / vs
+        d_delta = -dF * s * pw * lr
     pred = A @ theta + dF * s
     jac = np.column_stack([A, s, d_vs, d_delta])
     return pred, np.nan_to_num(jac)
@@ -157,12 +148,7 @@ def vp_start(y: np.ndarray, A: np.ndarray, v: np.ndarray, bnd: dict, n_vs: int =
     rB = y - Q @ (Q.T @ y)
     base = float(rB @ rB)
     grid = [(a, d) for d in deltas for a in vss]
-    av = np.abs(v)
-    logv = np.log(np.where(av > 0, av, 1e-300))[:, None]
-    lvs = np.log(np.array([a for a, _ in grid]))[None, :]
-    dd = np.array([d for _, d in grid])[None, :]
-    with np.errstate(over="ignore", under="ignore"):
-        C = np.sign(v)[:, None] * np.exp(-np.exp(dd * (logv - lvs)))
+    C = stribeck_columns_at(v, np.array([a for a, _ in grid]), np.array([d for _, d in grid]))
     # projection of each candidate column off the fixed columns, without forming it:
     # c_B^T r_B = c^T r_B (r_B is orthogonal to Q), |c_B|^2 = |c|^2 - |Q^T c|^2
     num = C.T @ rB

@@ -38,6 +38,12 @@ _DEG = math.pi / 180.0
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,23}$")
 
 
+
+def _program_start(apo_pct: float) -> list[str]:
+    """The declarations and set-up of an excitation program, up to reading the start pose into P."""
+    return ["  DECL E6AXIS P", "  DECL INT I", "  DECL INT OVR_NOW", "  BAS (#INITMOV, 0)", "  $ADVANCE = 3",
+            f"  $APO.CPTP = {int(apo_pct)}", "  ; move to the start point, exact stop", "  P = $AXIS_ACT"]
+
 def via_points(t: np.ndarray, q: np.ndarray, tol: float, still: float = 1e-9) -> list[int]:
     """Indices of the via points: ends of standstills, reversals, and a piecewise-linear fit.
 
@@ -194,14 +200,7 @@ def krl_program(traj: Any, name: str | None = None, limits: Any = None, tol_deg:
         f"; Assumes {ax} maximum speed {limits.qd_max / _DEG:.1f} deg/s and acceleration "
         f"{limits.qdd_max / _DEG:.1f} deg/s^2 ($VEL_AXIS_MA/$ACC_AXIS_MA); run in T1 first.",
         "; Sets $OV_PRO for speeds below 1 % of the maximum.",
-        "  DECL E6AXIS P",
-        "  DECL INT I",
-        "  DECL INT OVR_NOW",
-        "  BAS (#INITMOV, 0)",
-        "  $ADVANCE = 3",
-        f"  $APO.CPTP = {int(apo_pct)}",
-        "  ; move to the start point, exact stop",
-        "  P = $AXIS_ACT",
+        *_program_start(apo_pct),
         f"  P.{ax} = Q_START.{ax}",
         f"  $VEL_AXIS[{axis}] = {int(start_vel_pct)}",
         "  PTP P",
@@ -342,14 +341,7 @@ def krl_program_robot(traj: Any, name: str | None = None, tol_deg: float = 0.05,
         f"{traj.duration:.2f} s",
         "; Assumes each axis's maximum speed and acceleration ($VEL_AXIS_MA/$ACC_AXIS_MA) equal the limits",
         f"; in {name}.dat; check them, check the motion for collisions, and run in T1 first.",
-        "  DECL E6AXIS P",
-        "  DECL INT I",
-        "  DECL INT OVR_NOW",
-        "  BAS (#INITMOV, 0)",
-        "  $ADVANCE = 3",
-        f"  $APO.CPTP = {int(apo_pct)}",
-        "  ; move to the start point, exact stop",
-        "  P = $AXIS_ACT",
+        *_program_start(apo_pct),
     ]
     src += [f"  P.{x} = Q_START.{x}" for x in names]
     src += [f"  $VEL_AXIS[{a}] = {int(start_vel_pct)}" for a in axes]

@@ -1,5 +1,6 @@
-"""Physical models of one axis: friction (Stribeck, Maxwell-slip) and the rigid body."""
+"""Physical models of one joint: its terms (friction, rigid body, effects) and the one joint-torque model."""
 from kukaid.models.friction import CoulombViscous, MaxwellSlip, Stribeck
-from kukaid.models.joint import AxisModel, RigidBody
+from kukaid.models.joint import RigidBody
+from kukaid.models.torque import JointTorqueModel
 
-__all__ = ["Stribeck", "CoulombViscous", "MaxwellSlip", "RigidBody", "AxisModel"]
+__all__ = ["Stribeck", "CoulombViscous", "MaxwellSlip", "RigidBody", "JointTorqueModel"]

@@ -6,6 +6,47 @@ from dataclasses import dataclass
 import numpy as np
 
 
+def stribeck_power(v: np.ndarray, vs: float, delta: float) -> tuple[np.ndarray, np.ndarray]:
+    """The Stribeck column sign(v) exp(-(|v|/vs)^delta) and the power (|v|/vs)^delta it is made of
+    (its derivatives by vs and delta are the column times -delta/vs and -log(|v|/vs) times it)."""
+    v = np.asarray(v, dtype=float)
+    with np.errstate(over="ignore", under="ignore", divide="ignore"):
+        pw = np.power(np.abs(v) / vs, delta)
+        return np.sign(v) * np.exp(-pw), pw
+
+
+def stribeck_column(v: np.ndarray, vs: float, delta: float) -> np.ndarray:
+    """sign(v) exp(-|v/vs|^delta): the regressor column multiplying Fs - Fc in eq. (1)."""
+    return stribeck_power(v, vs, delta)[0]
+
+
+def stribeck_columns_at(v: np.ndarray, vs: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """The Stribeck columns of many (vs, delta) pairs at once: an (len(v), len(vs)) matrix (for
+    grid searches; through logarithms, so it agrees with :func:`stribeck_column` to rounding)."""
+    v = np.asarray(v, dtype=float)
+    av = np.abs(v)
+    logv = np.log(np.where(av > 0, av, 1e-300))[:, None]
+    with np.errstate(over="ignore", under="ignore"):
+        return np.sign(v)[:, None] * np.exp(-np.exp(np.asarray(delta)[None, :] * (logv - np.log(vs)[None, :])))
+
+
+def friction_columns(kind: str, qd: np.ndarray, qd_lin: np.ndarray | None = None, vs: float = 0.04,
+                     delta: float = 1.0) -> tuple[list[str], np.ndarray]:
+    """Regressor of the sliding friction, linear in its levels: names and (n, k) columns.
+
+    Stribeck (``kind`` "stribeck"): Fc sign(qd) (1 - E) + Fs sign(qd) E + Fv qd with
+    E = exp(-(|qd|/vs)^delta) at fixed ``vs``, ``delta``; Coulomb + viscous: Fc sign(qd) + Fv qd.
+    ``qd_lin`` is the velocity of the viscous column (default ``qd``).
+    """
+    s = np.sign(qd)
+    if kind == "stribeck":
+        e = stribeck_column(qd, vs, delta)
+        names, cols = ["Fc", "Fs"], [s - e, e]
+    else:
+        names, cols = ["Fc"], [s]
+    return names + ["Fv"], np.column_stack(cols + [qd if qd_lin is None else qd_lin])
+
+
 @dataclass(frozen=True)
 class Stribeck:
     """Stribeck friction, eq. (1): F(v) = (Fc + (Fs - Fc) exp(-|v/vs|^delta)) sign(v) + Fv v.

@@ -1,12 +1,13 @@
-"""Rigid-body model of one axis moving alone, eqs. (6)-(8): Izz qdd + Mx cos q (+ My sin q) + offset."""
+"""Rigid-body term of one axis moving alone, eqs. (6)-(8): Izz qdd + Mx cos q (+ My sin q) + offset."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
-from kukaid.models.friction import CoulombViscous, MaxwellSlip, Stribeck
+from kukaid.errors import FitError
+
+GRAVITY_OPTIONS = ("cos", "cos+sin", "none")
 
 
 @dataclass(frozen=True)
@@ -32,20 +33,22 @@ class RigidBody:
         return self.Izz * np.asarray(qdd, dtype=float) + self.gravity(q) + self.offset
 
 
-@dataclass(frozen=True)
-class AxisModel:
-    """The identified model of one axis, as a parameter file describes it.
+def rigid_regressor(q: np.ndarray, qdd: np.ndarray, names: list[str]) -> np.ndarray:
+    """Regressor columns of the rigid-body and offset parameters ``names`` (of Izz, Mx, My,
+    offset): qdd, cos q, sin q, 1; an (n, len(names)) matrix."""
+    col = {"Izz": lambda: qdd, "Mx": lambda: np.cos(q), "My": lambda: np.sin(q), "offset": lambda: np.ones_like(q)}
+    return np.column_stack([col[k]() for k in names]) if names else np.zeros((np.size(q), 0))
 
-    ``predict_dynamic`` is the dynamic-mode prediction Γp of eq. (13); the quasi-static mode uses
-    ``maxwell_slip`` through the torque-residual estimator (control stage).
+
+def rigid_columns(q: np.ndarray, qdd: np.ndarray, gravity: str = "cos", offset: bool = False,
+                  inertia: bool = True) -> tuple[list[str], np.ndarray]:
+    """Regressor columns of the rigid body by the fit's options: names and the (n, k) matrix.
+
+    ``gravity``: "cos" (Mx cos q), "cos+sin" (+ My sin q) or "none" (horizontal or prismatic
+    axis); ``offset`` adds a constant torque; ``inertia`` the Izz qdd column.
     """
-
-    rigid: RigidBody
-    friction: Stribeck | CoulombViscous
-    maxwell_slip: MaxwellSlip | None = None
-    qd_thr: float = 0.0017
-    effects: dict[str, Any] = field(default_factory=dict)
-
-    def predict_dynamic(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-        """Γp = Izz qdd + gravity(q) + offset + F(qd), N·m (sliding friction everywhere)."""
-        return self.rigid.torque(q, qdd) + self.friction(qd)
+    if gravity not in GRAVITY_OPTIONS:
+        raise FitError(f"gravity must be one of {GRAVITY_OPTIONS}, got '{gravity}'")
+    names = (["Izz"] if inertia else []) + (["Mx"] if gravity != "none" else []) \
+        + (["My"] if gravity == "cos+sin" else []) + (["offset"] if offset else [])
+    return names, rigid_regressor(np.asarray(q), qdd, names)

@@ -8,17 +8,18 @@ and ``provenance`` are free-form objects, ``uncertainty`` maps any name to a sta
 """
 from __future__ import annotations
 
+import copy
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Sequence
 
 from kukaid.errors import ParamFileError
 from kukaid.atomic import write_text_atomic
-from kukaid.jsonfile import read_json
-from kukaid.models.effects import COEFFICIENTS, NAMES, TAG
-from kukaid.models.friction import MaxwellSlip, friction_from_dict
-from kukaid.models.joint import AxisModel, RigidBody
+from kukaid.jsonfile import jsonable, read_json
+from kukaid.models.effects import COEFFICIENTS, EFFECTS, NAMES, TAG
+from kukaid.models.friction import MaxwellSlip
+from kukaid.models.torque import TERMS, EffectTerm, JointTorqueModel
 
 SCHEMA = "kukaid.params/1"
 INF = math.inf
@@ -68,13 +69,9 @@ _EFFECT_KEYS: dict[str, tuple[str, Any]] = {
     "T_ref": ("number|null", (-INF, INF)),                  # simulator truth: null = ambient
     "mu": ("number|null", (-INF, INF)),                     # derived Fc_load / |Mx| (null: Mx = 0)
 }
-# keys an effect needs in any format (the online torque residual reads them), and the settings a
-# diagnosis-format effect ("model": "kukaid.diagnose/1") needs besides its coefficients
+# keys an effect needs in any format (the online torque residual reads them); a diagnosis-format
+# effect ("model": "kukaid.diagnose/1") needs its term's coefficients and settings (models.effects)
 _EFFECT_NEEDS: dict[str, tuple[str, ...]] = {"position_ripple": ("n",)}
-_EFFECT_SETTINGS: dict[str, tuple[str, ...]] = {
-    "position_ripple": ("n",), "thermal_drift": ("coordinate", "form"), "backlash": ("tau",),
-    "stribeck": ("vs", "delta"), "presliding": ("x0",),
-}
 
 
 def _show(v: Any, limit: int = 60) -> str:
@@ -147,7 +144,7 @@ def _effects(where: str, effects: Any) -> None:
                 _number(f"{where}: {field}", v, *rng)
         need = _EFFECT_NEEDS.get(name, ())
         if e.get("model") == TAG:  # the diagnosis reads these back (kukaid diagnose, effects_torque)
-            need = COEFFICIENTS[name] + _EFFECT_SETTINGS.get(name, ())
+            need = COEFFICIENTS[name] + EFFECTS[name].settings
         for k in need:
             if k not in e:
                 raise ParamFileError(f"{where}: missing field effects.{name}.{k}")
@@ -224,16 +221,84 @@ def save_params(path: str | Path, d: dict) -> None:
     write_text_atomic(path, json.dumps(d, indent=2, sort_keys=False) + "\n")
 
 
-def model_from_params(d: dict) -> AxisModel:
-    """Build the :class:`AxisModel` a (validated) parameter dictionary describes."""
-    inert = d["inertial"]
-    rigid = RigidBody(Izz=float(inert["Izz"]), Mx=float(inert.get("Mx", 0.0)), My=float(inert.get("My", 0.0)),
-                      offset=float(d.get("offset", 0.0)))
+def model_from_params(d: dict, joint: str = "revolute") -> JointTorqueModel:
+    """The :class:`~kukaid.models.torque.JointTorqueModel` of a (validated) parameter dictionary.
+
+    Mx is a parameter when the file has it or its fit had gravity (a fit with ``--gravity none``
+    has none, and a refit adds none); Mx and My never on a prismatic ``joint``.  Effects written
+    by ``kukaid diagnose`` become effect terms (gravity_sine and torque_offset the rigid body's My
+    and offset); the others are kept in ``stored_effects`` and named in ``ignored_effects``."""
+    fr, inert = d.get("friction") or {}, d.get("inertial") or {}
+    kind = fr.get("model", "stribeck")
+    lin: dict[str, float] = {"Fc": float(fr.get("Fc", 0.0)), "Fv": float(fr.get("Fv", 0.0))}
+    if kind == "stribeck":
+        lin["Fs"] = float(fr.get("Fs", lin["Fc"]))
+    lin["Izz"] = float(inert.get("Izz", 0.0))
+    gravity = (d.get("provenance") or {}).get("gravity")
+    if joint == "revolute" and ("Mx" in inert or (gravity is not None and gravity != "none")):
+        lin["Mx"] = float(inert.get("Mx", 0.0))
+    if joint == "revolute" and "My" in inert:
+        lin["My"] = float(inert["My"])
+    if "offset" in d:
+        lin["offset"] = float(d["offset"])
     ms = d.get("maxwell_slip")
-    return AxisModel(
-        rigid=rigid,
-        friction=friction_from_dict(d["friction"]),
-        maxwell_slip=MaxwellSlip(ms["k"], ms["W"]) if ms else None,
-        qd_thr=float((d.get("mode_switch") or {}).get("qd_thr", 0.0017)),
-        effects=dict(d.get("effects") or {}),
-    )
+    m = JointTorqueModel(kind, lin, float(fr.get("vs", 0.04)), float(fr.get("delta", 1.0)),
+                         maxwell_slip=MaxwellSlip(ms["k"], ms["W"]) if ms else None,
+                         zeta0=tuple(float(x) for x in ms["zeta0"]) if ms and "zeta0" in ms else None,
+                         qd_thr=float((d.get("mode_switch") or {}).get("qd_thr", 0.0017)),
+                         stored_effects=dict(d.get("effects") or {}))
+    for name, e in m.stored_effects.items():
+        if not isinstance(e, dict) or e.get("model") != TAG or name not in EFFECTS:
+            m.ignored_effects.append(name)
+        elif EFFECTS[name].native:
+            lin.setdefault(EFFECTS[name].native, float(e.get(EFFECTS[name].native, 0.0)))
+        else:
+            m.effects.append(EffectTerm(name, *EFFECTS[name].from_params(e)))
+    return m
+
+
+def model_sections(m: JointTorqueModel, digits: int | None = None) -> dict[str, Any]:
+    """The sections of the base terms (friction, inertial, offset, maxwell_slip, mode_switch),
+    values rounded to ``digits`` significant digits if given."""
+    r: Callable[[float], float] = (lambda x: float(f"{x:.{digits}g}")) if digits else float
+    out: dict[str, Any] = {"friction": {"model": m.friction_kind, **{k: r(m.value(k)) for k in TERMS["friction"]
+                                                                     if m.has(k)}},
+                           "inertial": {k: r(m.lin[k]) for k in TERMS["rigid_body"] if k in m.lin}}
+    if "offset" in m.lin:
+        out["offset"] = r(m.lin["offset"])
+    if m.maxwell_slip is not None:
+        out["maxwell_slip"] = {k: [r(x) for x in v] for k, v in m.maxwell_slip.to_dict(m.zeta0).items()}
+    out["mode_switch"] = {"qd_thr": m.qd_thr}
+    return out
+
+
+def model_to_params(m: JointTorqueModel, base: dict, added: Sequence[str] = ()) -> dict:
+    """A parameter dictionary: ``base`` with the values and effect terms of ``m``.
+
+    ``added`` names the effects a diagnosis added (native ones, My and offset, are stored in the
+    rigid body and recorded in ``effects`` with ``stored_as``).  A refit leaves Fs free; Fs below
+    Fc (data with no Stribeck rise) is stored as Fs = Fc, the file's Stribeck model having Fs >= Fc."""
+    c = m.copy()
+    c.lin["Fc"], c.lin["Fv"] = max(c.lin["Fc"], 0.0), max(c.lin["Fv"], 0.0)
+    if c.friction_kind == "stribeck":
+        c.lin["Fs"] = max(c.lin["Fs"], c.lin["Fc"])
+    c.lin["Izz"] = max(c.lin["Izz"], 1e-12)
+    sec = model_sections(c)
+    d = copy.deepcopy(base)
+    for k in ("friction", "inertial"):
+        d[k] = {**(d.get(k) or {}), **sec[k]}
+    if "offset" in sec:
+        d["offset"] = sec["offset"]
+    d["uncertainty"] = {**(d.get("uncertainty") or {}),
+                        **{k: v for k, v in m.std.items() if "." not in k and math.isfinite(v)}}
+    effects = dict(d.get("effects") or {})
+    for name, eff in EFFECTS.items():
+        if eff.native and eff.native in m.lin and (name in effects or name in added):
+            effects[name] = {"model": TAG, eff.native: m.lin[eff.native],
+                             "std": {eff.native: m.std.get(eff.native, math.nan)},
+                             "stored_as": "inertial.My" if eff.native == "My" else "offset"}
+    for e in m.effects:
+        std = {k: m.std.get(e.key(k), math.nan) for k in e.coefs}
+        effects[e.name] = EFFECTS[e.name].describe(e.nl, e.coefs, std, m)
+    d["effects"] = jsonable(effects)
+    return d

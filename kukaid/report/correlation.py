@@ -14,7 +14,8 @@ from kukaid.report.layout import _new_figure
 def correlation_from_data(data: ReportData) -> tuple[list[str], np.ndarray] | None:
     """Correlation of the dynamic-model parameters from the Jacobian at the fitted parameters on the
     dynamic samples of the given friction, inertia and general logs (None if there are none)."""
-    from kukaid.identify.least_squares import rigid_columns
+    from kukaid.models.friction import friction_columns
+    from kukaid.models.joint import rigid_columns
     from kukaid.identify.stribeck_fit import natural_uncertainty, prediction_and_jac, SeparableResult
     from kukaid.identify.uncertainty import covariance
 
@@ -30,7 +31,7 @@ def correlation_from_data(data: ReportData) -> tuple[list[str], np.ndarray] | No
         if not m.any():
             continue
         names, R = rigid_columns(pr.q[m], pr.qdd[m], gravity, offset)
-        As.append(np.column_stack([R, np.sign(pr.qd[m]), pr.qd[m]]))
+        As.append(np.column_stack([R, friction_columns("coulomb-viscous", pr.qd[m])[1]]))
         vs.append(pr.qd[m])
         ys.append(pr.tau[m])
     if not As:

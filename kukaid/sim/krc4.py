@@ -52,6 +52,17 @@ class _Hold:
         return np.full(n, self.q), np.zeros(n), np.zeros(n)
 
 
+def trajectory_attrs(traj: Any) -> dict[str, Any]:
+    """A simulated log's record of the trajectory it ran: experiment kind and parameters."""
+    if traj is None:
+        return {}
+    attrs: dict[str, Any] = {"experiment": str(getattr(traj, "kind", "unknown"))}
+    params = getattr(traj, "params", None)
+    if params is not None:
+        attrs["trajectory"] = json.loads(json.dumps(params, default=str))
+    return attrs
+
+
 class _Spline:
     """Interpolation of IPO knots (t, q): a C2 cubic spline (continuous acceleration feedforward,
     as a KRC's fine interpolator), or linear ramps; holds the last value after the end.
@@ -425,9 +436,4 @@ class VirtualKRC4:
             "sample_time": self.cfg.sample_time,
             "kukaid_version": __version__,
         }
-        if traj is not None:
-            attrs["experiment"] = str(getattr(traj, "kind", "unknown"))
-            params = getattr(traj, "params", None)
-            if params is not None:
-                attrs["trajectory"] = json.loads(json.dumps(params, default=str))
-        return attrs
+        return {**attrs, **trajectory_attrs(traj)}

@@ -36,7 +36,7 @@ import numpy as np
 
 from kukaid.errors import KukaidError
 from kukaid.errors import SimConfigError
-from kukaid.sim.krc4 import _Spline
+from kukaid.sim.krc4 import _Spline, trajectory_attrs
 from kukaid.models.urdf import gear_ratios, load_model
 from kukaid.sim.robot_truth import NOMINAL_ARMATURE, RobotTruth, draw_truth
 
@@ -506,9 +506,4 @@ class VirtualRobotKRC4:
             "noise_sigma": self.noise_sigma.tolist(),
             "kukaid_version": __version__,
         }
-        if traj is not None:
-            attrs["experiment"] = str(getattr(traj, "kind", "unknown"))
-            params = getattr(traj, "params", None)
-            if params is not None:
-                attrs["trajectory"] = json.loads(json.dumps(params, default=str))
-        return attrs
+        return {**attrs, **trajectory_attrs(traj)}
