@@ -573,7 +573,8 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     if robot.n != len(params["axes"]):
         raise ParamFileError(f"{robot.path}: {robot.n} joints, the parameter file has {len(params['axes'])} axes")
     s = params["settings"]
-    settings = RobotFitSettings(**{k: s[k] for k in RobotFitSettings.__dataclass_fields__ if k in s})
+    # a file written before the ripple existed was fitted without it
+    settings = RobotFitSettings(**{"ripple": 0, **{k: s[k] for k in RobotFitSettings.__dataclass_fields__ if k in s}})
     n = robot.n
     m = motion(log, n, settings, filter_tau=False)
     Y, F = design(robot, m, settings, DriveModel.direct(n) if not settings.rotor else
