@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-WELL = 0.005  # relative standard deviation of a well-excited base parameter
+WELL = 0.005  # (corrected) relative standard deviation of a well-excited base parameter
 
 
 def run(cmd: list[str], kukaid: list[str]) -> str:
@@ -47,8 +47,10 @@ def main() -> None:
                     help="motor-side torques of drives with a coupled wrist (implies --rotor; fit with --torque-side "
                          "motor --coupling)")
     ap.add_argument("--repeat", type=int, default=6, help="periods of the fitted excitation (10 s each)")
+    ap.add_argument("--cutoff", type=float, default=None, help="fit's --cutoff, Hz (default: the fit's default)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
+    from kukaid.identify.robot_fit import well_excited
     from kukaid.logs import read_hdf5
 
     kk = shlex.split(a.kukaid)
@@ -58,6 +60,7 @@ def main() -> None:
     cfg = out / "sim.json"
     sim_cfg: dict = {"armature": bool(a.rotor or a.coupled)}
     fit_extra = ["--rotor-inertia"] if a.rotor or a.coupled else []
+    fit_extra += ["--cutoff", str(a.cutoff)] if a.cutoff is not None else []
     if a.coupled:
         C = np.zeros((6, 6))
         C[4, 3], C[5, 3], C[5, 4] = 0.2, -0.1, 0.15  # the A5 and A6 motors also turn with A4, A6's with A5
@@ -80,7 +83,7 @@ def main() -> None:
     ind, dep = np.asarray(bp["independent"], int), np.asarray(bp["dependent"], int)
     beta = pi[ind] + (np.asarray(bp["R"], float) @ pi[dep] if dep.size else 0.0)
     sig = np.asarray(bp["sigma"], float)
-    well = sig / np.abs(beta) < WELL
+    well = well_excited(p, WELL)
     res = {"folder": str(out), "base_parameters": len(beta), "well_excited": int(well.sum()),
            "physically_consistent": bool(p["metrics"].get("physically_consistent"))}
     for key in ("values", "least_squares"):
@@ -94,7 +97,7 @@ def main() -> None:
     fc = [abs(fr[f"A{j + 1}.Fc"] / tr["friction"]["Fc"][j] - 1) for j in range(n)]
     fv = [abs(fr[f"A{j + 1}.Fv"] / tr["friction"]["Fv"][j] - 1) for j in range(n)]
     res["friction"] = {"max_rel_error_Fc": max(fc), "max_rel_error_Fv": max(fv)}
-    res["validation"] = {ax: v["relative_error"] for ax, v in val["axes"].items()}
+    res["validation"] = {ax: v.get("rel_error", v.get("relative_error")) for ax, v in val["axes"].items()}
     res["validation_mean"] = val["mean_relative_error"]
     if a.json:
         print(json.dumps(res))

@@ -7,6 +7,7 @@ is predicted. The score is the mean over folds of the mean relative error over t
 different trajectory) is printed in a separate column for the record, never used to choose.
 
 Run: python benchmarks/robot_lwr4_selection.py [--json] [--blocks 3]
+     python benchmarks/robot_lwr4_selection.py --matrix   (defaults: every fit -> predict direction, per joint)
 """
 from __future__ import annotations
 
@@ -24,6 +25,11 @@ CANDIDATES = {
     "defaults": {},
     "no consistency (LS)": {"consistent": False},
     "no spring term": {"spring": False},
+    "ripple 2": {"ripple": 2},
+    "ripple 3": {"ripple": 3},
+    "ripple 4": {"ripple": 4},
+    "ripple 6": {"ripple": 6},
+    "ripple 8": {"ripple": 8},
     "cutoff 3 Hz": {"cutoff": 3.0},
     "no prior": {"prior_weight": 0.0},
     "prior 1e-2": {"prior_weight": 1e-2},
@@ -31,7 +37,7 @@ CANDIDATES = {
     "no reversal window": {"reversal_window": 0.0},
     "reversal window 1": {"reversal_window": 1.0},
     "cutoff 2 Hz": {"cutoff": 2.0},
-    "cutoff 10 Hz": {"cutoff": 10.0},
+    "cutoff 5 Hz": {"cutoff": 5.0},
     "tanh Coulomb 0.05": {"v_smooth": 0.05},
     "tanh Coulomb 0.1": {"v_smooth": 0.1},
     "Stribeck vs 0.1": {"friction": "stribeck", "vs": 0.1},
@@ -60,6 +66,7 @@ def main() -> int:
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--blocks", type=int, default=3)
     ap.add_argument("--only", nargs="*", default=None)
+    ap.add_argument("--matrix", action="store_true", help="defaults only: relative error per joint, every direction")
     a = ap.parse_args()
     if not DATA.is_dir():
         print(f"{DATA}: not found", file=sys.stderr)
@@ -69,6 +76,20 @@ def main() -> int:
     from kukaid.models.robot import RobotModel
 
     robot = RobotModel(DATA / "kuka_lwr4.urdf")
+    if a.matrix:
+        logs = {k: read_log(DATA / f"lwr4_{k}.csv") for k in (1, 2, 3)}
+        fits = {k: fit_robot([lg], robot, RobotFitSettings()) for k, lg in logs.items()}
+        out = []
+        for f, p in ((1, 3), (2, 3), (3, 1), (3, 2), (1, 2), (2, 1)):
+            v = validate_robot(fits[f], [logs[p]], robot)
+            e = [v["axes"][f"A{j}"]["relative_error"] for j in range(1, robot.n + 1)]
+            out.append({"fit": f"lwr4_{f}", "predict": f"lwr4_{p}", "axes": e, "mean": v["mean_relative_error"]})
+            if not a.json:
+                print(f"lwr4_{f} -> lwr4_{p}  " + " ".join(f"{100 * x:5.1f}" for x in e)
+                      + f"  mean {100 * v['mean_relative_error']:5.1f} %")
+        if a.json:
+            print(json.dumps(out, indent=1))
+        return 0
     l1, l3 = read_log(DATA / "lwr4_1.csv"), read_log(DATA / "lwr4_3.csv")
     rows = []
     for name, kw in CANDIDATES.items():

@@ -27,7 +27,7 @@ import click
 @click.option("--offset/--no-offset", default=None,
               help="Fit a constant torque offset [default: no; yes for a prismatic axis, whose gravity is constant].")
 @click.option("--elements", type=click.IntRange(1, 10), default=3, show_default=True, help="Maxwell-slip elements.")
-@click.option("--cutoff", type=float, default=None, help="Low-pass cut-off, Hz (default 5 Hz at KRC rates).")
+@click.option("--cutoff", type=float, default=None, help="Low-pass cut-off, Hz (default 5 Hz at KRC rates; --robot: 10 Hz, at most fs/10).")
 @click.option("--order", type=click.IntRange(1, 8), default=None, help="Butterworth order (default 3 at KRC rates).")
 @click.option("--qd-thr", type=float, default=None, help="Dynamic-mode velocity threshold, rad/s (0.0017).")
 @click.option("--edge", type=int, default=None, help="Samples trimmed at both ends (default 5 fs/cutoff).")

@@ -64,16 +64,20 @@ def _fmt(v):
 @click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
               help="sim: JSON overriding the simulator's truth and settings.")
 @click.option("--noise", type=float, help="sim: torque noise sigma, N·m [0.5].")
+@click.option("--program", type=click.Path(dir_okay=False, path_type=Path),
+              help="sim with a robot parameter file: a robot trajectory (`kukaid excite fourier --robot`) the "
+                   "other axes follow meanwhile [they stand at mid range].")
 @click.option("--enable-motion", is_flag=True, help="kvp: really move the robot (required with --backend kvp).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
 @click.option("--port", type=int, default=7000, show_default=True, help="kvp: KUKAVARPROXY port.")
-@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="kvp: axis to control.")
+@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True,
+              help="kvp, or a robot parameter file: axis to control.")
 def command(params_path: Path, output: Path, report: Path | None, as_json: bool, force: bool, damping: str,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
             duration: float, cycle: float, init_move: float, q_min: float | None, q_max: float | None,
             qd_max: float, qdd_max: float, tau_max: float, max_age: float, backend: str, operator: str, seed: int,
-            q0: float, grip: str | None, sim_config: Path | None, noise: float | None, enable_motion: bool, host: str, port: int,
-            axis: int) -> None:
+            q0: float, grip: str | None, sim_config: Path | None, noise: float | None, program: Path | None,
+            enable_motion: bool, host: str, port: int, axis: int) -> None:
     """Push the axis by hand without a force sensor: estimate the external torque Γr from the
     identified model (eqs. 12-14) and let an admittance (eqs. 15-16) with constant or adaptive
     damping (eqs. 17-22) move the reference, bounded and watched (position window, speed,
@@ -89,6 +93,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     import math
     import signal
 
+    import numpy as np
+
     from kukaid.control.loop import LoopConfig, run_admittance
     from kukaid.control.metrics import operator_metrics
     from kukaid.control.rbf import RBFConfig
@@ -97,7 +103,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.control.safety import SafetyLimits, check_motion_allowed
     from kukaid.errors import KukaidError
     from kukaid.jsonfile import jsonable
-    from kukaid.params import load_params, model_from_params
+    from kukaid.errors import ParamFileError
+    from kukaid.jsonfile import read_json
+    from kukaid.params import is_robot_params, load_params, model_from_params, validate_robot_params
     from kukaid.atomic import check_writable
     from kukaid_cli._util import check_outputs, check_suffix, progress, refuse_overwrite
 
@@ -108,10 +116,20 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if p is not None:
             refuse_overwrite(p, force)
             check_writable(p)  # before the robot moves: the record of the run must be writable
-    if backend == "kvp" and (sim_config is not None or noise is not None):
-        raise click.UsageError("--sim-config and --noise are for --backend sim")
-    params = load_params(params_path)
-    model = model_from_params(params)
+    if backend == "kvp" and (sim_config is not None or noise is not None or program is not None):
+        raise click.UsageError("--sim-config, --noise and --program are for --backend sim")
+    raw = read_json(params_path, ParamFileError)
+    robot_file = is_robot_params(raw)  # a whole robot (`kukaid fit --robot`): Γr of the axis from every axis
+    if robot_file:
+        from kukaid.control.robot_residual import RobotTorqueModel
+
+        params = validate_robot_params(raw, str(params_path))
+        model = RobotTorqueModel.from_params(params, str(params_path))
+        if not 1 <= axis <= model.n:
+            raise KukaidError(f"run-admittance: --axis {axis}: the robot of {params_path} has axes A1..A{model.n}")
+    else:
+        params = load_params(params_path)
+        model = model_from_params(params)
     zeta0 = (params.get("maxwell_slip") or {}).get("zeta0")
     rbf = None
     if damping == "adaptive":
@@ -151,22 +169,52 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if grip is not None and operator != "human":
             raise click.UsageError("--grip is for --operator human")
 
+        if robot_file:  # the six-axis virtual KR C4 of that robot, the other axes standing at their mid range
+            from kukaid.sim.robot_plant import RobotSimConfig, VirtualRobotKRC4
+
+            if sim_config is not None or noise is not None:
+                raise click.UsageError("--sim-config and --noise are for one-axis parameter files")
+            plant = VirtualRobotKRC4(RobotSimConfig(robot=params["robot"]["urdf"]), seed=seed)
+            cfg = dataclasses.replace(cfg, sample_time=plant.cfg.sample_time)
+            lo_, hi_ = (np.asarray(x, float) for x in (plant.model_nominal.lowerPositionLimit,
+                                                       plant.model_nominal.upperPositionLimit))
+            q_start = np.where(np.isfinite(lo_) & np.isfinite(hi_), 0.5 * (lo_ + hi_), 0.0)
+            prog = None
+            if program is not None:
+                from kukaid.excite.fourier import RobotTrajectory, load_trajectory
+
+                prog = load_trajectory(program)
+                if not isinstance(prog, RobotTrajectory) or tuple(prog.axes) != tuple(range(1, plant.n + 1)):
+                    raise KukaidError(f"{program}: not a trajectory of every axis A1..A{plant.n} of the robot")
+                q_start = np.asarray(prog.q[0], float).copy()
+            q_start[axis - 1] = math.radians(q0)
+        else:
+            if program is not None:
+                raise click.UsageError("--program is for a robot parameter file")
+            q_start = prog = None
+
         def sim_backend(cfg_):  # the same person and the same noise for every controller (paired)
             op_ = None if operator == "none" else make_operator(operator, seed, q0r + cfg_.init_move,
                                                                 t_start=cfg_.init_time + cfg_.init_rest + 0.8, grip=grip)
+            if robot_file:
+                return SimRobot(VirtualRobotKRC4(plant.cfg, seed=seed), q_start, op_, program=prog, axis=axis), op_
             return SimRobot(VirtualKRC4(scfg, seed=seed), q0r, op_), op_
 
         be, op = sim_backend(cfg)
-        attrs.update(seed=seed, operator=operator, operator_params=operator_params(op),
-                     sim_config=scfg.to_dict(), truth={**scfg.truth_params(), "axis": scfg.axis})
-        axis_id = scfg.axis
+        attrs.update(seed=seed, operator=operator, operator_params=operator_params(op))
+        if robot_file:
+            attrs.update(robot=params["robot"]["urdf"], truth=plant.truth.to_dict())
+            axis_id = axis
+        else:
+            attrs.update(sim_config=scfg.to_dict(), truth={**scfg.truth_params(), "axis": scfg.axis})
+            axis_id = scfg.axis
     else:
         from kukaid.robot import KvpRobot
         from kukaid.krc.kvp import KvpClient
 
         client = KvpClient(host=host, port=port, timeout=max(max_age, 2 * cycle))
         client.connect()
-        be = KvpRobot(client, axis=axis)
+        be = KvpRobot(client, axis=axis, n_axes=model.n if robot_file else 0)
         attrs.update(host=host, port=port)
         axis_id = axis
 

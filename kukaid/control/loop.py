@@ -28,6 +28,7 @@ import numpy as np
 from kukaid.control.admittance import Admittance, check_admittance
 from kukaid.control.filters import CausalButterworth
 from kukaid.control.rbf import RBFConfig, RBFDamping
+from kukaid.control.robot_residual import GuidedAxisResidual, RobotTorqueModel
 from kukaid.control.safety import ReferenceLimiter, SafetyLimits, Watchdog
 from kukaid.control.stability import CouplingConfig, CouplingFloor, OscillationMonitor, StabilityConfig
 from kukaid.control.torque_residual import DYNAMIC, RELEASE_SHARE, TorqueResidual
@@ -111,14 +112,18 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     record as it is made (to write it to disk while the robot moves).
     """
     cfg = config or LoopConfig()
-    est = TorqueResidual(model, sample_time=cfg.sample_time, threshold=cfg.threshold, release=cfg.release,
-                         zeta0=zeta0, u_window=cfg.u_window)
+    if isinstance(model, RobotTorqueModel):  # a robot model: Γr of the guided axis from every axis's motion
+        est = GuidedAxisResidual(model, backend.axis, sample_time=cfg.sample_time, threshold=cfg.threshold,
+                                 release=cfg.release_torque)
+    else:
+        est = TorqueResidual(model, sample_time=cfg.sample_time, threshold=cfg.threshold, release=cfg.release,
+                             zeta0=zeta0, u_window=cfg.u_window)
     samples = backend.start()
     try:
         if not samples:
             raise KukaidError("run-admittance: no measurement from the backend at start")
         for s in samples:
-            r = est.update(s.q, s.tau)
+            r = est.update(*_measured(s, est))
         limiter = ReferenceLimiter(cfg.limits, cfg.cycle, samples[-1].q)
         stab = cfg.stability
         if cfg.damping == "adaptive" and cfg.coupling.enabled:
@@ -154,6 +159,16 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     if est.ignored_effects:
         metrics["ignored_effects"] = est.ignored_effects
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
+
+
+def _measured(s: Any, est: Any) -> tuple[Any, Any]:
+    """What the estimator reads of a sample: every axis for a robot model, else the controlled axis."""
+    if isinstance(est, GuidedAxisResidual):
+        if s.q_all is None:
+            raise KukaidError("run-admittance: a robot parameter file needs the positions and torques of every axis, "
+                              "and the backend gives only the controlled one")
+        return s.q_all, s.tau_all
+    return s.q, s.tau
 
 
 _KEYS = ("time", "q", "tau", "tau_ext_true", "gamma_r", "gamma_p", "sigma", "sigma_dot", "q_cmd", "D",
@@ -219,7 +234,7 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
         except KukaidError as e:  # the controller stopped answering, refused a write, ...
             new, stop = [], str(e)
         for s in new:
-            r = est.update(s.q, s.tau, (s.t - last.t) if s.t > last.t else None)
+            r = est.update(*_measured(s, est), (s.t - last.t) if s.t > last.t else None)
             last = s
             dog.feed(s.t)
         if grip is not None and phase == PHASE_ADMITTANCE and new:

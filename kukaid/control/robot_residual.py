@@ -39,6 +39,8 @@ class RobotTorqueModel:
         standard parameter set with those base parameters (the URDF's values for the dependent
         ones; the torques are the same for every such set, and RNEA is faster), else the regressor.
     Fc, Fv, offset : (n,) Coulomb N·m, viscous N·m·s/rad, offset N·m.
+    k : (n,) spring N·m/rad; ripple : (n, 2, K) N·m, per joint the cos and sin coefficients of the
+        harmonics 1..K of its own angle (:class:`kukaid.identify.robot_fit.RobotFitSettings`).
     dFs, vs : (n,) Stribeck excess ``Fs - Fc`` N·m and velocity rad/s (optional).
     rotor : (n, n) joint-side rotor inertia matrix ``G^T diag(I_rotor) G`` kg·m² (or (n,) diagonal).
     """
@@ -46,7 +48,7 @@ class RobotTorqueModel:
     def __init__(self, model, *, pi: np.ndarray | None = None, base: tuple[np.ndarray, np.ndarray] | None = None,
                  Fc: Any = 0.0, Fv: Any = 0.0, offset: Any = 0.0, dFs: Any = 0.0, vs: Any = 0.05,
                  rotor: np.ndarray | None = None, dependent: tuple[np.ndarray, np.ndarray] | None = None,
-                 k: Any = 0.0, v_smooth: float = 0.0) -> None:
+                 k: Any = 0.0, v_smooth: float = 0.0, ripple: np.ndarray | None = None) -> None:
         import pinocchio as pin
 
         self._pin = pin
@@ -76,6 +78,9 @@ class RobotTorqueModel:
         vec = lambda x: np.broadcast_to(np.asarray(x, dtype=float), (n,)).copy()  # noqa: E731
         self.Fc, self.Fv, self.offset, self.dFs, self.vs = vec(Fc), vec(Fv), vec(offset), vec(dFs), vec(vs)
         self.k, self.v_smooth = vec(k), float(v_smooth)
+        # (n, 2, K): per joint, the cos and sin coefficients of harmonics 1..K of its own angle
+        self.ripple = None if ripple is None or np.size(ripple) == 0 else np.asarray(ripple, float).reshape(n, 2, -1)
+        self._harm = None if self.ripple is None else np.arange(1, self.ripple.shape[2] + 1)
         rot = np.zeros((n, n)) if rotor is None else np.asarray(rotor, dtype=float)
         self.rotor = np.diag(rot) if rot.ndim == 1 else rot
         self._stribeck = bool(np.any(self.dFs != 0))
@@ -95,6 +100,9 @@ class RobotTorqueModel:
         f = self.Fc * s + self.Fv * qd + self.offset
         if q is not None:
             f = f + self.k * q
+            if self.ripple is not None:
+                ph = np.outer(q, self._harm)
+                f = f + np.sum(self.ripple[:, 0] * np.cos(ph) + self.ripple[:, 1] * np.sin(ph), axis=1)
         if self._stribeck:
             f = f + self.dFs * s * np.exp(-(qd / self.vs) ** 2)
         return f
@@ -131,10 +139,13 @@ class RobotTorqueModel:
                 rotor = G.T @ np.diag([float(v or 0.0) for v in ir]) @ G
             dep = (np.asarray(bp["dependent"], int), np.asarray(bp["R"], float)) if "R" in bp else None
             st = params.get("settings") or {}
+            K = int(st.get("ripple") or 0)
+            ripple = np.array([[[float(vals.get(f"A{j}.ripple_{cs}{h}", 0.0)) for h in range(1, K + 1)]
+                                for cs in ("cos", "sin")] for j in range(1, n + 1)]) if K else None
             return cls(model, base=(np.asarray(bp["independent"], int), np.asarray(bp["values"], float)),
                        dependent=dep, Fc=get("Fc"), Fv=get("Fv"), offset=get("offset"), dFs=get("Fs-Fc"),
                        vs=float(fr.get("vs") or st.get("vs") or 0.05), rotor=rotor, k=get("k"),
-                       v_smooth=float(st.get("v_smooth") or 0.0))
+                       v_smooth=float(st.get("v_smooth") or 0.0), ripple=ripple)
         except (KeyError, TypeError, ValueError) as e:
             raise ParamFileError(f"{where}: not a usable kukaid.robot_params/1 file ({type(e).__name__}: {e})") from None
 
@@ -291,6 +302,58 @@ class RobotResidual:
         a = np.abs(gamma_r)
         self._detected = np.where(self._detected, a >= self.release, a >= self.threshold)
         return RobotResidualSample(gamma_r, pred, tau_f, y[:n], y[n:2 * n], y[2 * n:3 * n], self._detected)
+
+
+@dataclass(frozen=True)
+class GuidedAxisSample:
+    """One step of :class:`GuidedAxisResidual` for the admittance loop (the fields it reads, as
+    :class:`kukaid.control.torque_residual.ResidualSample`): ``gamma_r``, ``gamma_p``, ``tau_f`` N·m
+    and ``q`` rad, ``qd`` rad/s, ``qdd`` rad/s² of the guided axis, ``mode`` ("dynamic": the robot
+    model has one mode), ``detected``, and the whole vector step ``robot``."""
+
+    gamma_r: float
+    gamma_p: float
+    tau_f: float
+    q: float
+    qd: float
+    qdd: float
+    mode: str
+    detected: bool
+    robot: RobotResidualSample
+
+
+class GuidedAxisResidual:
+    """The admittance loop's estimator for one guided axis of a robot: the robot model's Γr of that
+    axis, from the positions and torques of every axis, so the torque the others' motion couples
+    into the guided axis is predicted rather than taken for a push.
+
+    Parameters
+    ----------
+    model : :class:`RobotTorqueModel`.
+    axis : the guided axis, 1..n.
+    sample_time, cutoff, order : as :class:`RobotResidual` (s, Hz).
+    threshold, release : detection on the guided axis's |Γr| with hysteresis, N·m.
+    """
+
+    ignored_effects: tuple[str, ...] = ()
+
+    def __init__(self, model: RobotTorqueModel, axis: int, sample_time: float = 0.012, threshold: float = 5.0,
+                 release: float | None = None, cutoff: float = 5.0, order: int = 3) -> None:
+        if not 1 <= int(axis) <= model.n:
+            raise KukaidError(f"robot residual: guided axis A{axis} is not an axis of the robot (A1..A{model.n})")
+        self.axis = int(axis)
+        th = np.full(model.n, math.inf)
+        th[self.axis - 1] = float(threshold)
+        rel = None if release is None else np.where(np.arange(model.n) == self.axis - 1, float(release), math.inf)
+        self.residual = RobotResidual(model, sample_time=sample_time, cutoff=cutoff, order=order, threshold=th,
+                                      release=rel)
+
+    def update(self, q: np.ndarray, tau: np.ndarray, dt: float | None = None) -> GuidedAxisSample:
+        """Feed the positions (rad) and torques (N·m) of every axis; the guided axis's step."""
+        r = self.residual.update(q, tau, dt)
+        j = self.axis - 1
+        return GuidedAxisSample(float(r.gamma_r[j]), float(r.gamma_p[j]), float(r.tau_f[j]), float(r.q[j]),
+                                float(r.qd[j]), float(r.qdd[j]), "dynamic", bool(r.detected[j]), r)
 
 
 def robot_residual(q: np.ndarray, tau: np.ndarray, model: RobotTorqueModel, sample_time: float,

@@ -20,12 +20,16 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Sample:
-    """One measurement: ``t`` s (robot clock), ``q`` rad, ``tau`` N·m, ``tau_ext_true`` N·m (NaN unknown)."""
+    """One measurement: ``t`` s (robot clock), ``q`` rad, ``tau`` N·m, ``tau_ext_true`` N·m (NaN unknown)
+    of the controlled axis; on a robot read as a whole, ``q_all`` rad and ``tau_all`` N·m of every
+    axis (A1..An; None otherwise)."""
 
     t: float
     q: float
     tau: float
     tau_ext_true: float = math.nan
+    q_all: np.ndarray | None = None
+    tau_all: np.ndarray | None = None
 
 
 class Block(list):

@@ -10,6 +10,8 @@ import math
 import time
 from typing import Any
 
+import numpy as np
+
 from kukaid.errors import ControllerError
 from kukaid.robot.interface import Block, Sample
 
@@ -30,14 +32,19 @@ class KvpRobot:
     sample boundary; timestamps are the host's monotonic clock snapped to the controller's
     sample grid, so the estimator differentiates over whole sample intervals rather than over
     network jitter.
+
+    ``n_axes`` > 0 (a robot model): every cycle also reads ``$TORQUE_AXIS_ACT[1..n_axes]``, and the
+    samples carry the positions (from the same ``$AXIS_ACT_MEAS``) and torques of A1..A``n_axes``
+    in ``q_all``, ``tau_all``.
     """
 
     name = "kvp"
 
     def __init__(self, client: Any, axis: int = 3, target: str = "KID_TGT", heartbeat: str = "KID_HB",
-                 run: str = "KID_RUN", sample_time: float = 0.012) -> None:
+                 run: str = "KID_RUN", sample_time: float = 0.012, n_axes: int = 0) -> None:
         self.client = client
         self.axis = int(axis)
+        self.n_axes = int(n_axes)
         self.target, self.heartbeat, self.run = target, heartbeat, run
         self.sample_time = float(sample_time)
         self._t0 = time.monotonic()
@@ -52,21 +59,30 @@ class KvpRobot:
         return time.monotonic() - self._t0
 
     def _read(self) -> Block:
+        q_all = tau_all = None
         try:
-            q_deg = self.client.read_axis("$AXIS_ACT_MEAS")[f"A{self.axis}"]
-            tau = self.client.read_real(f"$TORQUE_AXIS_ACT[{self.axis}]")
-        except ControllerError:
+            e6 = self.client.read_axis("$AXIS_ACT_MEAS")
+            q_deg = e6[f"A{self.axis}"]
+            if self.n_axes:
+                q_all = np.radians([e6[f"A{j}"] for j in range(1, self.n_axes + 1)])
+                tau_all = np.array([self.client.read_real(f"$TORQUE_AXIS_ACT[{j}]")
+                                    for j in range(1, self.n_axes + 1)])
+                tau = float(tau_all[self.axis - 1])
+            else:
+                tau = self.client.read_real(f"$TORQUE_AXIS_ACT[{self.axis}]")
+        except (ControllerError, KeyError):
             return Block()  # a missing reading: the watchdog decides
         q = math.radians(q_deg)
         prev = self._last
-        if prev is not None and q == prev.q and tau == prev.tau:
+        if prev is not None and q == prev.q and tau == prev.tau and (
+                q_all is None or (np.array_equal(q_all, prev.q_all) and np.array_equal(tau_all, prev.tau_all))):
             self._repeats += 1
             return Block()  # the same controller sample again
         k = round(self.now() / self.sample_time)  # the controller's sample count
         if self._k is not None and k <= self._k:
             k = self._k + 1
         self._k = k
-        self._last = Sample(k * self.sample_time, q, tau)
+        self._last = Sample(k * self.sample_time, q, tau, math.nan, q_all, tau_all)
         return Block([self._last])
 
     def _send(self, q: float) -> None:

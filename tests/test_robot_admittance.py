@@ -1,0 +1,168 @@
+"""run-admittance with a robot model: the guided axis's Γr from every axis's motion (six-axis virtual KR C4)."""
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pinocchio")
+
+from kukaid.control.loop import PHASE_ADMITTANCE, LoopConfig, run_admittance  # noqa: E402
+from kukaid.control.robot_residual import RobotTorqueModel  # noqa: E402
+from kukaid.control.safety import SafetyLimits  # noqa: E402
+from kukaid.errors import KukaidError  # noqa: E402
+from kukaid.robot import SimRobot  # noqa: E402
+from kukaid.sim.robot_plant import RobotSimConfig, VirtualRobotKRC4  # noqa: E402
+from robot_helpers import ROBOT  # noqa: E402
+
+AXIS = 3          # guided
+MOVING = 2        # another axis, moving along a program meanwhile
+PUSH = 8.0        # N·m on the guided axis from T_PUSH on for 1.5 s
+T_PUSH = 5.0
+
+
+class _Alone(RobotTorqueModel):
+    """The guided axis seen alone (the one-axis view): the other axes' velocities and accelerations unknown."""
+
+    def __call__(self, q, qd, qdd):
+        keep = np.zeros_like(qd)
+        keep[AXIS - 1] = 1.0
+        return super().__call__(q, qd * keep, qdd * keep)
+
+
+def _run(model_cls, push: bool):
+    sim = VirtualRobotKRC4(RobotSimConfig(robot=ROBOT), seed=3)
+    q0 = np.zeros(sim.n)
+    q0[1], q0[2] = -1.2, 1.4
+    t = np.arange(0.0, 20.0, 0.012)
+    q = np.tile(q0, (t.size, 1))
+    q[:, MOVING - 1] += 0.35 * np.sin(2 * np.pi * 0.6 * t) * np.minimum(t / 1.0, 1.0) ** 2
+    program = SimpleNamespace(t=t, q=q)
+    op = (lambda tt, qq, qd: PUSH if T_PUSH <= tt < T_PUSH + 1.5 else 0.0) if push else None
+    be = SimRobot(sim, q0, op, program=program, axis=AXIS)
+    cfg = LoopConfig(I=20.0, D=50.0, threshold=3.0, cycle=0.012, sample_time=sim.cfg.sample_time, duration=7.0,
+                     limits=SafetyLimits(q_min=q0[AXIS - 1] - 0.5, q_max=q0[AXIS - 1] + 0.5, tau_max=1e4))
+    model = model_cls.from_truth(sim.truth.to_dict())
+    return run_admittance(be, model, cfg)
+
+
+@pytest.fixture(scope="module")
+def quiet():
+    return _run(RobotTorqueModel, push=False)
+
+
+def test_guided_axis_residual_stays_near_zero_while_another_axis_moves(quiet):
+    d = quiet.data
+    ph = d["phase"] == PHASE_ADMITTANCE
+    assert quiet.status == "completed"
+    assert np.ptp(d["q"][ph]) < 1e-3            # the guided axis was not pushed: it stands
+    rms = float(np.sqrt(np.mean(d["gamma_r"][ph] ** 2)))
+    # what is left: Coulomb friction of the standing axis (sign of a differenced, quantised speed)
+    assert rms < 0.8 and not d["detected"][ph].any()
+    alone = _run(_Alone, push=False).data        # the one-axis view takes the coupling for a push
+    rms_alone = float(np.sqrt(np.mean(alone["gamma_r"][ph] ** 2)))
+    assert rms_alone > 2.5 * rms and alone["detected"][ph].any()
+
+
+def test_guided_axis_detects_a_push_and_follows_it():
+    run = _run(RobotTorqueModel, push=True)
+    d = run.data
+    t = d["time"]
+    during = (d["phase"] == PHASE_ADMITTANCE) & (t > T_PUSH + 0.3) & (t < T_PUSH + 1.5)
+    before = (d["phase"] == PHASE_ADMITTANCE) & (t < T_PUSH)
+    assert run.status == "completed"
+    assert d["detected"][during].mean() > 0.9 and not d["detected"][before].any()
+    assert np.median(d["gamma_r"][during]) == pytest.approx(PUSH, rel=0.2)
+    assert d["q"][-1] - d["q"][before][-1] > 0.05    # the axis moved with the push (positive Γr: positive q)
+
+
+def test_robot_model_needs_every_axis():
+    from kukaid.robot.interface import Block, Sample
+
+    class OneAxis:
+        axis = 1
+
+        def start(self):
+            return Block([Sample(0.0, 0.0, 0.0)])
+
+        def hold(self):
+            pass
+
+        def close(self):
+            pass
+
+    sim = VirtualRobotKRC4(RobotSimConfig(robot=ROBOT), seed=0)
+    with pytest.raises(KukaidError, match="every axis"):
+        run_admittance(OneAxis(), RobotTorqueModel.from_truth(sim.truth.to_dict()), LoopConfig(duration=1.0))
+    assert math.isfinite(sim.t)
+
+
+def test_kvp_robot_reads_every_axis_for_a_robot_model():
+    from kukaid.robot.kvp import KvpRobot
+
+    class Client:
+        def __init__(self):
+            self.k = 0
+            self.written = {}
+
+        def read_axis(self, name):
+            self.k += 1
+            return {f"A{j}": 10.0 * j + 0.01 * self.k for j in range(1, 7)}
+
+        def read_real(self, name):
+            j = int(name[name.index("[") + 1:-1])
+            return 100.0 + j + self.k
+
+        def write(self, name, value):
+            self.written[name] = value
+
+        def close(self):
+            pass
+
+    be = KvpRobot(Client(), axis=3, n_axes=6)
+    s = be.start()[-1]
+    assert s.q_all.shape == (6,) and s.tau_all.shape == (6,)
+    assert s.q == pytest.approx(math.radians(30.01)) and s.q_all[2] == s.q
+    assert s.tau == s.tau_all[2] == 104.0 and s.tau_all[0] == 102.0
+    one = KvpRobot(Client(), axis=3).start()[-1]
+    assert one.q_all is None and one.tau == 104.0
+
+
+@pytest.mark.slow
+def test_cli_with_a_robot_parameter_file_and_the_other_axes_moving(tmp_path):
+    """`kukaid run-admittance --params robot.json --program traj.json --axis 2`: the model fitted on a
+    capture of the virtual robot, the other axes on a Fourier excitation, a push on A2."""
+    import json
+
+    from click.testing import CliRunner
+
+    from kukaid.control.runlog import read_run
+    from kukaid.excite.fourier import fourier
+    from kukaid.identify.robot_fit import RobotFitSettings, fit_robot
+    from kukaid.models.robot import RobotModel
+    from kukaid.params import save_robot_params
+    from kukaid_cli.main import cli
+
+    fit_traj = fourier(ROBOT, harmonics=4, period=8.0, periods=2, iterations=0, starts=1)
+    log = VirtualRobotKRC4(RobotSimConfig(robot=ROBOT), seed=1).run(fit_traj)
+    save_robot_params(tmp_path / "robot.json", fit_robot([log], RobotModel(ROBOT), RobotFitSettings(rotor=True)))
+    fourier(ROBOT, harmonics=3, period=6.0, periods=2, iterations=0, starts=1, seed=5).to_json(tmp_path / "prog.json")
+    out = tmp_path / "run.h5"
+    r = CliRunner().invoke(cli, ["run-admittance", "--params", str(tmp_path / "robot.json"), "--program",
+                                 str(tmp_path / "prog.json"), "--axis", "2", "--q0", "-90", "--operator", "push",
+                                 "--seed", "4", "--duration", "6", "-o", str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    m = json.loads(r.output.strip().splitlines()[-1])
+    assert m["status"] == "completed"
+    log, control, _ = read_run(out)
+    ph = control["phase"] == PHASE_ADMITTANCE
+    te = log.tau_ext_true[:, 0]
+    push, quiet = ph & (np.abs(te) > 5.0), ph & (np.abs(te) < 0.5)
+    # a fitted model of a standing axis: its Coulomb friction (about 10 N·m on A2) is undetermined at rest
+    assert np.sqrt(np.mean(control["gamma_r"][quiet] ** 2)) < 0.15 * np.abs(np.median(te[push]))
+    assert control["detected"][quiet].mean() < 0.05
+    assert control["detected"][push].mean() > 0.9
+    assert np.median(control["gamma_r"][push]) == pytest.approx(np.median(te[push]), rel=0.15)
+    assert np.sign(m["displacement"]) == np.sign(np.median(te[push]))
