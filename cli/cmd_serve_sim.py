@@ -42,7 +42,8 @@ import click
 @click.option("--grip", type=click.Choice(["soft", "ordinary", "firm"]),
               help="--operator human: the person's grip [drawn from --seed].")
 @click.option("--operator-start", type=click.FloatRange(0.0, 86400.0), default=3.0, show_default=True,
-              help="--operator: seconds after the start when the hand begins.")
+              help="--operator: seconds after the start when the hand begins; with --follower, seconds after "
+                   "the run begins (KID_RUN TRUE), so the hand does not depend on when the client connects.")
 def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str | None, seed: int, sim_config: Path | None,
             noise: float | None, duration: float | None, speed: float, ring_axes: tuple[int, ...],
             truth_path: Path | None, force: bool, delay: float, q0: float | None, follower_window: tuple[float, float] | None,
@@ -97,7 +98,12 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
 
         if grip is not None and operator != "human":
             raise KukaidError("serve-sim: --grip is for --operator human")
-        sim.set_external_torque(make_operator(operator, seed, sim.q, t_start=sim.t + operator_start, grip=grip))
+
+        def hand_on() -> None:
+            sim.set_external_torque(make_operator(operator, seed, sim.q, t_start=sim.t + operator_start, grip=grip))
+
+        if not follower_window:
+            hand_on()
     follower = None
     if follower_window:
         from kukaid.krc.krl_follower import FollowerConfig
@@ -105,7 +111,8 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         follower = FollowerConfig(axis=axis, q_min_deg=follower_window[0], q_max_deg=follower_window[1],
                                   stale_ms=stale_ms)
     ring = RingLayout(axes=tuple(ring_axes) or (axis,))
-    source = SimSource(sim, axis=axis, trajectory=traj, speed=speed, ring=ring, follower=follower).start()
+    source = SimSource(sim, axis=axis, trajectory=traj, speed=speed, ring=ring, follower=follower,
+                       on_run=hand_on if operator is not None and follower else None).start()
     _run(source, sim, traj, host, port, duration, delay, truth_path, f"A{axis}")
 
 

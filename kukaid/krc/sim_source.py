@@ -46,6 +46,9 @@ class SimSource:
         program of ``kukaid run-admittance --backend kvp`` (``KID_TGT`` is followed only while
         ``KID_RUN`` is TRUE, clamped to the window; motion stops when ``KID_HB`` goes stale).
         Without it, every write of ``KID_TGT`` commands the axis directly.
+    on_run : optional function called (with no argument, the simulator paused) the first time
+        the follower's ``KID_RUN`` turns TRUE: serve-sim puts its simulated hand on the link then,
+        so the hand's timing counts from the run, not from how fast a client connects.
     temp_kelvin : serve ``$MOT_TEMP`` in kelvin (as KSS does) rather than °C.
     keep_truth : keep every 12 ms sample (for :meth:`truth`).
 
@@ -56,7 +59,7 @@ class SimSource:
 
     def __init__(self, sim: Any, axis: int = 3, trajectory: Any = None, speed: float = 1.0,
                  ring: Any = None, temp_kelvin: bool = True, keep_truth: bool = True,
-                 tick: float = 0.004, follower: Any = None) -> None:
+                 tick: float = 0.004, follower: Any = None, on_run: Any = None) -> None:
         self.sim = sim
         self.axis = int(axis)
         self.axes = tuple(int(a) for a in getattr(sim, "axes", None) or (self.axis,))
@@ -85,6 +88,7 @@ class SimSource:
         self._goal: float | None = None  # the target the robot program is moving to, rad
         self._ref, self._ref_v = 0.0, 0.0  # its motion: position rad, velocity rad/s
         self.follower = follower
+        self._on_run = on_run
         if follower is not None:
             self.globals.update({"KID_TGT": format_real(float(sim.q) * _DEG), "KID_HB": "0", "KID_RUN": "FALSE",
                                  "KID_STOP": "0", "KID_CLAMP": "0"})
@@ -222,6 +226,9 @@ class SimSource:
                 if run and g["KID_RUN"] != "TRUE":
                     self._hb_t = self._sim_now()
                     g["KID_STOP"] = "0"
+                    if self._on_run is not None:
+                        self._on_run()
+                        self._on_run = None
                 elif not run and g["KID_RUN"] == "TRUE":
                     g["KID_STOP"] = str(STOP_BY_PC)
                     self._halt()
