@@ -130,7 +130,6 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     else:
         params = load_params(params_path)
         model = model_from_params(params)
-    zeta0 = (params.get("maxwell_slip") or {}).get("zeta0")
     rbf = None
     if damping == "adaptive":
         dmin = 0.3 * D if D_min is None else D_min
@@ -234,7 +233,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
 
     try:
         with progress(cfg.init_time + cfg.init_rest + cfg.duration, f"run-admittance ({backend})") as update:
-            run = run_admittance(be, model, cfg, zeta0=zeta0, progress=update, on_row=on_row)
+            run = run_admittance(be, model, cfg, progress=update, on_row=on_row)
     except BaseException:
         writer.close()
         if writer.n == 0:  # nothing was recorded: no output file
@@ -256,7 +255,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             other = "adaptive" if damping == "constant" else "constant"
             cfg2 = dataclasses.replace(cfg, damping=other, rbf=None if other == "constant" else cfg.rbf)
             be2, op2 = sim_backend(cfg2)
-            run2 = run_admittance(be2, model, cfg2, zeta0=zeta0)
+            run2 = run_admittance(be2, model, cfg2)
             run2.metrics.update(operator_metrics(run2.data, op2, lam, scfg.sample_time))
             runs.append((f"{other} damping (D {D:g}{', for comparison' if other == 'constant' else ''})", run2.data,
                          run2.metrics))
