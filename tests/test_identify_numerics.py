@@ -153,6 +153,24 @@ def test_at_bounds_tolerance():
                     [(0.0, 50.0), (0.0, inf), (0.0, inf), (0.5, 2.0)], {"Fv": 0.1})
     assert [(b["name"], b["side"]) for b in out] == [("Fc", "lower"), ("delta", "upper")]
     assert at_bounds(["Fv"], [1e-10], [(0.0, inf)], {"Fv": 7.0})[0]["name"] == "Fv"
+    # an interior-point solution just inside an active bound, a distance its sigma cannot see
+    assert at_bounds(["delta"], [1.9999964], [(0.5, 2.0)], {"delta": 0.216})[0]["side"] == "upper"
+    assert at_bounds(["delta"], [1.9999964], [(0.5, 2.0)]) == []  # without sigma: 2.4e-6 of the width
+    assert at_bounds(["delta"], [1.99], [(0.5, 2.0)], {"delta": 0.216}) == []
+
+
+def test_auto_friction_keeps_stribeck_with_delta_at_its_limit(tmp_path):
+    """The simulator's truth has delta = 2.0 (as the paper's fit): the fit ends there, on the bound,
+    and the Stribeck rise is still determined, so the automatic choice keeps Stribeck."""
+    from kukaid import excite
+    from kukaid.identify.fit import fit_axis_auto
+    from kukaid.sim import SimConfig, VirtualKRC4
+
+    p = fit_axis_auto(friction=[VirtualKRC4(SimConfig(), seed=4).run(excite.generate("friction"))],
+                      inertia=[VirtualKRC4(SimConfig(), seed=14).run(excite.generate("inertia"))])
+    assert [b["name"] for b in p["metrics"]["at_bound"]] == ["delta"]  # 1.9999999 of 2
+    assert p["friction"]["model"] == "stribeck" and p["metrics"]["friction_model_choice"] == (
+        "stribeck: Fc, Fs-Fc and vs are inside their bounds (delta at a limit of its range 0.5-2)")
 
 
 def test_maxwell_slip_fit_synthetic():

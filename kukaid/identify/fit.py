@@ -35,7 +35,10 @@ from kukaid.params.axis import model_sections
 METHODS = ("joint", "staged")
 FRICTION_MODELS = ("auto", "stribeck", "coulomb-viscous")
 #: the Stribeck parameters beyond Coulomb-viscous (and Fc, which a degenerate Stribeck trades for them)
-_STRIBECK_EXTRA = ("Fc", "Fs", "Fs-Fc", "vs", "delta")
+#: Stribeck parameters that, on a bound, say the data do not determine the Stribeck rise (delta is a
+#: shape exponent within the paper's range 0.5-2; at its limit the rise is still there: the paper's
+#: own fit ends at delta = 2.0)
+_STRIBECK_EXTRA = ("Fc", "Fs", "Fs-Fc", "vs")
 
 
 def _model_options(joint: str, gravity: str | None, offset: bool | None) -> tuple[str, bool]:
@@ -251,15 +254,18 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
 def fit_axis_auto(**kw: Any) -> dict:
     """Stribeck when the data determine it, else the Coulomb-viscous model it contains.
 
-    The Stribeck model adds Fs, vs and delta to Coulomb-viscous.  When its fit leaves any of
-    them, or Fc, on a bound (Fc -> 0 with a wide Stribeck bump standing in for the Coulomb level,
-    Fs = Fc, delta at its limit), those parameters are not determined by the data and the nested
-    Coulomb-viscous model is fitted instead.  The choice and its reason are in
+    The Stribeck model adds Fs, vs and delta to Coulomb-viscous.  When its fit leaves Fc, Fs-Fc
+    or vs on a bound (Fc -> 0 with a wide Stribeck bump standing in for the Coulomb level, Fs = Fc,
+    a Stribeck velocity outside the speeds in the data), the rise is not determined by the data
+    and the nested Coulomb-viscous model is fitted instead.  delta at a limit of its range keeps
+    Stribeck (it is still reported as on a bound).  The choice and its reason are in
     ``metrics.friction_model_choice``."""
     st = fit_axis(friction_model="stribeck", **kw)
-    loose = [b["name"] for b in st["metrics"].get("at_bound", []) if b["name"] in _STRIBECK_EXTRA]
+    bound = [b["name"] for b in st["metrics"].get("at_bound", [])]
+    loose = [n for n in bound if n in _STRIBECK_EXTRA]
     if not loose:
-        st["metrics"]["friction_model_choice"] = "stribeck: every Stribeck parameter is inside its bounds"
+        shape = " (delta at a limit of its range 0.5-2)" if "delta" in bound else ""
+        st["metrics"]["friction_model_choice"] = f"stribeck: Fc, Fs-Fc and vs are inside their bounds{shape}"
         return st
     cv = fit_axis(friction_model="coulomb-viscous", **kw)
     cv["metrics"]["friction_model_choice"] = (f"coulomb-viscous: the Stribeck fit left {', '.join(loose)} on a bound "
