@@ -264,6 +264,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         plot_runs(runs, report, title=f"kukaid run-admittance ({damping} damping, {backend}{who}, "
                                       f"cycle {1000 * cfg.cycle:g} ms)")
     if as_json:
+        for w in run.metrics.get("warnings") or ():  # the JSON holds them too; a person reads stderr
+            click.echo(f"kukaid: warning: run-admittance: {w}", err=True)
         click.echo(json.dumps(jsonable(run.metrics)))
     else:
         m = run.metrics
@@ -274,6 +276,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                   "stability_events"):
             if k in m:
                 click.echo(f"  {k:28s} {_fmt(m[k])}")
+        for w in m.get("warnings") or ():
+            click.echo(f"  warning: {w}")
         click.echo(f"  -> {output}" + (f", {report}" if report else ""))
     if not run.status.startswith("completed"):
         click.echo(f"kukaid: error: run-admittance: {run.status} (the run log {output} holds every cycle until then)",

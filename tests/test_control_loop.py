@@ -113,3 +113,20 @@ def test_a_failing_controller_or_ctrl_c_holds_and_keeps_the_record(exc, reason):
     assert run.status == reason and be.holds >= 1
     assert run.data["time"][-1] == pytest.approx(3.0, abs=0.03)  # every cycle before the failure is kept
     assert "detection_delay" in run.metrics
+
+
+def test_run_metrics_warn_when_the_estimate_misses_what_happened():
+    """A true push the estimate did not see (Γr small, the hand at 80 N·m): not settled, and said."""
+    from kukaid.control.loop import run_metrics
+
+    n = 300
+    t = np.arange(n) * 0.012
+    te = np.where(np.arange(n) % 2 == 0, 80.0, -80.0)
+    data = dict(time=t, phase=np.full(n, PHASE_ADMITTANCE), gamma_r=np.zeros(n), tau_ext_true=te,
+                detected=np.zeros(n, bool), dynamic=np.ones(n, bool), q=np.zeros(n), sigma_dot=np.zeros(n),
+                D=np.full(n, 50.0))
+    m = run_metrics(data, LoopConfig())
+    assert not m["settled"] and len(m["warnings"]) == 2
+    assert "disagrees grossly" in m["warnings"][0]
+    quiet = run_metrics({**data, "tau_ext_true": np.zeros(n)}, LoopConfig())
+    assert quiet["settled"] and quiet["warnings"] == []

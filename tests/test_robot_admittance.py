@@ -166,3 +166,32 @@ def test_cli_with_a_robot_parameter_file_and_the_other_axes_moving(tmp_path):
     assert control["detected"][push].mean() > 0.9
     assert np.median(control["gamma_r"][push]) == pytest.approx(np.median(te[push]), rel=0.15)
     assert np.sign(m["displacement"]) == np.sign(np.median(te[push]))
+
+
+def test_a_persons_arm_guides_a3_of_the_six_axis_robot():
+    """The default operator (a person's arm, :mod:`kukaid.sim.human`) guiding A3 of the KR 6: its
+    hand (1.65 kg·m² about the axis for this person) is heavier than the link (about 0.7 kg·m²).
+    The hand's reaction -I qdd was a differenced, held term that fed the link's acceleration back one
+    evaluation late with gain I_hand / I_link > 1: the hand torque flipped sign every 4 ms sample at
+    its +-83 N·m limit and the axis never followed.  The plant now carries the hand's inertia."""
+    from kukaid.sim.human import make_human
+
+    sim = VirtualRobotKRC4(RobotSimConfig(robot=ROBOT), seed=0)
+    lo, hi = np.asarray(sim.model_nominal.lowerPositionLimit), np.asarray(sim.model_nominal.upperPositionLimit)
+    q0 = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
+    q0[AXIS - 1] = math.radians(30.0)
+    cfg = LoopConfig(I=20.0, D=50.0, cycle=0.012, sample_time=sim.cfg.sample_time, duration=3.0,
+                     limits=SafetyLimits(q_min=q0[AXIS - 1] - 1.5, q_max=q0[AXIS - 1] + 1.5))
+    op = make_human(0, q0[AXIS - 1] + cfg.init_move, cfg.init_time + cfg.init_rest + 0.8)
+    assert op.p.grip == "firm" and op.p.I_hand > 1.5 and op.p.distance > 0.3   # the person of the report
+    run = run_admittance(SimRobot(sim, q0, op, axis=AXIS), RobotTorqueModel.from_truth(sim.truth.to_dict()), cfg)
+    d, m = run.data, run.metrics
+    assert run.status == "completed" and m["warnings"] == []
+    held = (d["phase"] == PHASE_ADMITTANCE) & (d["time"] > op.p.t_grasp - sim.cfg.sample_time + 0.5)
+    te = d["tau_ext_true"][held]
+    assert np.max(np.abs(te)) < 0.6 * op.p.max_torque        # no limit cycle at the hand's torque limit
+    flips = np.mean(np.sign(te[1:]) != np.sign(te[:-1]))
+    assert flips < 0.05, flips                                  # the person pulls one way, towards the goal
+    assert m["displacement"] > 0.12                             # 3 s into a 3.4 s move of 0.34 rad
+    assert m["residual_rmse"] < 5.0                             # and Γr saw what the hand did
+    assert np.median(d["gamma_r"][held]) > 5.0

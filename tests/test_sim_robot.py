@@ -113,3 +113,32 @@ def test_gear_ratios_are_read_from_the_urdf_transmissions():
     assert r.shape == (model.nv,) and np.all(r > 0)
     if ROBOT == "kr6-r700-sixx":  # its transmissions (and a comment with "--" that XML parsers refuse)
         assert np.allclose(r, [121, 153, 121, 81, 81, 51])
+
+
+def test_an_inertia_carried_with_the_joint_is_in_the_dynamics_and_in_the_true_external_torque():
+    """``fn.inertia()`` (a hand moving with A3): the drive accelerates it too, and the hand's true
+    torque on the link is its reaction -I qdd, so the measured torque changes by minus that."""
+    t = np.arange(0, 3.0, 0.012)
+    traj = SimpleNamespace(t=t, q=0.3 * (1 - np.cos(2 * np.pi * t / 1.5)), axis=3, kind="custom")
+
+    def ext(tt, q, qd):
+        return np.zeros(q.size)
+
+    ext.inertia = lambda: np.array([0.0, 0.0, 1.2, 0.0, 0.0, 0.0])
+    logs = []
+    for fn in (None, ext):
+        sim = VirtualRobotKRC4(RobotSimConfig(robot=ROBOT, noise_rel=0.0), seed=0)
+        if fn is not None:
+            sim.set_external_torque(fn)
+        logs.append(sim.run(traj, settle=0.2))
+    bare, hand = logs
+    te = hand.tau_ext_true[:, 2]
+    qdd_ref = 0.3 * (2 * np.pi / 1.5) ** 2 * np.cos(2 * np.pi * hand.time / 1.5)
+    mid = (hand.time > 0.3) & (hand.time < 2.7)
+
+    def rms(x):
+        return float(np.sqrt(np.mean(x[mid] ** 2)))
+    # (apart from short transients where the velocity reverses through Coulomb friction)
+    assert rms(te + 1.2 * qdd_ref) < 0.25 * rms(1.2 * qdd_ref)      # the hand's reaction -I qdd
+    assert rms(hand.tau[:, 2] - bare.tau[:, 2] + te) < 0.2 * rms(te)  # which the drive supplies
+    assert np.allclose(np.delete(hand.tau_ext_true, 2, axis=1), 0.0)

@@ -274,8 +274,13 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     * ``mean_sq_dgamma`` N²m² and ``mean_cost`` (ξ = ½ dΓr² + ½ λ Γr², eq. 19) over the
       interaction (first to last detection), with λ = ``lam``;
     * ``false_detections``: detected cycles with |tau_ext_true| < 1 N·m before the first push;
-    * ``settled``: at the end the reference stands (|σ̇| < 1e-3 rad/s), no detection;
-    * ``displacement`` rad: q at the end minus q when the admittance started.
+    * ``settled``: at the end the reference stands (|σ̇| < 1e-3 rad/s), no detection, and (with
+      the truth) nobody pushes: the true external torque over the last 0.25 s is below the
+      detection threshold on average (a push still on but never detected is not a settled run);
+    * ``displacement`` rad: q at the end minus q when the admittance started;
+    * ``warnings`` (with the truth): the estimate disagreed grossly with what happened — Γr's
+      error RMS above both the threshold and half the true torque's RMS (a push the controller
+      did not see, or a simulation that went wrong), or a push still on at the end.
     """
     lam = cfg.rbf.lam if cfg.rbf is not None else RBFConfig().lam
     ph = data["phase"] == PHASE_ADMITTANCE
@@ -317,6 +322,21 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     out["displacement"] = float(data["q"][idx[-1]] - data["q"][idx[0]])
     out["peak_speed"] = float(np.max(np.abs(data["sigma_dot"][ph])))
     out["settled"] = bool(abs(data["sigma_dot"][idx[-1]]) < 1e-3 and not det[idx[-1]])
+    if has_truth:
+        warnings: list[str] = []
+        te_rms = float(np.sqrt(np.nanmean(te[ph] ** 2)))
+        if out["residual_rmse"] > max(cfg.threshold, 0.5 * te_rms):
+            warnings.append(f"the estimated external torque disagrees grossly with the true one: error RMS "
+                            f"{out['residual_rmse']:.3g} N·m against a true RMS of {te_rms:.3g} N·m "
+                            f"(the motion does not reflect what the operator did)")
+        tail = ph & (t >= t[idx[-1]] - 0.25)
+        te_end = float(np.nanmean(np.abs(te[tail])))
+        if te_end >= cfg.threshold:
+            out["settled"] = False
+            if not det[idx[-1]]:
+                warnings.append(f"at the end the true external torque is {te_end:.3g} N·m on average (last 0.25 s), "
+                                f"above the detection threshold {cfg.threshold:g} N·m, and nothing is detected")
+        out["warnings"] = warnings
     out["D_range"] = [float(np.min(data["D"][ph])), float(np.max(data["D"][ph]))]
     return out
 

@@ -50,13 +50,26 @@ class SimRobot:
         return self._block(self.sim.advance(self.sim.cfg.sample_time))
 
     def _on_axis(self, op: Any) -> Any:
-        """One axis's external torque as the six-axis simulator's vector."""
+        """One axis's external torque as the six-axis simulator's vector.
+
+        An operator with a hand of its own mass (``hand_inertia()``, a :class:`~kukaid.sim.human.HumanArm`)
+        has the simulator carry that inertia on the axis (``plant_inertia``): its differenced, held
+        ``-I qdd`` reaction is unstable on a link lighter than the hand (the KR 6's A3)."""
         j, n = self.axis - 1, self.q0.size
 
         def vec(t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
             out = np.zeros(n)
             out[j] = op(t, q[j], qd[j]) if callable(op) else float(op)
             return out
+
+        if callable(getattr(op, "hand_inertia", None)) and hasattr(op, "plant_inertia"):
+            op.plant_inertia = True
+
+            def inertia() -> np.ndarray:
+                out = np.zeros(n)
+                out[j] = op.hand_inertia()
+                return out
+            vec.inertia = inertia  # type: ignore[attr-defined]
         return vec
 
     def _others(self, t: float) -> np.ndarray:

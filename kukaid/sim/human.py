@@ -7,7 +7,8 @@ acts on the link through the arm's impedance around that intended motion::
 
 evaluated once per KRC sample (12 ms) by :meth:`kukaid.sim.VirtualKRC4.set_external_torque`
 (``fn(t, q, qd)``, positive torque towards positive q), with ``g`` the grip (0 -> 1 at the grasp,
-1 -> 0 at the release).  Axis-level values are the hand's endpoint values times r² (r the lever
+1 -> 0 at the release).  On the six-axis simulator (every 4 ms sample) the hand's inertia term is
+the simulator's: it carries ``g I_h`` with the link (see :class:`HumanArm`, ``plant_inertia``).  Axis-level values are the hand's endpoint values times r² (r the lever
 from the axis to the hand, 0.45-0.75 m on a KR 6's forearm).  Ranges and their sources:
 
 * endpoint stiffness of the relaxed arm holding a posture 100-600 N/m (Mussa-Ivaldi, Hogan &
@@ -123,7 +124,19 @@ class HumanArm:
 
     Attributes after a run: ``t_release`` (s, when the grip began to fade; NaN while holding),
     ``released_on_target`` (bool), ``K_peak`` (largest stiffness reached, N·m/rad).
+
+    The hand's own inertia ``I_hand`` moves with the link.  By default (``plant_inertia`` False,
+    the one-axis simulator) the arm adds its reaction ``-I_hand qdd`` to the torque, with ``qdd``
+    differenced between two evaluations: an explicit, one-evaluation-late coupling that is stable
+    only while the link (behind its servo) is heavier than the hand (the paper's A3, Izz 2.28
+    kg·m², against at most 1.7 kg·m² here).  A simulator that carries the hand's inertia in its
+    own dynamics (the six-axis :class:`~kukaid.sim.robot_plant.VirtualRobotKRC4`, whose A3 is about
+    0.7 kg·m²) sets ``plant_inertia`` True and adds :meth:`hand_inertia` to the axis's inertia
+    (exact, implicit); the torque is then the muscles' alone, ``g (K e + B ė)`` + noise.
     """
+
+    #: True: the simulator integrates :meth:`hand_inertia` with the link (no differenced ``qdd`` term)
+    plant_inertia: bool = False
 
     def __init__(self, params: HumanParams) -> None:
         if params.grip not in GRIPS:
@@ -142,6 +155,7 @@ class HumanArm:
         self._t_prev: float | None = None
         self._qd_prev = 0.0
         self._qdd = 0.0
+        self._g = 0.0
         self._effort = 0.0
         self._sdn = 0.0
         self._phase = float(self._rng.uniform(0.0, 2 * math.pi))
@@ -200,6 +214,10 @@ class HumanArm:
             g *= _ramp(1.0 - (t - self._decided) / p.release_time)
         return g
 
+    def hand_inertia(self) -> float:
+        """Inertia the hand adds to the link at the latest evaluation, kg·m²: grip times ``I_hand``."""
+        return self._g * self.p.I_hand
+
     def step(self, t: float, q: float, qd: float) -> float:
         """Torque of the hand on the link at ``t`` s for link position ``q`` rad, velocity ``qd``."""
         p = self.p
@@ -213,6 +231,7 @@ class HumanArm:
         # random streams advance every step, grasped or not (the same person, the same noise)
         w_sdn, w_tr = self._rng.standard_normal(2)
         g = self._grip(t, q, qd)
+        self._g = max(g, 0.0)
         if g <= 0.0:
             self._effort = 0.0
             return 0.0
@@ -225,7 +244,9 @@ class HumanArm:
         B = 2.0 * p.zeta * math.sqrt(K * p.I_hand)
         e_pos = (1 - a) * (x - q) + a * (x - qr)
         e_vel = (1 - a) * (v - qd) + a * (v - qdr)
-        tau = K * e_pos + B * e_vel - p.I_hand * self._qdd
+        tau = K * e_pos + B * e_vel
+        if not self.plant_inertia:
+            tau -= p.I_hand * self._qdd
         tau = min(max(tau, -p.max_torque), p.max_torque)
         alpha = min(dt / 0.1, 1.0)
         self._effort += alpha * (abs(tau) - self._effort)

@@ -20,6 +20,10 @@ built once; the plant, the servo's feedforward and the truth each own a data obj
   to ``quant_deg``, torque ($TORQUE_AXIS_ACT[i]) = motor torque at the axis + Gaussian noise of
   ``noise_rel`` times the joint's torque limit.
 
+An external-torque function (a person's hand, :meth:`VirtualRobotKRC4.set_external_torque`) is
+evaluated every sample and held; the inertia its hand moves with a joint (``fn.inertia()``) is
+added to that joint's inertia, so the hand's reaction ``-I qdd`` is the present acceleration's.
+
 The measured torque is therefore ``M qdd + C qd + g + F - tau_ext`` + noise: the residual
 ``Γr = Γp - Γm`` of a perfect robot model equals the external torque.  A one-axis trajectory
 (:class:`kukaid.excite.Trajectory`) moves its axis while the others stay locked where they are.
@@ -350,7 +354,14 @@ class VirtualRobotKRC4:
 
     def set_external_torque(self, tau: Any) -> None:
         """External joint torques (N·m, one per axis), or ``fn(t, q, qd) -> torques`` evaluated once
-        per sample period and held in between."""
+        per sample period and held in between.
+
+        A function may carry ``fn.inertia() -> kg·m² per axis``: inertia that moves rigidly with the
+        joints (a person's hand), asked right after each evaluation of ``fn`` and added to the joints'
+        inertia until the next (implicit: the hand's reaction ``-I qdd`` is the one of the present
+        acceleration, not a differenced, held one, which goes unstable on a link lighter than the
+        hand).  ``tau_ext_true`` is then the hand's whole torque on the link, ``fn - I qdd``.
+        """
         self._tau_ext = tau if callable(tau) else self._vec(tau, "external torque")
 
     # -- running -------------------------------------------------------------------------------
@@ -382,8 +393,15 @@ class VirtualRobotKRC4:
         tt = (t0 + np.arange(m + 1)) * self.dt
         qref, vff, aff = self._eval_ref(tt)
         te = self._tau_ext
+        carried = None  # inertia moving with the joints (a hand), kg·m² per axis
         if callable(te):
-            te = self._vec(te(self.t, self.q, self.qd), "external torque function's value")
+            fn = te
+            te = self._vec(fn(self.t, self.q, self.qd), "external torque function's value")
+            if callable(getattr(fn, "inertia", None)):
+                carried = self._vec(fn.inertia(), "external torque function's inertia")
+                if np.any(carried < 0):
+                    raise KukaidError(f"robot sim: the external torque function's inertia must be >= 0, "
+                                      f"got {carried.tolist()}")
         h = self.dt
         P = self._servo_params()
         arm = tr.armature
@@ -397,13 +415,16 @@ class VirtualRobotKRC4:
         rec = np.arange(first, m, self._per)
         out_q = np.empty((rec.size, self.n))
         out_tau = np.empty((rec.size, self.n))
+        out_te = np.tile(te, (rec.size, 1))
         k = 0
         nxt = rec[0] if rec.size else -1
         aba, grav = pin.aba, pin.computeGeneralizedGravity
         step, integrate = _get_kernels()
         coupled, M_rot = self._coupled, self._M_rotor
+        if carried is not None:
+            P[_ARM] += carried
         if coupled:  # the rotor inertia is a full matrix: mass matrix and solve instead of ABA
-            P[_ARM] = 0.0
+            P[_ARM] = 0.0 if carried is None else carried
             model.armature = np.zeros(self.n)
             crba, nle, solve = pin.crba, pin.nonLinearEffects, np.linalg.solve
         for i in range(m):
@@ -420,6 +441,8 @@ class VirtualRobotKRC4:
             if i == nxt:
                 out_q[k] = q
                 out_tau[k] = tau
+                if carried is not None:
+                    out_te[k] = te - carried * a
                 k += 1
                 nxt = rec[k] if k < rec.size else -1
         model.armature = arm
@@ -432,7 +455,7 @@ class VirtualRobotKRC4:
             "q": self._quantise(out_q),
             "tau": self._measured(out_tau + self.noise_sigma * self._rng.standard_normal(out_tau.shape)),
             "q_cmd": qref[rec + 1],
-            "tau_ext_true": np.tile(te, (rec.size, 1)),
+            "tau_ext_true": out_te,
         }
 
     def _servo_params(self) -> np.ndarray:
