@@ -14,7 +14,7 @@ import click
               help="Inertia experiment log (sine); repeatable.")
 @click.option("--presliding", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Pre-sliding experiment log (Maxwell-slip elements).")
-@click.option("--axis", type=int, default=None, help="Axis number (default: the logs' only axis, or 3).")
+@click.option("--axis", type=int, default=None, help="Axis number (default: the logs' only axis; required for a log of several).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Parameter file to write (JSON, kukaid.params/1).")
 @click.option("--method", type=click.Choice(["joint", "staged"]), default="joint", show_default=True,

@@ -20,7 +20,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from kukaid import __version__
-from kukaid.errors import FitError
+from kukaid.errors import FitError, OptionError
 from kukaid.identify.dynamic import fit_dynamic
 from kukaid.identify.filtering import preprocess, settings_reason
 from kukaid.identify.least_squares import fit_rigid
@@ -30,7 +30,7 @@ from kukaid.identify.uncertainty import correlation_factor, covariance
 from kukaid.jsonfile import jsonable
 from kukaid.models.friction import MaxwellSlip
 from kukaid.models.torque import JointTorqueModel
-from kukaid.params.axis import model_sections
+from kukaid.params.axis import IZZ_MIN, model_sections
 
 METHODS = ("joint", "staged")
 FRICTION_MODELS = ("auto", "stribeck", "coulomb-viscous")
@@ -120,7 +120,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     logs : general logs (AxisLog or paths) fitted jointly.
     friction, inertia : logs of the paper's friction (sweep) and inertia (sine) experiments.
     presliding : log of the pre-sliding experiment (Maxwell-slip), optional.
-    axis : KUKA axis number (default: the logs' only axis, or A3).
+    axis : KUKA axis number (default: the logs' only axis; required when a log holds several).
     method : "joint" (default) or "staged" (the paper's eqs. 2-5; needs friction sweeps).
     friction_model : "stribeck", "coulomb-viscous" or "auto": Stribeck when the data determine it,
         else Coulomb-viscous (:func:`fit_axis_auto`).
@@ -134,6 +134,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     Raises
     ------
     FitError : missing data, bad option, failed solve; nothing is written by this function.
+    OptionError : no ``axis`` for a log of several axes.
     """
     if method not in METHODS:
         raise FitError(f"method must be one of {METHODS}, got '{method}'")
@@ -152,6 +153,10 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
 
     def prep(x: Any) -> Any:
         lg = _load(x, ro)
+        if axis is None and len(lg.axes) > 1:  # never a silent choice among several axes
+            names = ", ".join(f"A{a}" for a in lg.axes)
+            raise OptionError(f"{lg.attrs.get('source_file', 'log')}: holds axes {names}; choose one with --axis "
+                              "(or fit them all together with --robot URDF)")
         raw_logs.append(lg)
         return preprocess(lg, **pre)
 
@@ -221,7 +226,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     if "Izz" not in rigid:
         raise FitError("Izz cannot be identified from these logs: add an --inertia log or a general log "
                        "with accelerations")
-    if rigid["Izz"] <= 0:
+    if rigid["Izz"] < IZZ_MIN:
         raise FitError(f"fitted Izz = {rigid['Izz']:.4g} is not positive: the data do not excite the inertia")
     model = _model(fp, rigid, friction_model)
     model.qd_thr = qd_thr_used
