@@ -12,7 +12,7 @@ class KukaidError(Exception):
 
 class OptionError(KukaidError):
     """A usage error the library finds: options that contradict each other or the data given
-    (no --axis for a log of several axes, a log whose axes are not the robot's).  Exit status 2."""
+    (no --axis for a log of several axes, options that apply only without another).  Exit status 2."""
 
     exit_code = 2
 
