@@ -114,3 +114,35 @@ def test_bad_bound_option(logs, tmp_path, bound, msg):
     r = CliRunner().invoke(cli, ["fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]),
                                  "--bound", bound, "-o", str(out)])
     assert r.exit_code != 0 and msg in r.output and not out.exists()
+
+
+@pytest.mark.parametrize("args,msg", [
+    (["--robot", "kr6-r700-sixx", "--friction", "{f}"], "option --friction does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--axis", "2"], "option --axis does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--method", "staged"], "option --method does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--no-offset"], "option --offset/--no-offset does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--bound", "vs=0:1"], "option --bound does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--stribeck-vs", "0.1"], "--stribeck-vs needs --friction-model stribeck"),
+    (["--robot", "kr6-r700-sixx", "--friction-model", "auto"], "--friction-model auto does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--coupling", "{f}"], "--coupling needs --torque-side motor or --rotor-inertia"),
+    (["--stribeck-vs", "0.1"], "option --stribeck-vs needs --robot"),
+    (["--torque-side", "joint"], "option --torque-side needs --robot"),
+    (["--rotor-inertia"], "option --rotor-inertia needs --robot"),
+    (["--elements", "2"], "option --elements needs --presliding"),
+])
+def test_option_of_the_other_fit_is_a_usage_error(logs, tmp_path, args, msg):
+    """Options that the chosen fit (single-axis or --robot) does not use are refused, not ignored."""
+    d, p = logs
+    out = tmp_path / "params.json"
+    args = [a.format(f=p["friction"]) for a in args]
+    r = CliRunner().invoke(cli, ["fit", str(p["inertia"]), *args, "-o", str(out)])
+    assert r.exit_code == 2, r.output
+    assert msg in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert not out.exists()
+
+
+def test_staged_without_friction_logs_is_a_usage_error(logs, tmp_path):
+    d, p = logs
+    out = tmp_path / "params.json"
+    r = CliRunner().invoke(cli, ["fit", str(p["inertia"]), "--method", "staged", "-o", str(out)])
+    assert r.exit_code == 2 and "the staged method needs --friction logs" in r.stderr and not out.exists()

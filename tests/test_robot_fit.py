@@ -192,7 +192,7 @@ def test_cli_fit_robot_validate_and_report(tmp_path, kr6):
     assert r.exit_code == 1 and r.stderr.startswith("kukaid: error:") and "no such robot" in r.stderr
     assert "Traceback" not in r.stderr and not (tmp_path / "q.json").exists()
     r = run(cli, ["fit", str(csv), "--prior-weight", "0.1", "-o", str(tmp_path / "q.json")])
-    assert r.exit_code == 2 and "need --robot" in r.stderr
+    assert r.exit_code == 2 and "--prior-weight needs --robot" in r.stderr
 
 
 @pytest.mark.skipif(not LWR4.is_dir(), reason="real LWR4+ data (../shared/datasets/lwr4) not present")

@@ -134,7 +134,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     Raises
     ------
     FitError : missing data, bad option, failed solve; nothing is written by this function.
-    OptionError : no ``axis`` for a log of several axes.
+    OptionError : no ``axis`` for a log of several axes; the staged method without friction logs.
     """
     if method not in METHODS:
         raise FitError(f"method must be one of {METHODS}, got '{method}'")
@@ -178,7 +178,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     max_lag = int(math.ceil(2 * all_preps[0].settings["fs"] / all_preps[0].settings["cutoff"]))
     rigid: dict[str, float] = {}
     if method == "staged" and not fr:
-        raise FitError("the staged method needs --friction logs (paired constant-velocity sweeps)")
+        raise OptionError("the staged method needs --friction logs (paired constant-velocity sweeps)")
     staged_at_bound: list[dict] = []
     if fr and method == "staged":
         fp, fstd, fmse, status, (pts, u, staged_at_bound) = staged_friction(fr, friction_model, bounds)
