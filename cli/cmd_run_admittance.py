@@ -14,6 +14,16 @@ def _fmt(v):
     return str(v)
 
 
+def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> None:
+    """The position window and the simulated start, in the options' unit (degrees): usage errors."""
+    where = "--q-min/--q-max" + ("; sim default --q0 -/+ 90" if defaulted and q0 is not None else "")
+    if not lo < hi:
+        raise click.UsageError(f"position window [{lo:.4g}, {hi:.4g}] degrees ({where}) must have q_min < q_max")
+    if q0 is not None and not lo <= q0 <= hi:
+        raise click.UsageError(f"start position --q0 {q0:.4g} degrees is outside the position window "
+                               f"[{lo:.4g}, {hi:.4g}] degrees ({where})")
+
+
 @click.command("run-admittance")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Parameter file from `kukaid fit` (the identified model used for Γr).")
@@ -142,11 +152,13 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         raise click.UsageError("--D-min/--D-max are for --damping adaptive")
 
     if backend == "sim":
-        lo = math.radians(q0 - 90.0 if q_min is None else q_min)
-        hi = math.radians(q0 + 90.0 if q_max is None else q_max)
+        lo_deg = q0 - 90.0 if q_min is None else q_min
+        hi_deg = q0 + 90.0 if q_max is None else q_max
     else:
-        lo = math.radians(q_min) if q_min is not None else -math.inf
-        hi = math.radians(q_max) if q_max is not None else math.inf
+        lo_deg = q_min if q_min is not None else -math.inf
+        hi_deg = q_max if q_max is not None else math.inf
+    _check_window(lo_deg, hi_deg, q0 if backend == "sim" else None, q_min is None or q_max is None)
+    lo, hi = math.radians(lo_deg), math.radians(hi_deg)
     limits = SafetyLimits(q_min=lo, q_max=hi, qd_max=math.radians(qd_max), qdd_max=math.radians(qdd_max),
                           tau_max=tau_max, max_age=max_age)
     check_motion_allowed(backend, enable_motion, limits)

@@ -85,6 +85,29 @@ def test_a_real_robot_moves_only_when_asked_and_bounded(files, tmp_path, args, m
     assert not (tmp_path / "r.h5").exists()
 
 
+@pytest.mark.parametrize("args, message", [
+    (["--q-min", "50", "--q-max", "10"], "position window [50, 10] degrees (--q-min/--q-max) must have q_min < q_max"),
+    (["--q-min", "40", "--q-max", "60"], "start position --q0 30 degrees is outside the position window [40, 60] degrees"),
+    (["--q-min", "200"], "position window [200, 120] degrees"),
+])
+def test_position_window_is_checked_in_degrees(files, tmp_path, args, message):
+    """The window is given in degrees: its errors say degrees, rounded, and are usage errors."""
+    out = tmp_path / "r.h5"
+    r = _run(["--params", files / "params.json", "--duration", "1", "-o", out, *args])
+    assert r.exit_code == 2 and message in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.output
+    assert "rad" not in r.stderr and not out.exists()
+
+
+def test_safety_errors_name_the_window_in_degrees():
+    from kukaid.control.safety import ReferenceLimiter, SafetyLimits
+    from kukaid.errors import LimitError
+
+    with pytest.raises(LimitError, match=r"window \[50, 10\] degrees"):
+        SafetyLimits(q_min=math.radians(50), q_max=math.radians(10))
+    with pytest.raises(LimitError, match=r"start position 30 degrees is outside the window \[40, 60\] degrees"):
+        ReferenceLimiter(SafetyLimits(q_min=math.radians(40), q_max=math.radians(60)), 0.012, math.radians(30))
+
+
 @pytest.fixture
 def kvp_robot(files, kukaid_cmd, tmp_path):
     """`kukaid serve-sim` in its own process, as a controller is: a virtual KR C4 at 30 degrees
