@@ -74,10 +74,10 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
     friction_model = friction_model or "auto"
     decimate = decimate or 1
 
-    from kukaid.errors import FitError
     from kukaid.identify import fit_axis, format_table
+    from kukaid.identify.stribeck_fit import check_bound
     from kukaid.params import save_params
-    from kukaid_cli._util import check_outputs, check_suffix
+    from kukaid_cli._util import check_outputs, check_suffix, usage_errors
 
     check_suffix(output, ".json")
     check_outputs([output], [*logs, *friction, *inertia, presliding])
@@ -93,11 +93,13 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
             lo, hi = rng.split(":", 1)
             bounds[name.strip()] = (float(lo) if lo.strip() else None, float(hi) if hi.strip() else None)
         except ValueError:
-            raise FitError(f"--bound '{b}': expected NAME=LO:HI, e.g. vs=0:0.1") from None
+            raise click.BadParameter(f"'{b}': expected NAME=LO:HI, e.g. vs=0:0.1", param_hint="--bound") from None
     known = ("Izz", "Mx", "My", "offset", "Fc", "Fv", "Fs-Fc", "vs", "delta")
-    for name in bounds:
+    for name, (lo, hi) in bounds.items():
         if name not in known:
-            raise FitError(f"--bound {name}: no such parameter (parameters: {', '.join(known)})")
+            raise click.BadParameter(f"{name}: no such parameter (parameters: {', '.join(known)})", param_hint="--bound")
+        with usage_errors("--bound"):
+            check_bound(name, lo, hi)
     params = fit_axis(logs=list(logs), friction=list(friction), inertia=list(inertia), presliding=presliding,
                       axis=axis, method=method, friction_model=friction_model, gravity=gravity, offset=offset,
                       n_elements=elements, bounds=bounds or None, cutoff=cutoff, order=order, qd_thr=qd_thr,

@@ -79,9 +79,10 @@ def test_broken_parameter_file_is_one_line_and_no_output(files, tmp_path, edit, 
     (["--enable-motion", "--q-min", "10", "--q-max", "50", "--D", "0"], "D = 0"),
 ])
 def test_a_real_robot_moves_only_when_asked_and_bounded(files, tmp_path, args, message):
-    # nothing listens on this port: refusals come before any connection
+    # nothing listens on this port: refusals come before any connection; missing or out-of-range
+    # options are usage errors (exit status 2)
     r = _run(["--params", files / "params.json", "--backend", "kvp", "--port", "9", "-o", tmp_path / "r.h5", *args])
-    assert r.exit_code == 1 and message in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert r.exit_code == 2 and message in r.output and len(r.output.strip().splitlines()) == 1, r.output
     assert not (tmp_path / "r.h5").exists()
 
 
@@ -243,7 +244,7 @@ def test_krl_follower_program(tmp_path):
     r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "-10", "--q-max", "45", "-o", tmp_path])
     assert r.exit_code == 1 and "already exists" in r.output
     r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "50", "--q-max", "45", "-o", tmp_path / "x"])
-    assert r.exit_code == 1 and "window" in r.output and not (tmp_path / "x").exists()
+    assert r.exit_code == 2 and "window" in r.output and not (tmp_path / "x").exists()  # a usage error
 
 
 def test_a_killed_run_leaves_the_measured_log(files, tmp_path, kukaid_cmd):

@@ -105,26 +105,32 @@ def default_bounds(y: np.ndarray, v: np.ndarray, lin_names: Sequence[str]) -> di
     return {k: b.get(k, (-INF, INF)) for k in (*lin_names, "dF", "vs", "delta")}
 
 
+def check_bound(name: str, lo: float | None, hi: float | None) -> tuple[float, float]:
+    """One user bound as (lo, hi) floats (None: unbounded), checked: numbers, lo <= hi, vs and delta
+    above 0, Izz raised to the parameter file's minimum.  Raises :class:`FitError`."""
+    lo = -INF if lo is None else float(lo)
+    hi = INF if hi is None else float(hi)
+    if math.isnan(lo) or math.isnan(hi):
+        raise FitError(f"bounds for {name}: a bound is not a number")
+    if not lo <= hi:
+        raise FitError(f"bounds for {name}: lower {lo:g} is above upper {hi:g}")
+    if name == "Izz":  # a parameter file holds Izz >= IZZ_MIN: the fit never goes below
+        if hi < IZZ_MIN:
+            raise FitError(f"bounds for {name}: the upper bound must be >= {IZZ_MIN:g} (the parameter file's "
+                           f"minimum), got {hi:g}")
+        lo = max(lo, IZZ_MIN)
+    if name in ("vs", "delta") and not lo > 0:
+        raise FitError(f"bounds for {name}: the lower bound must be > 0, got {lo:g}")
+    return lo, hi
+
+
 def _merge_bounds(defaults: dict, bounds: dict | None) -> dict[str, tuple[float, float]]:
     out = dict(defaults)
     for k, (lo, hi) in (bounds or {}).items():
         key = "dF" if k in ("Fs-Fc", "dF") else k
         if key not in out:
             continue  # a parameter of another stage of the fit
-        lo = -INF if lo is None else float(lo)
-        hi = INF if hi is None else float(hi)
-        if math.isnan(lo) or math.isnan(hi):
-            raise FitError(f"bounds for {k}: a bound is not a number")
-        if not lo <= hi:
-            raise FitError(f"bounds for {k}: lower {lo} is above upper {hi}")
-        if key == "Izz":  # a parameter file holds Izz >= IZZ_MIN: the fit never goes below
-            if hi < IZZ_MIN:
-                raise FitError(f"bounds for {k}: the upper bound must be >= {IZZ_MIN:g} (the parameter file's "
-                               f"minimum), got {hi}")
-            lo = max(lo, IZZ_MIN)
-        if key in ("vs", "delta") and not lo > 0:
-            raise FitError(f"bounds for {k}: the lower bound must be > 0, got {lo}")
-        out[key] = (lo, hi)
+        out[key] = check_bound(k, lo, hi)
     return out
 
 
