@@ -272,34 +272,42 @@ def fit_axis_auto(**kw: Any) -> dict:
     return cv
 
 
+def _relative(value: float, std: float) -> str:
+    """The standard deviation relative to the estimate, "x.xx %", or "-" when the estimate is not
+    distinguishable from 0 (|value| below its standard deviation, or 0): a percentage of ~0 is noise."""
+    if not (math.isfinite(value) and math.isfinite(std)) or value == 0 or abs(value) < std:
+        return "-"
+    return f"{100 * std / abs(value):.2f} %"
+
+
 def format_table(params: dict) -> str:
     """A short text table of the parameters with their standard deviations."""
     unc = params.get("uncertainty", {})
     rows = []
     if (params.get("provenance") or {}).get("joint") == "prismatic":
         units = {"Fc": "N", "Fs": "N", "vs": "m/s", "delta": "-", "Fv": "N*s/m", "Izz": "kg (mass)",
-                 "Mx": "N", "My": "N", "offset": "N"}
+                 "Mx": "N", "My": "N", "offset": "N", "k": "N/m", "W": "N", "mse": "N^2"}
     else:
         units = {"Fc": "N*m", "Fs": "N*m", "vs": "rad/s", "delta": "-", "Fv": "N*m*s/rad", "Izz": "kg*m^2",
-                 "Mx": "N*m", "My": "N*m", "offset": "N*m"}
+                 "Mx": "N*m", "My": "N*m", "offset": "N*m", "k": "N*m/rad", "W": "N*m", "mse": "N^2m^2"}
     items = [(k, v) for k, v in params["friction"].items() if k != "model"]
     items += list(params["inertial"].items())
     if "offset" in params:
         items.append(("offset", params["offset"]))
     for k, v in items:
         s = unc.get(k)
-        rel = f"{100 * s / abs(v):.2f} %" if s is not None and v else ""
+        rel = _relative(v, s) if s is not None else ""
         rows.append(f"  {k:<7} {v:>12.5g}  +- {s:<10.3g} {rel:>9}  {units.get(k, '')}" if s is not None
                     else f"  {k:<7} {v:>12.5g}")
     ms = params.get("maxwell_slip")
     if ms:
-        rows.append("  Maxwell-slip k = " + ", ".join(f"{x:.4g}" for x in ms["k"]) + " N*m/rad")
-        rows.append("               W = " + ", ".join(f"{x:.4g}" for x in ms["W"]) + " N*m")
+        rows.append("  Maxwell-slip k = " + ", ".join(f"{x:.4g}" for x in ms["k"]) + f" {units['k']}")
+        rows.append("               W = " + ", ".join(f"{x:.4g}" for x in ms["W"]) + f" {units['W']}")
     m = params.get("metrics", {})
     extra = []
     for key, label in (("friction_fit_mse", "friction fit MSE"), ("torque_prediction_mse", "torque MSE")):
         if key in m and m[key] is not None:
-            extra.append(f"{label} {m[key]:.4g} N^2m^2")
+            extra.append(f"{label} {m[key]:.4g} {units['mse']}")
     if "ipopt_status" in m:
         extra.append(f"IPOPT: {m['ipopt_status']}")
     tail = []
