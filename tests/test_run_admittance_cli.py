@@ -350,3 +350,17 @@ def test_adaptive_damping_with_a_firm_grip_through_the_cli(files, tmp_path, seed
     assert np.max(control["D_grip"][adm]) > 80.0 and np.all(control["D"][adm] >= control["D_grip"][adm] - 1e-9)
     assert np.max(np.abs(log.tau[:, 0])) < 100.0
     assert m["end_error"] < 0.1
+
+
+def test_a_closed_stdout_pipe_ends_quietly_and_keeps_the_log(files, tmp_path, kukaid_cmd):
+    """`kukaid run-admittance ... | head -5`: the reader has gone when the summary is printed; the
+    command stops without a message (exit status 141, as a command killed by SIGPIPE) and the run
+    log is complete."""
+    out = tmp_path / "run.h5"
+    proc = subprocess.Popen([*kukaid_cmd, "run-admittance", "--params", str(files / "params.json"), "--duration", "1",
+                             "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader is gone before the first line
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 141 and err == b"", err.decode()
+    log, control, metrics = read_run(out)
+    assert metrics["status"] == "completed" and log.n_samples > 0 and control["gamma_r"].size == log.n_samples
