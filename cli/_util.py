@@ -33,6 +33,22 @@ def progress(total: float, label: str) -> Iterator[Callable[[float], None]]:
         yield update
 
 
+@contextmanager
+def usage_errors(option: str | None = None, types: tuple[type[KukaidError], ...] = (KukaidError,)) -> Iterator[None]:
+    """Errors the library finds in values that come from options alone are usage errors (exit 2):
+    ``with usage_errors("--noise"): ...`` around the code that checks them, never around reading a
+    file (errors found in data files stay exit 1).  ``types``: only these errors."""
+    try:
+        yield
+    except types as e:
+        msg, ctx = str(e), click.get_current_context(silent=True)
+        if ctx is not None and msg.startswith(f"{ctx.info_name}: "):  # the usage error names the command
+            msg = msg[len(ctx.info_name) + 2:]
+        if option is not None:
+            raise click.BadParameter(msg, param_hint=option) from None
+        raise click.UsageError(msg) from None
+
+
 def refuse_overwrite(path: Path, force: bool) -> None:
     """Recorded data is never lost: refuse to replace an existing log unless --force."""
     if path.exists() and not force:

@@ -145,7 +145,8 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     """
     from kukaid.excite import AxisLimits, generate
     from kukaid.atomic import write_texts_atomic
-    from kukaid_cli._util import check_outputs, check_suffix
+    from kukaid.errors import TrajectoryError
+    from kukaid_cli._util import check_outputs, check_suffix, usage_errors
 
     check_suffix(output, ".json")
     check_outputs([output], [limits_file])
@@ -160,8 +161,10 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     over = {k: v for k, v in (("q_min_deg", q_min_deg), ("q_max_deg", q_max_deg), ("qd_max_deg", qd_max_deg),
                               ("qdd_max_deg", qdd_max_deg)) if v is not None}
     if over:
-        limits = AxisLimits.from_dict(over, base=limits, where="limit options")
-    traj = generate(kind, axis=axis, limits=limits, **kwargs)
+        with usage_errors():
+            limits = AxisLimits.from_dict(over, base=limits, where="limit options")
+    with usage_errors(types=(TrajectoryError,)):  # a generator option out of range (a broken limit stays 1)
+        traj = generate(kind, axis=axis, limits=limits, **kwargs)
     files = {output: traj.json_text()}
     msg = f"{output}: {kind} trajectory of A{axis}, {traj.n_samples} samples, {traj.duration:.2f} s"
     if krl_dir is not None:

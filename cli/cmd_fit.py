@@ -14,7 +14,8 @@ import click
               help="Inertia experiment log (sine); repeatable.")
 @click.option("--presliding", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Pre-sliding experiment log (Maxwell-slip elements).")
-@click.option("--axis", type=int, default=None, help="Axis number (default: the logs' only axis, or 3).")
+@click.option("--axis", type=int, default=None,
+              help="Axis number (default: the logs' only axis; required for a log of several; not with --robot).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Parameter file to write (JSON, kukaid.params/1).")
 @click.option("--method", type=click.Choice(["joint", "staged"]), default="joint", show_default=True,
@@ -26,7 +27,8 @@ import click
               help="Gravity terms: Mx cos q, + My sin q, or none [default: cos; none for a prismatic axis].")
 @click.option("--offset/--no-offset", default=None,
               help="Fit a constant torque offset [default: no; yes for a prismatic axis, whose gravity is constant].")
-@click.option("--elements", type=click.IntRange(1, 10), default=3, show_default=True, help="Maxwell-slip elements.")
+@click.option("--elements", type=click.IntRange(1, 10), default=3, show_default=True,
+              help="Maxwell-slip elements (with --presliding).")
 @click.option("--cutoff", type=float, default=None, help="Low-pass cut-off, Hz (default 5 Hz at KRC rates; --robot: 10 Hz, at most fs/10).")
 @click.option("--order", type=click.IntRange(1, 8), default=None, help="Butterworth order (default 3 at KRC rates).")
 @click.option("--qd-thr", type=float, default=None, help="Dynamic-mode velocity threshold, rad/s (0.0017).")
@@ -64,19 +66,18 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
     one); the parameter file's metrics hold the same (at_bound, warnings, single_axis_adequate)."""
     import math
 
+    _check_applicable(click.get_current_context(), robot is not None, presliding is not None)
     if robot is not None:
         _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, prior_weight, torque_side,
                    stribeck_vs, rotor_inertia, coupling)
         return
-    if prior_weight is not None or rotor_inertia or torque_side != "joint" or coupling is not None:
-        raise click.UsageError("--prior-weight, --torque-side, --rotor-inertia and --coupling need --robot")
     friction_model = friction_model or "auto"
     decimate = decimate or 1
 
-    from kukaid.errors import FitError
     from kukaid.identify import fit_axis, format_table
+    from kukaid.identify.stribeck_fit import check_bound
     from kukaid.params import save_params
-    from kukaid_cli._util import check_outputs, check_suffix
+    from kukaid_cli._util import check_outputs, check_suffix, usage_errors
 
     check_suffix(output, ".json")
     check_outputs([output], [*logs, *friction, *inertia, presliding])
@@ -92,11 +93,13 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
             lo, hi = rng.split(":", 1)
             bounds[name.strip()] = (float(lo) if lo.strip() else None, float(hi) if hi.strip() else None)
         except ValueError:
-            raise FitError(f"--bound '{b}': expected NAME=LO:HI, e.g. vs=0:0.1") from None
+            raise click.BadParameter(f"'{b}': expected NAME=LO:HI, e.g. vs=0:0.1", param_hint="--bound") from None
     known = ("Izz", "Mx", "My", "offset", "Fc", "Fv", "Fs-Fc", "vs", "delta")
-    for name in bounds:
+    for name, (lo, hi) in bounds.items():
         if name not in known:
-            raise FitError(f"--bound {name}: no such parameter (parameters: {', '.join(known)})")
+            raise click.BadParameter(f"{name}: no such parameter (parameters: {', '.join(known)})", param_hint="--bound")
+        with usage_errors("--bound"):
+            check_bound(name, lo, hi)
     params = fit_axis(logs=list(logs), friction=list(friction), inertia=list(inertia), presliding=presliding,
                       axis=axis, method=method, friction_model=friction_model, gravity=gravity, offset=offset,
                       n_elements=elements, bounds=bounds or None, cutoff=cutoff, order=order, qd_thr=qd_thr,
@@ -104,6 +107,48 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
     save_params(output, params)
     click.echo(format_table(params))
     click.echo(f"{output}: parameters written", err=True)
+
+
+#: options of the single-axis fit only, and of the robot fit (--robot) only; the others
+#: (-o, --friction-model, --cutoff, --order, --decimate) apply to both
+_AXIS_ONLY = ("friction", "inertia", "presliding", "axis", "method", "gravity", "offset", "elements", "qd_thr",
+              "edge", "reversal_window", "diff", "bound")
+_ROBOT_ONLY = ("prior_weight", "torque_side", "stribeck_vs", "rotor_inertia", "coupling")
+
+
+def _check_applicable(ctx: click.Context, with_robot: bool, with_presliding: bool) -> None:
+    """An option given that the chosen fit does not use is a usage error, not silently ignored."""
+    from click.core import ParameterSource
+
+    given = {p.name: _flag(p) for p in ctx.command.params
+             if ctx.get_parameter_source(p.name) not in (None, ParameterSource.DEFAULT, ParameterSource.DEFAULT_MAP)}
+    p = ctx.params
+    if with_robot:
+        for name in _AXIS_ONLY:
+            if name in given:
+                raise click.UsageError(f"option {given[name]} does not apply with --robot (it is for the single-axis "
+                                       "fit; the robot fit takes every axis of the logs LOG...)")
+        if p["friction_model"] == "auto" and "friction_model" in given:
+            raise click.UsageError("option --friction-model auto does not apply with --robot "
+                                   "(give coulomb-viscous or stribeck)")
+        if "stribeck_vs" in given and p["friction_model"] != "stribeck":
+            raise click.UsageError("option --stribeck-vs needs --friction-model stribeck (the Coulomb-viscous "
+                                   "model has no Stribeck velocity)")
+        if "coupling" in given and p["torque_side"] != "motor" and not p["rotor_inertia"]:
+            raise click.UsageError("option --coupling needs --torque-side motor or --rotor-inertia (joint-side "
+                                   "torques without rotors do not use the drive coupling)")
+        return
+    for name in _ROBOT_ONLY:
+        if name in given:
+            raise click.UsageError(f"option {given[name]} needs --robot (it applies only to the robot fit)")
+    if "elements" in given and not with_presliding:
+        raise click.UsageError("option --elements needs --presliding (the Maxwell-slip elements are fitted "
+                               "on the pre-sliding log)")
+
+
+def _flag(param: click.Parameter) -> str:
+    flag = max(param.opts or [param.name], key=len)
+    return "/".join([flag, *getattr(param, "secondary_opts", [])])
 
 
 def _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, prior_weight, torque_side,

@@ -28,14 +28,14 @@ def command(axis: int, q_min: float, q_max: float, qd_max: float, axis_speed: fl
     speed limited by $VEL_AXIS, and motion stops when the PC's heartbeat stops.  Run it in T1
     first; the KRC's own monitoring stays in force.
     """
-    from kukaid.errors import KukaidError
     from kukaid.krc.krl_follower import FollowerConfig, krl_follower_files
-    from kukaid_cli._util import write_krl_files
+    from kukaid_cli._util import usage_errors, write_krl_files
 
     if not (qd_max > 0 and axis_speed > 0 and qd_max <= axis_speed):
-        raise KukaidError(f"krl-follower: need 0 < --qd-max ({qd_max}) <= --axis-speed ({axis_speed}) deg/s")
-    cfg = FollowerConfig(axis=axis, q_min_deg=q_min, q_max_deg=q_max, vel_pct=100.0 * qd_max / axis_speed,
-                         acc_pct=acc_pct, stale_ms=stale_ms)
+        raise click.UsageError(f"need 0 < --qd-max ({qd_max:g}) <= --axis-speed ({axis_speed:g}) deg/s")
+    with usage_errors():  # the options alone
+        cfg = FollowerConfig(axis=axis, q_min_deg=q_min, q_max_deg=q_max, vel_pct=100.0 * qd_max / axis_speed,
+                             acc_pct=acc_pct, stale_ms=stale_ms)
     files = krl_follower_files(cfg)
     write_krl_files(outdir, files, force)
     click.echo(f"{outdir}: {', '.join(files)} (A{axis}, window [{q_min:g}, {q_max:g}] deg, "

@@ -61,8 +61,7 @@ def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q
     """
     from click.core import ParameterSource
 
-    from kukaid.errors import KukaidError
-    from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite
+    from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite, usage_errors
 
     # before anything is read or written: the output's format, that it is not the input, no overwrite
     check_suffix(output, *OUTPUT_FORMATS)
@@ -77,12 +76,16 @@ def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q
         given = [opt for name, opt in options.items()
                  if ctx.get_parameter_source(name) not in (None, ParameterSource.DEFAULT)]
         if given and not applies:
-            raise KukaidError(f"{source}: option {given[0]} is for {kind} sources")
+            raise click.UsageError(f"{source}: option {given[0]} is for {kind} sources")
 
     from kukaid.logs import read_log, write_csv, write_hdf5
 
     options = {}
     if is_mat:
+        from kukaid.logs.matlog import check_mat_options
+
+        with usage_errors():  # the options alone, before the file is read
+            check_mat_options(source, tau_scale, tau_scale_var, q_scale, time_scale, sample_time)
         options = dict(time=time_var, q=q_var, tau=tau_var, q_cmd=q_cmd_var, tau_scale=tau_scale,
                        tau_scale_var=tau_scale_var, q_scale=q_scale, time_scale=time_scale, sample_time=sample_time,
                        joint=joint, axis=_axes(source, axis))
@@ -101,13 +104,11 @@ def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q
 
 def _axes(source: Path, text: str) -> int | list[int]:
     """--axis: one axis number, or a comma-separated list of them."""
-    from kukaid.errors import KukaidError
-
     try:
         axes = [int(p) for p in str(text).split(",") if p.strip()]
     except ValueError:
-        raise KukaidError(f"{source}: --axis must be an axis number or a list such as 1,2,3; got {text!r}") from None
+        raise click.UsageError(f"{source}: --axis must be an axis number or a list such as 1,2,3; got {text!r}") from None
     if not axes:
-        raise KukaidError(f"{source}: --axis must name at least one axis")
+        raise click.UsageError(f"{source}: --axis must name at least one axis")
     return axes[0] if len(axes) == 1 and "," not in str(text) else axes
 

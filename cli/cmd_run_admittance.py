@@ -14,6 +14,16 @@ def _fmt(v):
     return str(v)
 
 
+def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> None:
+    """The position window and the simulated start, in the options' unit (degrees): usage errors."""
+    where = "--q-min/--q-max" + ("; sim default --q0 -/+ 90" if defaulted and q0 is not None else "")
+    if not lo < hi:
+        raise click.UsageError(f"position window [{lo:.4g}, {hi:.4g}] degrees ({where}) must have q_min < q_max")
+    if q0 is not None and not lo <= q0 <= hi:
+        raise click.UsageError(f"start position --q0 {q0:.4g} degrees is outside the position window "
+                               f"[{lo:.4g}, {hi:.4g}] degrees ({where})")
+
+
 @click.command("run-admittance")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Parameter file from `kukaid fit` (the identified model used for Γr).")
@@ -107,7 +117,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.jsonfile import read_json
     from kukaid.params import is_robot_params, load_params, model_from_params, validate_robot_params
     from kukaid.atomic import check_writable
-    from kukaid_cli._util import check_outputs, check_suffix, progress, refuse_overwrite
+    from kukaid_cli._util import check_outputs, check_suffix, progress, refuse_overwrite, usage_errors
 
     check_suffix(output, ".h5", ".hdf5")
     check_suffix(report, ".pdf")
@@ -126,7 +136,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         params = validate_robot_params(raw, str(params_path))
         model = RobotTorqueModel.from_params(params, str(params_path))
         if not 1 <= axis <= model.n:
-            raise KukaidError(f"run-admittance: --axis {axis}: the robot of {params_path} has axes A1..A{model.n}")
+            raise click.BadParameter(f"{axis}: the robot of {params_path} has axes A1..A{model.n}", param_hint="--axis")
     else:
         params = load_params(params_path)
         model = model_from_params(params)
@@ -135,23 +145,28 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         dmin = 0.3 * D if D_min is None else D_min
         dmax = 2.0 * D if D_max is None else D_max
         if not 0 < dmin <= D <= dmax:
-            raise KukaidError(f"run-admittance: need 0 < --D-min ({dmin}) <= --D ({D}) <= --D-max ({dmax})")
-        rbf = RBFConfig(D0=D, D_min=dmin, D_max=dmax)
+            raise click.UsageError(f"need 0 < --D-min ({dmin:g}) <= --D ({D:g}) <= --D-max ({dmax:g})")
+        with usage_errors():
+            rbf = RBFConfig(D0=D, D_min=dmin, D_max=dmax)
     elif D_min is not None or D_max is not None:
         raise click.UsageError("--D-min/--D-max are for --damping adaptive")
 
     if backend == "sim":
-        lo = math.radians(q0 - 90.0 if q_min is None else q_min)
-        hi = math.radians(q0 + 90.0 if q_max is None else q_max)
+        lo_deg = q0 - 90.0 if q_min is None else q_min
+        hi_deg = q0 + 90.0 if q_max is None else q_max
     else:
-        lo = math.radians(q_min) if q_min is not None else -math.inf
-        hi = math.radians(q_max) if q_max is not None else math.inf
-    limits = SafetyLimits(q_min=lo, q_max=hi, qd_max=math.radians(qd_max), qdd_max=math.radians(qdd_max),
-                          tau_max=tau_max, max_age=max_age)
-    check_motion_allowed(backend, enable_motion, limits)
-    # LoopConfig checks the admittance's stability (also at D-max) and the detection thresholds
-    cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
-                     sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf, limits=limits)
+        lo_deg = q_min if q_min is not None else -math.inf
+        hi_deg = q_max if q_max is not None else math.inf
+    _check_window(lo_deg, hi_deg, q0 if backend == "sim" else None, q_min is None or q_max is None)
+    lo, hi = math.radians(lo_deg), math.radians(hi_deg)
+    with usage_errors():  # values of options alone
+        limits = SafetyLimits(q_min=lo, q_max=hi, qd_max=math.radians(qd_max), qdd_max=math.radians(qdd_max),
+                              tau_max=tau_max, max_age=max_age)
+        check_motion_allowed(backend, enable_motion, limits)
+        # LoopConfig checks the admittance's stability (also at D-max) and the detection thresholds
+        cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
+                         sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf,
+                         limits=limits)
 
     attrs = {"params_file": str(params_path), "backend": backend}
     if backend == "sim":
@@ -161,7 +176,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
 
         scfg = load_sim_config(sim_config) if sim_config else SimConfig()
         if noise is not None:
-            scfg = scfg.replace(noise_sigma=noise)
+            with usage_errors("--noise"):
+                scfg = scfg.replace(noise_sigma=noise)
         if abs(scfg.sample_time - 0.012) > 1e-9:
             cfg = dataclasses.replace(cfg, sample_time=scfg.sample_time)
         q0r = math.radians(q0)

@@ -59,12 +59,11 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
     """
     import math
 
-    from kukaid.errors import KukaidError
     from kukaid.atomic import check_writable
     from kukaid.krc.krl_logger import RingLayout
     from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
     from kukaid.krc.sim_source import SimSource
-    from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite
+    from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite, usage_errors
 
     if truth_path is not None:  # checked now, not after the session
         check_suffix(truth_path, ".h5", ".hdf5")
@@ -85,19 +84,20 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         return
     cfg = load_sim_config(sim_config) if sim_config else SimConfig()
     if noise is not None:
-        cfg = cfg.replace(noise_sigma=noise)
+        with usage_errors("--noise"):
+            cfg = cfg.replace(noise_sigma=noise)
     if traj is not None:
         axis = int(getattr(traj, "axis", axis) or axis)
     sim = VirtualKRC4(cfg, seed=seed, axis=axis)
     if q0 is not None:
         if traj is not None:
-            raise KukaidError("serve-sim: --q0 is for a robot without --trajectory (it starts where the trajectory does)")
+            raise click.UsageError("--q0 is for a robot without --trajectory (it starts where the trajectory does)")
         sim.reset(math.radians(q0))
     if operator is not None:
         from kukaid.sim.operator import make_operator
 
         if grip is not None and operator != "human":
-            raise KukaidError("serve-sim: --grip is for --operator human")
+            raise click.UsageError("--grip is for --operator human")
 
         def hand_on() -> None:
             sim.set_external_torque(make_operator(operator, seed, sim.q, t_start=sim.t + operator_start, grip=grip))
@@ -108,8 +108,9 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
     if follower_window:
         from kukaid.krc.krl_follower import FollowerConfig
 
-        follower = FollowerConfig(axis=axis, q_min_deg=follower_window[0], q_max_deg=follower_window[1],
-                                  stale_ms=stale_ms)
+        with usage_errors():  # the options alone
+            follower = FollowerConfig(axis=axis, q_min_deg=follower_window[0], q_max_deg=follower_window[1],
+                                      stale_ms=stale_ms)
     ring = RingLayout(axes=tuple(ring_axes) or (axis,))
     source = SimSource(sim, axis=axis, trajectory=traj, speed=speed, ring=ring, follower=follower,
                        on_run=hand_on if operator is not None and follower else None).start()

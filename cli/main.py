@@ -53,9 +53,13 @@ class LazyGroup(click.Group):
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
         except KukaidError as e:
-            _fail(str(e), 1)
+            _fail(str(e), e.exit_code)
         except KeyboardInterrupt:
             _fail("interrupted", 130)
+        except BrokenPipeError as e:
+            if not _stdout_gone():
+                _fail(f"{e.strerror or e}", 1)
+            _quiet_exit()
         except OSError as e:
             where = f"{e.filename}: " if getattr(e, "filename", None) else ""
             _fail(f"{where}{e.strerror or e}", 1)
@@ -63,6 +67,36 @@ class LazyGroup(click.Group):
             if os.environ.get("KUKAID_DEBUG"):
                 raise
             _fail(f"internal error ({type(e).__name__}: {e}); rerun with KUKAID_DEBUG=1 for a traceback", 2)
+
+
+#: exit status when stdout's reader has gone (`kukaid ... | head`): 128 + SIGPIPE, as a command
+#: killed by the signal; no message (the reader asked for no more)
+EXIT_BROKEN_PIPE = 141
+
+
+def _stdout_gone() -> bool:
+    """True when stdout is a pipe whose reader has closed it (POLLERR on its write end)."""
+    import select
+
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(ev & select.POLLERR for _, ev in poller.poll(0))
+    except (AttributeError, OSError, ValueError):  # no descriptor (tests) or no poll: the pipe was stdout
+        return True
+
+
+def _quiet_exit() -> None:
+    """Stop without a word on a broken stdout: what the command wrote to files stays (outputs are
+    complete before the summary is printed); stdout goes to /dev/null so the interpreter's final
+    flush does not complain."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (AttributeError, OSError, ValueError):
+        pass
+    sys.exit(EXIT_BROKEN_PIPE)
 
 
 def _fail(msg: str, code: int) -> None:

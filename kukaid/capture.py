@@ -28,7 +28,7 @@ from typing import Any, Callable, Iterable, Protocol
 import numpy as np
 
 from kukaid import __version__
-from kukaid.errors import KukaidError
+from kukaid.errors import KukaidError, OptionError
 
 Progress = Callable[[float], None]
 
@@ -200,7 +200,7 @@ class KvpCapture:
         self.duration, self.until_interrupt, self.mode = duration, bool(until_interrupt), mode
         self.extra_attrs = dict(attrs or {})
         if duration is None and not until_interrupt:
-            raise KukaidError("capture: the kvp backend needs --duration S or --until-interrupt")
+            raise OptionError("capture: the kvp backend needs --duration S or --until-interrupt")
 
     def total(self) -> float | None:
         return None if self.until_interrupt and self.duration is None else self.duration
@@ -253,7 +253,7 @@ def sim_config(path: str | Path | None = None, noise: float | None = None,
     attrs: dict[str, Any] = {}
     if noise is not None:
         if not (math.isfinite(noise) and noise >= 0):
-            raise KukaidError(f"capture: --noise must be a number >= 0 N·m, got {noise}")
+            raise OptionError(f"capture: --noise must be a number >= 0 N·m, got {noise}")
         cfg = cfg.replace(noise_sigma=float(noise))
     effects = list(effects)
     if effects:
@@ -320,13 +320,13 @@ def parse_effect(spec: str) -> tuple[str, float | None]:
     name, _, size = spec.partition("=")
     name = name.strip()
     if name not in EFFECTS:
-        raise KukaidError(f"--effect {spec}: unknown effect '{name}' (known: {', '.join(EFFECTS)})")
+        raise OptionError(f"--effect {spec}: unknown effect '{name}' (known: {', '.join(EFFECTS)})")
     if not _:
         return name, None
     try:
         s = float(size)
     except ValueError:
-        raise KukaidError(f"--effect {spec}: size '{size}' is not a number (N·m)") from None
+        raise OptionError(f"--effect {spec}: size '{size}' is not a number (N·m)") from None
     if not (math.isfinite(s) and s >= 0):
-        raise KukaidError(f"--effect {spec}: size must be a number >= 0 N·m")
+        raise OptionError(f"--effect {spec}: size must be a number >= 0 N·m")
     return name, s

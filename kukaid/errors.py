@@ -2,7 +2,19 @@
 
 
 class KukaidError(Exception):
-    """Base class: a problem the user can fix, described in one line."""
+    """Base class: a problem the user can fix, described in one line.
+
+    ``exit_code`` is the command's exit status: 1 for a problem found in the data (a log, a
+    parameter file, the controller), 2 for a usage error (:class:`OptionError`)."""
+
+    exit_code = 1
+
+
+class OptionError(KukaidError):
+    """A usage error the library finds: options that contradict each other or the data given
+    (no --axis for a log of several axes, options that apply only without another).  Exit status 2."""
+
+    exit_code = 2
 
 
 class LogFormatError(KukaidError):

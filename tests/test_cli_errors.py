@@ -158,3 +158,40 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
     r = subprocess.run([*kukaid_cmd, "capture", str(files / "inertia.json"), "-o", str(tmp_path / "x.h5"),
                         "--seed", "4"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and r.stderr.count("\n") == 1 and "samples" in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("args, pieces", [
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--release", "8", "--threshold", "3"],
+     ["release 8.0 N·m must be in [0, threshold 3.0]"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--duration", "0"], ["duration must be > 0 s"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--noise", "-1"], ["--noise", "noise_sigma"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--tau-max", "-1"], ["tau_max"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--damping", "adaptive", "--D-min", "100"],
+     ["--D-min (100)"]),
+    (["capture", "{d}/inertia.json", "-o", "c.h5", "--noise", "-1"], ["--noise must be a number >= 0"]),
+    (["capture", "{d}/inertia.json", "-o", "c.h5", "--effect", "bogus"], ["unknown effect 'bogus'"]),
+    (["capture", "--backend", "kvp", "-o", "c.h5"], ["needs --duration S or --until-interrupt"]),
+    (["excite", "friction", "-o", "x.json", "--n-speeds", "0"], ["n_speeds"]),
+    (["excite", "friction", "-o", "x.json", "--q-min-deg", "50", "--q-max-deg", "10"], ["50 deg", "10 deg"]),
+    (["krl-follower", "--q-min", "50", "--q-max", "10", "-o", "krl"], ["window"]),
+    (["fit", "{d}/inertia.h5", "-o", "p.json", "--bound", "vs=0.2:0.1"], ["--bound", "lower 0.2 is above upper 0.1"]),
+    (["fit", "{d}/inertia.h5", "-o", "p.json", "--bound", "nope=0:1"], ["--bound", "no such parameter"]),
+])
+def test_option_errors_are_usage_errors(files, tmp_path, monkeypatch, args, pieces):
+    """Contradictory or out-of-range options: exit status 2 (the README's usage error), one line, no output."""
+    monkeypatch.chdir(tmp_path)
+    _one_line_error(_run(*[a.format(d=files) for a in args]), *pieces, code=2)
+    assert os.listdir(tmp_path) == []
+
+
+def test_load_option_errors_are_usage_errors_and_data_errors_are_not(tmp_path):
+    from scipy.io import savemat
+    import numpy as np
+
+    t = np.arange(100) * 0.01
+    savemat(tmp_path / "m.mat", {"t": t[:, None], "q": t[:, None], "u": t[:, None], "g": np.array([[2.0]])})
+    base = ["load", tmp_path / "m.mat", "--time", "t", "--q", "q", "--tau", "u", "-o", tmp_path / "o.h5"]
+    _one_line_error(_run(*base, "--tau-scale", "2", "--tau-scale-var", "g"), "not both", code=2)
+    _one_line_error(_run(*base, "--q-scale", "0"), "(--q-scale) must be a finite", code=2)
+    _one_line_error(_run(*base, "--tau-scale-var", "nope"), "no variable 'nope'", code=1)  # found in the file
+    assert not (tmp_path / "o.h5").exists()

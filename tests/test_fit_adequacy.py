@@ -65,3 +65,42 @@ def test_lwr4_axis2_writes_parameters_with_the_reason(tmp_path):
     assert r.exit_code == 0, r.output
     assert "IPOPT did not converge" not in r.output and "single-axis model cannot explain A2" in r.output
     assert out.exists()
+
+
+@pytest.mark.parametrize("axis", ["3", "6", "7"])
+def test_lwr4_izz_at_its_bound_is_written(tmp_path, axis):
+    """The fit's lower bound on Izz is the parameter file's minimum: a fit that drives Izz down
+    writes its best parameters with Izz at that bound (not an error from the file's check)."""
+    if not (LWR4 / "lwr4_1.csv").exists():
+        pytest.skip("../shared/datasets/lwr4 is not present")
+    from kukaid.params import load_params
+    from kukaid.params.axis import IZZ_MIN
+
+    out = tmp_path / f"a{axis}.json"
+    r = CliRunner().invoke(cli, ["fit", str(LWR4 / "lwr4_1.csv"), "--axis", axis, "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert f"Izz (lower {IZZ_MIN:g})" in r.output
+    par = load_params(out)
+    assert par["inertial"]["Izz"] == pytest.approx(IZZ_MIN, rel=1e-4) and par["metrics"]["single_axis_adequate"] is False
+    assert any(b["name"] == "Izz" and b["side"] == "lower" for b in par["metrics"]["at_bound"])
+
+
+def test_izz_bound_is_the_parameter_files_minimum():
+    from kukaid.identify.stribeck_fit import _merge_bounds, default_bounds
+    from kukaid.params.axis import _FIELDS, IZZ_MIN
+
+    assert _FIELDS[("inertial", "Izz")][0] == IZZ_MIN
+    b = default_bounds(np.ones(10), np.ones(10), ["Izz", "Mx"])
+    assert b["Izz"][0] == IZZ_MIN
+    assert _merge_bounds(b, {"Izz": (0.0, 5.0)})["Izz"] == (IZZ_MIN, 5.0)  # a user bound below is raised to it
+
+
+def test_several_axes_without_axis_is_a_usage_error(tmp_path):
+    p = tmp_path / "c.h5"
+    write_hdf5(coupled_log(), p)
+    out = tmp_path / "p.json"
+    r = CliRunner().invoke(cli, ["fit", str(p), "-o", str(out)])
+    assert r.exit_code == 2, r.output
+    assert len(r.output.strip().splitlines()) == 1
+    assert "holds axes A2, A3; choose one with --axis" in r.output and "--robot" in r.output
+    assert not out.exists()

@@ -114,3 +114,68 @@ def test_bad_bound_option(logs, tmp_path, bound, msg):
     r = CliRunner().invoke(cli, ["fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]),
                                  "--bound", bound, "-o", str(out)])
     assert r.exit_code != 0 and msg in r.output and not out.exists()
+
+
+@pytest.mark.parametrize("args,msg", [
+    (["--robot", "kr6-r700-sixx", "--friction", "{f}"], "option --friction does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--axis", "2"], "option --axis does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--method", "staged"], "option --method does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--no-offset"], "option --offset/--no-offset does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--bound", "vs=0:1"], "option --bound does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--stribeck-vs", "0.1"], "--stribeck-vs needs --friction-model stribeck"),
+    (["--robot", "kr6-r700-sixx", "--friction-model", "auto"], "--friction-model auto does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--coupling", "{f}"], "--coupling needs --torque-side motor or --rotor-inertia"),
+    (["--stribeck-vs", "0.1"], "option --stribeck-vs needs --robot"),
+    (["--torque-side", "joint"], "option --torque-side needs --robot"),
+    (["--rotor-inertia"], "option --rotor-inertia needs --robot"),
+    (["--elements", "2"], "option --elements needs --presliding"),
+])
+def test_option_of_the_other_fit_is_a_usage_error(logs, tmp_path, args, msg):
+    """Options that the chosen fit (single-axis or --robot) does not use are refused, not ignored."""
+    d, p = logs
+    out = tmp_path / "params.json"
+    args = [a.format(f=p["friction"]) for a in args]
+    r = CliRunner().invoke(cli, ["fit", str(p["inertia"]), *args, "-o", str(out)])
+    assert r.exit_code == 2, r.output
+    assert msg in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert not out.exists()
+
+
+def test_staged_without_friction_logs_is_a_usage_error(logs, tmp_path):
+    d, p = logs
+    out = tmp_path / "params.json"
+    r = CliRunner().invoke(cli, ["fit", str(p["inertia"]), "--method", "staged", "-o", str(out)])
+    assert r.exit_code == 2 and "the staged method needs --friction logs" in r.stderr and not out.exists()
+
+
+def _table_params(joint, Fc=5.5062e-28, maxwell=False):
+    p = {"axis": 1, "friction": {"model": "coulomb-viscous", "Fc": Fc, "Fv": 203.26},
+         "inertial": {"Izz": 95.125}, "offset": -3.1986,
+         "uncertainty": {"Fc": 0.898, "Fv": 0.381, "Izz": 0.0356, "offset": 0.0145},
+         "metrics": {"friction_fit_mse": 5.155, "torque_prediction_mse": 5.155}, "provenance": {"joint": joint}}
+    if maxwell:
+        p["maxwell_slip"] = {"k": [1000.0], "W": [2.0], "zeta0": [0.0]}
+    return p
+
+
+def test_table_prints_no_percentage_for_an_estimate_below_its_sigma():
+    from kukaid.identify.fit import format_table
+
+    text = format_table(_table_params("revolute"))
+    fc = next(line for line in text.splitlines() if line.strip().startswith("Fc"))
+    assert "%" not in fc and fc.split()[-2] == "-", fc
+    fv = next(line for line in text.splitlines() if line.strip().startswith("Fv"))
+    assert "0.19 %" in fv
+    fc = next(line for line in format_table(_table_params("revolute", Fc=0.0)).splitlines()
+              if line.strip().startswith("Fc"))
+    assert "%" not in fc
+
+
+def test_table_units_of_a_prismatic_axis():
+    from kukaid.identify.fit import format_table
+
+    text = format_table(_table_params("prismatic", maxwell=True))
+    assert "MSE 5.155 N^2;" in text and "N^2m^2" not in text
+    assert "k = 1000 N/m" in text and "W = 2 N" in text and "N*m" not in text
+    text = format_table(_table_params("revolute", maxwell=True))
+    assert "MSE 5.155 N^2m^2" in text and "k = 1000 N*m/rad" in text and "W = 2 N*m" in text

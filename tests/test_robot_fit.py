@@ -139,6 +139,26 @@ def test_log_without_all_axes_is_refused(kr6):
         fit_robot([part], kr6)
 
 
+def test_log_with_more_axes_than_the_robot_is_refused(kr6, tmp_path):
+    """A 7-axis log with the 6-axis model: refused (A7 is not silently dropped), by fit and validate."""
+    from click.testing import CliRunner
+
+    from kukaid.logs import write_csv
+    from kukaid_cli.main import cli
+
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    more = type(log)(time=log.time, q=np.column_stack([log.q, log.q[:, :1]]),
+                     tau=np.column_stack([log.tau, log.tau[:, :1]]), axes=(1, 2, 3, 4, 5, 6, 7))
+    with pytest.raises(FitError, match="holds 7 axes but the robot has 6 .*A7 would be ignored"):
+        fit_robot([more], kr6)
+    csv = tmp_path / "seven.csv"
+    write_csv(more, csv, angle_unit="rad")
+    out = tmp_path / "g.json"
+    r = CliRunner().invoke(cli, ["fit", str(csv), "--robot", "kr6-r700-sixx", "-o", str(out)])
+    assert r.exit_code == 1 and "A7 would be ignored" in r.stderr and len(r.stderr.splitlines()) == 1, r.output
+    assert not out.exists()
+
+
 def test_settings_are_checked():
     with pytest.raises(FitError, match="friction model"):
         RobotFitSettings(friction="dahl")
@@ -172,7 +192,7 @@ def test_cli_fit_robot_validate_and_report(tmp_path, kr6):
     assert r.exit_code == 1 and r.stderr.startswith("kukaid: error:") and "no such robot" in r.stderr
     assert "Traceback" not in r.stderr and not (tmp_path / "q.json").exists()
     r = run(cli, ["fit", str(csv), "--prior-weight", "0.1", "-o", str(tmp_path / "q.json")])
-    assert r.exit_code == 2 and "need --robot" in r.stderr
+    assert r.exit_code == 2 and "--prior-weight needs --robot" in r.stderr
 
 
 @pytest.mark.skipif(not LWR4.is_dir(), reason="real LWR4+ data (../shared/datasets/lwr4) not present")

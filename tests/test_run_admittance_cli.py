@@ -96,10 +96,34 @@ def test_broken_parameter_file_is_one_line_and_no_output(files, tmp_path, edit, 
     (["--enable-motion", "--q-min", "10", "--q-max", "50", "--D", "0"], "D = 0"),
 ])
 def test_a_real_robot_moves_only_when_asked_and_bounded(files, tmp_path, args, message):
-    # nothing listens on this port: refusals come before any connection
+    # nothing listens on this port: refusals come before any connection; missing or out-of-range
+    # options are usage errors (exit status 2)
     r = _run(["--params", files / "params.json", "--backend", "kvp", "--port", "9", "-o", tmp_path / "r.h5", *args])
-    assert r.exit_code == 1 and message in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert r.exit_code == 2 and message in r.output and len(r.output.strip().splitlines()) == 1, r.output
     assert not (tmp_path / "r.h5").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--q-min", "50", "--q-max", "10"], "position window [50, 10] degrees (--q-min/--q-max) must have q_min < q_max"),
+    (["--q-min", "40", "--q-max", "60"], "start position --q0 30 degrees is outside the position window [40, 60] degrees"),
+    (["--q-min", "200"], "position window [200, 120] degrees"),
+])
+def test_position_window_is_checked_in_degrees(files, tmp_path, args, message):
+    """The window is given in degrees: its errors say degrees, rounded, and are usage errors."""
+    out = tmp_path / "r.h5"
+    r = _run(["--params", files / "params.json", "--duration", "1", "-o", out, *args])
+    assert r.exit_code == 2 and message in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.output
+    assert "rad" not in r.stderr and not out.exists()
+
+
+def test_safety_errors_name_the_window_in_degrees():
+    from kukaid.control.safety import ReferenceLimiter, SafetyLimits
+    from kukaid.errors import LimitError
+
+    with pytest.raises(LimitError, match=r"window \[50, 10\] degrees"):
+        SafetyLimits(q_min=math.radians(50), q_max=math.radians(10))
+    with pytest.raises(LimitError, match=r"start position 30 degrees is outside the window \[40, 60\] degrees"):
+        ReferenceLimiter(SafetyLimits(q_min=math.radians(40), q_max=math.radians(60)), 0.012, math.radians(30))
 
 
 @pytest.fixture
@@ -237,7 +261,7 @@ def test_krl_follower_program(tmp_path):
     r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "-10", "--q-max", "45", "-o", tmp_path])
     assert r.exit_code == 1 and "already exists" in r.output
     r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "50", "--q-max", "45", "-o", tmp_path / "x"])
-    assert r.exit_code == 1 and "window" in r.output and not (tmp_path / "x").exists()
+    assert r.exit_code == 2 and "window" in r.output and not (tmp_path / "x").exists()  # a usage error
 
 
 def test_a_killed_run_leaves_the_measured_log(files, tmp_path, kukaid_cmd):
@@ -343,3 +367,17 @@ def test_adaptive_damping_with_a_firm_grip_through_the_cli(files, tmp_path, seed
     assert np.max(control["D_grip"][adm]) > 80.0 and np.all(control["D"][adm] >= control["D_grip"][adm] - 1e-9)
     assert np.max(np.abs(log.tau[:, 0])) < 100.0
     assert m["end_error"] < 0.1
+
+
+def test_a_closed_stdout_pipe_ends_quietly_and_keeps_the_log(files, tmp_path, kukaid_cmd):
+    """`kukaid run-admittance ... | head -5`: the reader has gone when the summary is printed; the
+    command stops without a message (exit status 141, as a command killed by SIGPIPE) and the run
+    log is complete."""
+    out = tmp_path / "run.h5"
+    proc = subprocess.Popen([*kukaid_cmd, "run-admittance", "--params", str(files / "params.json"), "--duration", "1",
+                             "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader is gone before the first line
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 141 and err == b"", err.decode()
+    log, control, metrics = read_run(out)
+    assert metrics["status"] == "completed" and log.n_samples > 0 and control["gamma_r"].size == log.n_samples

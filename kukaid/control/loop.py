@@ -72,6 +72,11 @@ class LoopConfig:
         if self.cycle < self.sample_time * 0.999:
             raise KukaidError(f"run-admittance: control cycle {self.cycle} s is shorter than the sample time "
                               f"{self.sample_time} s")
+        if not (math.isfinite(self.threshold) and self.threshold > 0):
+            raise KukaidError(f"run-admittance: threshold must be a finite number > 0 N·m, got {self.threshold}")
+        if self.release is not None and not (math.isfinite(self.release) and 0 <= self.release <= self.threshold):
+            raise KukaidError(f"run-admittance: release {self.release} N·m must be in [0, threshold {self.threshold}] N·m "
+                              "(a detection ends below it)")
         if not (math.isfinite(self.duration) and self.duration > 0):
             raise KukaidError(f"run-admittance: duration must be > 0 s, got {self.duration}")
         if self.damping == "adaptive":

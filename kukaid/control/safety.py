@@ -18,11 +18,16 @@ from dataclasses import dataclass
 from kukaid.errors import KukaidError, LimitError
 
 
+def _deg(q: float) -> str:
+    """An angle in rad as the user gives it (degrees), rounded: 0.5235987 -> '30'."""
+    return f"{math.degrees(q):.4g}"
+
+
 @dataclass(frozen=True)
 class SafetyLimits:
     """Bounds on the admittance reference (SI).
 
-    q_min, q_max : position window, rad.   qd_max : reference speed limit, rad/s.
+    q_min, q_max : position window, rad (errors name it in degrees, the unit of the options).   qd_max : reference speed limit, rad/s.
     qdd_max : reference acceleration limit, rad/s².
     tau_max : largest measured motor torque, N·m: beyond it motion stops (a collision, a jammed
         axis or a model far off; the KRC's own torque monitoring stays in force).
@@ -42,7 +47,8 @@ class SafetyLimits:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise LimitError(f"safety: {name} = {v} must be a finite number > 0")
         if math.isnan(self.q_min) or math.isnan(self.q_max) or not self.q_min < self.q_max:
-            raise LimitError(f"safety: position window [{self.q_min}, {self.q_max}] rad must have q_min < q_max")
+            raise LimitError(f"safety: position window [{_deg(self.q_min)}, {_deg(self.q_max)}] degrees must have "
+                             "q_min < q_max")
 
     @property
     def bounded(self) -> bool:
@@ -57,8 +63,8 @@ class ReferenceLimiter:
         if not (dt > 0 and math.isfinite(dt)):
             raise LimitError(f"safety: cycle time must be > 0 s, got {dt}")
         if not limits.q_min <= q0 <= limits.q_max:
-            raise LimitError(f"safety: start position {q0:.6g} rad is outside the window "
-                             f"[{limits.q_min:.6g}, {limits.q_max:.6g}] rad")
+            raise LimitError(f"safety: start position {_deg(q0)} degrees is outside the window "
+                             f"[{_deg(limits.q_min)}, {_deg(limits.q_max)}] degrees")
         self.limits, self.dt = limits, float(dt)
         self.q = float(q0)
         self.v = 0.0

@@ -20,7 +20,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from kukaid import __version__
-from kukaid.errors import FitError
+from kukaid.errors import FitError, OptionError
 from kukaid.identify.dynamic import fit_dynamic
 from kukaid.identify.filtering import preprocess, settings_reason
 from kukaid.identify.least_squares import fit_rigid
@@ -30,7 +30,7 @@ from kukaid.identify.uncertainty import correlation_factor, covariance
 from kukaid.jsonfile import jsonable
 from kukaid.models.friction import MaxwellSlip
 from kukaid.models.torque import JointTorqueModel
-from kukaid.params.axis import model_sections
+from kukaid.params.axis import IZZ_MIN, model_sections
 
 METHODS = ("joint", "staged")
 FRICTION_MODELS = ("auto", "stribeck", "coulomb-viscous")
@@ -123,7 +123,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     logs : general logs (AxisLog or paths) fitted jointly.
     friction, inertia : logs of the paper's friction (sweep) and inertia (sine) experiments.
     presliding : log of the pre-sliding experiment (Maxwell-slip), optional.
-    axis : KUKA axis number (default: the logs' only axis, or A3).
+    axis : KUKA axis number (default: the logs' only axis; required when a log holds several).
     method : "joint" (default) or "staged" (the paper's eqs. 2-5; needs friction sweeps).
     friction_model : "stribeck", "coulomb-viscous" or "auto": Stribeck when the data determine it,
         else Coulomb-viscous (:func:`fit_axis_auto`).
@@ -137,6 +137,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     Raises
     ------
     FitError : missing data, bad option, failed solve; nothing is written by this function.
+    OptionError : no ``axis`` for a log of several axes; the staged method without friction logs.
     """
     if method not in METHODS:
         raise FitError(f"method must be one of {METHODS}, got '{method}'")
@@ -155,6 +156,10 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
 
     def prep(x: Any) -> Any:
         lg = _load(x, ro)
+        if axis is None and len(lg.axes) > 1:  # never a silent choice among several axes
+            names = ", ".join(f"A{a}" for a in lg.axes)
+            raise OptionError(f"{lg.attrs.get('source_file', 'log')}: holds axes {names}; choose one with --axis "
+                              "(or fit them all together with --robot URDF)")
         raw_logs.append(lg)
         return preprocess(lg, **pre)
 
@@ -176,7 +181,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     max_lag = int(math.ceil(2 * all_preps[0].settings["fs"] / all_preps[0].settings["cutoff"]))
     rigid: dict[str, float] = {}
     if method == "staged" and not fr:
-        raise FitError("the staged method needs --friction logs (paired constant-velocity sweeps)")
+        raise OptionError("the staged method needs --friction logs (paired constant-velocity sweeps)")
     staged_at_bound: list[dict] = []
     if fr and method == "staged":
         fp, fstd, fmse, status, (pts, u, staged_at_bound) = staged_friction(fr, friction_model, bounds)
@@ -224,7 +229,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     if "Izz" not in rigid:
         raise FitError("Izz cannot be identified from these logs: add an --inertia log or a general log "
                        "with accelerations")
-    if rigid["Izz"] <= 0:
+    if rigid["Izz"] < IZZ_MIN:
         raise FitError(f"fitted Izz = {rigid['Izz']:.4g} is not positive: the data do not excite the inertia")
     model = _model(fp, rigid, friction_model)
     model.qd_thr = qd_thr_used
@@ -273,34 +278,42 @@ def fit_axis_auto(**kw: Any) -> dict:
     return cv
 
 
+def _relative(value: float, std: float) -> str:
+    """The standard deviation relative to the estimate, "x.xx %", or "-" when the estimate is not
+    distinguishable from 0 (|value| below its standard deviation, or 0): a percentage of ~0 is noise."""
+    if not (math.isfinite(value) and math.isfinite(std)) or value == 0 or abs(value) < std:
+        return "-"
+    return f"{100 * std / abs(value):.2f} %"
+
+
 def format_table(params: dict) -> str:
     """A short text table of the parameters with their standard deviations."""
     unc = params.get("uncertainty", {})
     rows = []
     if (params.get("provenance") or {}).get("joint") == "prismatic":
         units = {"Fc": "N", "Fs": "N", "vs": "m/s", "delta": "-", "Fv": "N*s/m", "Izz": "kg (mass)",
-                 "Mx": "N", "My": "N", "offset": "N"}
+                 "Mx": "N", "My": "N", "offset": "N", "k": "N/m", "W": "N", "mse": "N^2"}
     else:
         units = {"Fc": "N*m", "Fs": "N*m", "vs": "rad/s", "delta": "-", "Fv": "N*m*s/rad", "Izz": "kg*m^2",
-                 "Mx": "N*m", "My": "N*m", "offset": "N*m"}
+                 "Mx": "N*m", "My": "N*m", "offset": "N*m", "k": "N*m/rad", "W": "N*m", "mse": "N^2m^2"}
     items = [(k, v) for k, v in params["friction"].items() if k != "model"]
     items += list(params["inertial"].items())
     if "offset" in params:
         items.append(("offset", params["offset"]))
     for k, v in items:
         s = unc.get(k)
-        rel = f"{100 * s / abs(v):.2f} %" if s is not None and v else ""
+        rel = _relative(v, s) if s is not None else ""
         rows.append(f"  {k:<7} {v:>12.5g}  +- {s:<10.3g} {rel:>9}  {units.get(k, '')}" if s is not None
                     else f"  {k:<7} {v:>12.5g}")
     ms = params.get("maxwell_slip")
     if ms:
-        rows.append("  Maxwell-slip k = " + ", ".join(f"{x:.4g}" for x in ms["k"]) + " N*m/rad")
-        rows.append("               W = " + ", ".join(f"{x:.4g}" for x in ms["W"]) + " N*m")
+        rows.append("  Maxwell-slip k = " + ", ".join(f"{x:.4g}" for x in ms["k"]) + f" {units['k']}")
+        rows.append("               W = " + ", ".join(f"{x:.4g}" for x in ms["W"]) + f" {units['W']}")
     m = params.get("metrics", {})
     extra = []
     for key, label in (("friction_fit_mse", "friction fit MSE"), ("torque_prediction_mse", "torque MSE")):
         if key in m and m[key] is not None:
-            extra.append(f"{label} {m[key]:.4g} N^2m^2")
+            extra.append(f"{label} {m[key]:.4g} {units['mse']}")
     if "ipopt_status" in m:
         extra.append(f"IPOPT: {m['ipopt_status']}")
     tail = []

@@ -156,6 +156,11 @@ def _joint_columns(log: AxisLog, n: int) -> list[int]:
     if missing:
         raise FitError(f"{where}: the robot has {n} axes but the log lacks "
                        f"{', '.join(f'A{a}' for a in missing)} (axes: {list(log.axes)})")
+    extra = [a for a in log.axes if not 1 <= a <= n]
+    if extra:  # a log of another robot: its other axes would be silently dropped
+        raise FitError(f"{where}: the log holds {len(log.axes)} axes but the robot has {n} (A1..A{n}); "
+                       f"{', '.join(f'A{a}' for a in extra)} would be ignored: use the robot the log was "
+                       "recorded on")
     return [log.index(a) for a in range(1, n + 1)]
 
 
@@ -407,7 +412,7 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
 
     Parameters
     ----------
-    logs : axis logs with (at least) axes A1..An, all moving (n = the robot's joints).
+    logs : axis logs with axes A1..An (no others), all moving (n = the robot's joints).
     robot : the robot model (URDF).
     settings : see :class:`RobotFitSettings`.
     coupling : wrist coupling for motor-side torques (see :class:`DriveModel`).

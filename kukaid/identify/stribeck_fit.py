@@ -15,8 +15,9 @@ regressor) enters linearly.  :func:`solve_separable` therefore
 
 Default bounds, derived from the data (overridable by ``bounds={name: (lo, hi)}``):
 ``Fc`` in [0, F99] and ``Fs - Fc`` in [0, F99] where F99 is the 99th percentile of |torque| over
-the fitted samples; ``Fv`` in [0, inf); ``Izz`` in [0, inf); ``vs`` in [v1 / 2, v99] with v1, v99
-the 1st and 99th percentiles of |qd| over the fitted samples (outside that range the Stribeck
+the fitted samples; ``Fv`` in [0, inf); ``Izz`` in [IZZ_MIN, inf), the parameter file's minimum
+(:data:`kukaid.params.axis.IZZ_MIN`; a user bound below it is raised to it); ``vs`` in [v1 / 2, v99]
+with v1, v99 the 1st and 99th percentiles of |qd| over the fitted samples (outside that range the Stribeck
 term is not informed by the data); ``delta`` in [0.5, 2] (the paper); Mx, My, offset and extra
 coefficients free.
 """
@@ -33,6 +34,7 @@ import numpy as np
 from kukaid.errors import FitError
 from kukaid.identify.uncertainty import Uncertainty, covariance, transform
 from kukaid.models.friction import stribeck_columns_at, stribeck_power
+from kukaid.params.axis import IZZ_MIN
 
 INF = float("inf")
 DELTA_BOUNDS = (0.5, 2.0)
@@ -102,9 +104,28 @@ def default_bounds(y: np.ndarray, v: np.ndarray, lin_names: Sequence[str]) -> di
     v1, v99 = (float(np.percentile(s, 1)), float(np.percentile(s, 99))) if s.size else (1e-3, 1.0)
     vlo = max(v1 / 2.0, 1e-9)
     vhi = max(v99, vlo * 10.0)
-    b = {"Fc": (0.0, f99), "dF": (0.0, f99), "Fv": (0.0, INF), "Izz": (0.0, INF), "vs": (vlo, vhi),
+    b = {"Fc": (0.0, f99), "dF": (0.0, f99), "Fv": (0.0, INF), "Izz": (IZZ_MIN, INF), "vs": (vlo, vhi),
          "delta": DELTA_BOUNDS}
     return {k: b.get(k, (-INF, INF)) for k in (*lin_names, "dF", "vs", "delta")}
+
+
+def check_bound(name: str, lo: float | None, hi: float | None) -> tuple[float, float]:
+    """One user bound as (lo, hi) floats (None: unbounded), checked: numbers, lo <= hi, vs and delta
+    above 0, Izz raised to the parameter file's minimum.  Raises :class:`FitError`."""
+    lo = -INF if lo is None else float(lo)
+    hi = INF if hi is None else float(hi)
+    if math.isnan(lo) or math.isnan(hi):
+        raise FitError(f"bounds for {name}: a bound is not a number")
+    if not lo <= hi:
+        raise FitError(f"bounds for {name}: lower {lo:g} is above upper {hi:g}")
+    if name == "Izz":  # a parameter file holds Izz >= IZZ_MIN: the fit never goes below
+        if hi < IZZ_MIN:
+            raise FitError(f"bounds for {name}: the upper bound must be >= {IZZ_MIN:g} (the parameter file's "
+                           f"minimum), got {hi:g}")
+        lo = max(lo, IZZ_MIN)
+    if name in ("vs", "delta") and not lo > 0:
+        raise FitError(f"bounds for {name}: the lower bound must be > 0, got {lo:g}")
+    return lo, hi
 
 
 def _merge_bounds(defaults: dict, bounds: dict | None) -> dict[str, tuple[float, float]]:
@@ -113,15 +134,7 @@ def _merge_bounds(defaults: dict, bounds: dict | None) -> dict[str, tuple[float,
         key = "dF" if k in ("Fs-Fc", "dF") else k
         if key not in out:
             continue  # a parameter of another stage of the fit
-        lo = -INF if lo is None else float(lo)
-        hi = INF if hi is None else float(hi)
-        if math.isnan(lo) or math.isnan(hi):
-            raise FitError(f"bounds for {k}: a bound is not a number")
-        if not lo <= hi:
-            raise FitError(f"bounds for {k}: lower {lo} is above upper {hi}")
-        if key in ("vs", "delta") and not lo > 0:
-            raise FitError(f"bounds for {k}: the lower bound must be > 0, got {lo}")
-        out[key] = (lo, hi)
+        out[key] = check_bound(k, lo, hi)
     return out
 
 
@@ -316,6 +329,7 @@ def solve_separable(y: np.ndarray, A: np.ndarray, v: np.ndarray, lin_names: Sequ
     except RuntimeError as e:  # CasADi/IPOPT raised
         raise FitError(f"{where}: IPOPT failed to run: {str(e).splitlines()[0][:160]}") from None
     converged = ok and status in _OK_STATUS
+    ps = np.minimum(np.maximum(ps, lo), hi)  # IPOPT relaxes its bounds slightly (bound_relax_factor)
     if not np.all(np.isfinite(ps)) or not (converged or status in _STOPPED_STATUS):
         raise FitError(f"{where}: IPOPT did not converge (return status '{status}'); no parameters written")
     pred, jac = prediction_and_jac(A, v, ps)

@@ -124,6 +124,20 @@ def _scale(path: Path, value: Any, what: str, positive: bool = False) -> float |
     return x
 
 
+def check_mat_options(path: str | Path, tau_scale: Any = None, tau_scale_var: str | None = None, q_scale: Any = 1.0,
+                      time_scale: Any = 1.0, sample_time: Any = None) -> tuple[Any, float, float, Any]:
+    """The options of :func:`read_mat` that need no file: the torque scale given once, every scale
+    finite and non-zero (time scale and sample time positive).  Returns (tau_scale, q_scale,
+    time_scale, sample_time) as floats (None stays None); raises :class:`LogFormatError`."""
+    path = Path(path)
+    if tau_scale is not None and tau_scale_var is not None:
+        raise LogFormatError(f"{path}: give the torque scale once, --tau-scale or --tau-scale-var, not both")
+    return (_scale(path, tau_scale, "the torque scale (--tau-scale)"),
+            _scale(path, 1.0 if q_scale is None else q_scale, "the position scale (--q-scale)"),
+            _scale(path, 1.0 if time_scale is None else time_scale, "the time scale (--time-scale)", positive=True),
+            _scale(path, sample_time, "the sample time (--sample-time)", positive=True))
+
+
 def read_mat(path: str | Path, time: str | None = None, q: str | None = None, tau: str | None = None,
              q_cmd: str | None = None, temp: str | None = None, tau_scale: float | None = None,
              tau_scale_var: str | None = None, q_scale: float = 1.0, time_scale: float = 1.0,
@@ -153,13 +167,8 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     path = Path(path)
     axes = tuple(int(a) for a in np.atleast_1d(axis))
     n_ax = len(axes)
-    if tau_scale is not None and tau_scale_var is not None:
-        raise LogFormatError(f"{path}: give the torque scale once, --tau-scale or --tau-scale-var, not both")
-    tau_scale = _scale(path, tau_scale, "the torque scale (--tau-scale)")
-    q_scale = _scale(path, 1.0 if q_scale is None else q_scale, "the position scale (--q-scale)")
-    time_scale = _scale(path, 1.0 if time_scale is None else time_scale, "the time scale (--time-scale)",
-                        positive=True)
-    sample_time = _scale(path, sample_time, "the sample time (--sample-time)", positive=True)
+    tau_scale, q_scale, time_scale, sample_time = check_mat_options(path, tau_scale, tau_scale_var, q_scale,
+                                                                    time_scale, sample_time)
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
     v, not_numeric = _load_vars(path)

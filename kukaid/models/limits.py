@@ -41,7 +41,8 @@ class AxisLimits:
                 raise TrajectoryError(f"axis limits: '{k}' must be a finite number, got {v!r}")
             object.__setattr__(self, k, float(v))
         if self.q_min >= self.q_max:
-            raise TrajectoryError(f"axis limits: q_min ({self.q_min:g} rad) must be below q_max ({self.q_max:g} rad)")
+            raise TrajectoryError(f"axis limits: q_min ({self.q_min:.4g} rad, {self.q_min / _DEG:.4g} deg) must be "
+                                  f"below q_max ({self.q_max:.4g} rad, {self.q_max / _DEG:.4g} deg)")
         for k in ("qd_max", "qdd_max"):
             if getattr(self, k) <= 0:
                 raise TrajectoryError(f"axis limits: '{k}' must be positive, got {getattr(self, k):g}")

@@ -23,6 +23,9 @@ from kukaid.models.torque import TERMS, EffectTerm, JointTorqueModel
 
 SCHEMA = "kukaid.params/1"
 INF = math.inf
+#: the smallest inertia (Izz) a parameter file holds, kg m^2 (kg on a prismatic axis); the fit's
+#: lower bound for Izz is the same number, so a fit that drives Izz down writes it at this bound
+IZZ_MIN = 1e-12
 
 # (section, field) -> (low, high, required)
 _FIELDS: dict[tuple[str, str], tuple[float, float, bool]] = {
@@ -31,7 +34,7 @@ _FIELDS: dict[tuple[str, str], tuple[float, float, bool]] = {
     ("friction", "Fs"): (0.0, INF, False),
     ("friction", "vs"): (1e-9, INF, False),
     ("friction", "delta"): (0.05, 10.0, False),
-    ("inertial", "Izz"): (1e-12, INF, True),
+    ("inertial", "Izz"): (IZZ_MIN, INF, True),
     ("inertial", "Mx"): (-INF, INF, False),
     ("inertial", "My"): (-INF, INF, False),
     ("mode_switch", "qd_thr"): (0.0, INF, False),
@@ -282,7 +285,7 @@ def model_to_params(m: JointTorqueModel, base: dict, added: Sequence[str] = ()) 
     c.lin["Fc"], c.lin["Fv"] = max(c.lin["Fc"], 0.0), max(c.lin["Fv"], 0.0)
     if c.friction_kind == "stribeck":
         c.lin["Fs"] = max(c.lin["Fs"], c.lin["Fc"])
-    c.lin["Izz"] = max(c.lin["Izz"], 1e-12)
+    c.lin["Izz"] = max(c.lin["Izz"], IZZ_MIN)
     sec = model_sections(c)
     d = copy.deepcopy(base)
     for k in ("friction", "inertial"):
