@@ -2,6 +2,7 @@
 
 Usage: python benchmarks/admittance_paper.py [--operators 30] [--cycles 0.024,0.012] [--json]
                                              [--sweep] [--params PARAMS.json] [--save RESULTS.json]
+                                             [--arm human|spring] [--seed-offset N]
 
 Every operator (a seeded person from kukaid.sim.human: a third each soft, ordinary and firm
 grips) meets every controller with the same seed (the same person, the same sensor noise and
@@ -163,15 +164,16 @@ CONTROLLERS = (("D35", "constant", 35.0), ("D50", "constant", 50.0), ("D70", "co
 
 
 def benchmark(n_ops: int, cycles: tuple[float, ...], model, zeta0, rbf=None, controllers=CONTROLLERS,
-              arm: str = "human") -> dict:
+              arm: str = "human", seed_offset: int = 0, coupling=None) -> dict:
+    """Operator i has seed ``seed_offset + i`` and grip ``GRIPS[i % 3]`` (the same for every controller)."""
     out: dict = {}
     for cyc in cycles:
         runs: dict[str, list[dict]] = {name: [] for name, _, _ in controllers}
         for i in range(n_ops):
             grip = GRIPS[i % 3]
             for name, damping, D in controllers:
-                runs[name].append(run_one(model, zeta0, i, damping, D, cyc, rbf=rbf if damping == "adaptive" else None,
-                                          grip=grip, arm=arm))
+                runs[name].append(run_one(model, zeta0, seed_offset + i, damping, D, cyc, rbf=rbf if damping == "adaptive" else None,
+                                          grip=grip, arm=arm, coupling=coupling if damping == "adaptive" else None))
         res: dict = {"runs": runs, "per_controller": {}, "paired": {}}
         for name, rs in runs.items():
             col = lambda k: np.array([r[k] for r in rs], dtype=float)  # noqa: E731
@@ -321,6 +323,10 @@ def main() -> None:
                     help="operator model: the human arm of kukaid.sim.human, or the independent SpringArm")
     ap.add_argument("--controllers", default="D35,D50,D70,adaptive", help="which controllers to run")
     ap.add_argument("--sweep-operators", type=int, default=15)
+    ap.add_argument("--monitor-rule", choices=("double", "decay"), default="double",
+                    help="adaptive mode: how the stability monitor raises the damping (CouplingConfig.monitor_rule)")
+    ap.add_argument("--seed-offset", type=int, default=0,
+                    help="operator i gets seed N + i (held-out operators: e.g. 1000; grips still by thirds)")
     ap.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     ap.add_argument("--save", help="also write the JSON results to this file")
     ap.add_argument("--markdown", metavar="RESULTS.json",
@@ -339,12 +345,19 @@ def main() -> None:
     cycles = tuple(float(c) for c in a.cycles.split(","))
     t = time.perf_counter()
     ctl = tuple(c for c in CONTROLLERS if c[0] in a.controllers.split(","))
-    res = benchmark(a.operators, cycles, model, zeta0, controllers=ctl, arm=a.arm)
+    cpl = None
+    if a.monitor_rule != "double":
+        from kukaid.control.stability import CouplingConfig
+
+        cpl = CouplingConfig(monitor_rule=a.monitor_rule)
+    res = benchmark(a.operators, cycles, model, zeta0, controllers=ctl, arm=a.arm, seed_offset=a.seed_offset,
+                    coupling=cpl)
     rows = sweep(a.sweep_operators, model, zeta0) if a.sweep else None
     secs = time.perf_counter() - t
     from kukaid.jsonfile import jsonable
 
-    doc = jsonable({"operators": a.operators, "results": res, "sweep": rows, "seconds": secs})
+    doc = jsonable({"operators": a.operators, "seed_offset": a.seed_offset, "arm": a.arm,
+                    "monitor_rule": a.monitor_rule, "results": res, "sweep": rows, "seconds": secs})
     if a.save:
         with open(a.save, "w") as f:
             json.dump(doc, f)

@@ -24,9 +24,9 @@ SIM = SimConfig().replace(**TRUTH)
 MODEL = model_from_params(SIM.truth_params())
 
 
-def _human_run(seed, grip, damping="adaptive", stability=True, duration=11.0):
+def _human_run(seed, grip, damping="adaptive", stability=True, duration=11.0, monitor_rule="double"):
     cfg = LoopConfig(damping=damping, cycle=0.024, duration=duration, stability=StabilityConfig(enabled=stability),
-                     coupling=CouplingConfig(enabled=stability))
+                     coupling=CouplingConfig(enabled=stability, monitor_rule=monitor_rule))
     op = make_human(seed, Q0 + cfg.init_move, cfg.init_time + cfg.init_rest + 0.8, grip=grip)
     run = run_admittance(SimRobot(VirtualKRC4(SIM, seed=seed), Q0, op), MODEL, cfg)
     return run, {**run.metrics, **operator_metrics(run.data, op, 0.05, SIM.sample_time)}
@@ -71,4 +71,17 @@ def test_firm_grip_is_damped_instead_of_oscillating():
     assert m_on["stability_events"] >= 1 and "grip stiffness" in m_on["stability_log"][0]["reason"]
     ph = on.data["phase"] == PHASE_ADMITTANCE
     assert np.max(np.maximum(on.data["D_floor"], on.data["D_grip"])[ph]) > 2 * 50.0
+    assert np.max(np.abs(on.data["tau"][ph])) < 100.0
+
+
+def test_firm_grip_with_the_decay_rule_is_damped_without_doubling():
+    """The adaptive law's monitor with ``monitor_rule="decay"``: the same firm grip is damped as
+    well, the monitor's raises (if any) are the envelope's, never a doubling."""
+    _, m_off = _human_run(0, "firm", stability=False)
+    on, m_on = _human_run(0, "firm", monitor_rule="decay")
+    assert on.status == "completed"
+    assert m_on["osc_ptp"] < 0.5 * m_off["osc_ptp"] and m_on["osc_seconds"] < 3.5
+    mon_events = [e for e in m_on["stability_log"] if e["reason"].startswith("oscillation")]
+    assert all("envelope" in e["reason"] for e in mon_events)
+    ph = on.data["phase"] == PHASE_ADMITTANCE
     assert np.max(np.abs(on.data["tau"][ph])) < 100.0

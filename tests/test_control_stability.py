@@ -8,6 +8,7 @@ import pytest
 
 from kukaid.control.metrics import oscillation_runs, paper_costs
 from kukaid.control.stability import OscillationMonitor, StabilityConfig
+from kukaid.errors import KukaidError
 
 CYCLE = 0.024
 
@@ -46,6 +47,48 @@ def test_the_floor_stays_during_the_contact_and_relaxes_after_it():
     assert min(held) == pytest.approx(500.0)  # still gripping: kept
     after = [mon.step(0.0, 50.0, contact=False) for _ in range(1000)]
     assert after[-1] == 0.0 and not mon.active
+
+
+def _ringing(sigma, amplitude, f=1.5, seconds=5.0):
+    """Γr of a mode ringing at f Hz from t = 1 s whose envelope changes at sigma per second."""
+    t = np.arange(0.0, seconds, CYCLE)
+    return np.where(t > 1.0, amplitude * np.exp(sigma * (t - 1.0)) * np.sin(2 * math.pi * f * (t - 1.0)), 0.0)
+
+
+def _feed_decay(signal, D=60.0):
+    mon = OscillationMonitor(StabilityConfig(raise_rule="decay", lobes=4), CYCLE, 50.0, D_limit=1500.0, I=20.0)
+    floors = [mon.step(x, D, contact=True) for x in signal]
+    return mon, np.array(floors)
+
+
+def test_the_decay_rule_raises_a_growing_mode_to_the_damping_its_envelope_needs():
+    """Envelope growing at 0.3/s with D 60: one step to D + 2 I (σ* - σ), σ* = max(ζ ω, ln(A/threshold) / 1 s),
+    not a doubling to the cap."""
+    mon, floor = _feed_decay(_ringing(0.3, 15.0))
+    first = mon.events[0]
+    w = 2 * math.pi * 1.5
+    assert 1.5 < first["time"] < 2.5  # at the fourth half-cycle
+    # the band-pass's lobes give ω and σ to within about 10 %
+    assert first["D_floor"] == pytest.approx(60.0 + 2 * 20.0 * (0.2 * w + 0.3), rel=0.15)
+    assert "growing" in first["reason"] and "envelope" in first["reason"]
+    assert floor.max() < 250.0
+
+
+def test_the_decay_rule_leaves_a_mode_that_decays_fast_enough_alone():
+    """Envelope decaying at 2/s (ζ ≈ 0.2 at 1.5 Hz, down to the threshold within a second): no raise;
+    the doubling rule takes the same ringing to the cap."""
+    ring = _ringing(-2.0, 60.0)
+    mon, floor = _feed_decay(ring)
+    assert not mon.events and floor.max() < 60.0
+    doubling = OscillationMonitor(StabilityConfig(lobes=4), CYCLE, 50.0, D_limit=1500.0)
+    assert max(doubling.step(x, 60.0, contact=True) for x in ring) == pytest.approx(500.0)
+
+
+def test_the_decay_rule_needs_the_inertia():
+    with pytest.raises(KukaidError):
+        OscillationMonitor(StabilityConfig(raise_rule="decay"), CYCLE, 50.0, D_limit=1500.0)
+    with pytest.raises(KukaidError):
+        StabilityConfig(raise_rule="halve")
 
 
 def test_paper_costs_are_eq_19_per_cycle():

@@ -134,8 +134,9 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
         if cfg.damping == "adaptive" and cfg.coupling.enabled:
             # the grip floor acts on the second half-cycle; the monitor backs it up one half-cycle later
             stab = dataclasses.replace(stab, lobes=max(stab.lobes, cfg.coupling.monitor_lobes),
-                                       enabled=stab.enabled and cfg.coupling.monitor_lobes < 100)
-        mon = OscillationMonitor(stab, cfg.cycle, cfg.D, D_limit=0.9 * 2.0 * cfg.I / cfg.cycle)
+                                       enabled=stab.enabled and cfg.coupling.monitor_lobes < 100,
+                                       raise_rule=cfg.coupling.monitor_rule, zeta=cfg.coupling.zeta)
+        mon = OscillationMonitor(stab, cfg.cycle, cfg.D, D_limit=0.9 * 2.0 * cfg.I / cfg.cycle, I=cfg.I)
         grip = None
         if cfg.damping == "adaptive" and cfg.coupling.enabled:  # the constant damping stays the paper's
             lp = CausalButterworth(est.cutoff, 1.0 / est.sample_time, est.order)  # the estimator's low-pass

@@ -24,6 +24,16 @@ admittance's inertia I stays constant and D stays > 0, so the variable admittanc
 D σ̇² is never negative); the instability addressed here is the delayed coupling with a stiff
 arm, which passivity of the admittance alone does not prevent.
 
+With ``raise_rule="decay"`` (an option of the adaptive law, :class:`CouplingConfig`
+``monitor_rule``) the floor is not doubled: once per half-cycle, from the envelope of the last two
+half-cycles (their peaks A1, A2, t_h apart, while the damping was D), the mode's decay rate
+σ = ln(A1 / A2) / t_h is measured and the floor set to D + 2 I (σ* − σ), the damping that gives
+it the target decay σ* = max(ζ ω, ln(A2 / ``threshold``) / ``settle``) (ω = π / t_h: damping ratio
+``zeta``, and down to the threshold within ``settle`` s); a mode already decaying that fast gets
+no raise.  Near the coupled mode the loop is I s² + (D − D_loss) s + K_eff ≈ 0 whatever the
+grip's stiffness, the delays and the arm's own damping are, so its envelope decays at
+(D − D_loss) / 2I: the raise needs neither K nor the delay.
+
 Every raise is an event (time, index, new floor, reason) that the loop records.
 
 :class:`CouplingFloor` is the adaptive law's own floor: it estimates the grip's stiffness from
@@ -56,9 +66,13 @@ class StabilityConfig:
     D_cap_factor: float = 10.0
     hold: float = 1.0
     relax: float = 4.0
+    raise_rule: str = "double"
+    zeta: float = 0.2
+    settle: float = 1.0
 
     def __post_init__(self) -> None:
         ok = (0 < self.f_lo < self.f_hi and self.tau_rms > 0 and self.threshold > 0 and self.boost > 1
+              and self.raise_rule in ("double", "decay") and self.zeta >= 0 and self.settle > 0
               and isinstance(self.lobes, int) and self.lobes >= 2 and self.max_half_period > 0
               and self.step_time > 0 and self.D_cap_factor >= 1 and self.hold >= 0 and self.relax > 0)
         if not ok:
@@ -69,11 +83,16 @@ class OscillationMonitor:
     """Oscillation index of Γr and the damping floor it sets; :meth:`step` once per control cycle.
 
     ``cycle`` s: the control cycle; ``D_nominal``: the damping without oscillation; ``D_limit``:
-    the largest damping the discretised admittance accepts.
+    the largest damping the discretised admittance accepts; ``I``: the admittance's inertia
+    (kg·m², needed by the decay rule).
     """
 
-    def __init__(self, config: StabilityConfig, cycle: float, D_nominal: float, D_limit: float) -> None:
+    def __init__(self, config: StabilityConfig, cycle: float, D_nominal: float, D_limit: float,
+                 I: float | None = None) -> None:
         self.config = c = config
+        if c.raise_rule == "decay" and not (I is not None and I > 0):
+            raise KukaidError("stability monitor: the decay rule needs the admittance's inertia I > 0")
+        self.I = float(I) if I is not None else math.nan
         fs = 1.0 / cycle
         hi = min(c.f_hi, 0.45 * fs)
         self._bp = CausalButterworth((c.f_lo, hi), fs, 2, btype="bandpass")
@@ -98,6 +117,10 @@ class OscillationMonitor:
         self._peak = 0.0
         self._t_cross = 0.0
         self._big = 0  # consecutive completed half-cycles beyond the threshold, each short enough
+        self._halves: list[tuple[float, float, float]] = []  # (peak, duration, mean D) of the last two
+        self._D_sum = 0.0
+        self._n = 0
+        self._evaluated = False  # the decay rule has acted on the half-cycle under way
 
     def step(self, gamma_r: float, D_in_use: float, contact: bool = False) -> float:
         """Feed this cycle's Γr (N·m) and whether a person is in contact (detection); returns the
@@ -112,10 +135,15 @@ class OscillationMonitor:
         # half-cycles of the band-passed torque: an oscillation alternates, a quick push (a step
         # of the torque) gives one or two lobes only
         sg = 1.0 if band > 0 else -1.0 if band < 0 else self._sign
+        self._D_sum += D_in_use
+        self._n += 1
         if sg != self._sign:
-            short = self._t - self._t_cross <= c.max_half_period
+            dur = self._t - self._t_cross
+            short = dur <= c.max_half_period
             self._big = self._big + 1 if (self._peak > c.threshold and short) else 0
+            self._halves = (self._halves + [(self._peak, dur, self._D_sum / self._n)])[-2:]
             self._sign, self._peak, self._t_cross = sg, 0.0, self._t
+            self._D_sum, self._n, self._evaluated = 0.0, 0, False
         self._peak = max(self._peak, abs(band))
         if self._t - self._t_cross > c.max_half_period:
             self._big = 0
@@ -123,7 +151,17 @@ class OscillationMonitor:
         self.oscillating = alternating or self._big >= 1
         if not c.enabled:
             return 0.0
-        if alternating:
+        if alternating and c.raise_rule == "decay":
+            self._quiet = 0.0
+            self.active = True
+            if not self._evaluated:  # once per half-cycle, from the two before it
+                self._evaluated = True
+                new, why = self._decay_floor()
+                if new > max(self.floor, D_in_use) + 1e-9:  # a raise above the damping in use
+                    self.floor = new
+                    self.events.append({"time": self._t, "index": self.index, "D_floor": new, "reason": why})
+                self._last_raise = self._t
+        elif alternating:
             self._quiet = 0.0
             if not self.active or self._t - self._last_raise >= c.step_time:
                 new = min(max(self.floor, D_in_use) * c.boost, self.D_cap)
@@ -145,6 +183,22 @@ class OscillationMonitor:
                     self.floor = 0.0
                     self.active = False
         return self.floor
+
+    def _decay_floor(self) -> tuple[float, str]:
+        """The damping that gives the ringing mode its target decay rate, from the envelope of the
+        last two half-cycles (see the module's docstring), and the reason to log."""
+        c = self.config
+        (a1, t1, _), (a2, t2, d2) = self._halves
+        th = 0.5 * (t1 + t2)
+        w = math.pi / th
+        sigma = math.log(max(a1, 1e-9) / max(a2, 1e-9)) / th
+        target = max(c.zeta * w, math.log(max(a2 / c.threshold, 1.0)) / c.settle)
+        need = min(d2 + 2.0 * self.I * (target - sigma), self.D_cap)
+        why = (f"oscillation: {self._big + 1} alternating half-cycles of Γr's {c.f_lo:g}-{c.f_hi:g} Hz content beyond "
+               f"{c.threshold:g} N·m at {w / (2 * math.pi):.2f} Hz, envelope {'growing' if sigma < 0 else 'decaying'} "
+               f"at {abs(sigma):.2f}/s with D {d2:.0f}: damping floor {need:.0f} N·m·s/rad for a decay of "
+               f"{target:.2f}/s")
+        return need, why
 
 
 def critical_damping(K: float, I: float, T: float) -> float:
@@ -186,7 +240,9 @@ def probe_time(D: float, I: float, T: float) -> float:
 
 @dataclass(frozen=True)
 class CouplingConfig:
-    """Settings of :class:`CouplingFloor` (Hz, s, N·m)."""
+    """Settings of :class:`CouplingFloor` (Hz, s, N·m); ``monitor_lobes`` and ``monitor_rule`` set
+    the stability monitor that backs it up in the adaptive loop (``monitor_rule``: "double" or
+    "decay", :class:`StabilityConfig` ``raise_rule``; the monitor's damping ratio is ``zeta``)."""
 
     enabled: bool = True
     f_lo: float = 0.6
@@ -198,11 +254,12 @@ class CouplingConfig:
     hold: float = 1.0
     escalate: float = 1.3
     monitor_lobes: int = 4
+    monitor_rule: str = "double"
     probe: bool = True
 
     def __post_init__(self) -> None:
         ok = (0 < self.f_lo < self.f_hi and self.threshold > 0 and self.max_half_period > 0 and self.zeta >= 0
-              and self.escalate >= 1 and self.monitor_lobes >= 2
+              and self.escalate >= 1 and self.monitor_lobes >= 2 and self.monitor_rule in ("double", "decay")
               and self.relax > 0 and self.hold >= 0)
         if not ok:
             raise KukaidError(f"coupling floor: settings out of range: {self}")
