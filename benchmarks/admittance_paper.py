@@ -99,10 +99,11 @@ def controller_model(params: dict | None = None):
         c = SimConfig()
         params = c.replace(Fc=c.Fc * 0.95, Fs=c.Fs * 1.04, Fv=c.Fv * 1.06, Izz=c.Izz * 1.05, Mx=c.Mx * 0.98,
                            ms_W=tuple(w * 0.9 for w in c.ms_W)).truth_params()
-    return model_from_params(params), (params.get("maxwell_slip") or {}).get("zeta0")
+    return model_from_params(params)  # its Maxwell-slip state starts at zero, as run-admittance's:
+    # the plant's initial pre-sliding state is not the controller's to know
 
 
-def run_one(model, zeta0, seed: int, damping: str, D: float, cycle: float, rbf=None, grip: str | None = None,
+def run_one(model, seed: int, damping: str, D: float, cycle: float, rbf=None, grip: str | None = None,
             duration: float = 13.0, lam: float = 0.05, coupling=None, arm: str = "human") -> dict:
     """One paired run; returns the window metrics (cost with ``lam``) plus run-level checks."""
     from kukaid.robot import SimRobot
@@ -120,7 +121,7 @@ def run_one(model, zeta0, seed: int, damping: str, D: float, cycle: float, rbf=N
     op = (SpringArm(seed, q0 + cfg.init_move, t_op) if arm == "spring" else
           make_operator("human", seed, q0 + cfg.init_move, t_start=t_op, grip=grip))
     be = SimRobot(VirtualKRC4(SimConfig(), seed=seed), q0, op)
-    run = run_admittance(be, model, cfg, zeta0=zeta0)
+    run = run_admittance(be, model, cfg)
     d = run.data
     t0 = 0.012  # the run's time axis starts at the first measurement
     t_rel = op.t_release if math.isfinite(op.t_release) else math.inf
@@ -163,7 +164,7 @@ CONTROLLERS = (("D35", "constant", 35.0), ("D50", "constant", 50.0), ("D70", "co
                ("adaptive", "adaptive", 50.0))
 
 
-def benchmark(n_ops: int, cycles: tuple[float, ...], model, zeta0, rbf=None, controllers=CONTROLLERS,
+def benchmark(n_ops: int, cycles: tuple[float, ...], model, rbf=None, controllers=CONTROLLERS,
               arm: str = "human", seed_offset: int = 0, coupling=None) -> dict:
     """Operator i has seed ``seed_offset + i`` and grip ``GRIPS[i % 3]`` (the same for every controller)."""
     out: dict = {}
@@ -172,7 +173,7 @@ def benchmark(n_ops: int, cycles: tuple[float, ...], model, zeta0, rbf=None, con
         for i in range(n_ops):
             grip = GRIPS[i % 3]
             for name, damping, D in controllers:
-                runs[name].append(run_one(model, zeta0, seed_offset + i, damping, D, cyc, rbf=rbf if damping == "adaptive" else None,
+                runs[name].append(run_one(model, seed_offset + i, damping, D, cyc, rbf=rbf if damping == "adaptive" else None,
                                           grip=grip, arm=arm, coupling=coupling if damping == "adaptive" else None))
         res: dict = {"runs": runs, "per_controller": {}, "paired": {}}
         for name, rs in runs.items():
@@ -230,7 +231,7 @@ def print_table(res: dict, n_ops: int) -> None:
                           f"{pr['wins_soft']:>3d}/{pr['wins_ordinary']:d}/{pr['wins_firm']:d}{'':>6} | {pr['wilcoxon_p']:10.2g}")
 
 
-def sweep(n_ops: int, model, zeta0, cycle: float = 0.024) -> list[dict]:
+def sweep(n_ops: int, model, cycle: float = 0.024) -> list[dict]:
     """Adaptive vs D 50 on the true hand torque, one unstated constant changed at a time."""
     from kukaid.control.rbf import RBFConfig
     from kukaid.control.stability import CouplingConfig
@@ -246,7 +247,7 @@ def sweep(n_ops: int, model, zeta0, cycle: float = 0.024) -> list[dict]:
                                    "dforce_levels": tuple(0.5 * f for f in base.dforce_levels)}),
                  ("centres x2", {"force_levels": tuple(2 * f for f in base.force_levels),
                                  "dforce_levels": tuple(2 * f for f in base.dforce_levels)})]
-    ref = [run_one(model, zeta0, i, "constant", 50.0, cycle, grip=GRIPS[i % 3]) for i in range(n_ops)]
+    ref = [run_one(model, i, "constant", 50.0, cycle, grip=GRIPS[i % 3]) for i in range(n_ops)]
     variants += [(f"grip zeta={v:g}", {"zeta": v}) for v in (0.1, 0.4)]
     variants += [("grip escalate=1.6", {"escalate": 1.6}), ("no probe", {"probe": False}),
                  ("no grip floor", {"enabled": False})]
@@ -254,10 +255,10 @@ def sweep(n_ops: int, model, zeta0, cycle: float = 0.024) -> list[dict]:
     for label, ch in variants:
         cpl = CouplingConfig(**ch) if set(ch) <= {f.name for f in dataclasses.fields(CouplingConfig)} and ch else None
         rbf = base if cpl is not None else dataclasses.replace(base, **ch)
-        ad = [run_one(model, zeta0, i, "adaptive", 50.0, cycle, rbf=rbf, grip=GRIPS[i % 3], lam=rbf.lam, coupling=cpl)
+        ad = [run_one(model, i, "adaptive", 50.0, cycle, rbf=rbf, grip=GRIPS[i % 3], lam=rbf.lam, coupling=cpl)
               for i in range(n_ops)]
         if rbf.lam != base.lam:  # the cost the law minimises, for both sides of the pair
-            ref_l = [run_one(model, zeta0, i, "constant", 50.0, cycle, grip=GRIPS[i % 3], lam=rbf.lam)
+            ref_l = [run_one(model, i, "constant", 50.0, cycle, grip=GRIPS[i % 3], lam=rbf.lam)
                      for i in range(n_ops)]
         else:
             ref_l = ref
@@ -341,7 +342,7 @@ def main() -> None:
         from kukaid.params import load_params
 
         params = load_params(a.params)
-    model, zeta0 = controller_model(params)
+    model = controller_model(params)
     cycles = tuple(float(c) for c in a.cycles.split(","))
     t = time.perf_counter()
     ctl = tuple(c for c in CONTROLLERS if c[0] in a.controllers.split(","))
@@ -350,9 +351,9 @@ def main() -> None:
         from kukaid.control.stability import CouplingConfig
 
         cpl = CouplingConfig(monitor_rule=a.monitor_rule)
-    res = benchmark(a.operators, cycles, model, zeta0, controllers=ctl, arm=a.arm, seed_offset=a.seed_offset,
+    res = benchmark(a.operators, cycles, model, controllers=ctl, arm=a.arm, seed_offset=a.seed_offset,
                     coupling=cpl)
-    rows = sweep(a.sweep_operators, model, zeta0) if a.sweep else None
+    rows = sweep(a.sweep_operators, model) if a.sweep else None
     secs = time.perf_counter() - t
     from kukaid.jsonfile import jsonable
 
