@@ -17,6 +17,11 @@ def _floats(text: str) -> list[float]:
         raise click.BadParameter(f"'{text}' is not a comma-separated list of numbers") from None
 
 
+#: a Fourier excitation whose base regressor is worse conditioned than this is written with a warning
+#: (optimised ones reach about 90 on the bundled KR 6; the standard deviations scale with it)
+COND_WARN = 1000.0
+
+
 def _seconds(v: float) -> float:
     """A duration option: at most an hour (the generators build whole arrays at the IPO rate)."""
     if not v <= 3600.0:
@@ -237,3 +242,7 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
     check_outputs(files, [limits_file])
     write_texts_atomic(files)
     click.echo(msg, err=True)
+    if traj.params["cond"] > COND_WARN:
+        click.echo(f"warning: regressor condition number {traj.params['cond']:.3g} (above {COND_WARN:g}): the base "
+                   "parameters' standard deviations grow with it, some will be poorly determined; widen the limits "
+                   "(--qdd-max-deg, --limits), add harmonics or iterations", err=True)

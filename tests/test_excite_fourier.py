@@ -114,3 +114,14 @@ def test_a_bad_urdf_is_one_line_on_stderr(tmp_path, kukaid_cmd):
     assert r.returncode != 0
     assert r.stderr.startswith("kukaid: error: ") and r.stderr.count("\n") == 1, r.stderr
     assert not (tmp_path / "f.json").exists()
+
+
+def test_a_badly_conditioned_excitation_is_written_with_a_warning(tmp_path):
+    out = tmp_path / "f.json"
+    r = CliRunner().invoke(cli, ["excite", "fourier", "--robot", ROBOT, "-o", str(out), "--qdd-max-deg", "1",
+                                 "--iterations", "0"])
+    assert r.exit_code == 0 and out.exists(), r.output
+    assert "warning: regressor condition number" in r.output and "poorly determined" in r.output
+    r = CliRunner().invoke(cli, ["excite", "fourier", "--robot", ROBOT, "-o", str(tmp_path / "g.json"),
+                                 "--harmonics", "3", "--period", "5"])
+    assert r.exit_code == 0 and "warning" not in r.output, r.output
