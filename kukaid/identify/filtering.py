@@ -101,6 +101,9 @@ class Prepared:
     rows : indices of the kept samples in the original log.
     fs : sample rate of the original log, Hz.   settings : the filter settings used.
     axis, joint, kind, source : the axis number, "revolute"/"prismatic", experiment kind, file.
+    tau_span : the unfiltered torque at the original rate over the kept span (before
+    decimation: the noise level is read from its second differences, which decimation would
+    fill with the signal's curvature).
     """
 
     time: np.ndarray
@@ -120,6 +123,7 @@ class Prepared:
     joint: str = "revolute"
     kind: str = ""
     source: str = ""
+    tau_span: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -293,4 +297,4 @@ def preprocess(log: Any, axis: int | None = None, cutoff: float | None = None, o
     return Prepared(time=t_k, q=qf[rows], qd=qd_k, qdd=qdd[rows], tau=tf[rows], tau_raw=tau[rows], q_raw=q[rows],
                     dynamic=dynamic, quasi_static=quasi, plateau=plateau, rows=rows, fs=fs, settings=settings,
                     axis=int(axis), joint=log.joint[col], kind=str(log.attrs.get("experiment", "") or ""),
-                    source=str(where))
+                    source=str(where), tau_span=tau[edge:t.size - edge])
