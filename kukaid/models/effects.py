@@ -28,15 +28,19 @@ coupling                   per other moving axis j: cos, sin of q + q_j and of q
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from kukaid.models.friction import stribeck_column
+from kukaid.models.signals import LogSignals
 
-if TYPE_CHECKING:  # pragma: no cover
-    from kukaid.models.signals import LogSignals
-    from kukaid.models.torque import JointTorqueModel
+
+class ModelView(Protocol):
+    """What an effect term reads from the model it belongs to
+    (:class:`kukaid.models.torque.JointTorqueModel`, which imports this module)."""
+
+    def friction_torque(self, sig: LogSignals, friction: dict | None = None) -> np.ndarray: ...
 
 #: marks an effect stored by ``kukaid diagnose`` (its coefficients and settings are read back)
 TAG = "kukaid.diagnose/1"
@@ -59,7 +63,7 @@ class Effect:
     #: nonlinear settings a stored effect must have (besides its coefficients)
     settings: tuple[str, ...] = ()
 
-    def columns(self, sig: "LogSignals", nl: dict, model: "JointTorqueModel") -> np.ndarray:
+    def columns(self, sig: LogSignals, nl: dict, model: ModelView) -> np.ndarray:
         """Regressor columns (n, len(coef_keys(nl))) on the full grid, unfiltered."""
         raise NotImplementedError
 
@@ -67,7 +71,7 @@ class Effect:
         """Names of the coefficients at settings ``nl`` (fixed, except for ``coupling``)."""
         return self.coef_names
 
-    def freeze(self, nl: dict, model: "JointTorqueModel") -> dict:
+    def freeze(self, nl: dict, model: ModelView) -> dict:
         """Settings to store when the effect joins the model (fix what depends on the model)."""
         return nl
 
@@ -79,7 +83,7 @@ class Effect:
         return nl, coefs
 
     def describe(self, nl: dict, coefs: dict[str, float], std: dict[str, float],
-                 model: "JointTorqueModel") -> dict[str, Any]:
+                 model: ModelView) -> dict[str, Any]:
         """The effect's parameters for the parameter file and the report (JSON-able)."""
         d: dict[str, Any] = {"model": TAG}
         d.update({k: _num(v) for k, v in nl.items()})
@@ -132,7 +136,7 @@ class PositionRipple(Effect):
         return d
 
 
-def dissipated_energy(sig: "LogSignals", model: "JointTorqueModel", friction: dict | None = None) -> np.ndarray:
+def dissipated_energy(sig: LogSignals, model: ModelView, friction: dict | None = None) -> np.ndarray:
     """Friction energy dissipated since the log started, J: integral of |F(qd) qd| dt."""
     p = np.abs(model.friction_torque(sig, friction) * sig.qd)
     dt = np.diff(sig.time, prepend=sig.time[0])
@@ -189,7 +193,7 @@ class LoadDependentFriction(Effect):
         return d
 
 
-def reversals(sig: "LogSignals", qd_thr: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def reversals(sig: LogSignals, qd_thr: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Indices where the axis starts moving in the direction opposite to its previous motion.
 
     Returns (indices into the full grid, new direction +1/-1).  ``qd_thr`` defaults to
@@ -207,7 +211,7 @@ def reversals(sig: "LogSignals", qd_thr: float | None = None) -> tuple[np.ndarra
     return idx[ch], ss[ch].astype(float)
 
 
-def _after_reversals(sig: "LogSignals", shape) -> np.ndarray:
+def _after_reversals(sig: LogSignals, shape) -> np.ndarray:
     """One column: s_r shape(i, j) on every stretch [i, j) from a reversal i (new direction s_r) on."""
     idx, new = reversals(sig)
     col = np.zeros(sig.n)
