@@ -60,8 +60,7 @@ def noise_floor(preps: Sequence[Any]) -> float:
         st = pr.settings
         g = filter_noise_gain(st["fs"], st["cutoff"], st["order"]) if st.get("filter_torque", True) else 1.0
         k = int(np.count_nonzero(pr.dynamic))
-        tau = pr.tau_raw if pr.tau_span is None else pr.tau_span  # at the original rate: see Prepared
-        num += raw_noise_sigma(tau) ** 2 * g * k
+        num += raw_noise_sigma(pr.tau_span) ** 2 * g * k  # at the original rate: see Prepared
         den += k
     return float(math.sqrt(num / den)) if den else 0.0
 

@@ -99,11 +99,12 @@ class Prepared:
     quasi_static : bool, ``|qd| < qd_thr``.
     plateau : bool, dynamic samples at nearly constant velocity (``|qdd| < qdd_tol``).
     rows : indices of the kept samples in the original log.
-    fs : sample rate of the original log, Hz.   settings : the filter settings used.
-    axis, joint, kind, source : the axis number, "revolute"/"prismatic", experiment kind, file.
+    fs : sample rate of the original log, Hz.
     tau_span : the unfiltered torque at the original rate over the kept span (before
     decimation: the noise level is read from its second differences, which decimation would
     fill with the signal's curvature).
+    settings : the filter settings used.
+    axis, joint, kind, source : the axis number, "revolute"/"prismatic", experiment kind, file.
     """
 
     time: np.ndarray
@@ -118,12 +119,12 @@ class Prepared:
     plateau: np.ndarray
     rows: np.ndarray
     fs: float
+    tau_span: np.ndarray
     settings: dict[str, Any] = field(default_factory=dict)
     axis: int = 3
     joint: str = "revolute"
     kind: str = ""
     source: str = ""
-    tau_span: np.ndarray | None = None
 
     @property
     def n(self) -> int:

@@ -34,7 +34,6 @@ from kukaid.params.axis import IZZ_MIN, model_sections
 
 METHODS = ("joint", "staged")
 FRICTION_MODELS = ("auto", "stribeck", "coulomb-viscous")
-#: the Stribeck parameters beyond Coulomb-viscous (and Fc, which a degenerate Stribeck trades for them)
 #: Stribeck parameters that, on a bound, say the data do not determine the Stribeck rise (delta is a
 #: shape exponent within the paper's range 0.5-2; at its limit the rise is still there: the paper's
 #: own fit ends at delta = 2.0)
