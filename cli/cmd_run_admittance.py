@@ -46,6 +46,9 @@ def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> No
               help="Seconds of admittance control (after the 1-degree initiation move and rest).")
 @click.option("--cycle", type=float, default=0.012, show_default=True,
               help="Control cycle, s (KRC sample time 0.012; the paper's ~0.024 also works).")
+@click.option("--cutoff", type=float, default=5.0, show_default=True,
+              help="Low-pass of the torque estimate, Hz (the paper's 5 Hz; higher: less loop delay, so firm grips "
+                   "need less damping, but a noisier Γr).")
 @click.option("--init-move", type=click.FloatRange(-10.0, 10.0), default=1.0, show_default=True,
               help="Initiation move before control, degrees (saturates the Maxwell-slip elements, eq. 12; 0: none).")
 # safety (degrees at the edge)
@@ -84,7 +87,7 @@ def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> No
               help="kvp, or a robot parameter file: axis to control.")
 def command(params_path: Path, output: Path, report: Path | None, as_json: bool, force: bool, damping: str,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
-            duration: float, cycle: float, init_move: float, q_min: float | None, q_max: float | None,
+            duration: float, cycle: float, cutoff: float, init_move: float, q_min: float | None, q_max: float | None,
             qd_max: float, qdd_max: float, tau_max: float, max_age: float, backend: str, operator: str, seed: int,
             q0: float, grip: str | None, sim_config: Path | None, noise: float | None, program: Path | None,
             enable_motion: bool, host: str, port: int, axis: int) -> None:
@@ -165,7 +168,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         check_motion_allowed(backend, enable_motion, limits)
         # LoopConfig checks the admittance's stability (also at D-max) and the detection thresholds
         cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
-                         sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf,
+                         sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf, cutoff=cutoff,
                          limits=limits)
 
     attrs = {"params_file": str(params_path), "backend": backend}

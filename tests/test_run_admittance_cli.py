@@ -294,8 +294,8 @@ def test_cycle_threshold_and_release_reach_the_controller(files, tmp_path):
 
     out = tmp_path / "opts.h5"
     r = _run(["--params", files / "params.json", "--sim-config", files / "truth.json", "--operator", "push",
-              "--seed", "3", "--duration", "4", "--cycle", "0.024", "--threshold", "8", "--release", "3", "-o", out,
-              "--json"])
+              "--seed", "3", "--duration", "4", "--cycle", "0.024", "--threshold", "8", "--release", "3",
+              "--cutoff", "8", "-o", out, "--json"])
     assert r.exit_code == 0, r.output
     m = json.loads(r.output.strip().splitlines()[-1])
     assert (m["cycle"], m["threshold"], m["release"]) == (0.024, 8.0, 3.0)
@@ -303,7 +303,7 @@ def test_cycle_threshold_and_release_reach_the_controller(files, tmp_path):
     assert metrics == m
     with h5py.File(out, "r") as f:
         cfg = json.loads(f["control"].attrs["config"])
-    assert (cfg["cycle"], cfg["threshold"], cfg["release"]) == (0.024, 8.0, 3.0)
+    assert (cfg["cycle"], cfg["threshold"], cfg["release"], cfg["cutoff"]) == (0.024, 8.0, 3.0, 8.0)
     adm = control["phase"] == 2
     assert np.allclose(np.diff(log.time[adm]), 0.024, atol=1e-9)  # one row per 24 ms cycle
     g, det = np.abs(control["gamma_r"][adm]), control["detected"][adm].astype(bool)
@@ -311,6 +311,14 @@ def test_cycle_threshold_and_release_reach_the_controller(files, tmp_path):
     ends = det[:-1] & ~det[1:]
     assert ends.any() and np.all(g[1:][ends] < 3.0)  # ... and end below 3 N·m
     assert np.any(det & (g < 8.0))  # held between the two (hysteresis)
+    # the estimator's cut-off: at the paper's 5 Hz the same push shows later in Γr
+    out5 = tmp_path / "opts5.h5"
+    r = _run(["--params", files / "params.json", "--sim-config", files / "truth.json", "--operator", "push",
+              "--seed", "3", "--duration", "4", "--cycle", "0.024", "--threshold", "8", "--release", "3", "-o", out5])
+    assert r.exit_code == 0, r.output
+    _, control5, _ = read_run(out5)
+    first = lambda c: int(np.flatnonzero(c["detected"].astype(bool) & (c["phase"] == 2))[0])  # noqa: E731
+    assert first(control5) > first(control)
 
 
 @pytest.mark.slow

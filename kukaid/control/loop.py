@@ -43,7 +43,10 @@ class LoopConfig:
 
     I kg·m², D N·m·s/rad (constant damping, and D0 of the adaptive one); damping "constant" or
     "adaptive"; threshold / release N·m; cycle s; duration s (of the admittance phase);
-    init_move rad, init_time s, init_rest s; rbf (adaptive damping settings); limits (safety);
+    init_move rad, init_time s, init_rest s; cutoff Hz: the estimator's low-pass (the paper's 5 Hz,
+    3rd order; its delay, 64 ms at low frequency, is most of the loop's delay, so a higher cut-off
+    lets a stiffer grip be guided with less damping, at the price of a noisier Γr);
+    rbf (adaptive damping settings); limits (safety);
     stability (the online oscillation monitor that raises the damping, both modes); passivity
     (the adaptive law's floor: the damping the person must feel at the coupled mode's frequency).
     """
@@ -60,6 +63,7 @@ class LoopConfig:
     init_time: float = 0.6
     init_rest: float = 0.6
     u_window: float = 0.12
+    cutoff: float = 5.0
     rbf: RBFConfig | None = None
     limits: SafetyLimits = field(default_factory=SafetyLimits)
     stability: StabilityConfig = field(default_factory=StabilityConfig)
@@ -77,6 +81,9 @@ class LoopConfig:
         if self.release is not None and not (math.isfinite(self.release) and 0 <= self.release <= self.threshold):
             raise KukaidError(f"run-admittance: release {self.release} N·m must be in [0, threshold {self.threshold}] N·m "
                               "(a detection ends below it)")
+        if not (math.isfinite(self.cutoff) and 0 < self.cutoff < 0.5 / self.sample_time):
+            raise KukaidError(f"run-admittance: the estimator's cut-off {self.cutoff} Hz must be in (0, "
+                              f"{0.5 / self.sample_time:g}) Hz (half the sampling rate)")
         if not (math.isfinite(self.duration) and self.duration > 0):
             raise KukaidError(f"run-admittance: duration must be > 0 s, got {self.duration}")
         if self.damping == "adaptive":
@@ -119,10 +126,10 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     cfg = config or LoopConfig()
     if isinstance(model, RobotTorqueModel):  # a robot model: Γr of the guided axis from every axis's motion
         est = GuidedAxisResidual(model, backend.axis, sample_time=cfg.sample_time, threshold=cfg.threshold,
-                                 release=cfg.release_torque)
+                                 release=cfg.release_torque, cutoff=cfg.cutoff)
     else:
         est = TorqueResidual(model, sample_time=cfg.sample_time, threshold=cfg.threshold, release=cfg.release,
-                             zeta0=zeta0, u_window=cfg.u_window)
+                             zeta0=zeta0, u_window=cfg.u_window, cutoff=cfg.cutoff)
     samples = backend.start()
     try:
         if not samples:
