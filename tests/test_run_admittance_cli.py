@@ -298,7 +298,7 @@ def test_cycle_threshold_and_release_reach_the_controller(files, tmp_path):
               "--cutoff", "8", "-o", out, "--json"])
     assert r.exit_code == 0, r.output
     m = json.loads(r.output.strip().splitlines()[-1])
-    assert (m["cycle"], m["threshold"], m["release"]) == (0.024, 8.0, 3.0)
+    assert (m["cycle"], m["threshold"], m["release"], m["cutoff"]) == (0.024, 8.0, 3.0, 8.0)
     log, control, metrics = read_run(out)
     assert metrics == m
     with h5py.File(out, "r") as f:

@@ -44,7 +44,7 @@ class LoopConfig:
     I kg·m², D N·m·s/rad (constant damping, and D0 of the adaptive one); damping "constant" or
     "adaptive"; threshold / release N·m; cycle s; duration s (of the admittance phase);
     init_move rad, init_time s, init_rest s; cutoff Hz: the estimator's low-pass (the paper's 5 Hz,
-    3rd order; its delay, 64 ms at low frequency, is most of the loop's delay, so a higher cut-off
+    3rd order; its delay, 63 ms at 1 Hz, is most of the loop's delay, so a higher cut-off
     lets a stiffer grip be guided with less damping, at the price of a noisier Γr);
     rbf (adaptive damping settings); limits (safety);
     stability (the online oscillation monitor that raises the damping, both modes); passivity
@@ -300,7 +300,7 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     t, gr, te = data["time"], data["gamma_r"], data["tau_ext_true"]
     det, dyn = data["detected"], data["dynamic"]
     out: dict[str, Any] = {"lambda": lam, "threshold": cfg.threshold, "release": cfg.release_torque,
-                           "damping": cfg.damping, "I": cfg.I, "D": cfg.D, "cycle": cfg.cycle}
+                           "damping": cfg.damping, "I": cfg.I, "D": cfg.D, "cycle": cfg.cycle, "cutoff": cfg.cutoff}
     has_truth = bool(np.any(np.isfinite(te[ph])))
     idx = np.flatnonzero(ph)
     if idx.size == 0:
