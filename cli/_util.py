@@ -74,7 +74,7 @@ def check_outputs(outputs: Iterable[Path | None], inputs: Iterable[Path | None] 
 def check_suffix(path: Path | None, *suffixes: str) -> None:
     """Refuse an output whose name does not say its format (``.json``, ``.pdf``, ``.h5`` ...)."""
     if path is not None and path.suffix.lower() not in suffixes:
-        raise KukaidError(f"{path}: this output is {' or '.join(suffixes)}; name it so")
+        raise click.UsageError(f"{path}: this output is {' or '.join(suffixes)}; name it so")
 
 
 def _same(a: Path, b: Path) -> bool:

@@ -206,11 +206,11 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
     """`kukaid excite fourier`: every axis of the robot, limits from its URDF."""
     from kukaid.atomic import write_texts_atomic
     from kukaid.errors import TrajectoryError
-    from kukaid.excite.fourier import fourier, robot_limits
+    from kukaid.excite.fourier import check_options, fourier, robot_limits
     from kukaid.jsonfile import read_json
     from kukaid.models.limits import AxisLimits
     from kukaid.models.urdf import load_model
-    from kukaid_cli._util import check_outputs
+    from kukaid_cli._util import check_outputs, usage_errors
 
     ctx = click.get_current_context()
     if ctx.get_parameter_source("axis") != click.core.ParameterSource.DEFAULT:
@@ -218,6 +218,8 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
     for flag, v in (("--q-min-deg", q_min_deg), ("--q-max-deg", q_max_deg), ("--qd-max-deg", qd_max_deg)):
         if v is not None:
             raise click.UsageError(f"option {flag} does not apply to 'fourier' (give per-axis limits with --limits)")
+    with usage_errors(types=(TrajectoryError,)):  # the numbers of the options alone
+        check_options(**kwargs)
     robot = kwargs.pop("robot", "kr6-r700-sixx")
     model = load_model(robot)
     limits = robot_limits(model, None if qdd_max_deg is None else qdd_max_deg * _DEG, robot=robot)

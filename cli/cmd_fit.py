@@ -67,6 +67,8 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
     import math
 
     _check_applicable(click.get_current_context(), robot is not None, presliding is not None)
+    if cutoff is not None and not (math.isfinite(cutoff) and cutoff > 0):
+        raise click.BadParameter(f"{cutoff} must be a finite number > 0", param_hint="--cutoff")
     if robot is not None:
         _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, prior_weight, torque_side,
                    stribeck_vs, rotor_inertia, coupling)
@@ -81,7 +83,9 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
 
     check_suffix(output, ".json")
     check_outputs([output], [*logs, *friction, *inertia, presliding])
-    for name, v, lo in (("--cutoff", cutoff, 0.0), ("--qd-thr", qd_thr, None), ("--reversal-window", reversal_window, None)):
+    if not (logs or friction or inertia):
+        raise click.UsageError("no logs to fit: give general logs (LOG...), or --friction and/or --inertia logs")
+    for name, v, lo in (("--qd-thr", qd_thr, None), ("--reversal-window", reversal_window, None)):
         if v is not None and not (math.isfinite(v) and (v > lo if lo is not None else v >= 0)):
             raise click.BadParameter(f"{v} must be a finite number {'>' if lo is not None else '>='} 0", param_hint=name)
     if edge is not None and edge < 0:

@@ -37,7 +37,9 @@ def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> No
 @click.option("--D", "D", type=float, default=50.0, show_default=True, help="Damping, N·m·s/rad (> 0).")
 @click.option("--I", "I", type=float, default=20.0, show_default=True, help="Inertia of the admittance, kg·m² (> 0).")
 @click.option("--D-min", "D_min", type=float, help="adaptive: lower bound of D [0.3 D].")
-@click.option("--D-max", "D_max", type=float, help="adaptive: upper bound of D [2 D].")
+@click.option("--D-max", "D_max", type=float,
+              help="adaptive: upper bound of the network's D [2 D]; to damp an oscillation the stability monitor "
+                   "may raise D above it, up to 10 D (logged with when and why).")
 @click.option("--threshold", type=float, default=5.0, show_default=True, help="Detection threshold on |Γr|, N·m.")
 @click.option("--release", type=float,
               help="|Γr| below which a detection ends, N·m [0.3 threshold: once in contact the axis follows "
@@ -289,6 +291,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     else:
         m = run.metrics
         click.echo(f"run-admittance ({damping} damping, {backend}): {run.status}")
+        grip_drawn = getattr(getattr(op, "p", None), "grip", None) if backend == "sim" else None
+        if grip_drawn is not None:
+            click.echo(f"  {'operator':28s} {operator}, seed {seed}, {grip_drawn} grip")
         for k in ("detection_delay", "residual_rmse", "residual_rmse_dynamic", "residual_rmse_quasi_static",
                   "false_detections", "mean_sq_dgamma", "mean_cost", "displacement", "peak_speed", "D_range",
                   "settled", "clipped_cycles", "xi", "dgamma2", "xi_true", "dgamma2_true", "end_error",

@@ -19,10 +19,22 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
 
     from kukaid.diagnose.validate import load_model_file, table, to_json, validate
     from kukaid.jsonfile import jsonable
+    from kukaid.identify.adequacy import moving_axes
     from kukaid.logs import read_log
+    from kukaid.params import is_robot_params
 
     params = load_model_file(params_path)
-    scores = validate(params, [read_log(p) for p in logs], axis=axis)
+    data = [read_log(p) for p in logs]
+    scores = validate(params, data, axis=axis)
+    if not is_robot_params(params):  # a one-axis model on a log where other axes move: say why it fails
+        ax = int(params.get("axis", 3)) if axis is None else axis
+        for path, log in zip(logs, data):
+            others = moving_axes(log, ax)
+            if others:
+                click.echo(f"kukaid: warning: validate: {path}: other axes ({', '.join(f'A{a}' for a in others)}) move, "
+                           f"so the gravity and inertia torque on A{ax} depend on their positions, which the "
+                           f"single-axis model of {params_path} does not see; fit all axes together (kukaid fit "
+                           f"--robot URDF)", err=True)
     if as_json:
         click.echo(json.dumps(jsonable(to_json(scores)), indent=2))
     else:

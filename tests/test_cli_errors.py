@@ -176,6 +176,15 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
     (["krl-follower", "--q-min", "50", "--q-max", "10", "-o", "krl"], ["window"]),
     (["fit", "{d}/inertia.h5", "-o", "p.json", "--bound", "vs=0.2:0.1"], ["--bound", "lower 0.2 is above upper 0.1"]),
     (["fit", "{d}/inertia.h5", "-o", "p.json", "--bound", "nope=0:1"], ["--bound", "no such parameter"]),
+    (["fit", "-o", "p.json"], ["no logs to fit"]),
+    (["fit", "{d}/inertia.h5", "-o", "p.txt"], ["p.txt: this output is .json"]),
+    (["fit", "{d}/inertia.h5", "-o", "p.json", "--robot", "kr6-r700-sixx", "--cutoff", "0"], ["--cutoff"]),
+    (["diagnose", "--params", "{d}/params.json", "--log", "{d}/inertia.h5", "--cutoff", "0"], ["--cutoff"]),
+    (["excite", "fourier", "-o", "x.json", "--harmonics", "0"], ["harmonics must be 1 to 20"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--report", "r.png"], ["r.png", ".pdf"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--cycle", "0.0125"],
+     ["whole number of sample times"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--cutoff", "50"], ["cut-off 50.0 Hz"]),
 ])
 def test_option_errors_are_usage_errors(files, tmp_path, monkeypatch, args, pieces):
     """Contradictory or out-of-range options: exit status 2 (the README's usage error), one line, no output."""

@@ -81,3 +81,17 @@ def test_unknown_schema_and_missing_axis(tmp_path):
          "inertial": {"Izz": 1.0}}
     with pytest.raises(KukaidError, match="A2"):
         validate(p, [sine_log(1, 0.2)])
+
+
+def test_validate_warns_when_other_axes_move(tmp_path):
+    """A one-axis model checked on a log where other axes move is told why it fails (as fit does)."""
+    fit_log, both = tmp_path / "a.h5", tmp_path / "b.h5"
+    write_hdf5(sine_log(1, 0.25), fit_log)
+    write_hdf5(sine_log(2, 0.18, axes=(2, 3)), both)
+    par = tmp_path / "p.json"
+    r = CliRunner().invoke(cli, ["fit", str(fit_log), "--friction-model", "coulomb-viscous", "-o", str(par)])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(both)])
+    assert r.exit_code == 0 and "warning: validate:" in r.output and "other axes (A2) move" in r.output, r.output
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(fit_log)])
+    assert r.exit_code == 0 and "warning" not in r.output, r.output

@@ -73,9 +73,11 @@ class LoopConfig:
         if self.damping not in ("constant", "adaptive"):
             raise KukaidError(f"run-admittance: damping must be 'constant' or 'adaptive', got {self.damping!r}")
         check_admittance(self.I, self.D, self.cycle)
-        if self.cycle < self.sample_time * 0.999:
-            raise KukaidError(f"run-admittance: control cycle {self.cycle} s is shorter than the sample time "
-                              f"{self.sample_time} s")
+        n = self.cycle / self.sample_time
+        if n < 0.999 or abs(n - round(n)) > 1e-6:  # each cycle uses the samples the KRC has delivered
+            raise KukaidError(f"run-admittance: control cycle {self.cycle:g} s must be a whole number of sample times "
+                              f"({self.sample_time:g} s: {self.sample_time:g}, {2 * self.sample_time:g}, "
+                              f"{3 * self.sample_time:g} ... s)")
         if not (math.isfinite(self.threshold) and self.threshold > 0):
             raise KukaidError(f"run-admittance: threshold must be a finite number > 0 N·m, got {self.threshold}")
         if self.release is not None and not (math.isfinite(self.release) and 0 <= self.release <= self.threshold):
