@@ -85,8 +85,8 @@ def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> No
 @click.option("--enable-motion", is_flag=True, help="kvp: really move the robot (required with --backend kvp).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
 @click.option("--port", type=int, default=7000, show_default=True, help="kvp: KUKAVARPROXY port.")
-@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True,
-              help="kvp, or a robot parameter file: axis to control.")
+@click.option("--axis", type=click.IntRange(1, 12), default=3, show_default=True,
+              help="kvp (A1..A6), or a robot parameter file (any of its axes): axis to control.")
 def command(params_path: Path, output: Path, report: Path | None, as_json: bool, force: bool, damping: str,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
             duration: float, cycle: float, cutoff: float, init_move: float, q_min: float | None, q_max: float | None,
@@ -131,6 +131,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if p is not None:
             refuse_overwrite(p, force)
             check_writable(p)  # before the robot moves: the record of the run must be writable
+    if backend == "kvp" and axis > 6:
+        raise click.BadParameter(f"{axis}: a KR C4 over KUKAVARPROXY moves A1..A6", param_hint="--axis")
     if backend == "kvp" and (sim_config is not None or noise is not None or program is not None):
         raise click.UsageError("--sim-config, --noise and --program are for --backend sim")
     raw = read_json(params_path, ParamFileError)

@@ -185,6 +185,8 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--cycle", "0.0125"],
      ["whole number of sample times"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--cutoff", "50"], ["cut-off 50.0 Hz"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--backend", "kvp", "--axis", "7"],
+     ["--axis", "A1..A6"]),
 ])
 def test_option_errors_are_usage_errors(files, tmp_path, monkeypatch, args, pieces):
     """Contradictory or out-of-range options: exit status 2 (the README's usage error), one line, no output."""
