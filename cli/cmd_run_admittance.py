@@ -14,6 +14,13 @@ def _fmt(v):
     return str(v)
 
 
+#: units of the summary's figures (detection_delay < 0: Γr crossed the threshold before the true torque did)
+_UNITS = {"detection_delay": " s", "residual_rmse": " N·m", "residual_rmse_dynamic": " N·m",
+          "residual_rmse_quasi_static": " N·m", "mean_sq_dgamma": " N²·m²", "displacement": " rad",
+          "peak_speed": " rad/s", "D_range": " N·m·s/rad", "dgamma2": " N²·m²", "dgamma2_true": " N²·m²",
+          "end_error": " of the move"}
+
+
 def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> None:
     """The position window and the simulated start, in the options' unit (degrees): usage errors."""
     where = "--q-min/--q-max" + ("; sim default --q0 -/+ 90" if defaulted and q0 is not None else "")
@@ -292,6 +299,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         click.echo(json.dumps(jsonable(run.metrics)))
     else:
         m = run.metrics
+        prismatic = not robot_file and (params.get("provenance") or {}).get("joint") == "prismatic"
         click.echo(f"run-admittance ({damping} damping, {backend}): {run.status}")
         grip_drawn = getattr(getattr(op, "p", None), "grip", None) if backend == "sim" else None
         if grip_drawn is not None:
@@ -301,7 +309,11 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                   "settled", "clipped_cycles", "xi", "dgamma2", "xi_true", "dgamma2_true", "end_error",
                   "stability_events"):
             if k in m:
-                click.echo(f"  {k:28s} {_fmt(m[k])}")
+                unit = _UNITS.get(k, "")
+                if prismatic:  # a linear axis: N and m
+                    unit = (unit.replace("N·m·s/rad", "N·s/m").replace("N²·m²", "N²").replace("N·m", "N")
+                            .replace("rad", "m"))
+                click.echo(f"  {k:28s} {_fmt(m[k])}{unit}")
         for w in m.get("warnings") or ():
             click.echo(f"  warning: {w}")
         click.echo(f"  -> {output}" + (f", {report}" if report else ""))
