@@ -43,6 +43,8 @@ def test_emps_offset_is_found_and_error_drops():
     # error ends below the published model's
     d = diagnose(params, [log])
     assert "torque_offset" in d.names and d.rel_after < 0.041, d.lines()
+    # a sine of one period over the whole stroke is a slow position-dependent force, not a ripple
+    assert "position_ripple" not in d.names and any("not a repeating ripple" in x for x in d.lines()), d.lines()
 
 
 def test_emps_gravity_candidates_do_not_apply_to_a_prismatic_axis():
