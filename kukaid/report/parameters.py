@@ -145,7 +145,7 @@ def page_parameters(data: ReportData):
                           f"zero-phase, fs {_fmt(pp.get('fs'), 4)} Hz, qd_thr {_fmt(pp.get('qd_thr'), 3)} {data.vu}, "
                           f"reversal window {_fmt(pp.get('reversal_window'), 3)} s, {pp.get('diff', '?')} differences")
     seen = set()
-    for role, items in (("friction", data.friction), ("inertia", data.inertia), ("log", data.general),
+    for role, items in (("friction", data.friction), ("inertia", data.inertia), ("general", data.general),
                         ("presliding", [data.presliding] if data.presliding else [])):
         for log, pr in items:
             a = log.attrs
