@@ -154,7 +154,7 @@ def page_correlation(data: ReportData):
             a2.semilogy(st["freqs"], st["psd"], "-", color="C2", lw=1)
             co = ((par.get("provenance") or {}).get("preprocess") or {}).get("cutoff")
             if co:
-                a2.axvline(float(co), color="k", ls=":", lw=1, label=f"filter cut-off {float(co):g} Hz")
+                a2.axvline(float(co), color="k", ls=":", lw=1, label=f"filter cut-off {float(co):.4g} Hz")
                 a2.legend(fontsize=6.5)
             a2.set_xlabel("frequency (Hz)")
             a2.set_ylabel(f"PSD ({tu}²/Hz)")
