@@ -8,6 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from kukaid_cli.main import cli
+from pdf_layout import capture_pages, layout_problems
 
 
 @pytest.fixture(scope="module")
@@ -36,9 +37,10 @@ def args(params, paths, *more):
     return out + list(more)
 
 
-def test_json_schema_refined_file_and_report(case):
+def test_json_schema_refined_file_and_report(case, monkeypatch):
     d, params, paths = case
     refined, report = d / "refined.json", d / "diag.pdf"
+    problems = capture_pages(monkeypatch)
     r = CliRunner().invoke(cli, args(params, paths, "--json", "-o", str(refined), "--report", str(report)))
     assert r.exit_code == 0, r.output
     js = json.loads(r.stdout)
@@ -50,6 +52,7 @@ def test_json_schema_refined_file_and_report(case):
     assert e["params"]["A"] == pytest.approx(1.5, rel=0.15)
     assert e["evidence"]["p_value"] < 0.01
     assert report.read_bytes()[:4] == b"%PDF"
+    assert not problems, problems
     # the refined file carries the effect; diagnosing it again finds nothing more
     p2 = json.loads(refined.read_text())
     assert p2["effects"]["position_ripple"]["n"] > 0
@@ -57,6 +60,21 @@ def test_json_schema_refined_file_and_report(case):
     assert r2.exit_code == 0, r2.output
     js2 = json.loads(r2.stdout)
     assert js2["effects"] == [] and js2["rmse_before"] <= 1.15 * js2["noise_floor"]
+
+
+def test_report_text_wraps_within_the_page():
+    """The summary page wraps long lines (an ambiguity's reason is a long sentence) and keeps every word."""
+    from types import SimpleNamespace
+
+    from kukaid.diagnose.plots import page_table
+
+    long = ("ambiguous: backlash or presliding explain the same residual (a transient after each reversal; with "
+            "one position sensor backlash and pre-sliding friction cannot be told apart (a load-side encoder "
+            "would)); not guessing")
+    lines = ["gap before: RMSE 2.184 N", long, "    evidence: " + long]
+    fig = page_table(SimpleNamespace(lines=lambda: lines, steps=[]))
+    assert not layout_problems(fig)
+    assert " ".join(t.get_text() for t in fig.texts[1:]).split() == " ".join(lines).split()  # after the title
 
 
 def test_text_output(case):

@@ -14,6 +14,7 @@ from kukaid.logs import write_hdf5
 from kukaid.params import save_params
 from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid_cli.main import cli
+from pdf_layout import capture_pages, layout_problems
 
 # truth away from the paper's values (Fc 15.70, Fs 17.56, vs 0.04, delta 2, Fv 14.15, Izz 2.28, Mx 18.48)
 TRUTH = dict(Fc=13.4, Fs=16.9, vs=0.05, delta=1.6, Fv=11.8, Izz=2.05, Mx=21.3)
@@ -62,6 +63,7 @@ def test_pages_follow_the_data_given(fitted):
     r = _run(["--params", p["params"], "-o", only])
     assert r.exit_code == 0, r.output
     assert _pages(only) == 1  # the parameter page always, nothing else without data
+    assert "report written, 1 page" in r.output and "1 pages" not in r.output
     two = d / "two.pdf"
     r = _run(["--params", p["params"], "--log", p["inertia"], "--log", p["friction"], "-o", two])
     assert r.exit_code == 0, r.output
@@ -71,6 +73,7 @@ def test_pages_follow_the_data_given(fitted):
 def test_library_pages_truth_and_caveat(fitted):
     from kukaid.report import build_report, load_report_data
     from kukaid.report.correlation import page_correlation
+    from kukaid.report.parameters import page_parameters
     from kukaid.report.presliding import presliding_replay
 
     _, p, logs, params = fitted
@@ -79,6 +82,8 @@ def test_library_pages_truth_and_caveat(fitted):
     assert data.truth is not None and data.truth["friction"]["Fc"] == pytest.approx(TRUTH["Fc"])
     figs = build_report(data)
     assert len(figs) == 5
+    for fig in figs:
+        assert not layout_problems(fig)
     text = " ".join(t.get_text() for t in figs[0].texts)
     assert "OPTIMISTIC" in text
     cf = params["metrics"]["residual_correlation_factor"]
@@ -95,6 +100,30 @@ def test_library_pages_truth_and_caveat(fitted):
     data2 = load_report_data(bare, friction=[logs["friction"]], inertia=[logs["inertia"]])
     fig = page_correlation(data2)
     assert fig is not None and "computed by the report" in fig.axes[0].get_title()
+    # the cut-off as the fit summary prints it (:.4g), whatever digits the parameter file stores
+    odd = json.loads(json.dumps(params))
+    odd["provenance"]["preprocess"]["cutoff"] = 5.0001234
+    fig = page_correlation(load_report_data(odd, friction=[logs["friction"]], inertia=[logs["inertia"]]))
+    labels = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+    assert "filter cut-off 5 Hz" in labels
+    # a general log is named so in the provenance
+    text = " ".join(t.get_text() for t in page_parameters(load_report_data(params, logs=[logs["inertia"]])).texts)
+    assert "general log in this report" in text and "log log" not in text
+
+
+def test_pages_keep_a_margin_and_long_text_wraps(fitted, monkeypatch):
+    """Every text and table of every page 10 pt or more inside the page, the title clear of the
+    subtitle; a long parameter-file path wraps within the page."""
+    d, p, _, _ = fitted
+    deep = d / ("a_long_directory_name_" * 4) / "the_parameters_of_a_long_campaign.json"
+    deep.parent.mkdir()
+    deep.write_text(p["params"].read_text())
+    problems = capture_pages(monkeypatch)
+    out = d / "margins.pdf"
+    r = _run(["--params", deep, "--friction", p["friction"], "--inertia", p["inertia"], "--presliding",
+              p["presliding"], "--log", p["inertia"], "-o", out])
+    assert r.exit_code == 0, r.output
+    assert _pages(out) == 6 and not problems, problems
 
 
 def test_broken_param_file_gives_one_line_error_and_no_pdf(fitted):

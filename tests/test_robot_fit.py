@@ -13,6 +13,7 @@ from kukaid.models.robot import DriveModel, RobotModel, consistency
 from kukaid.models.urdf import robot_urdf
 from kukaid.params import load_robot_params, save_robot_params, validate_robot_params
 
+from pdf_layout import capture_pages, layout_problems
 from robot_sim_helpers import simulated_log
 
 LWR4 = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "lwr4"
@@ -166,7 +167,7 @@ def test_settings_are_checked():
         RobotFitSettings(prior_weight=-1.0)
 
 
-def test_cli_fit_robot_validate_and_report(tmp_path, kr6):
+def test_cli_fit_robot_validate_and_report(tmp_path, kr6, monkeypatch):
     from click.testing import CliRunner
 
     from kukaid.logs import write_csv
@@ -185,9 +186,16 @@ def test_cli_fit_robot_validate_and_report(tmp_path, kr6):
     res = json.loads(r.stdout)
     assert set(res["axes"]) == {f"A{i}" for i in range(1, 7)} and res["mean_relative_error"] < 0.05
     pdf = tmp_path / "r.pdf"
+    problems = capture_pages(monkeypatch)
     r = run(cli, ["report", "--params", str(out), "--log", str(csv), "-o", str(pdf)])
     assert r.exit_code == 0 and "3 pages" in r.stderr, r.output
     assert pdf.read_bytes().startswith(b"%PDF")
+    assert not problems, problems  # within the page, 10 pt margins; table cells hold their text
+    from kukaid.report.robot import page_base_parameters
+
+    long_urdf = json.loads(out.read_text())
+    long_urdf["robot"]["urdf"] = "/a/rather/long/path/to/the/robot/description/" * 3 + "kr6_r700_sixx.urdf"
+    assert not layout_problems(page_base_parameters(long_urdf, str(out)))  # the subtitle wraps below the title
     r = run(cli, ["fit", str(csv), "--robot", str(tmp_path / "none.urdf"), "-o", str(tmp_path / "q.json")])
     assert r.exit_code == 1 and r.stderr.startswith("kukaid: error:") and "no such robot" in r.stderr
     assert "Traceback" not in r.stderr and not (tmp_path / "q.json").exists()

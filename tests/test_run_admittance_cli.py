@@ -19,6 +19,7 @@ from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid.krc.sim_source import SimSource
 from kukaid_cli.main import cli
 from live_helpers import wait_sim, wait_until
+from pdf_layout import capture_pages
 
 TRUTH = dict(Fc=12.8, Fs=15.2, vs=0.05, delta=1.5, Fv=11.0, Izz=1.9, Mx=22.5)
 
@@ -36,8 +37,9 @@ def _run(args):
     return CliRunner().invoke(cli, ["run-admittance", *map(str, args)])
 
 
-def test_sim_run_writes_log_report_and_metrics(files, tmp_path):
+def test_sim_run_writes_log_report_and_metrics(files, tmp_path, monkeypatch):
     out, pdf = tmp_path / "run.h5", tmp_path / "run.pdf"
+    problems = capture_pages(monkeypatch)
     r = _run(["--params", files / "params.json", "--sim-config", files / "truth.json", "--operator", "push",
               "--seed", "4", "--duration", "7", "--damping", "adaptive", "-o", out, "--report", pdf, "--json"])
     assert r.exit_code == 0, r.output
@@ -50,9 +52,28 @@ def test_sim_run_writes_log_report_and_metrics(files, tmp_path):
     err = control["gamma_r"] - log.tau_ext_true[:, 0]
     assert np.sqrt(np.mean(err[control["phase"] == 2] ** 2)) < 1.5  # Γr follows the push
     assert pdf.read_bytes()[:5] == b"%PDF-"
+    assert not problems, problems  # the metrics table too: 10 pt or more from the page's edges
     # recorded data is never replaced without --force
     r = _run(["--params", files / "params.json", "--duration", "1", "-o", out])
     assert r.exit_code == 1 and "already exists" in r.output and read_run(out)[2] == m
+
+
+def test_report_with_every_metric_keeps_a_margin(tmp_path, monkeypatch):
+    """Both controllers side by side with every row of the metrics table (a stability event in each):
+    the table ends 10 pt or more above the page's edge."""
+    from kukaid.control.plots import _TABLE_KEYS, plot_runs
+
+    t = np.linspace(0.0, 8.0, 400)
+    d = {"time": t, "gamma_r": np.sin(t), "tau_ext_true": np.sin(t), "detected": (t > 2) & (t < 4),
+         "D": 50 + 10 * t, "D_floor": np.where(t > 4, 100.0, 0.0), "D_grip": np.where(t > 5, 80.0, 0.0),
+         "sigma_dot": np.cos(t), "q": t / 10, "q_cmd": t / 10}
+    m = {k: 1.2345 for k, _ in _TABLE_KEYS} | {"status": "completed", "D_range": [23.95, 500.0], "goal": 0.8,
+                                               "stability_log": [{"time": 4.39, "reason": "oscillation",
+                                                                  "D_floor": 100.0}]}
+    problems = capture_pages(monkeypatch)
+    plot_runs([("constant damping (D 50)", d, m), ("adaptive damping (D0 50)", d, m)], tmp_path / "r.pdf",
+              title="kukaid run-admittance (constant damping, sim, operator human seed 0, cycle 12 ms)")
+    assert not problems, problems
 
 
 def test_the_fitted_presliding_state_is_not_this_runs(files, tmp_path):

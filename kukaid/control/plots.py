@@ -45,8 +45,8 @@ def plot_runs(runs: Sequence[tuple[str, dict[str, np.ndarray], dict[str, Any]]],
 
     n = len(runs)
     fig = plt.figure(figsize=(11.69, 8.27) if n > 1 else (8.27, 11.69))
-    gs = fig.add_gridspec(5, n, height_ratios=[1, 1, 1, 1, 1.6], hspace=0.4, wspace=0.25,
-                          left=0.08, right=0.98, top=0.9, bottom=0.02)
+    gs = fig.add_gridspec(5, n, height_ratios=[1, 1, 1, 1, 1.8], hspace=0.4, wspace=0.25,
+                          left=0.08 if n > 1 else 0.12, right=0.98, top=0.9, bottom=0.05)
     axes = [[fig.add_subplot(gs[r, c]) for r in range(4)] for c in range(n)]
     for c in range(1, n):  # same scales side by side
         for r in range(4):
@@ -75,11 +75,11 @@ def plot_runs(runs: Sequence[tuple[str, dict[str, np.ndarray], dict[str, Any]]],
                    label="grip floor")
         for e in m.get("stability_log", []):
             a.axvline(e["time"], color="C3", lw=0.5, ls=":")
-        a.set_ylabel("damping, N·m·s/rad", fontsize=8)
+        a.set_ylabel("damping,\nN·m·s/rad", fontsize=8)
         a.legend(loc="upper right", fontsize=6)
         a = axes[c][2]
         a.plot(t, d["sigma_dot"], lw=0.9)
-        a.set_ylabel("reference velocity σ̇, rad/s", fontsize=8)
+        a.set_ylabel("reference velocity\nσ̇, rad/s", fontsize=8)
         a = axes[c][3]
         a.plot(t, np.degrees(d["q"]), lw=0.9, label="q measured")
         a.plot(t, np.degrees(d["q_cmd"]), lw=0.8, ls="--", label="reference sent")
@@ -91,7 +91,7 @@ def plot_runs(runs: Sequence[tuple[str, dict[str, np.ndarray], dict[str, Any]]],
         a.legend(loc="lower right", fontsize=6)
         for a in axes[c]:
             a.tick_params(labelsize=7)
-    # metrics table across the bottom row
+    # metrics table across the bottom row, filling it (a margin below the table, whatever the rows)
     ta = fig.add_subplot(gs[4, :])
     ta.axis("off")
     metrics = []
@@ -104,11 +104,10 @@ def plot_runs(runs: Sequence[tuple[str, dict[str, np.ndarray], dict[str, Any]]],
             if any(k in m for m in metrics)]
     tab = ta.table(cellText=[[name, *vals] for name, vals in rows],
                    colLabels=["", *[textwrap.shorten(lbl, 40, placeholder="…") for lbl, _, _ in runs]],
-                   loc="upper center", cellLoc="left", colWidths=[0.28] + [0.72 / n] * n)
+                   bbox=[0.0, 0.0, 1.0, 1.0], cellLoc="left", colWidths=[0.28] + [0.72 / n] * n)
     tab.auto_set_font_size(False)
     tab.set_fontsize(7)
-    tab.scale(1.0, 0.78)
-    fig.suptitle("\n".join(textwrap.wrap(title, 110)) if title else "", fontsize=10)
+    fig.suptitle("\n".join(textwrap.wrap(title, 110 if n > 1 else 85)) if title else "", fontsize=10, y=0.97)
     with atomic_path(path) as tmp:
         with PdfPages(tmp) as pdf:
             pdf.savefig(fig)

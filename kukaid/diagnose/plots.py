@@ -2,6 +2,7 @@
 before and after it was added, and the residual spectrum before and after the whole workflow."""
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -30,11 +31,12 @@ def page_table(result: Diagnosis):
 
     fig = plt.figure(figsize=(8.27, 11.69))
     fig.text(0.05, 0.96, "kukaid diagnose: the gap and the effects found", fontsize=14, weight="bold")
-    lines = result.lines()
     y = 0.92
-    for ln in lines:
-        fig.text(0.05, y, ln, fontsize=8, family="monospace")
-        y -= 0.022
+    for ln in result.lines():  # wrapped to the page: 100 characters of 8 pt monospace are 480 pt of 595 pt
+        for sub in textwrap.wrap(ln, 100, subsequent_indent=" " * (len(ln) - len(ln.lstrip()) + 2)) or [""]:
+            fig.text(0.05, y, sub, fontsize=8, family="monospace")
+            y -= 0.015
+        y -= 0.007
     if result.steps:
         cols = ["step", "effect", "RMSE before", "RMSE after", "gap closed", "Wald", "p (corr.)"]
         cells = [[str(i + 1), s.name, f"{s.rmse_before:.4g}", f"{s.rmse_after:.4g}", f"{100 * s.gap_closed:.0f} %",
@@ -72,7 +74,7 @@ def page_step(result: Diagnosis, k: int):
         ax.set_title(f"{label} adding {step.name}: RMSE {np.sqrt(np.mean(r * r)):.4g} N*m")
         ax.legend(loc="upper right", fontsize=8)
         ax.set_xlabel(xlabel)
-    fig.suptitle(f"step {k + 1}: {step.name} - {cand.meaning}", fontsize=11)
+    fig.suptitle("\n".join(textwrap.wrap(f"step {k + 1}: {step.name} - {cand.meaning}", 85)), fontsize=11)
     return fig
 
 

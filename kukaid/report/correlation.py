@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import textwrap
 from typing import Any
 
 import numpy as np
@@ -134,11 +135,11 @@ def page_correlation(data: ReportData):
                         color="white" if abs(C[i, j]) > 0.6 else "black")
         cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
         cb.set_label("correlation coefficient", fontsize=8)
-        ax.set_title(f"correlation matrix of the parameters ({csrc})", fontsize=8.5)
+        ax.set_title("\n".join(textwrap.wrap(f"correlation matrix of the parameters ({csrc})", 90)), fontsize=8.5)
     if st is not None:
         r = st["residual"]
         sd = float(np.std(r))
-        a1 = fig.add_axes([0.09, 0.30, 0.38, 0.19])
+        a1 = fig.add_axes([0.11, 0.30, 0.36, 0.19])
         a1.hist(r, bins=60, density=True, color="C0", alpha=0.7, label="residual")
         xx = np.linspace(r.min(), r.max(), 200)
         if sd > 0:
@@ -154,7 +155,7 @@ def page_correlation(data: ReportData):
             a2.semilogy(st["freqs"], st["psd"], "-", color="C2", lw=1)
             co = ((par.get("provenance") or {}).get("preprocess") or {}).get("cutoff")
             if co:
-                a2.axvline(float(co), color="k", ls=":", lw=1, label=f"filter cut-off {float(co):g} Hz")
+                a2.axvline(float(co), color="k", ls=":", lw=1, label=f"filter cut-off {float(co):.4g} Hz")
                 a2.legend(fontsize=6.5)
             a2.set_xlabel("frequency (Hz)")
             a2.set_ylabel(f"PSD ({tu}²/Hz)")
@@ -163,7 +164,7 @@ def page_correlation(data: ReportData):
         else:
             a2.axis("off")
             a2.text(0.5, 0.5, "dynamic runs too short for a spectrum", ha="center", fontsize=8)
-        a3 = fig.add_axes([0.09, 0.06, 0.86, 0.17])
+        a3 = fig.add_axes([0.11, 0.075, 0.84, 0.145])
         a3.plot(st["lags"], st["rho"], "-", color="C4", lw=1, label="autocorrelation ρk of the residual")
         a3.axhline(0, color="k", lw=0.5)
         a3.axvline(st["max_lag"] / st["fs"], color="0.5", ls=":", lw=1, label="lags summed for the factor")
@@ -172,10 +173,10 @@ def page_correlation(data: ReportData):
         a3.grid(True, alpha=0.3)
         a3.legend(fontsize=6.5, loc="upper right")
         fmet = met.get("residual_correlation_factor")
-        a3.set_title(f"residuals are correlated in time, so the standard deviations are optimistic: factor "
-                     f"sqrt(1 + 2 Σ ρk) = {st['factor']:.2f} here"
-                     + (f", {float(fmet):.2f} in the fit's metrics" if isinstance(fmet, (int, float)) else ""),
-                     fontsize=8, loc="left")
+        title = (f"residuals are correlated in time, so the standard deviations are optimistic: factor "
+                 f"sqrt(1 + 2 Σ ρk) = {st['factor']:.2f} here"
+                 + (f", {float(fmet):.2f} in the fit's metrics" if isinstance(fmet, (int, float)) else ""))
+        a3.set_title("\n".join(textwrap.wrap(title, 105)), fontsize=8, loc="left")  # within the page
     return fig
 
 

@@ -13,8 +13,8 @@ def _new_figure(title: str, data: ReportData):
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=A4)
-    fig.suptitle(title, fontsize=13, weight="bold", y=0.985)
-    fig.text(0.5, 0.008, f"kukaid report · {Path(data.source).name} · axis A{data.params.get('axis', '?')}",
+    fig.suptitle(title, fontsize=13, weight="bold", y=0.981)  # title and footer 10 pt or more from the edges
+    fig.text(0.5, 0.016, f"kukaid report · {Path(data.source).name} · axis A{data.params.get('axis', '?')}",
              ha="center", fontsize=7, color="0.4")
     return fig
 

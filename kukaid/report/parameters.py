@@ -36,9 +36,9 @@ def page_parameters(data: ReportData):
             truth["offset"] = data.truth["offset"]
     fig = _new_figure(f"kukaid identification report: axis A{par.get('axis', '?')}", data)
     model = par["friction"].get("model", "stribeck")
-    fig.text(0.06, 0.955, f"friction model {model}, method {prov.get('method', '?')}, gravity "
-             f"{prov.get('gravity', '?')}, joint {prov.get('joint', 'revolute')}; parameter file {data.source}",
-             fontsize=7.5, wrap=True)
+    subtitle = (f"friction model {model}, method {prov.get('method', '?')}, gravity {prov.get('gravity', '?')}, "
+                f"joint {prov.get('joint', 'revolute')}; parameter file {data.source}")
+    fig.text(0.06, 0.964, "\n".join(textwrap.wrap(subtitle, 125)), fontsize=7.5, va="top")  # within the page
     # parameter table
     cols = ["parameter", "value", "unit", "std", "rel. std"]
     if cf is not None:
@@ -145,7 +145,7 @@ def page_parameters(data: ReportData):
                           f"zero-phase, fs {_fmt(pp.get('fs'), 4)} Hz, qd_thr {_fmt(pp.get('qd_thr'), 3)} {data.vu}, "
                           f"reversal window {_fmt(pp.get('reversal_window'), 3)} s, {pp.get('diff', '?')} differences")
     seen = set()
-    for role, items in (("friction", data.friction), ("inertia", data.inertia), ("log", data.general),
+    for role, items in (("friction", data.friction), ("inertia", data.inertia), ("general", data.general),
                         ("presliding", [data.presliding] if data.presliding else [])):
         for log, pr in items:
             a = log.attrs
@@ -168,7 +168,7 @@ def page_parameters(data: ReportData):
         prov_lines.append(f"  effects in the parameter file (not drawn in the predictions): {', '.join(par['effects'])}")
     for ln in prov_lines:
         for sub in textwrap.wrap(ln, 130, subsequent_indent="      ") or [""]:
-            if y < 0.025:
+            if y < 0.035:  # above the footer
                 break
             fig.text(0.05, y, sub, fontsize=6.8, family="monospace")
             y -= 0.0135

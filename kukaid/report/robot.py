@@ -8,6 +8,7 @@ given: measured and predicted torque of each axis over time, with the relative e
 """
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -19,8 +20,8 @@ def _figure(title: str, source: str):
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=A4)
-    fig.suptitle(title, fontsize=13, weight="bold", y=0.985)
-    fig.text(0.5, 0.008, f"kukaid robot report · {Path(source).name}", ha="center", fontsize=7, color="0.4")
+    fig.suptitle(title, fontsize=13, weight="bold", y=0.981)  # title and footer 10 pt or more from the edges
+    fig.text(0.5, 0.016, f"kukaid robot report · {Path(source).name}", ha="center", fontsize=7, color="0.4")
     return fig
 
 
@@ -34,10 +35,11 @@ def page_base_parameters(params: dict, source: str):
     cf = mt.get("residual_correlation_factor") or 1.0
     fig = _figure(f"Robot fit: base parameters ({params['robot'].get('name', '')})", source)
     cons = "yes" if mt.get("physically_consistent") else "no"
-    fig.text(0.05, 0.955, f"URDF {params['robot']['urdf']}; {len(bp['values'])} base parameters; condition number "
-             f"{_g(mt.get('condition_number'))}; physically consistent: {cons}; at a bound: "
-             f"{', '.join(mt.get('at_bound') or []) or 'none'}; {mt.get('samples', '?')} samples fitted",
-             fontsize=7, wrap=True)
+    sub = (f"URDF {params['robot']['urdf']}; {len(bp['values'])} base parameters; condition number "
+           f"{_g(mt.get('condition_number'))}; physically consistent: {cons}; at a bound: "
+           f"{', '.join(mt.get('at_bound') or []) or 'none'}; {mt.get('samples', '?')} samples fitted")
+    # wrapped within the page, from below the title down (not up into it)
+    fig.text(0.05, 0.963, "\n".join(textwrap.wrap(sub, 130)), fontsize=7, va="top")
     cells = []
     sig = bp.get("sigma") or [None] * len(bp["values"])
     for name, v, ls, s in zip(bp["names"], bp["values"], bp.get("least_squares", bp["values"]), sig):
@@ -58,10 +60,10 @@ def page_friction_consistency(params: dict, source: str):
     for k, v in fr["values"].items():
         j, p = k.split(".", 1)
         s = (fr.get("sigma") or {}).get(k)
-        joints.setdefault(j, {})[p] = f"{v:.4g} ± {s:.2g}" if s is not None else f"{v:.4g}"
+        joints.setdefault(j, {})[p] = f"{v:.4g}\n± {s:.2g}" if s is not None else f"{v:.4g}"
     names = sorted({p for d in joints.values() for p in d})
-    ax = fig.add_axes([0.05, 0.55, 0.9, 0.38])
-    _add_table(ax, [[j] + [d.get(p, "-") for p in names] for j, d in joints.items()], ["joint"] + names,
+    ax = fig.add_axes([0.05, 0.55, 0.9, 0.38])  # a row per parameter: a column each would overflow the cells
+    _add_table(ax, [[p] + [d.get(p, "-") for d in joints.values()] for p in names], ["parameter"] + list(joints),
                fontsize=7)
     ax.set_title(f"friction model {fr['model']} (N·m, N·m·s/rad, N·m/rad; ± least-squares σ)", fontsize=8)
     chk = mt.get("consistency") or []
@@ -94,7 +96,7 @@ def page_prediction(params: dict, log: Any, source: str, robot: Any):
         if i == 0:
             ax.legend(fontsize=6, loc="upper left")
     fig.axes[-1].set_xlabel("sample", fontsize=7)
-    fig.subplots_adjust(left=0.1, right=0.97, top=0.95, bottom=0.05, hspace=0.35)
+    fig.subplots_adjust(left=0.1, right=0.97, top=0.95, bottom=0.07, hspace=0.35)  # x label above the footer
     return fig
 
 
