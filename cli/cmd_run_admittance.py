@@ -179,8 +179,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         check_motion_allowed(backend, enable_motion, limits)
         # LoopConfig checks the admittance's stability (also at D-max) and the detection thresholds
         cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
-                         sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf, cutoff=cutoff,
-                         limits=limits)
+                         sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf,
+                         cutoff=cutoff, limits=limits)
 
     attrs = {"params_file": str(params_path), "backend": backend}
     if backend == "sim":

@@ -31,7 +31,8 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
         for path, log in zip(logs, data):
             others = moving_axes(log, ax)
             if others:
-                click.echo(f"kukaid: warning: validate: {path}: other axes ({', '.join(f'A{a}' for a in others)}) move, "
+                moving = ", ".join(f"A{a}" for a in others)
+                click.echo(f"kukaid: warning: validate: {path}: other axes ({moving}) move, "
                            f"so the gravity and inertia torque on A{ax} depend on their positions, which the "
                            f"single-axis model of {params_path} does not see; fit all axes together (kukaid fit "
                            f"--robot URDF)", err=True)

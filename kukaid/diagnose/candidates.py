@@ -193,8 +193,9 @@ class PositionRipple(Candidate, E.PositionRipple):
         R, lo, _ = self._limits(sigs)
         periods = R * float(nl["n"]) / (2 * math.pi)
         if float(nl["n"]) < lo + 0.25 * 2 * math.pi / R:  # within a quarter period of the slowest searched
-            return (f"order n = {nl['n']:.3g} is the lowest the {R:.3g} range resolves ({periods:.2g} period{'' if round(periods, 2) == 1 else 's'}): the "
-                    "best fit would be slower still, a smooth position-dependent torque, not a repeating ripple")
+            plural = "" if round(periods, 2) == 1 else "s"
+            return (f"order n = {nl['n']:.3g} is the lowest the {R:.3g} range resolves ({periods:.2g} period{plural}): "
+                    "the best fit would be slower still, a smooth position-dependent torque, not a repeating ripple")
         coupled = any(s.others for s in sigs)
         need = self.MIN_PERIODS_COUPLED if coupled else self.MIN_PERIODS
         if periods < need:
