@@ -1,6 +1,7 @@
 """kukaid excite: excitation trajectories of the paper's experiments (JSON) and KRL programs."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -123,7 +124,7 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
 @click.option("--direction", type=click.Choice(["1", "-1"]), help="presliding: direction of the initiation move [1].")
 # validation
 @click.option("--periods", help="validation: multi-sine periods, s, comma-separated [6,2.9,1.3].")
-@click.option("--weights", help="validation: relative amplitudes of the sines [0.6,0.3,0.1].")
+@click.option("--weights", help="validation: relative amplitudes of the sines [0.6,0.3,0.1; equal with --periods].")
 @click.option("--sine-time", type=float, help="validation: multi-sine duration, s [18].")
 @click.option("--ramp", type=float, help="validation: multi-sine ramp in/out, s [3].")
 @click.option("--moves-deg", help="validation: move targets relative to the centre, deg, comma-separated.")
@@ -169,7 +170,10 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
         with usage_errors():
             limits = AxisLimits.from_dict(over, base=limits, where="limit options")
     with usage_errors(types=(TrajectoryError,)):  # a generator option out of range (a broken limit stays 1)
-        traj = generate(kind, axis=axis, limits=limits, **kwargs)
+        try:
+            traj = generate(kind, axis=axis, limits=limits, **kwargs)
+        except TrajectoryError as e:  # the generator names its parameter: say which option it is
+            raise TrajectoryError(_option_names(str(e))) from None
     files = {output: traj.json_text()}
     msg = f"{output}: {kind} trajectory of A{axis}, {traj.n_samples} samples, {traj.duration:.2f} s"
     if krl_dir is not None:
@@ -181,6 +185,15 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     check_outputs(files, [limits_file])
     write_texts_atomic(files)  # all or nothing
     click.echo(msg, err=True)
+
+
+def _option_names(msg: str) -> str:
+    """A generator's message "option span: ..." with the command's option ("option --span-deg (in rad):
+    ...") for the parameters the options set (one option may set parameters of several kinds)."""
+    flags: dict[str, str] = {}
+    for name, (param, _, _) in _OPTS.items():
+        flags.setdefault(param, "--" + name.replace("_", "-") + (" (in rad)" if name.endswith("_deg") else ""))
+    return re.sub(r"option (\w+)", lambda m: f"option {flags.get(m.group(1), m.group(1))}", msg)
 
 
 def _generator_options(kind: str, opts: dict[str, Any]) -> dict[str, Any]:
@@ -197,6 +210,8 @@ def _generator_options(kind: str, opts: dict[str, Any]) -> dict[str, Any]:
             kwargs[param] = conv(value)
         except click.BadParameter as e:
             raise click.BadParameter(e.message, param_hint=flag) from None
+    if kind == "validation" and "periods" in kwargs and "weights" not in kwargs:
+        kwargs["weights"] = [1.0] * len(kwargs["periods"])  # the default weights are for the default periods
     return kwargs
 
 

@@ -173,6 +173,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         hi_deg = q_max if q_max is not None else math.inf
     _check_window(lo_deg, hi_deg, q0 if backend == "sim" else None, q_min is None or q_max is None)
     lo, hi = math.radians(lo_deg), math.radians(hi_deg)
+    for flag, v in (("--qd-max", qd_max), ("--qdd-max", qdd_max), ("--tau-max", tau_max), ("--max-age", max_age)):
+        if not (math.isfinite(v) and v > 0):
+            raise click.BadParameter(f"{v} must be a finite number > 0", param_hint=flag)
     with usage_errors():  # values of options alone
         limits = SafetyLimits(q_min=lo, q_max=hi, qd_max=math.radians(qd_max), qdd_max=math.radians(qdd_max),
                               tau_max=tau_max, max_age=max_age)

@@ -113,7 +113,7 @@ def test_broken_parameter_file_is_one_line_and_no_output(files, tmp_path, edit, 
 @pytest.mark.parametrize("args, message", [
     ([], "--enable-motion"),
     (["--enable-motion"], "finite position window"),
-    (["--enable-motion", "--q-min", "10", "--q-max", "50", "--tau-max", "-1"], "tau_max"),
+    (["--enable-motion", "--q-min", "10", "--q-max", "50", "--tau-max", "-1"], "--tau-max"),
     (["--enable-motion", "--q-min", "10", "--q-max", "50", "--D", "0"], "D = 0"),
 ])
 def test_a_real_robot_moves_only_when_asked_and_bounded(files, tmp_path, args, message):
