@@ -72,9 +72,14 @@ def test_report_text_wraps_within_the_page():
             "one position sensor backlash and pre-sliding friction cannot be told apart (a load-side encoder "
             "would)); not guessing")
     lines = ["gap before: RMSE 2.184 N", long, "    evidence: " + long]
-    fig = page_table(SimpleNamespace(lines=lambda: lines, steps=[]))
+    (fig,) = page_table(SimpleNamespace(lines=lambda: lines, steps=[]))
     assert not layout_problems(fig)
     assert " ".join(t.get_text() for t in fig.texts[1:]).split() == " ".join(lines).split()  # after the title
+    # a long diagnosis continues on new pages, every page inside its margins, no word lost
+    figs = page_table(SimpleNamespace(lines=lambda: lines * 30, steps=[]))
+    assert len(figs) > 1 and not any(layout_problems(f) for f in figs)
+    words = " ".join(t.get_text() for f in figs for t in f.texts[1:]).split()
+    assert words == " ".join(lines * 30).split()
 
 
 def test_text_output(case):

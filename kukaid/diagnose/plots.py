@@ -26,25 +26,38 @@ def _binned(x: np.ndarray, y: np.ndarray, bins: int = 30) -> tuple[np.ndarray, n
     return 0.5 * (edges[:-1] + edges[1:])[m], s[m] / cnt[m]
 
 
-def page_table(result: Diagnosis):
+def page_table(result: Diagnosis) -> list:
+    """The summary pages: the diagnosis's lines wrapped to the page, continued on new pages, then the
+    table of steps."""
     import matplotlib.pyplot as plt
 
-    fig = plt.figure(figsize=(8.27, 11.69))
-    fig.text(0.05, 0.96, "kukaid diagnose: the gap and the effects found", fontsize=14, weight="bold")
-    y = 0.92
+    figs: list = []
+
+    def new_page():
+        fig = plt.figure(figsize=(8.27, 11.69))
+        fig.text(0.05, 0.96, "kukaid diagnose: the gap and the effects found" + (" (continued)" if figs else ""),
+                 fontsize=14, weight="bold")
+        figs.append(fig)
+        return fig, 0.92
+
+    fig, y = new_page()
     for ln in result.lines():  # wrapped to the page: 100 characters of 8 pt monospace are 480 pt of 595 pt
         for sub in textwrap.wrap(ln, 100, subsequent_indent=" " * (len(ln) - len(ln.lstrip()) + 2)) or [""]:
+            if y < 0.05:
+                fig, y = new_page()
             fig.text(0.05, y, sub, fontsize=8, family="monospace")
             y -= 0.015
         y -= 0.007
     if result.steps:
+        if y - 0.1 < 0.03 * (len(result.steps) + 1):  # the table's rows would not fit below the text
+            fig, y = new_page()
         cols = ["step", "effect", "RMSE before", "RMSE after", "gap closed", "Wald", "p (corr.)"]
         cells = [[str(i + 1), s.name, f"{s.rmse_before:.4g}", f"{s.rmse_after:.4g}", f"{100 * s.gap_closed:.0f} %",
                   f"{s.test.wald.stat:.1f}", f"{s.test.p_adjusted:.2g}"] for i, s in enumerate(result.steps)]
         ax = fig.add_axes([0.05, 0.05, 0.9, max(0.05, y - 0.1)])
         ax.axis("off")
         ax.table(cellText=cells, colLabels=cols, loc="upper center")
-    return fig
+    return figs
 
 
 def _residual_rows(model: JointTorqueModel, result: Diagnosis):
@@ -107,7 +120,7 @@ def write_report(result: Diagnosis, path: str | Path) -> None:
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_pdf import PdfPages
 
-    figs = [page_table(result)] + [page_step(result, k) for k in range(len(result.steps))] + [page_spectrum(result)]
+    figs = page_table(result) + [page_step(result, k) for k in range(len(result.steps))] + [page_spectrum(result)]
     with atomic_path(path) as tmp:
         with PdfPages(tmp) as pdf:
             for fig in figs:
