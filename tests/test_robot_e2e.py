@@ -38,10 +38,15 @@ def test_fourier_capture_fit_validate_recovers_the_simulated_robot(tmp_path):
     bp = p["base_parameters"]
     dep = np.asarray(bp["dependent"], int)
     beta = pi[np.asarray(bp["independent"], int)] + (np.asarray(bp["R"]) @ pi[dep] if dep.size else 0.0)
-    est, sig = np.asarray(bp["values"]), np.asarray(bp["sigma"])
-    well = sig / np.abs(beta) < 0.005
+    est, ls, sig = (np.asarray(bp[k]) for k in ("values", "least_squares", "sigma"))
+    # what the fit itself says is determined: sigma corrected for the residuals' correlation (the factor
+    # is 4-5 here: the 1 kHz servo behind a 12 ms interpolation) under 2 % of the estimate; such a
+    # parameter is within 3 corrected sigma of the truth (kukaid.identify.robot_fit.well_excited's rule)
+    cf = p["metrics"]["residual_correlation_factor"]
+    well = (sig > 0) & (cf * sig < 0.02 * np.abs(est))
     assert well.sum() >= 6
-    assert np.max(np.abs(est[well] / beta[well] - 1)) < 0.02
+    assert np.max(np.abs((ls - beta) / (cf * sig))[well]) < 3.0
+    assert np.max(np.abs(est[well] / beta[well] - 1)) < 0.06
     fr = p["friction"]["values"]
     for j in range(6):
         assert fr[f"A{j + 1}.Fc"] == pytest.approx(truth["friction"]["Fc"][j], rel=0.05)
