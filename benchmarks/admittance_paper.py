@@ -104,8 +104,10 @@ def controller_model(params: dict | None = None):
 
 
 def run_one(model, seed: int, damping: str, D: float, cycle: float, rbf=None, grip: str | None = None,
-            duration: float = 13.0, lam: float = 0.05, coupling=None, arm: str = "human", cutoff: float = 5.0) -> dict:
-    """One paired run; returns the window metrics (cost with ``lam``) plus run-level checks."""
+            duration: float = 13.0, lam: float = 0.05, coupling=None, arm: str = "human", cutoff: float = 5.0,
+            with_run: bool = False):
+    """One paired run; returns the window metrics (cost with ``lam``) plus run-level checks (and, with
+    ``with_run``, the :class:`~kukaid.control.loop.AdmittanceRun` too: ``(metrics, run)``)."""
     from kukaid.robot import SimRobot
     from kukaid.control.loop import LoopConfig, run_admittance
     from kukaid.control.metrics import damping_delay, window_metrics
@@ -137,7 +139,7 @@ def run_one(model, seed: int, damping: str, D: float, cycle: float, rbf=None, gr
              released_on_target=bool(op.released_on_target), K_peak=float(op.K_peak),
              oscillating=bool(sustained), damp_time=float(damp),
              stab_events=int(run.metrics.get("stability_events", 0)))
-    return m
+    return (m, run) if with_run else m
 
 
 def paired(a: np.ndarray, b: np.ndarray) -> dict:

@@ -41,11 +41,6 @@ def port_margin(data: dict, cycle: float, I: float) -> dict[float, float]:
 
 def main() -> None:
     import admittance_paper as ap
-    from kukaid.control.loop import LoopConfig, run_admittance
-    from kukaid.control.metrics import damping_delay, window_metrics
-    from kukaid.robot import SimRobot
-    from kukaid.sim import SimConfig, VirtualKRC4
-    from kukaid.sim.operator import make_operator
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--operators", type=int, default=30)
@@ -58,19 +53,10 @@ def main() -> None:
         for i in range(a.operators):
             seed, grip = a.seed_offset + i, ap.GRIPS[i % 3]
             for damping in ("adaptive", "constant"):
-                cfg = LoopConfig(damping=damping, D=50.0, cycle=cycle, duration=13.0)
-                q0 = math.radians(30.0)
-                op = make_operator("human", seed, q0 + cfg.init_move, t_start=cfg.init_time + cfg.init_rest + 0.8,
-                                   grip=grip)
-                run = run_admittance(SimRobot(VirtualKRC4(SimConfig(), seed=seed), q0, op), model, cfg)
-                d, t0 = run.data, 0.012
-                t_to = min(op.t_release + 1.0 - t0, float(d["time"][-1])) if math.isfinite(op.t_release) else math.inf
-                m = window_metrics(d, op.p.t_grasp - t0, t_to, 0.05)
-                events = [e["time"] for e in run.metrics.get("stability_log", [])]
-                if not damping_delay(m["osc_runs"], events)[1]:
-                    continue
-                rows.append({"cycle": cycle, "seed": seed, "grip": grip, "damping": damping,
-                             **{f"min_{w:g}s": v for w, v in port_margin(d, cycle, cfg.I).items()}})
+                m, run = ap.run_one(model, seed, damping, 50.0, cycle, grip=grip, with_run=True)
+                if m["oscillating"]:
+                    rows.append({"cycle": cycle, "seed": seed, "grip": grip, "damping": damping,
+                                 **{f"min_{w:g}s": v for w, v in port_margin(run.data, cycle, run.config.I).items()}})
     if a.json:
         json.dump(rows, sys.stdout)
         print()
