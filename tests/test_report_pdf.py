@@ -118,10 +118,16 @@ def test_pages_keep_a_margin_and_long_text_wraps(fitted, monkeypatch):
     deep = d / ("a_long_directory_name_" * 4) / "the_parameters_of_a_long_campaign.json"
     deep.parent.mkdir()
     deep.write_text(p["params"].read_text())
+    import shutil
+
+    logs = {k: deep.parent / (f"{k}_log_of_a_long_measurement_campaign_" * 2 + ".h5")
+            for k in ("inertia", "presliding")}
+    for k, dst in logs.items():  # the prediction and pre-sliding pages name their log under the title
+        shutil.copy(p[k], dst)
     problems = capture_pages(monkeypatch)
     out = d / "margins.pdf"
     r = _run(["--params", deep, "--friction", p["friction"], "--inertia", p["inertia"], "--presliding",
-              p["presliding"], "--log", p["inertia"], "-o", out])
+              logs["presliding"], "--log", logs["inertia"], "-o", out])
     assert r.exit_code == 0, r.output
     assert _pages(out) == 6 and not problems, problems
 

@@ -1,10 +1,9 @@
 """Page layout shared by the report's pages: an A4 figure with a title block, tables; the PDF writer."""
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import Any, Sequence
-
-
 
 from kukaid.report.data import A4, ReportData, ReportError
 
@@ -17,6 +16,11 @@ def _new_figure(title: str, data: ReportData):
     fig.text(0.5, 0.016, f"kukaid report · {Path(data.source).name} · axis A{data.params.get('axis', '?')}",
              ha="center", fontsize=7, color="0.4")
     return fig
+
+
+def _subtitle(fig, text: str) -> None:
+    """The line under a page's title, wrapped within the page (down from below the title)."""
+    fig.text(0.06, 0.964, "\n".join(textwrap.wrap(text, 125)), fontsize=7.5, va="top")
 
 
 def _add_table(ax, cells, cols, fontsize=8, col_widths=None, scale_y=1.25):

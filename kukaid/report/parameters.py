@@ -8,7 +8,7 @@ import textwrap
 
 from kukaid.report.data import (PAPER_FRICTION_MSE, PAPER_TORQUE_MSE, ReportData, _flat_params, _fmt)
 from kukaid.report.correlation import residual_stats
-from kukaid.report.layout import _add_table, _new_figure
+from kukaid.report.layout import _add_table, _new_figure, _subtitle
 
 
 def page_parameters(data: ReportData):
@@ -38,7 +38,7 @@ def page_parameters(data: ReportData):
     model = par["friction"].get("model", "stribeck")
     subtitle = (f"friction model {model}, method {prov.get('method', '?')}, gravity {prov.get('gravity', '?')}, "
                 f"joint {prov.get('joint', 'revolute')}; parameter file {data.source}")
-    fig.text(0.06, 0.964, "\n".join(textwrap.wrap(subtitle, 125)), fontsize=7.5, va="top")  # within the page
+    _subtitle(fig, subtitle)
     # parameter table
     cols = ["parameter", "value", "unit", "std", "rel. std"]
     if cf is not None:

@@ -7,7 +7,7 @@ import numpy as np
 
 
 from kukaid.report.data import (PAPER_TORQUE_MSE, ReportData, _model, _runs)
-from kukaid.report.layout import _new_figure
+from kukaid.report.layout import _new_figure, _subtitle
 
 
 def page_prediction(data: ReportData, log: Any, pr: Any, role: str = "inertia"):
@@ -21,7 +21,7 @@ def page_prediction(data: ReportData, log: Any, pr: Any, role: str = "inertia"):
     title = ("Torque prediction on the inertia experiment (eqs. 6-8)" if role == "inertia"
              else "Torque prediction on a general log (validation)")
     fig = _new_figure(title, data)
-    fig.text(0.06, 0.955, f"{pr.source}", fontsize=7.5)
+    _subtitle(fig, str(pr.source))
     a1 = fig.add_axes([0.11, 0.62, 0.78, 0.30])
     a2 = fig.add_axes([0.11, 0.36, 0.78, 0.20], sharex=a1)
     a3 = fig.add_axes([0.11, 0.07, 0.78, 0.22], sharex=a1)

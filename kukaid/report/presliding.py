@@ -7,7 +7,7 @@ import numpy as np
 
 
 from kukaid.report.data import (ReportData, ReportError, _model, _runs)
-from kukaid.report.layout import _new_figure
+from kukaid.report.layout import _new_figure, _subtitle
 
 
 def presliding_replay(data: ReportData) -> dict[str, np.ndarray | float]:
@@ -47,7 +47,7 @@ def page_presliding(data: ReportData):
     tu = data.tu
     zs, zu = (1e3, "mm") if data.prismatic else (1e3, "mrad")
     fig = _new_figure("Pre-sliding: hysteresis and the Maxwell-slip model (eqs. 9-10, 12)", data)
-    fig.text(0.06, 0.955, data.presliding[1].source, fontsize=7.5)
+    _subtitle(fig, str(data.presliding[1].source))
     a1 = fig.add_axes([0.12, 0.45, 0.76, 0.47])
     a2 = fig.add_axes([0.12, 0.07, 0.76, 0.30])
     a1.plot(zs * r["z"], r["y"], "-", color="C0", lw=0.8, label="measured Γ − Mx cos q − c")
