@@ -1,6 +1,7 @@
 """Small helpers shared by the commands: progress bars and output checks."""
 from __future__ import annotations
 
+import math
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -47,6 +48,13 @@ def usage_errors(option: str | None = None, types: tuple[type[KukaidError], ...]
         if option is not None:
             raise click.BadParameter(msg, param_hint=option) from None
         raise click.UsageError(msg) from None
+
+
+def require_positive(*options: tuple[str, float | None]) -> None:
+    """Usage error unless every option given as ``(flag, value)`` is a finite number > 0 (None: not given)."""
+    for flag, v in options:
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise click.BadParameter(f"{v} must be a finite number > 0", param_hint=flag)
 
 
 def refuse_overwrite(path: Path, force: bool) -> None:

@@ -37,7 +37,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     from kukaid.errors import KukaidError
     from kukaid.atomic import atomic_paths
     from kukaid.logs import read_log
-    from kukaid_cli._util import check_outputs, check_suffix
+    from kukaid_cli._util import check_outputs, check_suffix, require_positive
     from kukaid.params import load_params, save_params, validate_params
     from kukaid.diagnose.workflow import diagnose
 
@@ -45,8 +45,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
         raise click.BadParameter("must be in (0, 1)", param_hint="--alpha")
     if max_steps < 0:
         raise click.BadParameter("must be >= 0", param_hint="--max-steps")
-    if cutoff is not None and not (cutoff > 0 and cutoff < float("inf")):
-        raise click.BadParameter(f"{cutoff} must be a finite number > 0", param_hint="--cutoff")
+    require_positive(("--cutoff", cutoff))
     check_suffix(output, ".json")
     check_suffix(report, ".pdf")
     check_outputs([output, report], [params_path, *logs])

@@ -221,7 +221,7 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
     """`kukaid excite fourier`: every axis of the robot, limits from its URDF."""
     from kukaid.atomic import write_texts_atomic
     from kukaid.errors import TrajectoryError
-    from kukaid.excite.fourier import check_options, fourier, robot_limits
+    from kukaid.excite.fourier import fourier, robot_limits
     from kukaid.jsonfile import read_json
     from kukaid.models.limits import AxisLimits
     from kukaid.models.urdf import load_model
@@ -233,8 +233,6 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
     for flag, v in (("--q-min-deg", q_min_deg), ("--q-max-deg", q_max_deg), ("--qd-max-deg", qd_max_deg)):
         if v is not None:
             raise click.UsageError(f"option {flag} does not apply to 'fourier' (give per-axis limits with --limits)")
-    with usage_errors(types=(TrajectoryError,)):  # the numbers of the options alone
-        check_options(**kwargs)
     robot = kwargs.pop("robot", "kr6-r700-sixx")
     model = load_model(robot)
     limits = robot_limits(model, None if qdd_max_deg is None else qdd_max_deg * _DEG, robot=robot)
@@ -246,7 +244,8 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
                                   f"{', '.join(sorted(known))}")
         limits = [AxisLimits.from_dict(over[lim.name], base=lim, where=f"{limits_file}: {lim.name}")
                   if lim.name in over else lim for lim in limits]
-    traj = fourier(robot=robot, limits=limits, model=model, **kwargs)
+    with usage_errors(types=(TrajectoryError,)):  # an option out of range (a broken limit stays 1)
+        traj = fourier(robot=robot, limits=limits, model=model, **kwargs)
     files = {output: traj.json_text()}
     msg = (f"{output}: fourier trajectory of {len(traj.axes)} axes, {traj.n_samples} samples, {traj.duration:.2f} s, "
            f"regressor condition number {traj.params['cond']:.4g}")

@@ -67,8 +67,9 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
     import math
 
     _check_applicable(click.get_current_context(), robot is not None, presliding is not None)
-    if cutoff is not None and not (math.isfinite(cutoff) and cutoff > 0):
-        raise click.BadParameter(f"{cutoff} must be a finite number > 0", param_hint="--cutoff")
+    from kukaid_cli._util import require_positive
+
+    require_positive(("--cutoff", cutoff))
     if robot is not None:
         _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, prior_weight, torque_side,
                    stribeck_vs, rotor_inertia, coupling)

@@ -36,7 +36,7 @@ def command(params, friction, inertia, presliding, logs, axis, output) -> None:
 
     n = make_report(params, output, friction=list(friction), inertia=list(inertia), presliding=presliding,
                     logs=list(logs), axis=axis)
-    click.echo(f"{output}: report written, {n} page{'s' if n != 1 else ''}", err=True)
+    _written(output, n)
 
 
 def _robot_report(params, friction, inertia, presliding, logs, axis, output) -> bool:
@@ -55,5 +55,9 @@ def _robot_report(params, friction, inertia, presliding, logs, axis, output) -> 
 
     validate_robot_params(d, str(params))
     n = make_robot_report(d, output, [read_log(p) for p in logs], source=str(params))
-    click.echo(f"{output}: report written, {n} page{'s' if n != 1 else ''}", err=True)
+    _written(output, n)
     return True
+
+
+def _written(output, n: int) -> None:
+    click.echo(f"{output}: report written, {n} page{'s' if n != 1 else ''}", err=True)

@@ -129,7 +129,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.jsonfile import read_json
     from kukaid.params import is_robot_params, load_params, model_from_params, validate_robot_params
     from kukaid.atomic import check_writable
-    from kukaid_cli._util import check_outputs, check_suffix, progress, refuse_overwrite, usage_errors
+    from kukaid_cli._util import (check_outputs, check_suffix, progress, refuse_overwrite, require_positive,
+                                  usage_errors)
 
     check_suffix(output, ".h5", ".hdf5")
     check_suffix(report, ".pdf")
@@ -173,9 +174,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         hi_deg = q_max if q_max is not None else math.inf
     _check_window(lo_deg, hi_deg, q0 if backend == "sim" else None, q_min is None or q_max is None)
     lo, hi = math.radians(lo_deg), math.radians(hi_deg)
-    for flag, v in (("--qd-max", qd_max), ("--qdd-max", qdd_max), ("--tau-max", tau_max), ("--max-age", max_age)):
-        if not (math.isfinite(v) and v > 0):
-            raise click.BadParameter(f"{v} must be a finite number > 0", param_hint=flag)
+    # SafetyLimits checks these too; here the message names the option
+    require_positive(("--qd-max", qd_max), ("--qdd-max", qdd_max), ("--tau-max", tau_max), ("--max-age", max_age))
     with usage_errors():  # values of options alone
         limits = SafetyLimits(q_min=lo, q_max=hi, qd_max=math.radians(qd_max), qdd_max=math.radians(qdd_max),
                               tau_max=tau_max, max_age=max_age)

@@ -350,21 +350,6 @@ def design(model, limits: Sequence[AxisLimits], harmonics: int = 5, period: floa
     return FourierDesign(a=a, b=b, wf=wf, scale=s, mid=m, centre=cen, cond=float(math.exp(fx)))
 
 
-def check_options(harmonics: int = 5, period: float = 10.0, periods: int = 3, margin: float = 0.9,
-                  span: float = 0.6, iterations: int = 10, starts: int = 16, **_: Any) -> None:
-    """Raise :class:`TrajectoryError` unless :func:`fourier`'s numeric settings are in range (the
-    defaults are :func:`fourier`'s; other keyword arguments are ignored)."""
-    if not (isinstance(harmonics, int) and 1 <= harmonics <= 20):
-        raise TrajectoryError(f"fourier: harmonics must be 1 to 20, got {harmonics!r}")
-    for name, v, lo, hi in (("period", period, 1.0, 600.0), ("margin", margin, 0.05, 1.0), ("span", span, 0.01, 1.0)):
-        if not (isinstance(v, (int, float)) and lo <= v <= hi):
-            raise TrajectoryError(f"fourier: {name} must be {lo:g} to {hi:g}, got {v!r}")
-    if not (isinstance(iterations, int) and 0 <= iterations <= 10_000 and isinstance(starts, int) and 1 <= starts <= 1000):
-        raise TrajectoryError(f"fourier: iterations must be 0 to 10000 and starts 1 to 1000, got {iterations!r}, {starts!r}")
-    if not (isinstance(periods, int) and periods >= 1) or periods * period > MAX_DURATION:
-        raise TrajectoryError(f"fourier: periods must be a whole number >= 1 (total at most 24 h), got {periods!r}")
-
-
 def fourier(robot: str = "kr6-r700-sixx", harmonics: int = 5, period: float = 10.0, periods: int = 3,
             margin: float = 0.9, span: float = 0.6, centre: Sequence[float] | None = None,
             limits: Sequence[AxisLimits] | None = None, qdd_max: float | None = None, seed: int = 0,
@@ -375,8 +360,15 @@ def fourier(robot: str = "kr6-r700-sixx", harmonics: int = 5, period: float = 10
     ``limits`` overrides the URDF's (per axis), ``qdd_max`` the assumed acceleration limit.
     Raises :class:`LimitError` (one line) when the result breaks a limit.
     """
-    check_options(harmonics=harmonics, period=period, periods=periods, margin=margin, span=span,
-                  iterations=iterations, starts=starts)
+    if not (isinstance(harmonics, int) and 1 <= harmonics <= 20):
+        raise TrajectoryError(f"fourier: harmonics must be 1 to 20, got {harmonics!r}")
+    for name, v, lo, hi in (("period", period, 1.0, 600.0), ("margin", margin, 0.05, 1.0), ("span", span, 0.01, 1.0)):
+        if not (isinstance(v, (int, float)) and lo <= v <= hi):
+            raise TrajectoryError(f"fourier: {name} must be {lo:g} to {hi:g}, got {v!r}")
+    if not (isinstance(iterations, int) and 0 <= iterations <= 10_000 and isinstance(starts, int) and 1 <= starts <= 1000):
+        raise TrajectoryError(f"fourier: iterations must be 0 to 10000 and starts 1 to 1000, got {iterations!r}, {starts!r}")
+    if not (isinstance(periods, int) and periods >= 1) or periods * period > MAX_DURATION:
+        raise TrajectoryError(f"fourier: periods must be a whole number >= 1 (total at most 24 h), got {periods!r}")
     model = model if model is not None else load_model(robot)
     lims = list(limits) if limits is not None else robot_limits(model, qdd_max, robot=str(robot))
     if len(lims) != model.nv:
