@@ -107,7 +107,7 @@ def plot_runs(runs: Sequence[tuple[str, dict[str, np.ndarray], dict[str, Any]]],
                    bbox=[0.0, 0.0, 1.0, 1.0], cellLoc="left", colWidths=[0.28] + [0.72 / n] * n)
     tab.auto_set_font_size(False)
     tab.set_fontsize(7)
-    fig.suptitle("\n".join(textwrap.wrap(title, 110 if n > 1 else 85)) if title else "", fontsize=10, y=0.97)
+    fig.suptitle(textwrap.fill(title, 110 if n > 1 else 85) if title else "", fontsize=10, y=0.97)
     with atomic_path(path) as tmp:
         with PdfPages(tmp) as pdf:
             pdf.savefig(fig)

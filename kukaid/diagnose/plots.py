@@ -87,7 +87,7 @@ def page_step(result: Diagnosis, k: int):
         ax.set_title(f"{label} adding {step.name}: RMSE {np.sqrt(np.mean(r * r)):.4g} N*m")
         ax.legend(loc="upper right", fontsize=8)
         ax.set_xlabel(xlabel)
-    fig.suptitle("\n".join(textwrap.wrap(f"step {k + 1}: {step.name} - {cand.meaning}", 85)), fontsize=11)
+    fig.suptitle(textwrap.fill(f"step {k + 1}: {step.name} - {cand.meaning}", 85), fontsize=11)
     return fig
 
 

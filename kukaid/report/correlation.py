@@ -135,7 +135,7 @@ def page_correlation(data: ReportData):
                         color="white" if abs(C[i, j]) > 0.6 else "black")
         cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04)
         cb.set_label("correlation coefficient", fontsize=8)
-        ax.set_title("\n".join(textwrap.wrap(f"correlation matrix of the parameters ({csrc})", 90)), fontsize=8.5)
+        ax.set_title(textwrap.fill(f"correlation matrix of the parameters ({csrc})", 90), fontsize=8.5)
     if st is not None:
         r = st["residual"]
         sd = float(np.std(r))
@@ -176,7 +176,7 @@ def page_correlation(data: ReportData):
         title = (f"residuals are correlated in time, so the standard deviations are optimistic: factor "
                  f"sqrt(1 + 2 Σ ρk) = {st['factor']:.2f} here"
                  + (f", {float(fmet):.2f} in the fit's metrics" if isinstance(fmet, (int, float)) else ""))
-        a3.set_title("\n".join(textwrap.wrap(title, 105)), fontsize=8, loc="left")  # within the page
+        a3.set_title(textwrap.fill(title, 105), fontsize=8, loc="left")  # within the page
     return fig
 
 

@@ -8,19 +8,23 @@ from typing import Any, Sequence
 from kukaid.report.data import A4, ReportData, ReportError
 
 
-def _new_figure(title: str, data: ReportData):
+def _page(title: str, footer: str):
+    """An A4 page with its title and a grey footer, both 10 pt or more from the edges."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=A4)
-    fig.suptitle(title, fontsize=13, weight="bold", y=0.981)  # title and footer 10 pt or more from the edges
-    fig.text(0.5, 0.016, f"kukaid report · {Path(data.source).name} · axis A{data.params.get('axis', '?')}",
-             ha="center", fontsize=7, color="0.4")
+    fig.suptitle(title, fontsize=13, weight="bold", y=0.981)
+    fig.text(0.5, 0.016, footer, ha="center", fontsize=7, color="0.4")
     return fig
+
+
+def _new_figure(title: str, data: ReportData):
+    return _page(title, f"kukaid report · {Path(data.source).name} · axis A{data.params.get('axis', '?')}")
 
 
 def _subtitle(fig, text: str) -> None:
     """The line under a page's title, wrapped within the page (down from below the title)."""
-    fig.text(0.06, 0.964, "\n".join(textwrap.wrap(text, 125)), fontsize=7.5, va="top")
+    fig.text(0.06, 0.964, textwrap.fill(text, 125), fontsize=7.5, va="top")
 
 
 def _add_table(ax, cells, cols, fontsize=8, col_widths=None, scale_y=1.25):

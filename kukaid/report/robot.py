@@ -12,17 +12,11 @@ import textwrap
 from pathlib import Path
 from typing import Any, Sequence
 
-from kukaid.report.data import A4
-from kukaid.report.layout import _add_table, write_report
+from kukaid.report.layout import _add_table, _page, write_report
 
 
 def _figure(title: str, source: str):
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=A4)
-    fig.suptitle(title, fontsize=13, weight="bold", y=0.981)  # title and footer 10 pt or more from the edges
-    fig.text(0.5, 0.016, f"kukaid robot report · {Path(source).name}", ha="center", fontsize=7, color="0.4")
-    return fig
+    return _page(title, f"kukaid robot report · {Path(source).name}")
 
 
 def _g(v: Any, digits: int = 4) -> str:
@@ -39,7 +33,7 @@ def page_base_parameters(params: dict, source: str):
            f"{_g(mt.get('condition_number'))}; physically consistent: {cons}; at a bound: "
            f"{', '.join(mt.get('at_bound') or []) or 'none'}; {mt.get('samples', '?')} samples fitted")
     # wrapped within the page, from below the title down (not up into it)
-    fig.text(0.05, 0.963, "\n".join(textwrap.wrap(sub, 130)), fontsize=7, va="top")
+    fig.text(0.05, 0.963, textwrap.fill(sub, 130), fontsize=7, va="top")
     cells = []
     sig = bp.get("sigma") or [None] * len(bp["values"])
     for name, v, ls, s in zip(bp["names"], bp["values"], bp.get("least_squares", bp["values"]), sig):
