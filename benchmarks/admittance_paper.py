@@ -105,9 +105,11 @@ def controller_model(params: dict | None = None):
 
 def run_one(model, seed: int, damping: str, D: float, cycle: float, rbf=None, grip: str | None = None,
             duration: float = 13.0, lam: float = 0.05, coupling=None, arm: str = "human", cutoff: float = 5.0,
-            with_run: bool = False):
+            with_run: bool = False, floor=None):
     """One paired run; returns the window metrics (cost with ``lam``) plus run-level checks (and, with
-    ``with_run``, the :class:`~kukaid.control.loop.AdmittanceRun` too: ``(metrics, run)``)."""
+    ``with_run``, the :class:`~kukaid.control.loop.AdmittanceRun` too: ``(metrics, run)``).
+    ``floor(operator)``: a class used instead of the adaptive law's grip floor
+    (:class:`~kukaid.control.stability.CouplingFloor`), made for this run's operator (admittance_oracle.py)."""
     from kukaid.robot import SimRobot
     from kukaid.control.loop import LoopConfig, run_admittance
     from kukaid.control.metrics import damping_delay, window_metrics
@@ -123,7 +125,13 @@ def run_one(model, seed: int, damping: str, D: float, cycle: float, rbf=None, gr
     op = (SpringArm(seed, q0 + cfg.init_move, t_op) if arm == "spring" else
           make_operator("human", seed, q0 + cfg.init_move, t_start=t_op, grip=grip))
     be = SimRobot(VirtualKRC4(SimConfig(), seed=seed), q0, op)
-    run = run_admittance(be, model, cfg)
+    if floor is not None:
+        from unittest import mock
+
+        with mock.patch("kukaid.control.loop.CouplingFloor", floor(op)):
+            run = run_admittance(be, model, cfg)
+    else:
+        run = run_admittance(be, model, cfg)
     d = run.data
     t0 = 0.012  # the run's time axis starts at the first measurement
     t_rel = op.t_release if math.isfinite(op.t_release) else math.inf

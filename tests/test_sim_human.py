@@ -50,6 +50,15 @@ def test_firm_grips_co_contract_to_high_stiffness_and_some_change_their_mind():
         _drive(arm)
         peaks.append(arm.K_peak)
     assert max(peaks) > 900.0
+    # the stiffness now (what a benchmark's oracle reads): nothing before the grasp, with effort while holding
+    arm, q, seen = make_human(2, 0.0, 1.0, grip="firm"), 0.0, []
+    for k in range(int(6.0 / 0.012)):
+        arm(k * 0.012, q, 0.0)
+        seen.append(arm.K)
+    seen = np.array(seen)
+    assert np.all(seen[: int(0.99 / 0.012)] == 0.0)
+    assert arm.p.K0 <= seen.max() <= arm.p.K_max and seen.max() == arm.K_peak
+    assert seen.max() > 1.5 * arm.p.K0  # a held link that does not follow: the arm co-contracts
     changes = [make_human(s).p.change_at is not None for s in range(30)]
     assert 3 <= sum(changes) <= 20
 

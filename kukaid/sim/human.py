@@ -123,7 +123,9 @@ class HumanArm:
     """The arm of :class:`HumanParams` as an external-torque function ``fn(t, q, qd) -> N·m``.
 
     Attributes after a run: ``t_release`` (s, when the grip began to fade; NaN while holding),
-    ``released_on_target`` (bool), ``K_peak`` (largest stiffness reached, N·m/rad).
+    ``released_on_target`` (bool), ``K_peak`` (largest stiffness reached, N·m/rad); ``K`` (the
+    stiffness at the latest evaluation, N·m/rad, 0 while not holding: what a benchmark's oracle may
+    read, never a controller).
 
     The hand's own inertia ``I_hand`` moves with the link.  By default (``plant_inertia`` False,
     the one-axis simulator) the arm adds its reaction ``-I_hand qdd`` to the torque, with ``qdd``
@@ -165,6 +167,7 @@ class HumanArm:
         self.t_release = math.nan
         self.released_on_target = False
         self.K_peak = 0.0
+        self.K = 0.0
 
     def intended(self, t: float) -> tuple[float, float]:
         """Intended position (rad) and velocity (rad/s) at ``t``."""
@@ -234,6 +237,7 @@ class HumanArm:
         self._g = max(g, 0.0)
         if g <= 0.0:
             self._effort = 0.0
+            self.K = 0.0
             return 0.0
         x, v = self.intended(t)
         qr, qdr = self._delayed(t)
@@ -241,6 +245,7 @@ class HumanArm:
         # co-contraction: stiffness rises with the effort (low-passed |torque|, ~0.1 s activation)
         K = min(p.K_max, p.K0 * (1.0 + self._effort / p.tau_cocontract))
         self.K_peak = max(self.K_peak, K)
+        self.K = K
         B = 2.0 * p.zeta * math.sqrt(K * p.I_hand)
         e_pos = (1 - a) * (x - q) + a * (x - qr)
         e_vel = (1 - a) * (v - qd) + a * (v - qdr)
