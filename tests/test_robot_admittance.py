@@ -168,7 +168,8 @@ def test_cli_with_a_robot_parameter_file_and_the_other_axes_moving(tmp_path):
     assert np.sign(m["displacement"]) == np.sign(np.median(te[push]))
 
 
-def test_a_persons_arm_guides_a3_of_the_six_axis_robot():
+@pytest.mark.parametrize("damping", ["constant", "adaptive"])
+def test_a_persons_arm_guides_a3_of_the_six_axis_robot(damping):
     """The default operator (a person's arm, :mod:`kukaid.sim.human`) guiding A3 of the KR 6: its
     hand (1.65 kg·m² about the axis for this person) is heavier than the link (about 0.7 kg·m²).
     The hand's reaction -I qdd was a differenced, held term that fed the link's acceleration back one
@@ -180,7 +181,7 @@ def test_a_persons_arm_guides_a3_of_the_six_axis_robot():
     lo, hi = np.asarray(sim.model_nominal.lowerPositionLimit), np.asarray(sim.model_nominal.upperPositionLimit)
     q0 = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
     q0[AXIS - 1] = math.radians(30.0)
-    cfg = LoopConfig(I=20.0, D=50.0, cycle=0.012, sample_time=sim.cfg.sample_time, duration=3.0,
+    cfg = LoopConfig(I=20.0, D=50.0, cycle=0.012, sample_time=sim.cfg.sample_time, duration=3.0, damping=damping,
                      limits=SafetyLimits(q_min=q0[AXIS - 1] - 1.5, q_max=q0[AXIS - 1] + 1.5))
     op = make_human(0, q0[AXIS - 1] + cfg.init_move, cfg.init_time + cfg.init_rest + 0.8)
     assert op.p.grip == "firm" and op.p.I_hand > 1.5 and op.p.distance > 0.3   # the person of the report

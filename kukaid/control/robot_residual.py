@@ -342,6 +342,7 @@ class GuidedAxisResidual:
         if not 1 <= int(axis) <= model.n:
             raise KukaidError(f"robot residual: guided axis A{axis} is not an axis of the robot (A1..A{model.n})")
         self.axis = int(axis)
+        self.sample_time, self.cutoff, self.order = float(sample_time), float(cutoff), int(order)
         th = np.full(model.n, math.inf)
         th[self.axis - 1] = float(threshold)
         rel = None if release is None else np.where(np.arange(model.n) == self.axis - 1, float(release), math.inf)
