@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -53,6 +54,8 @@ def test_json_schema_refined_file_and_report(case, monkeypatch):
     assert e["evidence"]["p_value"] < 0.01
     assert report.read_bytes()[:4] == b"%PDF"
     assert not problems, problems
+    boxes = [tuple(float(v) for v in b.split()) for b in re.findall(rb"/MediaBox \[([^\]]*)\]", report.read_bytes())]
+    assert len(boxes) >= 2 and set(boxes) == {(0.0, 0.0, 595.44, 841.68)}  # every page A4
     # the refined file carries the effect; diagnosing it again finds nothing more
     p2 = json.loads(refined.read_text())
     assert p2["effects"]["position_ripple"]["n"] > 0
@@ -72,11 +75,12 @@ def test_report_text_wraps_within_the_page():
             "one position sensor backlash and pre-sliding friction cannot be told apart (a load-side encoder "
             "would)); not guessing")
     lines = ["gap before: RMSE 2.184 N", long, "    evidence: " + long]
-    (fig,) = page_table(SimpleNamespace(lines=lambda: lines, steps=[]))
+    (fig,), free = page_table(SimpleNamespace(lines=lambda: lines, steps=[]))
+    assert free > 0.5  # room for the spectrum below a short summary
     assert not layout_problems(fig)
     assert " ".join(t.get_text() for t in fig.texts[1:]).split() == " ".join(lines).split()  # after the title
     # a long diagnosis continues on new pages, every page inside its margins, no word lost
-    figs = page_table(SimpleNamespace(lines=lambda: lines * 30, steps=[]))
+    figs, _ = page_table(SimpleNamespace(lines=lambda: lines * 30, steps=[]))
     assert len(figs) > 1 and not any(layout_problems(f) for f in figs)
     words = " ".join(t.get_text() for f in figs for t in f.texts[1:]).split()
     assert words == " ".join(lines * 30).split()

@@ -109,6 +109,13 @@ def test_library_pages_truth_and_caveat(fitted):
     # a general log is named so in the provenance
     text = " ".join(t.get_text() for t in page_parameters(load_report_data(params, logs=[logs["inertia"]])).texts)
     assert "general log in this report" in text and "log log" not in text
+    # a prismatic axis (a force, N): its mass is named so and nothing sits beside the paper's torques
+    pris = json.loads(json.dumps(params))
+    pris["provenance"]["joint"] = "prismatic"
+    fig = page_parameters(load_report_data(pris))
+    cells = " ".join(c.get_text().get_text() for ax in fig.axes for tab in ax.tables for c in tab.get_celld().values())
+    assert "m (Izz: mass)" in cells and "N²" in cells and "0.5249" not in cells and "14.59" not in cells
+    assert not layout_problems(fig)
 
 
 def test_pages_keep_a_margin_and_long_text_wraps(fitted, monkeypatch):

@@ -26,9 +26,13 @@ def _binned(x: np.ndarray, y: np.ndarray, bins: int = 30) -> tuple[np.ndarray, n
     return 0.5 * (edges[:-1] + edges[1:])[m], s[m] / cnt[m]
 
 
-def page_table(result: Diagnosis) -> list:
+def _unit(result: Diagnosis) -> str:
+    return "N" if result.sigs and result.sigs[0].joint == "prismatic" else "N·m"
+
+
+def page_table(result: Diagnosis) -> tuple[list, float]:
     """The summary pages: the diagnosis's lines wrapped to the page, continued on new pages, then the
-    table of steps."""
+    table of steps; and the height (figure fraction) left free at the bottom of the last page."""
     import matplotlib.pyplot as plt
 
     figs: list = []
@@ -54,10 +58,12 @@ def page_table(result: Diagnosis) -> list:
         cols = ["step", "effect", "RMSE before", "RMSE after", "gap closed", "Wald", "p (corr.)"]
         cells = [[str(i + 1), s.name, f"{s.rmse_before:.4g}", f"{s.rmse_after:.4g}", f"{100 * s.gap_closed:.0f} %",
                   f"{s.test.wald.stat:.1f}", f"{s.test.p_adjusted:.2g}"] for i, s in enumerate(result.steps)]
-        ax = fig.add_axes([0.05, 0.05, 0.9, max(0.05, y - 0.1)])
+        h = min(max(0.05, y - 0.1), 0.03 * (len(cells) + 1))
+        ax = fig.add_axes([0.05, y - 0.02 - h, 0.9, h])
         ax.axis("off")
-        ax.table(cellText=cells, colLabels=cols, loc="upper center")
-    return figs
+        ax.table(cellText=cells, colLabels=cols, bbox=[0.0, 0.0, 1.0, 1.0])
+        y -= 0.04 + h
+    return figs, y
 
 
 def _residual_rows(model: JointTorqueModel, result: Diagnosis):
@@ -83,19 +89,23 @@ def page_step(result: Diagnosis, k: int):
         bx, by = _binned(x, r)
         ax.plot(bx, by, "-", lw=2, color="C3", label="binned mean")
         ax.axhline(0, color="k", lw=0.5)
-        ax.set_ylabel("torque residual (N*m)")
-        ax.set_title(f"{label} adding {step.name}: RMSE {np.sqrt(np.mean(r * r)):.4g} N*m")
+        ax.set_ylabel(f"residual ({_unit(result)})")
+        ax.set_title(f"{label} adding {step.name}: RMSE {np.sqrt(np.mean(r * r)):.4g} {_unit(result)}")
         ax.legend(loc="upper right", fontsize=8)
         ax.set_xlabel(xlabel)
     fig.suptitle(textwrap.fill(f"step {k + 1}: {step.name} - {cand.meaning}", 85), fontsize=11)
     return fig
 
 
-def page_spectrum(result: Diagnosis):
+def page_spectrum(result: Diagnosis, fig=None, top: float = 0.92):
+    """The residual spectrum before and after, on ``fig`` below ``top`` (figure fraction) or on a new
+    A4 page."""
     import matplotlib.pyplot as plt
     from scipy.signal import welch
 
-    fig, ax = plt.subplots(figsize=(8.27, 5.8))
+    if fig is None:
+        fig = plt.figure(figsize=(8.27, 11.69))
+    ax = fig.add_axes([0.12, max(top - 0.42, 0.06), 0.82, 0.36])
     for model, label in ((result.model_given, "given model"), (result.model_final, "after diagnosis")):
         ps, f = [], None
         for s in result.sigs:
@@ -106,8 +116,9 @@ def page_spectrum(result: Diagnosis):
         ax.semilogy(f, np.mean(ps, axis=0), label=label)
     ax.axvline(result.sigs[0].cutoff, color="k", ls=":", lw=0.8, label="filter cut-off")
     ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("residual PSD ((N*m)^2/Hz)")
-    ax.set_title(f"residual spectrum; noise floor {result.noise_floor:.3g} N*m RMS")
+    u = _unit(result)
+    ax.set_ylabel(f"residual PSD ({u}²/Hz)" if u == "N" else f"residual PSD (({u})²/Hz)")
+    ax.set_title(f"residual spectrum; noise floor {result.noise_floor:.3g} {u} RMS")
     ax.legend()
     return fig
 
@@ -120,7 +131,12 @@ def write_report(result: Diagnosis, path: str | Path) -> None:
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_pdf import PdfPages
 
-    figs = page_table(result) + [page_step(result, k) for k in range(len(result.steps))] + [page_spectrum(result)]
+    figs, free = page_table(result)
+    if free > 0.5:  # the spectrum fits below the summary
+        page_spectrum(result, figs[-1], free)
+    figs += [page_step(result, k) for k in range(len(result.steps))]
+    if free <= 0.5:
+        figs.append(page_spectrum(result))
     with atomic_path(path) as tmp:
         with PdfPages(tmp) as pdf:
             for fig in figs:

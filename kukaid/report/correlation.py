@@ -158,7 +158,7 @@ def page_correlation(data: ReportData):
                 a2.axvline(float(co), color="k", ls=":", lw=1, label=f"filter cut-off {float(co):.4g} Hz")
                 a2.legend(fontsize=6.5)
             a2.set_xlabel("frequency (Hz)")
-            a2.set_ylabel(f"PSD ({tu}²/Hz)")
+            a2.set_ylabel(f"PSD ({data.tu2}/Hz)")
             a2.set_title("residual spectrum (Welch, dynamic runs)", fontsize=8)
             a2.grid(True, alpha=0.3, which="both")
         else:

@@ -58,6 +58,11 @@ class ReportData:
         return "N" if self.prismatic else "N·m"
 
     @property
+    def tu2(self) -> str:
+        """The torque unit squared (of an MSE)."""
+        return "N²" if self.prismatic else "N²m²"
+
+    @property
     def vu(self) -> str:
         return "m/s" if self.prismatic else "rad/s"
 

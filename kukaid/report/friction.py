@@ -112,9 +112,9 @@ def page_friction(data: ReportData):
     ax.set_ylabel(f"Γf − F(q̇) ({tu})")
     ax.grid(True, alpha=0.3)
     fm = (data.params.get("metrics") or {}).get("friction_fit_mse")
-    ax.set_title(f"residual of the friction fit: MSE on these points {mse:.4g} {tu}²"
+    ax.set_title(f"residual of the friction fit: MSE on these points {mse:.4g} {data.tu2}"
                  + (f"; fit's friction_fit_mse {fm:.4g}" if isinstance(fm, (int, float)) else "")
-                 + f"; paper {PAPER_FRICTION_MSE} (reference)", fontsize=8.5, loc="left")
+                 + ("" if data.prismatic else f"; paper {PAPER_FRICTION_MSE} (reference)"), fontsize=8.5, loc="left")
     ax.legend(fontsize=7, loc="upper right")
     return fig
 

@@ -48,7 +48,7 @@ def page_parameters(data: ReportData):
     cells = []
     for k, v in values.items():
         s = unc.get(k)
-        row = [k, _fmt(v, 6), units.get(k, ""), _fmt(s, 3),
+        row = ["m (Izz: mass)" if k == "Izz" and data.prismatic else k, _fmt(v, 6), units.get(k, ""), _fmt(s, 3),
                f"{100 * s / abs(v):.3g} %" if s is not None and v else "-"]
         if cf is not None:
             row.append(_fmt(s * cf, 3) if s is not None else "-")
@@ -98,9 +98,10 @@ def page_parameters(data: ReportData):
             return
         mrow.append([label, fmt(v) if isinstance(v, (int, float)) else str(v), unit,
                      _fmt(paper, 4) if paper is not None else ""])
-    tu2 = f"{data.tu}²".replace("N·m²", "N²m²")
-    add("friction-fit MSE", "friction_fit_mse", tu2, PAPER_FRICTION_MSE)
-    add("torque-prediction MSE", "torque_prediction_mse", tu2, PAPER_TORQUE_MSE)
+    tu2 = data.tu2
+    revolute = not data.prismatic  # the paper's figures are of a revolute axis, in N·m: no reference for a force
+    add("friction-fit MSE", "friction_fit_mse", tu2, PAPER_FRICTION_MSE if revolute else None)
+    add("torque-prediction MSE", "torque_prediction_mse", tu2, PAPER_TORQUE_MSE if revolute else None)
     add("torque-prediction MSE, unfiltered torque", "torque_prediction_mse_raw", tu2)
     add("condition number (joint regressor)", "condition_number", "-")
     add("condition number (friction, staged)", "friction_condition_number", "-")
@@ -113,9 +114,15 @@ def page_parameters(data: ReportData):
     if mrow:
         h3 = 0.019 * (len(mrow) + 1)
         ax = fig.add_axes([0.04, y - h3, 0.92, h3])
-        _add_table(ax, mrow, ["metric", "this fit", "unit", "paper (Yao et al. 2018, real KR C4)"], fontsize=7.5,
-                   col_widths=[0.36, 0.2, 0.1, 0.34], scale_y=1.0)
-        ax.set_title("metrics; the paper's values are a reference from real data, not targets", fontsize=9, loc="left")
+        if revolute:
+            _add_table(ax, mrow, ["metric", "this fit", "unit", "paper (Yao et al. 2018, real KR C4)"], fontsize=7.5,
+                       col_widths=[0.36, 0.2, 0.1, 0.34], scale_y=1.0)
+            ax.set_title("metrics; the paper's values are a reference from real data, not targets", fontsize=9,
+                         loc="left")
+        else:  # the paper's figures are torques of a revolute axis: nothing to set beside a force
+            _add_table(ax, [r[:3] for r in mrow], ["metric", "this fit", "unit"], fontsize=7.5,
+                       col_widths=[0.5, 0.3, 0.2], scale_y=1.0)
+            ax.set_title("metrics", fontsize=9, loc="left")
         y = y - h3 - 0.03
     # caveat
     cav = ("Uncertainty caveat: the standard deviations are s²(JᵀJ)⁻¹ from the residual variance and the Jacobian, "

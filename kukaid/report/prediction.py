@@ -29,12 +29,16 @@ def page_prediction(data: ReportData, log: Any, pr: Any, role: str = "inertia"):
     res_d = np.where(m, res, np.nan)
     a1.plot(t, pr.tau_raw, "-", color="0.75", lw=0.5, label="measured (raw)")
     a1.plot(t, pr.tau, "-", color="C0", lw=1.0, label="measured (filtered)")
-    a1.plot(t, pred_d, "--", color="C3", lw=1.0, label="predicted Izz q̈ + gravity + F(q̇) (dynamic samples)")
-    a1.set_ylabel(f"torque Γ ({tu})")
-    a1.legend(fontsize=7, loc="upper right")
+    a1.plot(t, pred_d, "--", color="C3", lw=1.0,
+            label=f"predicted {'m' if data.prismatic else 'Izz'} q̈ + gravity + F(q̇) (dynamic samples)")
+    a1.set_ylabel(f"force F ({tu})" if data.prismatic else f"torque Γ ({tu})")
+    lo, hi = a1.get_ylim()
+    a1.set_ylim(lo, hi + 0.25 * (hi - lo))  # headroom: the legend above the data, not over its peaks
+    a1.legend(fontsize=7, loc="upper left", ncol=3)
     a1.grid(True, alpha=0.3)
-    a1.set_title(f"MSE on the {int(m.sum())} dynamic-mode samples: {mse:.4g} {tu}²; paper {PAPER_TORQUE_MSE} {tu}² "
-                 "(real data, reference)", fontsize=8.5, loc="left")
+    ref = "" if data.prismatic else f"; paper {PAPER_TORQUE_MSE} {data.tu2} (real data, reference)"
+    a1.set_title(f"MSE on the {int(m.sum())} dynamic-mode samples: {mse:.4g} {data.tu2}{ref}", fontsize=8.5,
+                 loc="left")
     a2.plot(t, res_d, "-", color="C2", lw=0.8, label="measured − predicted")
     a2.axhline(0, color="k", lw=0.5)
     for a, b in _runs(~m):

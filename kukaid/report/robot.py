@@ -80,16 +80,17 @@ def page_prediction(params: dict, log: Any, source: str, robot: Any):
     n = len(pairs)
     for i, (a, (t, th)) in enumerate(pairs.items()):
         ax = fig.add_subplot(n, 1, i + 1)
-        x = range(t.size)
+        edge = (log.n_samples - t.size) // 2  # the predictor leaves out as many samples at either end
+        x = log.time[edge:edge + t.size] - log.time[0]
         ax.plot(x, t, lw=0.6, label="measured")
         ax.plot(x, th, lw=0.6, label="predicted")
         rel = float(((t - th) ** 2).sum() ** 0.5 / max((t ** 2).sum() ** 0.5, 1e-12))
         ax.set_ylabel(f"A{a} (N·m)", fontsize=7)
         ax.tick_params(labelsize=6)
-        ax.text(0.99, 0.9, f"rel. error {100 * rel:.1f} %", transform=ax.transAxes, ha="right", fontsize=7)
+        ax.set_title(f"rel. error {100 * rel:.1f} %", loc="right", fontsize=7, pad=2)  # above the curves
         if i == 0:
             ax.legend(fontsize=6, loc="upper left")
-    fig.axes[-1].set_xlabel("sample", fontsize=7)
+    fig.axes[-1].set_xlabel("time (s)", fontsize=7)
     fig.subplots_adjust(left=0.1, right=0.97, top=0.95, bottom=0.07, hspace=0.35)  # x label above the footer
     return fig
 
