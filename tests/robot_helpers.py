@@ -6,10 +6,11 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from shared_data import SHARED
 
 ROOT = Path(__file__).resolve().parents[1]
 _BUNDLED = ROOT / "kukaid" / "robots" / "kr6_r700_sixx.urdf"
-_LWR4 = ROOT.parent / "shared" / "datasets" / "lwr4" / "kuka_lwr4.urdf"
+_LWR4 = SHARED / "datasets" / "lwr4" / "kuka_lwr4.urdf"
 
 if _BUNDLED.is_file():
     ROBOT = "kr6-r700-sixx"

@@ -3,11 +3,10 @@ diagnosis names torque_offset first and the relative error drops from about 7.2 
 published model's 4.1 %."""
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
+from shared_data import SHARED
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
 EMPS = SHARED / "datasets" / "emps" / "DATA_EMPS.mat"
 
 

@@ -3,7 +3,6 @@ model cannot explain a joint of a multi-body robot (other axes move): parameters
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,8 +10,9 @@ from click.testing import CliRunner
 
 from kukaid.logs import AxisLog, write_hdf5
 from kukaid_cli.main import cli
+from shared_data import SHARED
 
-LWR4 = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "lwr4"
+LWR4 = SHARED / "datasets" / "lwr4"
 
 
 def coupled_log(seed: int = 0, fs: float = 200.0, T: float = 25.0) -> AxisLog:

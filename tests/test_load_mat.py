@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,8 +12,8 @@ from kukaid.errors import LogFormatError
 from kukaid.identify import fit_axis
 from kukaid.logs import read_hdf5, read_log
 from kukaid_cli.main import cli
+from shared_data import SHARED
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
 EMPS = SHARED / "datasets" / "emps" / "DATA_EMPS.mat"
 EMPS_OPTS = dict(time="t", q="qm", tau="vir", tau_scale_var="gtau", q_cmd="qg", joint="prismatic", axis=1)
 

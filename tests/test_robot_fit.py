@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,8 +14,9 @@ from kukaid.params import load_robot_params, save_robot_params, validate_robot_p
 
 from pdf_layout import capture_pages, layout_problems
 from robot_sim_helpers import simulated_log
+from shared_data import SHARED
 
-LWR4 = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "lwr4"
+LWR4 = SHARED / "datasets" / "lwr4"
 
 
 @pytest.fixture(scope="module")
