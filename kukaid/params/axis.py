@@ -5,6 +5,16 @@ allowed range: the numbers of the fixed sections (:data:`_FIELDS`), the keys tho
 hold (:data:`_KEYS`; a misspelt field is refused), and the parameters of the diagnosed
 ``effects`` (:data:`_EFFECT_KEYS`; every other effect parameter is a finite number).  ``metrics``
 and ``provenance`` are free-form objects, ``uncertainty`` maps any name to a standard deviation.
+
+Physical ceilings: no real KUKA axis comes near them (the KR 1000 titan, the heaviest arm, has
+joint torques of order 1e5 N·m and link inertias of order 1e4 kg·m² about its base axis; a linear
+unit carrying it, forces of order 1e5 N and a few tonnes), so a value beyond one is a typing or
+unit mistake (or 1e300), refused on read with the field and the range, before arithmetic on it
+overflows in validate, report, diagnose or run-admittance: |torque| and |force| terms (Fc, Fs, Mx,
+My, offset, Maxwell-slip W and zeta0) up to :data:`TORQUE_MAX`, Izz up to :data:`IZZ_MAX`, Fv up to
+:data:`FV_MAX`, vs and qd_thr up to :data:`SPEED_MAX`, a Maxwell-slip stiffness up to
+:data:`STIFFNESS_MAX`, every effect parameter within +-:data:`EFFECT_MAX` and every standard
+deviation up to :data:`STD_MAX` (a number, however badly determined, that squares without overflow).
 """
 from __future__ import annotations
 
@@ -26,18 +36,28 @@ INF = math.inf
 #: the smallest inertia (Izz) a parameter file holds, kg m^2 (kg on a prismatic axis); the fit's
 #: lower bound for Izz is the same number, so a fit that drives Izz down writes it at this bound
 IZZ_MIN = 1e-12
+#: physical ceilings (see the module docstring), SI: N·m (N on a prismatic axis), kg·m² (kg),
+#: N·m·s/rad (N·s/m), rad/s (m/s), N·m/rad (N/m)
+TORQUE_MAX = 1e6
+IZZ_MAX = 1e6
+FV_MAX = 1e6
+SPEED_MAX = 1e3
+STIFFNESS_MAX = 1e12
+EFFECT_MAX = 1e12
+STD_MAX = 1e100
+_CEILINGS = {TORQUE_MAX, IZZ_MAX, FV_MAX, SPEED_MAX, STIFFNESS_MAX, EFFECT_MAX}
 
 # (section, field) -> (low, high, required)
 _FIELDS: dict[tuple[str, str], tuple[float, float, bool]] = {
-    ("friction", "Fc"): (0.0, INF, True),
-    ("friction", "Fv"): (0.0, INF, True),
-    ("friction", "Fs"): (0.0, INF, False),
-    ("friction", "vs"): (1e-9, INF, False),
+    ("friction", "Fc"): (0.0, TORQUE_MAX, True),
+    ("friction", "Fv"): (0.0, FV_MAX, True),
+    ("friction", "Fs"): (0.0, TORQUE_MAX, False),
+    ("friction", "vs"): (1e-9, SPEED_MAX, False),
     ("friction", "delta"): (0.05, 10.0, False),
-    ("inertial", "Izz"): (IZZ_MIN, INF, True),
-    ("inertial", "Mx"): (-INF, INF, False),
-    ("inertial", "My"): (-INF, INF, False),
-    ("mode_switch", "qd_thr"): (0.0, INF, False),
+    ("inertial", "Izz"): (IZZ_MIN, IZZ_MAX, True),
+    ("inertial", "Mx"): (-TORQUE_MAX, TORQUE_MAX, False),
+    ("inertial", "My"): (-TORQUE_MAX, TORQUE_MAX, False),
+    ("mode_switch", "qd_thr"): (0.0, SPEED_MAX, False),
 }
 
 # the keys a section with fixed keys may hold ("" is the top level); metrics, provenance, the
@@ -56,7 +76,7 @@ _KEYS: dict[str, tuple[str, ...]] = {
 _FS_FC_RTOL = 1e-6
 
 # effect parameter -> (kind, range or choices); every other parameter of an effect is a number
-# (-inf, inf), except keys starting with "_" (free comments).  Kinds: "number" (finite, in the
+# (-EFFECT_MAX, EFFECT_MAX), except keys starting with "_" (free comments).  Kinds: "number" (finite, in the
 # range), "number|null" (also null), "text" (a string, one of the choices unless None), "std"
 # ({coefficient: finite number >= 0 or null}), "friction" (a friction object, signed levels).
 _EFFECT_KEYS: dict[str, tuple[str, Any]] = {
@@ -68,9 +88,9 @@ _EFFECT_KEYS: dict[str, tuple[str, Any]] = {
     "shape": ("text", ("pulse", "decay")),                  # backlash
     "std": ("std", None),                                   # uncertainty of each coefficient
     "friction_ref": ("friction", None),                     # thermal_drift: the friction it scales
-    "tau": ("number", (1e-9, INF)),                         # backlash time constant, s
-    "T_ref": ("number|null", (-INF, INF)),                  # simulator truth: null = ambient
-    "mu": ("number|null", (-INF, INF)),                     # derived Fc_load / |Mx| (null: Mx = 0)
+    "tau": ("number", (1e-9, EFFECT_MAX)),                  # backlash time constant, s
+    "T_ref": ("number|null", (-EFFECT_MAX, EFFECT_MAX)),    # simulator truth: null = ambient
+    "mu": ("number|null", (-EFFECT_MAX, EFFECT_MAX)),       # derived Fc_load / |Mx| (null: Mx = 0)
 }
 # keys an effect needs in any format (the online torque residual reads them); a diagnosis-format
 # effect ("model": "kukaid.diagnose/1") needs its term's coefficients and settings (models.effects)
@@ -89,7 +109,9 @@ def _number(where: str, v: Any, lo: float, hi: float) -> float:
     if not math.isfinite(v):
         raise ParamFileError(f"{where} must be a finite number, got {v}")
     if not lo <= v <= hi:
-        raise ParamFileError(f"{where} = {v} is outside the allowed range [{lo}, {hi}]")
+        beyond = (v > hi and hi in _CEILINGS) or (v < lo and -lo in _CEILINGS)
+        why = " (beyond any real KUKA axis: a unit or typing mistake?)" if beyond else ""
+        raise ParamFileError(f"{where} = {v} is outside the allowed range [{lo:g}, {hi:g}]{why}")
     return float(v)
 
 
@@ -119,7 +141,7 @@ def _friction_ref(where: str, name: str, fr: Any) -> None:
     for f in ("Fc", "Fv", "Fs", "vs", "delta"):
         if f in fr:
             lo, hi, _ = _FIELDS[("friction", f)]
-            _number(f"{where}: {name}.{f}", fr[f], -INF if f in ("Fc", "Fv", "Fs") else lo, hi)
+            _number(f"{where}: {name}.{f}", fr[f], -hi if f in ("Fc", "Fv", "Fs") else lo, hi)
 
 
 def _effects(where: str, effects: Any) -> None:
@@ -132,7 +154,7 @@ def _effects(where: str, effects: Any) -> None:
             field = f"effects.{name}.{k}"
             if k.startswith("_"):
                 continue
-            kind, rng = _EFFECT_KEYS.get(k, ("number", (-INF, INF)))
+            kind, rng = _EFFECT_KEYS.get(k, ("number", (-EFFECT_MAX, EFFECT_MAX)))
             if kind == "text":
                 if not isinstance(v, str) or (rng is not None and v not in rng):
                     want = "a string" if rng is None else " or ".join(f"'{c}'" for c in rng)
@@ -140,7 +162,7 @@ def _effects(where: str, effects: Any) -> None:
             elif kind == "std":
                 for c, s in _object(where, field, v, "an object {coefficient: standard deviation}").items():
                     if s is not None:
-                        _number(f"{where}: {field}.{c}", s, 0.0, INF)
+                        _number(f"{where}: {field}.{c}", s, 0.0, STD_MAX)
             elif kind == "friction":
                 _friction_ref(where, field, v)
             elif not (v is None and kind == "number|null"):
@@ -182,7 +204,7 @@ def validate_params(d: Any, where: str = "parameter file") -> dict:
         raise ParamFileError(f"{where}: friction.Fs = {fr['Fs']} must not be below friction.Fc = {fr['Fc']} "
                              f"(Stribeck static friction is at least the Coulomb level)")
     if "offset" in d:
-        _number(f"{where}: offset", d["offset"], -INF, INF)
+        _number(f"{where}: offset", d["offset"], -TORQUE_MAX, TORQUE_MAX)
     ms = d.get("maxwell_slip")
     if ms is not None:
         if not isinstance(ms, dict) or not all(isinstance(ms.get(x), list) for x in ("k", "W")):
@@ -193,9 +215,9 @@ def validate_params(d: Any, where: str = "parameter file") -> dict:
         if n == 0 or len(ms["W"]) != n or not isinstance(zeta0, list) or len(zeta0) != n:
             raise ParamFileError(f"{where}: maxwell_slip.k, .W and .zeta0 must be non-empty lists of one length")
         for i in range(n):
-            _number(f"{where}: maxwell_slip.k[{i}]", ms["k"][i], 1e-12, INF)
-            _number(f"{where}: maxwell_slip.W[{i}]", ms["W"][i], 0.0, INF)
-            _number(f"{where}: maxwell_slip.zeta0[{i}]", zeta0[i], -INF, INF)
+            _number(f"{where}: maxwell_slip.k[{i}]", ms["k"][i], 1e-12, STIFFNESS_MAX)
+            _number(f"{where}: maxwell_slip.W[{i}]", ms["W"][i], 0.0, TORQUE_MAX)
+            _number(f"{where}: maxwell_slip.zeta0[{i}]", zeta0[i], -TORQUE_MAX, TORQUE_MAX)
     ax = d.get("axis")
     if ax is not None and (isinstance(ax, bool) or not isinstance(ax, int) or not 1 <= ax <= 12):
         raise ParamFileError(f"{where}: axis must be an integer 1 to 12, got {_show(ax)}")
@@ -208,7 +230,7 @@ def validate_params(d: Any, where: str = "parameter file") -> dict:
         unc = _object(where, "uncertainty", d["uncertainty"], "an object {parameter: standard deviation}")
         for k, v in unc.items():
             if v is not None:
-                _number(f"{where}: uncertainty.{k}", v, 0.0, INF)
+                _number(f"{where}: uncertainty.{k}", v, 0.0, STD_MAX)
     return d
 
 
