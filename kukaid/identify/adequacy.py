@@ -6,6 +6,11 @@
   inertia torque a multi-body robot puts on this axis, which the single-axis model cannot hold).
 * :func:`assess`: warnings (one line each) from the solver status, the parameters on their
   bounds, the residual against the noise floor and the other axes' motion, with what to do.
+* :func:`check_not_held`: a log whose samples are held (each controller sample recorded many
+  times, as a KUKAVARPROXY poll faster than the controller's 12 ms / 4 ms cycle did) is refused:
+  its sample rate sets the filter and the differences, and the fit on it is wrong.
+* :func:`role_warnings`: a log whose ``experiment`` attribute (written by capture from the
+  trajectory) is not the role it was given in (``--friction``, ``--inertia``, ``--presliding``).
 """
 from __future__ import annotations
 
@@ -20,6 +25,14 @@ _MAD = 1.482602218505602  # MAD -> standard deviation for a normal distribution
 MOVE_RANGE = 0.02
 #: a fit residual above this many noise floors is "far above noise"
 FAR_ABOVE_NOISE = 5.0
+#: share of samples identical to the one before (every position and torque) from which a log is
+#: "held": a measured torque carries noise, so even a standing axis repeats exactly only rarely;
+#: a controller sample polled twice already makes 50 %
+HELD_SHARE = 0.2
+#: the shortest sample time a KR C4 delivers over KUKAVARPROXY (its fastest interpolation cycle), s
+KRC_MIN_SAMPLE_TIME = 0.004
+#: experiments of the trajectories (``kukaid excite KIND``) that have a role of their own in ``fit``
+ROLES = ("friction", "inertia", "presliding")
 
 
 def raw_noise_sigma(x: np.ndarray) -> float:
@@ -100,3 +113,60 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
         warnings.append(f"residual {ratio:.3g} x the noise floor: the model misses an effect (run kukaid diagnose)")
     figures = {"residual_over_noise": ratio, "other_axes_moving": list(others), "single_axis_adequate": not inadequate}
     return warnings, figures
+
+
+def held_share(log: Any) -> float:
+    """Share of a log's samples identical to the one before in every position and torque (0 for a
+    log in which no position changes at all: a standstill, which is not a question of sampling)."""
+    q = np.asarray(log.q, dtype=float).reshape(len(log.time), -1)
+    tau = np.asarray(log.tau, dtype=float).reshape(len(log.time), -1)
+    if q.shape[0] < 3 or not np.any(np.ptp(q, axis=0) > 0):
+        return 0.0  # nothing moves: not held, a standstill (the fit says it has no dynamic samples)
+    same = np.all(q[1:] == q[:-1], axis=1) & np.all(tau[1:] == tau[:-1], axis=1)
+    return float(np.mean(same))
+
+
+def check_not_held(log: Any, name: str | None = None) -> None:
+    """Refuse (:class:`~kukaid.errors.FitError`) a log whose samples are held.
+
+    Held: at least :data:`HELD_SHARE` of the samples repeat the one before exactly, or a
+    KUKAVARPROXY capture (attribute ``source``) sampled faster than the controller can deliver
+    (:data:`KRC_MIN_SAMPLE_TIME`, with a margin).  Such a log (``kukaid capture --backend kvp
+    --mode poll`` of kukaid 0.x polled each 12 ms sample about 100 times) makes the fit choose its
+    filter from the inflated rate and difference steps of a staircase: parameters off by orders of
+    magnitude, with no sign of it but the residual."""
+    from kukaid.errors import FitError
+
+    name = name or str(log.attrs.get("source_file", "log"))
+    t = np.asarray(log.time, dtype=float)
+    if t.size < 3:
+        return
+    share = held_share(log)
+    dt = float(np.median(np.diff(t)))
+    kvp = str(log.attrs.get("source", "")) == "kukavarproxy"
+    fast = kvp and dt < 0.75 * KRC_MIN_SAMPLE_TIME
+    if share < HELD_SHARE and not fast:
+        return
+    rate = f"{1.0 / dt:.0f} Hz" if dt > 0 else "no time between samples"
+    raise FitError(
+        f"{name}: {share:.0%} of the samples repeat the one before exactly ({rate}; a KR C4 gives a new sample "
+        f"every 12 ms, 4 ms at the fastest): the controller's samples are held, recorded many times over, and a "
+        f"fit on them is wrong. Capture it again with `kukaid capture --backend kvp --mode ring` (exact 12 ms "
+        f"samples from the KRL logger, `kukaid krl-logger`) or with the poll mode of this version, which keeps "
+        f"each controller sample once")
+
+
+def role_warnings(log: Any, role: str, name: str | None = None) -> list[str]:
+    """A warning when ``log`` records (attribute ``experiment``) an experiment other than ``role``.
+
+    Logs without the attribute (imported from CSV, MAT, KUKA Trace) give none."""
+    exp = log.attrs.get("experiment") if hasattr(log, "attrs") else None
+    if not isinstance(exp, str) or not exp or exp == role:
+        return []
+    name = name or str(log.attrs.get("source_file", "log"))
+    if exp in ROLES:
+        fix = f"give it as --{exp}"
+    else:
+        fix = f"give it as a general log (kukaid fit {name} ...), or the {role} experiment's log as --{role}"
+    return [f"{name} was given as --{role} but records the '{exp}' experiment (attribute 'experiment'): the "
+            f"parameters are fitted on the wrong data and worse than they should be; {fix}"]

@@ -152,20 +152,28 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     pre = dict(axis=axis, cutoff=cutoff, order=order, qd_thr=qd_thr, edge=edge, decimate=decimate,
                reversal_window=reversal_window, diff=diff)
     raw_logs: list[Any] = []
+    role_warn: list[str] = []
 
-    def prep(x: Any) -> Any:
+    def prep(x: Any, role: str | None = None) -> Any:
+        from kukaid.identify.adequacy import check_not_held, role_warnings
+
         lg = _load(x, ro)
+        name = str(lg.attrs.get("source_file") or (x if isinstance(x, (str, bytes)) or hasattr(x, "__fspath__")
+                                                  else "log"))
         if axis is None and len(lg.axes) > 1:  # never a silent choice among several axes
             names = ", ".join(f"A{a}" for a in lg.axes)
-            raise OptionError(f"{lg.attrs.get('source_file', 'log')}: holds axes {names}; choose one with --axis "
+            raise OptionError(f"{name}: holds axes {names}; choose one with --axis "
                               "(or fit them all together with --robot URDF)")
+        check_not_held(lg, name)
+        if role is not None:
+            role_warn.extend(role_warnings(lg, role, name))
         raw_logs.append(lg)
         return preprocess(lg, **pre)
 
     general = [prep(x) for x in logs]
-    fr = [prep(x) for x in friction]
-    ine = [prep(x) for x in inertia]
-    psl = prep(presliding) if presliding is not None else None
+    fr = [prep(x, "friction") for x in friction]
+    ine = [prep(x, "inertia") for x in inertia]
+    psl = prep(presliding, "presliding") if presliding is not None else None
     if not (general or fr or ine):
         raise FitError("no logs to fit: give general logs, or --friction and/or --inertia logs")
     all_preps = general + fr + ine + ([psl] if psl is not None else [])
@@ -234,6 +242,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     model.qd_thr = qd_thr_used
     metrics.update(_adequacy(ax, raw_logs, [p for p in (general + fr + ine) if p is not None], fit_joint,
                              staged_at_bound, model))
+    metrics["warnings"] = role_warn + list(metrics.get("warnings", []))
     if psl is not None:
         ms = fit_maxwell_slip(psl, n_elements, gravity=model.rigid.gravity)
         model.maxwell_slip, model.zeta0 = MaxwellSlip(ms.k, ms.W), tuple(ms.zeta0)

@@ -425,6 +425,10 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     settings = settings or RobotFitSettings()
     if not logs:
         raise FitError("no logs to fit")
+    from kukaid.identify.adequacy import check_not_held
+
+    for lg in logs:
+        check_not_held(lg)
     n = robot.n
     drive = _drive(robot, settings, coupling)
     m = _samples(logs, n, settings, drive)

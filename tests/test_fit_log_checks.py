@@ -1,0 +1,87 @@
+"""`kukaid fit` checks the data behind a result: a log of held samples (a KUKAVARPROXY poll faster
+than the controller's 12 ms) is refused with one line naming it and what to do; a log given in the
+role of another experiment (its `experiment` attribute) is a printed warning."""
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import pytest
+
+from kukaid import excite
+from kukaid.errors import FitError
+from kukaid.identify import fit_axis
+from kukaid.identify.adequacy import check_not_held, held_share, role_warnings
+from kukaid.logs import AxisLog, read_log, write_hdf5
+from kukaid.sim import SimConfig, VirtualKRC4
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fitchecks")
+    paths = {}
+    for kind, opts, seed in (("friction", dict(n_speeds=6), 1), ("inertia", {}, 2)):
+        log = VirtualKRC4(SimConfig(), seed=seed).run(excite.generate(kind, **opts))
+        paths[kind] = d / f"{kind}.h5"
+        write_hdf5(log, paths[kind])
+    return d, paths
+
+
+def held(log: AxisLog, times: int = 80, seed: int = 0) -> AxisLog:
+    """The log as a poll ``times`` faster than its samples recorded it: each sample repeated, PC-stamped."""
+    rng = np.random.default_rng(seed)
+    t = log.time[0] + np.cumsum(rng.uniform(0.5, 1.5, size=log.n_samples * times) * 0.012 / times)
+    idx = np.minimum(np.searchsorted(log.time, t, side="right") - 1, log.n_samples - 1)
+    attrs = {k: v for k, v in log.attrs.items() if k != "source_file"}
+    attrs.update(source="kukavarproxy", capture_mode="poll")
+    return AxisLog(t - t[0], log.q[idx], log.tau[idx], axes=log.axes, attrs=attrs)
+
+
+def test_held_log_is_refused_naming_it(logs, tmp_path, kukaid_cmd):
+    d, p = logs
+    lg = read_log(p["inertia"])
+    assert held_share(lg) == 0.0
+    srv = tmp_path / "srv.h5"
+    write_hdf5(held(lg), srv)
+    with pytest.raises(FitError, match=r"srv\.h5: 9\d% of the samples repeat the one before exactly .*--mode ring"):
+        fit_axis(inertia=[srv], friction_model="stribeck")
+    r = subprocess.run([*kukaid_cmd, "fit", "--inertia", str(srv), "-o", str(tmp_path / "p.json")],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 1 and not (tmp_path / "p.json").exists()
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"kukaid: error: {srv}: ") and "held" in lines[0], r.stderr
+    # polled just twice per sample is held too; a KVP log faster than 4 ms is held whatever its values
+    with pytest.raises(FitError, match="repeat the one before"):
+        check_not_held(held(lg, times=2), "twice.h5")
+    fast = AxisLog(np.arange(lg.n_samples) * 0.001, lg.q, lg.tau, axes=lg.axes, attrs={"source": "kukavarproxy"})
+    with pytest.raises(FitError, match=r"fast\.h5: 0% .*1000 Hz"):
+        check_not_held(fast, "fast.h5")
+    # a 1 kHz log of another source (KUKA Trace drives, EMPS) with new values every sample is fine
+    check_not_held(AxisLog(fast.time, lg.q, lg.tau, axes=lg.axes, attrs={"source": "mat"}), "ok.h5")
+
+
+def test_logs_in_the_wrong_role_are_warned(logs, kukaid_cmd):
+    d, p = logs
+    out = d / "swapped.json"
+    r = subprocess.run([*kukaid_cmd, "fit", "--friction", str(p["inertia"]), "--inertia", str(p["friction"]),
+                        "-o", str(out)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert (f"warning: {p['inertia']} was given as --friction but records the 'inertia' experiment" in r.stdout
+            and "give it as --inertia" in r.stdout), r.stdout
+    assert f"warning: {p['friction']} was given as --inertia but records the 'friction' experiment" in r.stdout
+    # the right roles: no such warning
+    r = subprocess.run([*kukaid_cmd, "fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]),
+                        "-o", str(d / "right.json")], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "was given as" not in r.stdout, r.stdout
+
+
+def test_role_warning_needs_the_attribute():
+    t = np.arange(100) * 0.012
+    lg = AxisLog(t, np.sin(t)[:, None], np.cos(t)[:, None], axes=(3,), attrs={"source_file": "imported.csv"})
+    assert role_warnings(lg, "inertia") == []  # imported from CSV/MAT: nothing recorded, nothing said
+    lg.attrs["experiment"] = "inertia"
+    assert role_warnings(lg, "inertia") == []
+    lg.attrs["experiment"] = "validation"
+    (w,) = role_warnings(lg, "friction")
+    assert "imported.csv was given as --friction but records the 'validation' experiment" in w
+    assert "general log" in w
