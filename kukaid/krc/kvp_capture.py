@@ -4,9 +4,20 @@ Two modes:
 
 ``poll``
     Read ``$AXIS_ACT_MEAS`` (all axes in one E6AXIS) and ``$TORQUE_AXIS_ACT[i]`` (one request per
-    axis) as fast as the link allows, ``$MOT_TEMP[i]`` once a second.  Each sample is stamped on
-    the PC with ``time.monotonic()`` at the middle of its exchanges (so network jitter shows up
-    as uneven sample spacing, which is recorded, not hidden).
+    axis) as fast as the link allows, then the controller's clock ``$ROB_TIMER`` (ms), and
+    ``$MOT_TEMP[i]`` once a second.  The controller updates these values once an interpolation
+    cycle (12 ms; 4 ms at the fastest), and a poll is usually much faster: each controller sample
+    is recorded once (:class:`_NewSample`), stamped with ``$ROB_TIMER``.  A poll whose timer equals
+    the previous poll's saw one controller sample throughout (the virtual KR C4 serves the stamp of
+    its newest sample); it is new when the stamp is.  Otherwise (a sample arrived during the poll,
+    or a controller whose ``$ROB_TIMER`` runs on every millisecond) it is new when its values differ
+    from the last recorded sample, or two cycles after it (a standing axis whose values repeat
+    exactly).  A controller that does not answer ``$ROB_TIMER`` is polled without it: samples are
+    stamped on the PC with ``time.monotonic()`` at the middle of their exchanges (network jitter
+    shows as uneven spacing, recorded, not hidden) and kept when their values change, or two
+    cycles after the last one (a sample arriving between the position and the torque requests
+    may then add one row that pairs the new position with the old torque).  Held repeats of one sample (kukaid before this change logged each
+    12 ms sample about 100 times, and ``kukaid fit`` refuses such logs) are never written.
 ``ring``
     Read blocks of samples taken every interpolation cycle by the KRL ring-buffer logger
     (:mod:`kukaid.krc.krl_logger`); sample times come from the controller's ``$ROB_TIMER`` (ms),
@@ -180,12 +191,15 @@ def capture_kvp(output: str | Path, host: str = "127.0.0.1", port: int = DEFAULT
         client.close()
         raise ControllerError(f"capture: {e}") from None
 
+    timer = mode == "ring" or _has_timer(client)
     stop = _Stop(stop_event)
     info: dict[str, Any] = {
         "source": "kukavarproxy", "kvp_host": host, "kvp_port": int(port), "capture_mode": mode,
-        "time_source": "pc-monotonic" if mode == "poll" else "controller $ROB_TIMER",
+        "time_source": "controller $ROB_TIMER" if timer else "pc-monotonic",
         "temp_unit_controller": temp_unit,
     }
+    if mode == "poll":
+        info["poll_samples"] = "each controller sample once (held repeats not recorded)"
     info.update(attrs or {})
     writer = AxisLogWriter(output, axes, channels=("q", "tau", "temp"), attrs=info, flush_every=1 << 30)
     rec = _Recorder(writer, len(axes), flush_interval)
@@ -199,7 +213,7 @@ def capture_kvp(output: str | Path, host: str = "127.0.0.1", port: int = DEFAULT
         loop = _poll_loop if mode == "poll" else _ring_loop
         stopped_by = loop(client, axes, rec, writer, latencies, gaps, stop, t0, duration, progress,
                           reconnect_wait=reconnect_wait, temp_every=temp_every, temp_unit=temp_unit,
-                          ring_poll=ring_poll, max_errors=max_consecutive_errors, result=result)
+                          ring_poll=ring_poll, max_errors=max_consecutive_errors, result=result, timer=timer)
     except BaseException as e:
         err = e
         stopped_by = "error"
@@ -246,7 +260,7 @@ def _finish_attrs(path: Path, summary: dict[str, Any]) -> None:
     try:
         with h5py.File(path, "r+") as f:
             for k in ("rate_hz", "latency_mean_s", "latency_p99_s", "latency_max_s", "n_requests",
-                      "n_reconnects", "wall_s", "ring_overflows", "ring_blocks"):
+                      "n_reconnects", "wall_s", "ring_overflows", "ring_blocks", "n_polls", "n_held_polls"):
                 if k in summary and summary[k] is not None:
                     f.attrs[k] = summary[k]
             f.attrs["n_gaps"] = len(summary["gaps"])
@@ -285,16 +299,75 @@ def _recover(client: KvpClient, rec: _Recorder, writer, gaps: list, stop: _Stop,
     gaps.append([float(gap_start), float(gap_end)])
 
 
+def _has_timer(client: KvpClient) -> bool:
+    """Does the controller answer ``$ROB_TIMER`` (an INT, ms)?"""
+    try:
+        parse_int(client.read("$ROB_TIMER"), "$ROB_TIMER")
+        return True
+    except (KvpVariableError, KvpValueError):
+        return False
+    except KvpError:
+        return False  # the link: the poll loop reconnects; stamped on the PC meanwhile
+
+
+class _NewSample:
+    """Which polls bring a new controller sample (see the module docstring, ``poll``).
+
+    ``cycle_ms`` is the controller's interpolation cycle (12 ms): values repeated exactly for two
+    cycles are a new sample of a standing axis, not a held one."""
+
+    def __init__(self, cycle_ms: float) -> None:
+        self.cycle_ms = float(cycle_ms)
+        self.prev_ms: float | None = None  # the timer of the previous poll
+        self.kept_ms: float | None = None  # the timer (or PC time, ms) of the last kept sample
+        self.kept_values: np.ndarray | None = None
+
+    def reset(self) -> None:
+        """The link dropped: the next poll's timer has no predecessor."""
+        self.prev_ms = None
+
+    def __call__(self, stamp_ms: float, values: np.ndarray, stamp_is_sample: bool) -> bool:
+        prev, self.prev_ms = self.prev_ms, stamp_ms
+        if self.kept_ms is None:
+            new = True
+        elif stamp_ms <= self.kept_ms:
+            new = False
+        else:
+            changed = not np.array_equal(values, self.kept_values)
+            one_sample = stamp_is_sample and prev is not None and prev == stamp_ms
+            # one sample seen throughout the poll: its stamp says it is new; else only new values are,
+            # or exactly repeated ones two cycles on (a standing axis)
+            new = (one_sample and (changed or stamp_ms - self.kept_ms >= _MIN_CYCLE_MS)) or changed \
+                or stamp_ms - self.kept_ms >= 2 * self.cycle_ms
+        if new:
+            self.kept_ms, self.kept_values = stamp_ms, values
+        return new
+
+
+#: the shortest interpolation cycle of a KR C4, ms
+_MIN_CYCLE_MS = 4.0
+
+
 def _poll_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps, stop, t0, duration,
-               progress, *, reconnect_wait, temp_every, temp_unit, max_errors, result, **_) -> str:
+               progress, *, reconnect_wait, temp_every, temp_unit, max_errors, result, timer=True, **_) -> str:
+    from kukaid.krc.krl_logger import IPO_MS
+
     keys = [f"A{a}" if a <= 6 else f"E{a - 6}" for a in axes]
     temp = np.full(len(axes), np.nan)
     next_temp = 0.0
     errors = 0
     last_progress = 0.0
+    is_new = _NewSample(IPO_MS)
+    timer0: int | None = None
+    last_raw: int | None = None
+    unwrap = 0
+    gap_start: float | None = None  # controller time of the last sample before a dropped link
+    polls = held = 0
+    te = time.monotonic()
     while True:
         why = _done(stop, t0, duration)
         if why:
+            result.update(n_polls=polls, n_held_polls=held)
             return why
         try:
             ts = time.monotonic()
@@ -304,6 +377,10 @@ def _poll_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
             for j, a in enumerate(axes):
                 name = f"$TORQUE_AXIS_ACT[{a}]"
                 tau[j] = parse_real(client.read(name), name)
+                latencies.append(client.last_latency)
+            raw = None
+            if timer:  # after the values: they were taken at or before this time
+                raw = parse_int(client.read("$ROB_TIMER"), "$ROB_TIMER")
                 latencies.append(client.last_latency)
             te = time.monotonic()
             if te - t0 >= next_temp:
@@ -316,13 +393,41 @@ def _poll_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
                 q = np.array([pos[k] for k in keys]) * _DEG
             except KeyError as e:
                 raise KvpValueError(f"$AXIS_ACT_MEAS has no field {e.args[0]} (axis not present)") from None
-            rec.add(0.5 * (ts + te) - t0, q, tau, temp.copy())
+            polls += 1
+            if raw is not None:
+                if last_raw is not None and raw + unwrap < last_raw - 2**30:  # $ROB_TIMER rolled over
+                    unwrap += 2**31
+                last_raw = raw + unwrap
+                if timer0 is None:
+                    timer0 = last_raw
+                stamp_ms = float(last_raw - timer0)
+            else:
+                stamp_ms = (0.5 * (ts + te) - t0) * 1000.0
+            if is_new(stamp_ms, np.concatenate([q, tau]), raw is not None):
+                t = stamp_ms / 1000.0
+                if gap_start is not None:  # the first sample after a dropped link ends its gap
+                    rec.flush()
+                    writer.mark_gap(gap_start, t)
+                    gaps.append([float(gap_start), float(t)])
+                    gap_start = None
+                rec.add(t, q, tau, temp.copy())
+            else:
+                held += 1
+                rec.maybe_flush()
             errors = 0
         except (KvpConnectionError, KvpProtocolError) as e:
             errors += 1
             if errors > max_errors:
                 raise KvpError(f"{errors} consecutive link failures, last: {e}") from None
-            _recover(client, rec, writer, gaps, stop, t0, _reconnect_wait(reconnect_wait, t0, duration), e)
+            is_new.reset()
+            if timer:  # the gap is marked in the controller's time, at the first sample after it
+                if gap_start is None:
+                    gap_start = rec.t_last if math.isfinite(rec.t_last) else 0.0
+                rec.flush()
+                client.close()
+                client.reconnect(max_wait=_reconnect_wait(reconnect_wait, t0, duration), should_stop=stop)
+            else:
+                _recover(client, rec, writer, gaps, stop, t0, _reconnect_wait(reconnect_wait, t0, duration), e)
             continue
         except (KvpVariableError, KvpValueError) as e:
             raise KvpError(str(e)) from None
