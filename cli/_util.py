@@ -50,6 +50,19 @@ def usage_errors(option: str | None = None, types: tuple[type[KukaidError], ...]
         raise click.UsageError(msg) from None
 
 
+@contextmanager
+def option_in_data_error(flag: str, given: bool, phrase: str) -> Iterator[None]:
+    """An option whose allowed range depends on the data (a cut-off below a log's Nyquist frequency)
+    is checked with the data, so its error stays exit 1, but says ``flag`` for ``phrase`` when the
+    option was given: ``with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off")``."""
+    try:
+        yield
+    except KukaidError as e:
+        if not given or phrase not in str(e):
+            raise
+        raise type(e)(str(e).replace(phrase, flag, 1)) from None
+
+
 def require_positive(*options: tuple[str, float | None]) -> None:
     """Usage error unless every option given as ``(flag, value)`` is a finite number > 0 (None: not given)."""
     for flag, v in options:
@@ -61,6 +74,24 @@ def refuse_overwrite(path: Path, force: bool) -> None:
     """Recorded data is never lost: refuse to replace an existing log unless --force."""
     if path.exists() and not force:
         raise KukaidError(f"{path}: already exists; choose another name or pass --force to replace it")
+
+
+def refuse_other_kind(path: Path | None, force: bool, *schemas: str) -> None:
+    """A JSON output may replace a file of its own kind (its ``schema`` one of ``schemas``: a
+    trajectory or fitted parameters, derived again from the options or logs), anything else only
+    with --force (a parameter file is not lost to a trajectory written under its name)."""
+    import json
+
+    if path is None or force or not path.is_file():
+        return
+    try:
+        kind = json.loads(path.read_text()).get("schema")
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+        kind = None
+    if kind not in schemas:
+        what = f"a {kind} file" if isinstance(kind, str) else "not a kukaid JSON file"
+        raise KukaidError(f"{path}: already exists and is {what}, not {' or '.join(schemas)}; choose another "
+                          "name or pass --force to replace it")
 
 
 def check_outputs(outputs: Iterable[Path | None], inputs: Iterable[Path | None] = ()) -> None:
@@ -94,11 +125,16 @@ def _same(a: Path, b: Path) -> bool:
         return a.resolve() == b.resolve()
 
 
-def write_krl_files(outdir: Path, files: dict[str, str], force: bool) -> None:
-    """Write KRL files (name -> text) into ``outdir`` with the controller's CR LF line ends, all or
-    none; existing files only with --force (they may have been edited for the robot)."""
-    from kukaid.atomic import write_texts_atomic
-
+def krl_texts(outdir: Path, files: dict[str, str], force: bool) -> dict[Path, str]:
+    """KRL files (name -> text) as path -> text with the controller's CR LF line ends; existing
+    files only with --force (they may have been edited for the robot)."""
     for name in files:
         refuse_overwrite(outdir / name, force)
-    write_texts_atomic({outdir / name: text.replace("\n", "\r\n") for name, text in files.items()})
+    return {outdir / name: text.replace("\n", "\r\n") for name, text in files.items()}
+
+
+def write_krl_files(outdir: Path, files: dict[str, str], force: bool) -> None:
+    """Write KRL files (name -> text) into ``outdir`` all or none (:func:`krl_texts`)."""
+    from kukaid.atomic import write_texts_atomic
+
+    write_texts_atomic(krl_texts(outdir, files, force))

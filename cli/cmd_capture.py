@@ -33,8 +33,9 @@ from kukaid_cli._util import progress as progress_bar
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
 @click.option("--port", type=int, default=7000, show_default=True, help="kvp: KUKAVARPROXY port.")
 @click.option("--axis", "axes", type=click.IntRange(1, 12), multiple=True, help="kvp: axis to record; repeatable [3].")
-@click.option("--duration", type=click.FloatRange(0.0, 7 * 86400.0, min_open=True), help="kvp: seconds to record.")
-@click.option("--until-interrupt", is_flag=True, help="kvp: record until Ctrl-C / SIGTERM.")
+@click.option("--duration", type=click.FloatRange(0.0, 7 * 86400.0, min_open=True),
+              help="kvp: seconds to record (Ctrl-C before then: an interrupted capture).")
+@click.option("--until-interrupt", is_flag=True, help="kvp: record until Ctrl-C / SIGTERM (not with --duration).")
 @click.option("--mode", type=click.Choice(["poll", "ring"]), default="poll", show_default=True,
               help="kvp: poll variables, or read kukaid's KRL ring-buffer logger.")
 def command(trajectory: Path | None, output: Path, backend: str, force: bool, seed: int, sim_config: Path | None,
@@ -42,10 +43,11 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
             axes: tuple[int, ...], duration: float | None, until_interrupt: bool, mode: str) -> None:
     """Run TRAJECTORY (from `kukaid excite`) on a backend and record an axis log.
 
-    The log is written as it is recorded: an interrupted capture (Ctrl-C, a killed process)
-    leaves a readable log of what was recorded.  An existing log is never replaced without
-    --force.  With --backend kvp the robot runs its own program (e.g. the KRL from
-    `kukaid excite --krl`) and capture only records.
+    The log is written as it is recorded: an interrupted capture (Ctrl-C, SIGTERM, a killed
+    process) leaves a readable log of what was recorded.  Cut short by Ctrl-C or SIGTERM (before
+    the trajectory's end, or --duration), it keeps the log, says how far it got and exits with
+    status 130.  An existing log is never replaced without --force.  With --backend kvp the robot
+    runs its own program (e.g. the KRL from `kukaid excite --krl`) and capture only records.
     """
     import signal
 
@@ -82,6 +84,9 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
                  if v]
         if given:
             raise click.UsageError(f"option {given[0]} is for --backend sim")
+        if duration is not None and until_interrupt:
+            raise click.UsageError("options --duration and --until-interrupt contradict each other: record for "
+                                   "--duration S, or until Ctrl-C with --until-interrupt")
         attrs = {}
         if trajectory is not None:
             from kukaid.excite.fourier import load_trajectory
@@ -114,7 +119,9 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
         else:
             with progress_bar(total, f"capture ({backend})") as update:
                 result = capture(be, output, force=force, progress=update, stop=stop if backend == "sim" else None)
-        interrupted = backend == "sim" and not result.complete
+        interrupted = not result.complete
+        if backend == "kvp":  # it ends a --duration capture at a signal as it ends --until-interrupt's
+            interrupted = result.info.get("stopped_by") == "signal" and not until_interrupt
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -127,7 +134,8 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
                 from kukaid.logs import read_hdf5
 
                 log = read_hdf5(output)
-                kept = f"; {log.n_samples} samples ({log.duration:.2f} s) kept in {output}"
+                of = f" of {total:g}" if total else ""
+                kept = f" after {log.duration:.2f}{of} s; {log.n_samples} samples kept in {output}"
             except KukaidError:
                 kept = ""
         click.echo(f"kukaid: error: capture interrupted{kept}", err=True)
@@ -140,11 +148,25 @@ def _one_axis_backend(traj, trajectory: Path, sim_config: Path | None, noise: fl
                       seed: int, chunk: float, settle: float):
     """The one-axis virtual KR C4 with the requested noise and hidden effects."""
     from kukaid.capture import SimCapture, parse_effect, sim_config as make_config
+    from kukaid.errors import SimConfigError
+    from kukaid.sim.config import FIELDS
 
     parsed = [parse_effect(e) for e in effects]
     names = [e[0] for e in parsed]
     if len(set(names)) != len(names):
         raise click.UsageError(f"--effect {next(n for n in names if names.count(n) > 1)} is given twice")
+    hi = FIELDS["noise_sigma"][2]
+    if noise is not None and noise > hi:
+        raise click.BadParameter(f"{noise} N·m is above the simulator's largest noise sigma, {hi:g} N·m",
+                                 param_hint="--noise")
+    if sim_config is not None:
+        make_config(sim_config)  # an error in the file is one in the data (exit 1), before the options'
+    for spec, effect in zip(effects, parsed):  # a size the simulator refuses is the option's error
+        try:
+            make_config(sim_config, effects=[effect], seed=seed)
+        except SimConfigError as e:
+            raise click.BadParameter(f"{spec}: size out of the simulator's range: {str(e).split(': ', 1)[-1]}",
+                                     param_hint="--effect") from None
     cfg, extra = make_config(sim_config, noise=noise, effects=parsed, seed=seed)
     extra["trajectory_file"] = str(trajectory)
     return SimCapture(traj, config=cfg, seed=seed, chunk=chunk, settle=settle, extra_attrs=extra)

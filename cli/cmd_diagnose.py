@@ -16,13 +16,15 @@ import click
 @click.option("--report", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write PDF pages: residual against each effect's coordinate, spectrum, table of steps.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Write the refined parameter file (effects in 'effects').")
+              help="Write the refined parameter file (effects in 'effects'); an existing parameter file is "
+                   "replaced (it is derived from the logs), any other file only with --force.")
+@click.option("--force", is_flag=True, help="Replace an existing -o file that is not a parameter file.")
 @click.option("--cutoff", type=float, default=None, help="Comparison filter cut-off, Hz (default: the fit's).")
 @click.option("--alpha", type=float, default=0.01, show_default=True,
               help="False-alarm probability per round (over all candidates).")
 @click.option("--max-steps", type=int, default=4, show_default=True, help="At most this many effects are added.")
 def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json: bool, report: Path | None,
-            output: Path | None, cutoff: float | None, alpha: float, max_steps: int) -> None:
+            output: Path | None, force: bool, cutoff: float | None, alpha: float, max_steps: int) -> None:
     """Find the physical effects the model of --params misses in the --log data, add them, refit.
 
     Candidates: gravity_sine, torque_offset, position_ripple, thermal_drift,
@@ -37,8 +39,10 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     from kukaid.errors import KukaidError
     from kukaid.atomic import atomic_paths
     from kukaid.logs import read_log
-    from kukaid_cli._util import check_outputs, check_suffix, require_positive
+    from kukaid_cli._util import (check_outputs, check_suffix, option_in_data_error, refuse_other_kind,
+                                  require_positive)
     from kukaid.params import load_params, save_params, validate_params
+    from kukaid.params.axis import SCHEMA
     from kukaid.diagnose.workflow import diagnose
 
     if not 0 < alpha < 1:
@@ -49,13 +53,15 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     check_suffix(output, ".json")
     check_suffix(report, ".pdf")
     check_outputs([output, report], [params_path, *logs])
+    refuse_other_kind(output, force, SCHEMA)
     params = load_params(params_path)
     data = [read_log(p) for p in logs]
     if axis is not None:
         for p, lg in zip(logs, data):
             if axis not in lg.axes:
                 raise KukaidError(f"{p}: axis A{axis} is not in the log (axes: {list(lg.axes)})")
-    result = diagnose(params, data, axis=axis, cutoff=cutoff, alpha=alpha, max_steps=max_steps)
+    with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off"):  # its limit: the log's rate
+        result = diagnose(params, data, axis=axis, cutoff=cutoff, alpha=alpha, max_steps=max_steps)
     if output is not None:
         validate_params(result.params, str(output))  # a problem names -o, not a temporary file
     with atomic_paths(*[p for p in (output, report) if p is not None]) as tmps:  # both or neither

@@ -25,6 +25,8 @@ COND_WARN = 1000.0
 
 def _seconds(v: float) -> float:
     """A duration option: at most an hour (the generators build whole arrays at the IPO rate)."""
+    if v != v:
+        raise click.BadParameter(f"{v} is not a number of seconds")
     if not v <= 3600.0:
         raise click.BadParameter(f"{v} s is longer than an hour")
     return float(v)
@@ -78,12 +80,16 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
 @click.command("excite")
 @click.argument("kind", type=click.Choice(KINDS))
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Trajectory file to write (JSON, schema kukaid.trajectory/1).")
+              help="Trajectory file to write (JSON, schema kukaid.trajectory/1); an existing trajectory file is "
+                   "replaced (it is derived from the options), any other file only with --force.")
 @click.option("--krl", "krl_dir", type=click.Path(file_okay=False, path_type=Path),
-              help="Also write a KRL program (<name>.src + <name>.dat) into this folder.")
-@click.option("--krl-name", help="KRL module name (default kukaid_<kind>).")
+              help="Also write a KRL program (<name>.src + <name>.dat) into this folder; existing program files "
+                   "only with --force (they may have been edited for the robot).")
+@click.option("--krl-name", help="KRL module name (default kukaid_<kind>); with --krl.")
 @click.option("--krl-tol", type=float,
-              help="Largest deviation of the KRL via-point path from the trajectory, degrees [0.005; fourier 0.05].")
+              help="Largest deviation of the KRL via-point path from the trajectory, degrees, > 0 "
+                   "[0.005; fourier 0.05]; with --krl.")
+@click.option("--force", is_flag=True, help="Replace an existing file of another kind (-o) or KRL program files.")
 @click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="Axis (KUKA numbering).")
 # limits
 @click.option("--limits", "limits_file", type=click.Path(dir_okay=False, path_type=Path),
@@ -138,8 +144,8 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
 @click.option("--iterations", type=int, help="fourier: optimiser iterations (L-BFGS-B) [10].")
 @click.option("--seed", type=int, help="fourier: seed of the optimiser's random starts [0].")
 @click.option("--centres-deg", help="fourier: centre of each joint's motion, deg, comma-separated [middle of the ranges].")
-def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: float, axis: int,
-            limits_file: Path | None, q_min_deg: float | None, q_max_deg: float | None,
+def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: float | None,
+            force: bool, axis: int, limits_file: Path | None, q_min_deg: float | None, q_max_deg: float | None,
             qd_max_deg: float | None, qdd_max_deg: float | None, **opts: Any) -> None:
     """Write the trajectory of experiment KIND (friction, inertia, presliding, validation, fourier).
 
@@ -152,14 +158,26 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     from kukaid.excite import AxisLimits, generate
     from kukaid.atomic import write_texts_atomic
     from kukaid.errors import TrajectoryError
-    from kukaid_cli._util import check_outputs, check_suffix, usage_errors
+    from kukaid.excite.fourier import ROBOT_SCHEMA
+    from kukaid.excite.trajectory import SCHEMA
+    from kukaid.krc.krl import check_krl_name
+    from kukaid_cli._util import (check_outputs, check_suffix, krl_texts, refuse_other_kind, require_positive,
+                                  usage_errors)
 
     check_suffix(output, ".json")
     check_outputs([output], [limits_file])
+    for flag, v in (("--krl-name", krl_name), ("--krl-tol", krl_tol)):
+        if v is not None and krl_dir is None:
+            raise click.UsageError(f"option {flag} needs --krl DIR (it applies to the KRL program)")
+    require_positive(("--krl-tol", krl_tol))
+    if krl_name is not None:
+        with usage_errors("--krl-name"):
+            check_krl_name(krl_name)
+    refuse_other_kind(output, force, SCHEMA, ROBOT_SCHEMA)
     kwargs = _generator_options(kind, opts)
     if kind == "fourier":
-        _fourier(output, krl_dir, krl_name, krl_tol, limits_file, q_min_deg, q_max_deg, qd_max_deg, qdd_max_deg,
-                 kwargs)
+        _fourier(output, krl_dir, krl_name, krl_tol, force, limits_file, q_min_deg, q_max_deg, qd_max_deg,
+                 qdd_max_deg, kwargs)
         return
     limits = AxisLimits.kr6_r700_sixx(axis)
     if limits_file is not None:
@@ -179,8 +197,9 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     if krl_dir is not None:
         from kukaid.krc.krl import krl_program
 
-        src, dat, summary = krl_program(traj, name=krl_name, limits=limits, tol_deg=krl_tol or 0.005)
-        files.update({krl_dir / f"{summary['name']}.src": src, krl_dir / f"{summary['name']}.dat": dat})
+        src, dat, summary = krl_program(traj, name=krl_name, limits=limits,
+                                        tol_deg=0.005 if krl_tol is None else krl_tol)
+        files.update(krl_texts(krl_dir, {f"{summary['name']}.src": src, f"{summary['name']}.dat": dat}, force))
         msg += f"; KRL {krl_dir / summary['name']}.src/.dat, {summary['points']} via points"
     check_outputs(files, [limits_file])
     write_texts_atomic(files)  # all or nothing
@@ -215,7 +234,8 @@ def _generator_options(kind: str, opts: dict[str, Any]) -> dict[str, Any]:
     return kwargs
 
 
-def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: float | None, limits_file: Path | None,
+def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: float | None, force: bool,
+             limits_file: Path | None,
              q_min_deg: float | None, q_max_deg: float | None, qd_max_deg: float | None, qdd_max_deg: float | None,
              kwargs: dict[str, Any]) -> None:
     """`kukaid excite fourier`: every axis of the robot, limits from its URDF."""
@@ -225,7 +245,7 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
     from kukaid.jsonfile import read_json
     from kukaid.models.limits import AxisLimits
     from kukaid.models.urdf import load_model
-    from kukaid_cli._util import check_outputs, usage_errors
+    from kukaid_cli._util import check_outputs, krl_texts, usage_errors
 
     ctx = click.get_current_context()
     if ctx.get_parameter_source("axis") != click.core.ParameterSource.DEFAULT:
@@ -252,8 +272,8 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
     if krl_dir is not None:
         from kukaid.krc.krl import krl_program_robot
 
-        src, dat, summary = krl_program_robot(traj, name=krl_name, tol_deg=krl_tol or 0.05)
-        files.update({krl_dir / f"{summary['name']}.src": src, krl_dir / f"{summary['name']}.dat": dat})
+        src, dat, summary = krl_program_robot(traj, name=krl_name, tol_deg=0.05 if krl_tol is None else krl_tol)
+        files.update(krl_texts(krl_dir, {f"{summary['name']}.src": src, f"{summary['name']}.dat": dat}, force))
         msg += f"; KRL {krl_dir / summary['name']}.src/.dat, {summary['points']} via points"
     check_outputs(files, [limits_file])
     write_texts_atomic(files)

@@ -17,7 +17,9 @@ import click
 @click.option("--axis", type=int, default=None,
               help="Axis number (default: the logs' only axis; required for a log of several; not with --robot).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Parameter file to write (JSON, kukaid.params/1).")
+              help="Parameter file to write (JSON, kukaid.params/1); an existing parameter file of the same kind "
+                   "is replaced (fitted parameters are derived from the logs), any other file only with --force.")
+@click.option("--force", is_flag=True, help="Replace an existing file that is not a parameter file of this kind.")
 @click.option("--method", type=click.Choice(["joint", "staged"]), default="joint", show_default=True,
               help="Stribeck fit: joint (all dynamic samples) or staged (the paper's eqs. 2-5).")
 @click.option("--friction-model", type=click.Choice(["auto", "stribeck", "coulomb-viscous"]), default=None,
@@ -55,7 +57,7 @@ import click
 @click.option("--coupling", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="With --robot --torque-side motor: n x n JSON matrix, motor angles = ratio (I + C) q "
                    "(the coupled wrist drives).")
-def command(logs, friction, inertia, presliding, axis, output, method, friction_model, gravity, offset, elements,
+def command(logs, friction, inertia, presliding, axis, output, force, method, friction_model, gravity, offset, elements,
             cutoff, order, qd_thr, edge, decimate, reversal_window, diff, bound, robot, prior_weight, torque_side,
             stribeck_vs, rotor_inertia, coupling) -> None:
     """Fit Stribeck friction, Izz/Mx and Maxwell-slip elements from axis logs (HDF5 or CSV);
@@ -71,7 +73,7 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
 
     require_positive(("--cutoff", cutoff))
     if robot is not None:
-        _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, prior_weight, torque_side,
+        _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decimate, prior_weight, torque_side,
                    stribeck_vs, rotor_inertia, coupling)
         return
     friction_model = friction_model or "auto"
@@ -80,10 +82,12 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
     from kukaid.identify import fit_axis, format_table
     from kukaid.identify.stribeck_fit import check_bound
     from kukaid.params import save_params
-    from kukaid_cli._util import check_outputs, check_suffix, usage_errors
+    from kukaid.params.axis import SCHEMA
+    from kukaid_cli._util import check_outputs, check_suffix, option_in_data_error, refuse_other_kind, usage_errors
 
     check_suffix(output, ".json")
     check_outputs([output], [*logs, *friction, *inertia, presliding])
+    refuse_other_kind(output, force, SCHEMA)
     if not (logs or friction or inertia):
         raise click.UsageError("no logs to fit: give general logs (LOG...), or --friction and/or --inertia logs")
     for name, v, lo in (("--qd-thr", qd_thr, None), ("--reversal-window", reversal_window, None)):
@@ -105,10 +109,11 @@ def command(logs, friction, inertia, presliding, axis, output, method, friction_
             raise click.BadParameter(f"{name}: no such parameter (parameters: {', '.join(known)})", param_hint="--bound")
         with usage_errors("--bound"):
             check_bound(name, lo, hi)
-    params = fit_axis(logs=list(logs), friction=list(friction), inertia=list(inertia), presliding=presliding,
-                      axis=axis, method=method, friction_model=friction_model, gravity=gravity, offset=offset,
-                      n_elements=elements, bounds=bounds or None, cutoff=cutoff, order=order, qd_thr=qd_thr,
-                      edge=edge, decimate=decimate, reversal_window=reversal_window, diff=diff)
+    with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off"):  # its limit: the log's rate
+        params = fit_axis(logs=list(logs), friction=list(friction), inertia=list(inertia), presliding=presliding,
+                          axis=axis, method=method, friction_model=friction_model, gravity=gravity, offset=offset,
+                          n_elements=elements, bounds=bounds or None, cutoff=cutoff, order=order, qd_thr=qd_thr,
+                          edge=edge, decimate=decimate, reversal_window=reversal_window, diff=diff)
     save_params(output, params)
     click.echo(format_table(params))
     click.echo(f"{output}: parameters written", err=True)
@@ -156,19 +161,21 @@ def _flag(param: click.Parameter) -> str:
     return "/".join([flag, *getattr(param, "secondary_opts", [])])
 
 
-def _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, prior_weight, torque_side,
+def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decimate, prior_weight, torque_side,
                stribeck_vs, rotor_inertia, coupling) -> None:
     """``kukaid fit LOG... --robot``: the whole robot, written as kukaid.robot_params/1."""
     from kukaid.identify.robot_fit import PRIOR_WEIGHT, RobotFitSettings, fit_robot, format_robot_table
     from kukaid.logs import read_log
     from kukaid.models.robot import RobotModel
     from kukaid.params import save_robot_params
-    from kukaid_cli._util import check_outputs, check_suffix
+    from kukaid.params.robot import SCHEMA
+    from kukaid_cli._util import check_outputs, check_suffix, option_in_data_error, refuse_other_kind
 
     if not logs:
         raise click.UsageError("give at least one log of the robot moving (LOG...)")
     check_suffix(output, ".json")
     check_outputs([output], list(logs))
+    refuse_other_kind(output, force, SCHEMA)
     settings = RobotFitSettings(cutoff=cutoff, order=order or 4, decimate=decimate,
                                 friction=friction_model or "coulomb-viscous", vs=stribeck_vs,
                                 prior_weight=PRIOR_WEIGHT if prior_weight is None else prior_weight,
@@ -189,7 +196,9 @@ def _fit_robot(logs, robot, output, friction_model, cutoff, order, decimate, pri
         if cpl.shape != (model.n, model.n) or not np.all(np.isfinite(cpl)):
             raise ParamFileError(f"{coupling}: must be a {model.n} x {model.n} matrix of finite numbers, "
                                  f"got shape {cpl.shape}")
-    params = fit_robot([read_log(p) for p in logs], model, settings, coupling=cpl)
+    data = [read_log(p) for p in logs]
+    with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off"):
+        params = fit_robot(data, model, settings, coupling=cpl)
     save_robot_params(output, params)
     click.echo(format_robot_table(params))
     click.echo(f"{output}: parameters written", err=True)

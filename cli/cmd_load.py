@@ -34,7 +34,7 @@ TRACE_SUFFIXES = (".dat", ".r64")
 @click.option("--time-scale", type=float, default=1.0, show_default=True,
               help="MAT: time scale to seconds, positive (0.001 for milliseconds).")
 @click.option("--sample-time", type=float, default=None,
-              help="MAT: sample interval, s, when the file has no time variable.")
+              help="MAT: sample interval, s, when the file has no time variable (not with --time).")
 @click.option("--joint", type=click.Choice(["revolute", "prismatic"]), default="revolute", show_default=True,
               help="MAT: joint type (prismatic: metres and newtons).")
 @click.option("--axis", default="1", show_default=True,
@@ -84,6 +84,9 @@ def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q
     if is_mat:
         from kukaid.logs.matlog import check_mat_options
 
+        if time_var is not None and sample_time is not None:
+            raise click.UsageError(f"{source}: options --time and --sample-time contradict each other: the sample "
+                                   "times come from the time variable, or are every --sample-time s; give one")
         with usage_errors():  # the options alone, before the file is read
             check_mat_options(source, tau_scale, tau_scale_var, q_scale, time_scale, sample_time)
         options = dict(time=time_var, q=q_var, tau=tau_var, q_cmd=q_cmd_var, tau_scale=tau_scale,
@@ -91,13 +94,19 @@ def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q
                        joint=joint, axis=_axes(source, axis))
     elif is_trace:
         options = dict(gear_ratio=gear_ratio, time_base=time_base)
-    log = read_log(source, **options)
+    if source.suffix.lower() in (".h5", ".hdf5"):
+        from kukaid.logs import read_hdf5
+
+        log = read_hdf5(source, whole=True)  # the copy holds every row, or load says why not
+    else:
+        log = read_log(source, **options)
     if fmt == "csv":
         write_csv(log, output)
     else:
         write_hdf5(log, output)
     if "time_base_note" in log.attrs:
         click.echo(log.attrs["time_base_note"])
+    _warn_implausible(source, log)
     click.echo(f"{output}: {log.n_samples} samples of axes {', '.join(f'A{a}' for a in log.axes)}, "
                f"{log.duration:.2f} s", err=True)
 
@@ -112,3 +121,18 @@ def _axes(source: Path, text: str) -> int | list[int]:
         raise click.UsageError(f"{source}: --axis must name at least one axis")
     return axes[0] if len(axes) == 1 and "," not in str(text) else axes
 
+
+
+def _warn_implausible(source: Path, log) -> None:
+    """A prismatic position beyond any linear track is probably a wrong --q-scale (revolute ones
+    beyond 720 degrees are refused by the readers): a warning, the log is written."""
+    import numpy as np
+
+    from kukaid.logs.core import MAX_PRISMATIC_M
+
+    for c, (a, j) in enumerate(zip(log.axes, log.joint or ())):
+        peak = float(np.max(np.abs(log.q[:, c]))) if j == "prismatic" and log.q.size else 0.0
+        if peak > MAX_PRISMATIC_M:
+            click.echo(f"kukaid: warning: load: {source}: the position of A{a} (prismatic) reaches {peak:.6g} m, "
+                       f"beyond {MAX_PRISMATIC_M:g} m (longer than a linear track): wrong --q-scale, or "
+                       "millimetres as metres?", err=True)

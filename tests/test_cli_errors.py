@@ -189,6 +189,16 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--cutoff", "50"], ["cut-off 50.0 Hz"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--backend", "kvp", "--axis", "7"],
      ["--axis", "A1..A6"]),
+    (["excite", "inertia", "-o", "x.json", "--krl", "kt", "--krl-tol", "-1"], ["--krl-tol"]),
+    (["excite", "inertia", "-o", "x.json", "--krl", "kt", "--krl-tol", "0"], ["--krl-tol"]),
+    (["excite", "inertia", "-o", "x.json", "--krl-tol", "0.01"], ["--krl-tol needs --krl"]),
+    (["excite", "inertia", "-o", "x.json", "--krl", "kt", "--krl-name", "9x"], ["--krl-name", "not a KRL name"]),
+    (["excite", "fourier", "-o", "x.json", "--krl", "kt", "--krl-name", "a-b"], ["--krl-name"]),
+    (["excite", "inertia", "-o", "x.json", "--period", "nan"], ["--period", "nan is not a number"]),
+    (["capture", "{d}/inertia.json", "-o", "c.h5", "--noise", "1e9"], ["--noise", "largest noise sigma"]),
+    (["capture", "{d}/inertia.json", "-o", "c.h5", "--effect", "backlash=1e9"], ["--effect", "backlash=1e9"]),
+    (["capture", "--backend", "kvp", "-o", "c.h5", "--duration", "1", "--until-interrupt"],
+     ["--duration and --until-interrupt"]),
 ])
 def test_option_errors_are_usage_errors(files, tmp_path, monkeypatch, args, pieces):
     """Contradictory or out-of-range options: exit status 2 (the README's usage error), one line, no output."""
@@ -207,4 +217,88 @@ def test_load_option_errors_are_usage_errors_and_data_errors_are_not(tmp_path):
     _one_line_error(_run(*base, "--tau-scale", "2", "--tau-scale-var", "g"), "not both", code=2)
     _one_line_error(_run(*base, "--q-scale", "0"), "(--q-scale) must be a finite", code=2)
     _one_line_error(_run(*base, "--tau-scale-var", "nope"), "no variable 'nope'", code=1)  # found in the file
+    _one_line_error(_run(*base, "--sample-time", "0.001"), "--time and --sample-time", code=2)
     assert not (tmp_path / "o.h5").exists()
+
+
+def test_load_warns_of_a_prismatic_axis_longer_than_any_track(tmp_path):
+    from scipy.io import savemat
+    import numpy as np
+
+    t = np.arange(100) * 0.01
+    savemat(tmp_path / "m.mat", {"t": t[:, None], "q": 0.1 + 0.2 * t[:, None], "u": t[:, None]})
+    base = ["load", tmp_path / "m.mat", "--time", "t", "--q", "q", "--tau", "u", "--joint", "prismatic"]
+    r = _run(*base, "-o", tmp_path / "a.h5")
+    assert r.exit_code == 0 and "warning" not in r.output, r.output
+    r = _run(*base, "--q-scale", "10000", "-o", tmp_path / "b.h5")
+    assert r.exit_code == 0 and (tmp_path / "b.h5").exists(), r.output
+    assert "warning" in r.output and "A1 (prismatic) reaches 2980 m" in r.output and "--q-scale" in r.output
+
+
+def test_load_refuses_a_log_whose_datasets_differ_in_length(files, tmp_path):
+    """A capture log (incremental) whose 'tau' is short: the copy would silently drop rows."""
+    import h5py
+
+    src = tmp_path / "shape.h5"
+    src.write_bytes((files / "inertia.h5").read_bytes())
+    with h5py.File(src, "a") as f:
+        n = f["time"].shape[0]
+        f["tau"].resize((n - 5, f["tau"].shape[1]))
+    r = _run("load", src, "-o", tmp_path / "s.csv")
+    _one_line_error(r, "shape.h5", f"'tau' has {n - 5} rows but 'time' has {n}", code=1)
+    assert sorted(os.listdir(tmp_path)) == ["shape.h5"]
+
+
+def test_fit_cutoff_above_the_logs_nyquist_names_the_option(files):
+    """Its limit depends on the log's sample rate: found with the data (exit 1), but says --cutoff."""
+    r = _run("fit", files / "inertia.h5", "-o", files / "p_cut.json", "--cutoff", "100")
+    _one_line_error(r, "inertia.h5: --cutoff 100 Hz must be in", code=1)
+    r = _run("diagnose", "--params", files / "params.json", "--log", files / "inertia.h5", "--cutoff", "100")
+    _one_line_error(r, "inertia.h5: --cutoff 100 Hz must be in", code=1)
+    assert not (files / "p_cut.json").exists()
+
+
+@pytest.mark.parametrize("make_args, kind", [
+    (lambda d, o: ["excite", "friction", "-o", o], "kukaid.params/1"),
+    (lambda d, o: ["fit", d / "inertia.h5", "--friction-model", "coulomb-viscous", "-o", o], "kukaid.trajectory/1"),
+    (lambda d, o: ["fit", d / "inertia.h5", "--friction-model", "coulomb-viscous", "-o", o], None),
+    (lambda d, o: ["diagnose", "--params", d / "params.json", "--log", d / "inertia.h5", "-o", o],
+     "kukaid.trajectory/1"),
+])
+def test_a_json_output_replaces_only_its_own_kind_without_force(files, tmp_path, make_args, kind):
+    """A fitted parameter file is not lost to a trajectory written under its name, nor the reverse;
+    --force replaces it.  Notes of the user's (not kukaid JSON) are kept too."""
+    out = tmp_path / "out.json"
+    text = '{"schema": "%s", "mine": 1}' % kind if kind else '{"notes": "by hand"}'
+    out.write_text(text)
+    _one_line_error(_run(*make_args(files, out)), "out.json: already exists", "--force", code=1)
+    assert out.read_text() == text and os.listdir(tmp_path) == ["out.json"]
+    r = _run(*make_args(files, out), "--force")
+    assert r.exit_code == 0, r.output
+    assert out.read_text() != text
+
+
+def test_a_json_output_of_the_same_kind_is_replaced(files, tmp_path):
+    """Trajectories and fitted parameters are derived from options and logs: writing them again is allowed."""
+    traj, params = tmp_path / "t.json", tmp_path / "p.json"
+    for _ in range(2):
+        assert _run("excite", "inertia", "-o", traj, "--period", "2").exit_code == 0
+        r = _run("fit", files / "inertia.h5", "--friction-model", "coulomb-viscous", "-o", params)
+        assert r.exit_code == 0, r.output
+    assert '"kukaid.trajectory/1"' in traj.read_text() and '"kukaid.params/1"' in params.read_text()
+
+
+def test_excite_keeps_existing_krl_files_without_force(tmp_path):
+    """As krl-follower and krl-logger: a KRL file may have been edited for the robot."""
+    krl = tmp_path / "krl"
+    args = ["excite", "inertia", "-o", tmp_path / "t.json", "--krl", krl]
+    assert _run(*args).exit_code == 0
+    src = krl / "kukaid_inertia.src"
+    assert b"\r\n" in src.read_bytes()  # the controller's CR LF line ends, as krl-follower's and krl-logger's
+    src.write_text(src.read_text() + "; tuned on the robot\n")
+    edited = src.read_bytes()
+    before = (tmp_path / "t.json").read_bytes()
+    _one_line_error(_run(*args, "--period", "3"), "kukaid_inertia.src: already exists", "--force", code=1)
+    assert src.read_bytes() == edited and (tmp_path / "t.json").read_bytes() == before  # all or nothing
+    assert _run(*args, "--period", "3", "--force").exit_code == 0
+    assert src.read_bytes() != edited

@@ -118,6 +118,14 @@ def _speed_split(pct: np.ndarray, dur: np.ndarray) -> tuple[int, np.ndarray]:
     return best[1], best[2].astype(int)
 
 
+def check_krl_name(name: str) -> str:
+    """``name`` if it is a KRL module name, else a KukaidError saying what one is."""
+    if not _NAME.fullmatch(name):
+        raise KukaidError(f"KRL export: module name '{name}' is not a KRL name (letter or _, then letters, "
+                          f"digits, _; at most 24 characters)")
+    return name
+
+
 def krl_program(traj: Any, name: str | None = None, limits: Any = None, tol_deg: float = 0.005,
                 start_vel_pct: int = 10, apo_pct: int = 100, max_points: int = 5000) -> tuple[str, str, dict]:
     """Build the ``.src`` and ``.dat`` texts of a trajectory; returns (src, dat, summary).
@@ -137,10 +145,7 @@ def krl_program(traj: Any, name: str | None = None, limits: Any = None, tol_deg:
     axis = int(traj.axis)
     if not 1 <= axis <= 6:
         raise KukaidError(f"KRL export: axis A{axis} is not a robot axis (1 to 6)")
-    name = name or f"kukaid_{traj.kind}"
-    if not _NAME.match(name):
-        raise KukaidError(f"KRL export: module name '{name}' is not a KRL name (letter or _, then letters, "
-                          f"digits, _; at most 24 characters)")
+    name = check_krl_name(name or f"kukaid_{traj.kind}")
     if limits is None:
         limits = AxisLimits.from_dict(traj.limits) if traj.limits else AxisLimits.kr6_r700_sixx(axis)
     if not tol_deg > 0:
@@ -282,10 +287,7 @@ def krl_program_robot(traj: Any, name: str | None = None, tol_deg: float = 0.05,
     axes = tuple(int(a) for a in traj.axes)
     if not axes or not all(1 <= a <= 6 for a in axes):
         raise KukaidError(f"KRL export: axes {list(axes)} are not robot axes (1 to 6)")
-    name = name or f"kukaid_{traj.kind}"
-    if not _NAME.match(name):
-        raise KukaidError(f"KRL export: module name '{name}' is not a KRL name (letter or _, then letters, "
-                          f"digits, _; at most 24 characters)")
+    name = check_krl_name(name or f"kukaid_{traj.kind}")
     if not tol_deg > 0:
         raise KukaidError(f"KRL export: tolerance must be positive, got {tol_deg}")
     limits = traj.axis_limits()

@@ -27,6 +27,9 @@ FORMAT = "kukaid.axislog/1"
 #: Largest plausible |position| of a revolute axis, rad (720 degrees).  Beyond it the numbers are
 #: in another unit (millidegrees, degrees stored as radians), not a robot axis.
 MAX_REVOLUTE_RAD = 4 * np.pi
+#: Largest plausible |position| of a prismatic axis, m: longer than a robot's linear track (a
+#: warning only: a wrong --q-scale, or millimetres as metres).
+MAX_PRISMATIC_M = 100.0
 #: Largest plausible median sample interval, s.  Above it the times are probably milliseconds.
 MAX_SAMPLE_INTERVAL_S = 1.0
 

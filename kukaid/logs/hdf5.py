@@ -85,8 +85,12 @@ def _open_h5(path: Path):
         raise LogFormatError(f"{path}: not a readable HDF5 file (truncated or corrupt): {_short(e)}") from None
 
 
-def read_hdf5(path: str | Path) -> AxisLog:
-    """Read an HDF5 axis log; validate it and report what is wrong and where."""
+def read_hdf5(path: str | Path, whole: bool = False) -> AxisLog:
+    """Read an HDF5 axis log; validate it and report what is wrong and where.
+
+    A writer killed mid-flush may leave the datasets of an incremental log of uneven lengths: their
+    common rows are read, unless ``whole`` (a copy of the log, ``kukaid load``, must not drop rows
+    without a word)."""
     path = Path(path)
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
@@ -133,12 +137,15 @@ def read_hdf5(path: str | Path) -> AxisLog:
     _check_sample_time(path, attrs)
     _check_units(path, attrs, joint or ("revolute",) * len(axes))
     n = data["time"].size
-    if attrs.get("incremental"):
+    uneven = bool(attrs.get("incremental")) and not whole
+    if uneven:
         # a killed incremental writer may leave datasets one block apart; keep the common part
         n = min(x.shape[0] for x in data.values())
     for k, x in data.items():
-        if x.shape[0] != n and not attrs.get("incremental"):
-            raise LogFormatError(f"{path}: dataset '{k}' has {x.shape[0]} rows but 'time' has {n}")
+        if x.shape[0] != n and not uneven:
+            raise LogFormatError(f"{path}: dataset '{k}' has {x.shape[0]} rows but 'time' has {n}"
+                                 + (" (a capture killed mid-write? the other commands read the common rows)"
+                                    if attrs.get("incremental") else ""))
         data[k] = x[:n]
     if gaps:
         attrs["gaps"] = gaps
