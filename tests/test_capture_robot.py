@@ -149,27 +149,34 @@ def test_a_robot_trajectory_without_stored_limits_is_checked_against_the_urdf(tm
 
 
 def test_kvp_poll_capture_records_all_axes(traj, tmp_path):
+    """Poll mode: every controller sample once (no held repeats however fast the PC polls), every axis."""
     from kukaid.krc.kvp_capture import capture_kvp
 
     sim, src, srv = _served(traj)
     src._ingest(sim.advance(0.5))
-    last = src.truth()
     out = tmp_path / "poll.h5"
     stop = threading.Event()
     th = threading.Thread(target=lambda: capture_kvp(out, "127.0.0.1", srv.port, range(1, 7), None, True, "poll",
                                                      stop_event=stop))
     th.start()
     try:
-        for _ in range(5000):  # 30 samples: each is one $AXIS_ACT_MEAS and six $TORQUE_AXIS_ACT requests
-            if srv.n_requests >= 2 + 7 * 30:
-                break
-            threading.Event().wait(0.002)
+        for _ in range(20):  # 20 controller cycles (12 ms), each polled several times before the next
+            n = srv.n_requests
+            for _ in range(5000):  # a poll: the position, $ROB_TIMER and six torques
+                if srv.n_requests >= n + 4 * 8:
+                    break
+                threading.Event().wait(0.002)
+            src._ingest(sim.advance(0.012))
     finally:
         stop.set()
         th.join(10)
         srv.stop()
     log = read_hdf5(out)
-    assert log.axes == (1, 2, 3, 4, 5, 6) and log.n_samples >= 20
-    # the robot stood still meanwhile: every sample is the simulator's latest, on every axis
-    np.testing.assert_allclose(np.degrees(log.q), np.tile(np.degrees(last["q"][-1]), (log.n_samples, 1)), atol=1e-5)
-    np.testing.assert_allclose(log.tau, np.tile(last["tau"][-1], (log.n_samples, 1)), atol=1e-5)
+    truth = src.truth()
+    assert log.axes == (1, 2, 3, 4, 5, 6) and 15 <= log.n_samples <= 61  # 20 cycles of three 4 ms samples
+    # every row is one of the simulator's samples, on every axis, and none is repeated
+    rows = np.hstack([np.degrees(truth["q"]), truth["tau"]])
+    for row in np.hstack([np.degrees(log.q), log.tau]):
+        assert np.min(np.max(np.abs(rows - row), axis=1)) < 1e-5  # one sample's position and torques
+    logged = np.hstack([log.q, log.tau])
+    assert np.all(np.any(np.diff(logged, axis=0) != 0, axis=1)) and np.all(np.diff(log.time) > 0)

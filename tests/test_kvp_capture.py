@@ -342,6 +342,11 @@ def test_poll_keeps_each_controller_sample_once():
     # next poll, one sample throughout, records it
     ns = _NewSample(12)
     assert [ns(0, v, True), ns(12, v, True), ns(12, w, True), ns(12, w, True)] == [True, False, True, False]
+    # ... nor is a poll during which it arrived (the new position with an old torque) once the clock is
+    # known to stamp samples: only the next, whole one
+    ns = _NewSample(12)
+    mixed = np.array([0.2, 5.0])
+    assert [ns(0, v, True), ns(0, v, True), ns(12, mixed, True), ns(12, w, True)] == [True, False, False, True]
     # a controller whose $ROB_TIMER runs every ms: a new sample is new values (or repeated ones
     # two cycles later)
     ns = _NewSample(12)

@@ -9,8 +9,10 @@ Two modes:
     cycle (12 ms; 4 ms at the fastest), and a poll is usually much faster: each controller sample
     is recorded once (:class:`_NewSample`), stamped with ``$ROB_TIMER``.  A poll whose timer equals
     the previous poll's saw one controller sample throughout (the virtual KR C4 serves the stamp of
-    its newest sample); it is new when the stamp is.  Otherwise (a sample arrived during the poll,
-    or a controller whose ``$ROB_TIMER`` runs on every millisecond) it is new when its values differ
+    its newest sample); it is new when the stamp is.  Once two polls have seen one stamp, the clock
+    stamps samples and only such polls are recorded (a poll during which a sample arrived would pair
+    the new position with an old torque).  Otherwise (a controller whose ``$ROB_TIMER`` runs on
+    every millisecond) a poll is new when its values differ
     from the last recorded sample, or two cycles after it (a standing axis whose values repeat
     exactly).  A controller that does not answer ``$ROB_TIMER`` is polled without it: samples are
     stamped on the PC with ``time.monotonic()`` at the middle of their exchanges (network jitter
@@ -321,6 +323,7 @@ class _NewSample:
         self.prev_ms: float | None = None  # the timer of the previous poll
         self.kept_ms: float | None = None  # the timer (or PC time, ms) of the last kept sample
         self.kept_values: np.ndarray | None = None
+        self.stamps_samples = False  # two polls have seen one stamp: the clock stamps samples, not milliseconds
 
     def reset(self) -> None:
         """The link dropped: the next poll's timer has no predecessor."""
@@ -328,17 +331,18 @@ class _NewSample:
 
     def __call__(self, stamp_ms: float, values: np.ndarray, stamp_is_sample: bool) -> bool:
         prev, self.prev_ms = self.prev_ms, stamp_ms
+        one_sample = stamp_is_sample and prev is not None and prev == stamp_ms
+        self.stamps_samples |= one_sample
         if self.kept_ms is None:
             new = True
         elif stamp_ms <= self.kept_ms:
             new = False
         else:
             changed = not np.array_equal(values, self.kept_values)
-            one_sample = stamp_is_sample and prev is not None and prev == stamp_ms
-            # one sample seen throughout the poll: its stamp says it is new; else only new values are,
-            # or exactly repeated ones two cycles on (a standing axis)
-            new = (one_sample and (changed or stamp_ms - self.kept_ms >= _MIN_CYCLE_MS)) or changed \
-                or stamp_ms - self.kept_ms >= 2 * self.cycle_ms
+            if self.stamps_samples:  # only a poll that saw one sample throughout: never a mixed row
+                new = one_sample
+            else:  # new values are a new sample, or exactly repeated ones two cycles on (a standing axis)
+                new = changed or stamp_ms - self.kept_ms >= 2 * self.cycle_ms
         if new:
             self.kept_ms, self.kept_values = stamp_ms, values
         return new
