@@ -232,6 +232,35 @@ def test_kvp_controller_that_stops_answering_stops_the_run_and_keeps_the_log(fil
     assert client.read("KID_RUN") == "FALSE" and client.read("KID_STOP") == str(STOP_BY_PC)
 
 
+def test_kvp_run_interrupted_between_cycles_holds_the_robot_and_keeps_the_log(files, kvp_robot, tmp_path,
+                                                                              monkeypatch):
+    """Ctrl-C while the estimator runs (between two cycles, outside the loop's own handling): the
+    follower is switched off, exit 3, and the log has the control group (it ended with exit 130
+    and the measured channels only)."""
+    import os
+    import signal
+
+    from kukaid.control.torque_residual import TorqueResidual
+
+    port, client, _ = kvp_robot
+    real, calls = TorqueResidual.update, [0]
+
+    def update(self, *a, **k):
+        calls[0] += 1
+        if calls[0] == 150:
+            os.kill(os.getpid(), signal.SIGINT)
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(TorqueResidual, "update", update)
+    out = tmp_path / "int.h5"
+    r = _run(_kvp_args(files, port, out))
+    assert r.exit_code == 3 and "stopped: interrupted" in r.stderr, r.output
+    log, control, m = read_run(out)
+    assert m["status"] == "stopped: interrupted" and control["gamma_r"].size == log.n_samples > 100
+    assert client.read("KID_RUN") == "FALSE" and client.read("KID_STOP") == str(STOP_BY_PC)
+    assert not (tmp_path / "int.partial.h5").exists()
+
+
 def test_kvp_follower_stops_by_itself_when_the_pc_goes_silent(kvp_robot):
     port, client, _ = kvp_robot
     client.write("KID_HB", "1")
@@ -286,16 +315,17 @@ def test_krl_follower_program(tmp_path):
 
 
 def test_a_killed_run_leaves_the_measured_log(files, tmp_path, kukaid_cmd):
-    """SIGKILL while the robot moves: the axis log recorded so far is on disk and readable."""
+    """SIGKILL while the robot moves: the axis log recorded so far is on disk and readable, as
+    killed.partial.h5 beside the output (which the run replaces only when it has ended)."""
     import signal
 
     from kukaid.logs import read_hdf5
 
-    out = tmp_path / "killed.h5"
+    out, partial = tmp_path / "killed.h5", tmp_path / "killed.partial.h5"
     proc = subprocess.Popen([*kukaid_cmd, "run-admittance", "--params", str(files / "params.json"), "--duration",
                              "600", "-o", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
-        wait_until(lambda: proc.poll() is not None or (out.exists() and out.stat().st_size >= 200_000),
+        wait_until(lambda: proc.poll() is not None or (partial.exists() and partial.stat().st_size >= 200_000),
                    "200 kB of log on disk", poll=0.2)
         assert proc.poll() is None, "the run ended before it was killed"
         proc.send_signal(signal.SIGKILL)
@@ -304,9 +334,10 @@ def test_a_killed_run_leaves_the_measured_log(files, tmp_path, kukaid_cmd):
         if proc.poll() is None:
             proc.kill()
         proc.stderr.close()
-    log = read_hdf5(out)
+    log = read_hdf5(partial)
     assert log.n_samples > 100 and log.has("q_cmd") and log.has("tau_ext_true")
     assert np.all(np.diff(log.time) > 0)
+    assert not out.exists()
 
 
 def test_cycle_threshold_and_release_reach_the_controller(files, tmp_path):
