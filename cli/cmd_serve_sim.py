@@ -65,6 +65,8 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
     from kukaid.krc.sim_source import SimSource
     from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite, usage_errors
 
+    if q0 is not None and not math.isfinite(q0):  # FloatRange lets nan through
+        raise click.BadParameter(f"{q0} is not a position in degrees", param_hint="--q0")
     if truth_path is not None:  # checked now, not after the session
         check_suffix(truth_path, ".h5", ".hdf5")
         check_outputs([truth_path], [traj_path, sim_config])

@@ -47,6 +47,7 @@ def files(tmp_path_factory):
     (["capture", "x.json", "-o", "y.h5", "--seed", "-1"], ["capture: Invalid value for '--seed'"]),
     (["fit", "a.h5", "-o", "p.json", "--order", "60"], ["fit: Invalid value for '--order'"]),
     (["excite", "inertia", "-o", "x.json", "--lead", "1e9"], ["--lead", "longer than an hour"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--q0", "nan"], ["--q0", "not a position"]),
 ])
 def test_usage_errors_are_one_line(args, pieces, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
