@@ -7,7 +7,7 @@ mkdir -p "$out"
 echo "== kukaid demo: writing into $out"
 # -- excitation trajectories (and KRL programs a KR C4 can run)
 for kind in friction inertia presliding validation; do
-    kukaid excite "$kind" -o "$out/$kind.json" --krl "$out/krl"
+    kukaid excite "$kind" -o "$out/$kind.json" --krl "$out/krl" --force
 done
 # -- capture on the virtual KR C4
 seed=1
@@ -20,8 +20,9 @@ done
 if [ "${KUKAID_DEMO_KVP:-1}" != 0 ]; then
     kukaid krl-logger --axis 3 -o "$out/krl" --force
     dur=$(python3 -c "import json, sys; print(json.load(open(sys.argv[1]))['duration'])" "$out/inertia.json")
+    rm -f "$out/serve-sim.log"  # the port is read from this run's log, not an earlier one's
     kukaid serve-sim --port 0 --trajectory "$out/inertia.json" --seed 7 --duration "$(python3 -c "print($dur + 4)")" \
-        --truth "$out/inertia_kvp_truth.h5" 2> "$out/serve-sim.log" &
+        --truth "$out/inertia_kvp_truth.h5" --force 2> "$out/serve-sim.log" &
     sim_pid=$!
     for _ in $(seq 200); do grep -qs listening "$out/serve-sim.log" && break; sleep 0.1; done
     port=$(sed -n 's/.*listening on [0-9.]*:\([0-9]*\).*/\1/p' "$out/serve-sim.log")
