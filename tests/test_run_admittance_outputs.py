@@ -176,7 +176,7 @@ def test_an_interrupt_between_cycles_stops_the_run_and_keeps_the_control_group(p
     assert r.stderr.strip().splitlines() == [f"kukaid: error: run-admittance: stopped: interrupted (the run log {keep} "
                                              "holds every cycle until then)"]
     log, control, metrics = read_run(keep)
-    assert metrics["status"] == "stopped: interrupted"
+    assert metrics["status"] == "stopped: interrupted" and control["phase"][-1] == 3  # the log says it stopped
     assert control["gamma_r"].size == log.n_samples and 200 < log.n_samples < 260
     assert not (tmp_path / "keep.partial.h5").exists()
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == handlers  # given back

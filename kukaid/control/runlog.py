@@ -27,13 +27,18 @@ def write_run(path: str | Path, run: Any, axis: int = 3, attrs: dict[str, Any] |
     """Write an :class:`~kukaid.control.loop.AdmittanceRun` to ``path`` atomically."""
     import h5py
 
-    from kukaid.control.loop import config_dict
+    from kukaid.control.loop import PHASE_STOPPED, config_dict
     from kukaid.logs import AxisLog, write_hdf5
 
-    d = run.data
+    d = dict(run.data)
     te = d["tau_ext_true"]
-    # keep the time axis strictly increasing (a stopped run's last row may repeat a measurement)
+    # keep the time axis strictly increasing (a stopped run's last row may repeat a measurement):
+    # the stop is then marked on the row it repeats, so the log's last phase says the run stopped
     keep = np.concatenate([[True], np.diff(d["time"]) > 0]) if d["time"].size else np.zeros(0, bool)
+    stopped = np.flatnonzero(~keep & (d["phase"] == PHASE_STOPPED))
+    if stopped.size:
+        d["phase"] = d["phase"].copy()
+        d["phase"][stopped - 1] = PHASE_STOPPED
     log = AxisLog(time=d["time"][keep], q=d["q"][keep, None], tau=d["tau"][keep, None], axes=(axis,),
                   q_cmd=d["q_cmd"][keep, None],
                   tau_ext_true=te[keep, None] if np.all(np.isfinite(te)) else None,
