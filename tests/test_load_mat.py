@@ -86,7 +86,7 @@ def test_emps_default_fit_within_2_percent(emps, tmp_path):
     for k in ref:
         assert got[k] == pytest.approx(ref[k], rel=0.02), (k, got[k], ref[k])
     r = CliRunner().invoke(cli, ["fit", str(tmp_path / "emps.h5"), "--gravity", "cos", "-o", str(tmp_path / "q.json")])
-    _one_line_error(r, "prismatic")
+    _one_line_error(r, "prismatic", "emps.h5: --gravity cos")
 
 
 def test_emps_stribeck_runs(emps, tmp_path):

@@ -181,7 +181,10 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     if len(axes) > 1:
         raise FitError(f"the logs are of different axes {sorted(axes)}; choose one with --axis")
     ax = axes.pop()
-    gravity, offset = _model_options(all_preps[0].joint, gravity, offset)
+    try:
+        gravity, offset = _model_options(all_preps[0].joint, gravity, offset)
+    except FitError as e:  # the joint type is the log's: name it
+        raise FitError(f"{all_preps[0].source}: {e}") from None
     qd_thr_used = all_preps[0].qd_thr
     std: dict[str, float] = {}
     metrics: dict[str, Any] = {}
