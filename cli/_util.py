@@ -70,6 +70,16 @@ def require_positive(*options: tuple[str, float | None]) -> None:
             raise click.BadParameter(f"{v} must be a finite number > 0", param_hint=flag)
 
 
+def check_noise(noise: float | None) -> None:
+    """``--noise`` of the one-axis virtual KR C4: a torque noise sigma within the simulator's range (N·m)."""
+    from kukaid.sim.config import FIELDS
+
+    lo, hi = FIELDS["noise_sigma"][1:3]
+    if noise is not None and not lo <= noise <= hi:
+        raise click.BadParameter(f"{noise} N·m is not a torque noise sigma of the simulator ({lo:g} to {hi:g} N·m)",
+                                 param_hint="--noise")
+
+
 def refuse_overwrite(path: Path, force: bool) -> None:
     """Recorded data is never lost: refuse to replace an existing log unless --force."""
     if path.exists() and not force:

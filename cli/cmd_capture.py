@@ -149,16 +149,13 @@ def _one_axis_backend(traj, trajectory: Path, sim_config: Path | None, noise: fl
     """The one-axis virtual KR C4 with the requested noise and hidden effects."""
     from kukaid.capture import SimCapture, parse_effect, sim_config as make_config
     from kukaid.errors import SimConfigError
-    from kukaid.sim.config import FIELDS
+    from kukaid_cli._util import check_noise
 
     parsed = [parse_effect(e) for e in effects]
     names = [e[0] for e in parsed]
     if len(set(names)) != len(names):
         raise click.UsageError(f"--effect {next(n for n in names if names.count(n) > 1)} is given twice")
-    hi = FIELDS["noise_sigma"][2]
-    if noise is not None and noise > hi:
-        raise click.BadParameter(f"{noise} N·m is above the simulator's largest noise sigma, {hi:g} N·m",
-                                 param_hint="--noise")
+    check_noise(noise)
     if sim_config is not None:
         make_config(sim_config)  # an error in the file is one in the data (exit 1), before the options'
     for spec, effect in zip(effects, parsed):  # a size the simulator refuses is the option's error

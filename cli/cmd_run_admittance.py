@@ -239,8 +239,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.jsonfile import read_json
     from kukaid.params import is_robot_params, load_params, model_from_params, validate_robot_params
     from kukaid.atomic import check_writable
-    from kukaid_cli._util import (check_outputs, check_suffix, progress, refuse_overwrite, require_positive,
-                                  usage_errors)
+    from kukaid_cli._util import (check_noise, check_outputs, check_suffix, progress, refuse_overwrite,
+                                  require_positive, usage_errors)
 
     check_suffix(output, ".h5", ".hdf5")
     check_suffix(report, ".pdf")
@@ -310,8 +310,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
 
         scfg = load_sim_config(sim_config) if sim_config else SimConfig()
         if noise is not None:
-            with usage_errors("--noise"):
-                scfg = scfg.replace(noise_sigma=noise)
+            check_noise(noise)
+            scfg = scfg.replace(noise_sigma=noise)
         if abs(scfg.sample_time - 0.012) > 1e-9:
             cfg = dataclasses.replace(cfg, sample_time=scfg.sample_time)
         q0r = math.radians(q0)
@@ -342,6 +342,10 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                 raise click.UsageError("--program is for a robot parameter file")
             q_start = prog = None
             # the virtual KR C4 simulates one revolute axis, A3 unless --sim-config says another
+            if click.get_current_context().get_parameter_source("axis") != click.core.ParameterSource.DEFAULT \
+                    and axis != scfg.axis:
+                raise click.BadParameter(f"{axis}: the virtual KR C4 simulates A{scfg.axis} (a --sim-config's "
+                                         "\"axis\" sets another)", param_hint="--axis")
             _check_axis_kind(params, params_path, scfg.axis, f"the virtual KR C4's A{scfg.axis}",
                              f" (a --sim-config with \"axis\": {params.get('axis')} simulates that axis)")
 
@@ -413,6 +417,12 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                 raise
             raise err from e
         writer.close()
+        if np.unique(run.data["time"]).size < 2:  # stopped in its first cycle: no log to write, nothing to keep
+            partial.unlink(missing_ok=True)
+            err = KukaidError(f"run-admittance: {run.status} in the first control cycle; nothing recorded"
+                              + (f" ({output} is not changed)" if output.exists() else ""))
+            err.exit_code = 130 if run.status == "stopped: interrupted" else 3
+            raise err
         try:
             if backend == "sim":  # the paper's measures over the fixed window of a human operator
                 run.metrics.update(operator_metrics(run.data, op, lam, scfg.sample_time))
@@ -455,36 +465,38 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                 pdf_tmp.unlink(missing_ok=True)
                 raise KukaidError(f"{report}: cannot write: {e.strerror or e}; the run log {output} is complete") \
                     from None
-    interrupted_later = interrupts.count > 0 and run.status.startswith("completed")
-    if as_json:
-        for w in [*(run.metrics.get("warnings") or ()), *notes]:  # the JSON holds them too; a person reads stderr
-            click.echo(f"kukaid: warning: run-admittance: {w}", err=True)
-        click.echo(json.dumps(jsonable(run.metrics)))
-    else:
-        m = run.metrics
-        click.echo(f"run-admittance ({damping} damping, {backend}): {run.status}")
-        grip_drawn = getattr(getattr(op, "p", None), "grip", None) if backend == "sim" else None
-        if grip_drawn is not None:
-            click.echo(f"  {'operator':28s} {operator}, seed {seed}, {grip_drawn} grip")
-        for k in ("detection_delay", "residual_rmse", "residual_rmse_dynamic", "residual_rmse_quasi_static",
-                  "false_detections", "mean_sq_dgamma", "mean_cost", "displacement", "peak_speed", "D_range",
-                  "settled", "clipped_cycles", "xi", "dgamma2", "xi_true", "dgamma2_true", "end_error",
-                  "stability_events"):
-            if k in m:
-                click.echo(f"  {k:28s} {_fmt(m[k])}{_UNITS.get(k, '')}")
-        for w in m.get("warnings") or ():
-            click.echo(f"  warning: {w}")
-        for w in notes:
-            click.echo(f"  note: {w}")
-        click.echo(f"  -> {output}" + (f", {report}" if report else ""))
-    if not run.status.startswith("completed"):
-        click.echo(f"kukaid: error: run-admittance: {run.status} (the run log {output} holds every cycle until then)",
-                   err=True)
-        raise SystemExit(3)
-    if interrupted_later:  # Ctrl-C/SIGTERM after the run had ended: it ended the comparison, or nothing
-        click.echo(f"kukaid: error: run-admittance: interrupted after the run had completed (the run log {output} "
-                   "is complete)", err=True)
-        raise SystemExit(3)
+        # the summary too is printed while the signals are counted: one coming now is not an exit 130
+        if as_json:
+            for w in [*(run.metrics.get("warnings") or ()), *notes]:  # the JSON holds them too; a person reads stderr
+                click.echo(f"kukaid: warning: run-admittance: {w}", err=True)
+            click.echo(json.dumps(jsonable(run.metrics)))
+        else:
+            m = run.metrics
+            click.echo(f"run-admittance ({damping} damping, {backend}): {run.status}")
+            grip_drawn = getattr(getattr(op, "p", None), "grip", None) if backend == "sim" else None
+            if grip_drawn is not None:
+                click.echo(f"  {'operator':28s} {operator}, seed {seed}, {grip_drawn} grip")
+            for k in ("detection_delay", "residual_rmse", "residual_rmse_dynamic", "residual_rmse_quasi_static",
+                      "false_detections", "mean_sq_dgamma", "mean_cost", "displacement", "peak_speed", "D_range",
+                      "settled", "clipped_cycles", "xi", "dgamma2", "xi_true", "dgamma2_true", "end_error",
+                      "stability_events"):
+                if k in m:  # NaN: no such figure for this run (no push, no quasi-static cycle)
+                    v = m[k]
+                    click.echo(f"  {k:28s} " + ("n/a" if isinstance(v, float) and math.isnan(v) else
+                                                f"{_fmt(v)}{_UNITS.get(k, '')}"))
+            for w in m.get("warnings") or ():
+                click.echo(f"  warning: {w}")
+            for w in notes:
+                click.echo(f"  note: {w}")
+            click.echo(f"  -> {output}" + (f", {report}" if report else ""))
+        if not run.status.startswith("completed"):
+            click.echo(f"kukaid: error: run-admittance: {run.status} (the run log {output} holds every cycle until then)",
+                       err=True)
+            raise SystemExit(3)
+        if interrupts.count > 0 and run.status.startswith("completed"):  # Ctrl-C/SIGTERM after the run had ended
+            click.echo(f"kukaid: error: run-admittance: interrupted after the run had completed (the run log {output} "
+                       "is complete)", err=True)
+            raise SystemExit(3)
 
 
 def _comparison(run, cfg, damping, D, model, sim_backend, lam, scfg, interrupts, answered, notes):
@@ -512,8 +524,6 @@ def _comparison(run, cfg, damping, D, model, sim_backend, lam, scfg, interrupts,
                          f"t = {t_end:.2f} s, before the admittance started")
             return None
         cfg2 = dataclasses.replace(cfg2, duration=t_end - t_adm)
-        notes.append(f"the report's comparison run ({other} damping) is cut at t = {t_end:.2f} s, where this run "
-                     "was interrupted")
     be2, op2 = sim_backend(cfg2)
     run2 = run_admittance(_StopOnInterrupt(be2, interrupts, answered), model, cfg2)
     run2.metrics.update(operator_metrics(run2.data, op2, lam, scfg.sample_time))
@@ -523,4 +533,10 @@ def _comparison(run, cfg, damping, D, model, sim_backend, lam, scfg, interrupts,
         notes.append(f"the report's comparison run ({other} damping) {run2.status} at t = {t2:.2f} s; the report "
                      "shows it until then")
         label += f", {run2.status}"
+        run2.metrics["status"] = run2.status
+    elif interrupted:
+        notes.append(f"the report's comparison run ({other} damping) is cut at t = {t_end:.2f} s, where this run "
+                     "was interrupted")
+        label += f", cut at t = {t_end:.2f} s"
+        run2.metrics["status"] = f"cut at t = {t_end:.2f} s (the run was interrupted)"
     return label, run2.data, run2.metrics

@@ -63,7 +63,7 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
     from kukaid.krc.krl_logger import RingLayout
     from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
     from kukaid.krc.sim_source import SimSource
-    from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite, usage_errors
+    from kukaid_cli._util import check_noise, check_outputs, check_suffix, refuse_overwrite, usage_errors
 
     if q0 is not None and not math.isfinite(q0):  # FloatRange lets nan through
         raise click.BadParameter(f"{q0} is not a position in degrees", param_hint="--q0")
@@ -86,8 +86,8 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         return
     cfg = load_sim_config(sim_config) if sim_config else SimConfig()
     if noise is not None:
-        with usage_errors("--noise"):
-            cfg = cfg.replace(noise_sigma=noise)
+        check_noise(noise)
+        cfg = cfg.replace(noise_sigma=noise)
     if traj is not None:
         axis = int(getattr(traj, "axis", axis) or axis)
     sim = VirtualKRC4(cfg, seed=seed, axis=axis)

@@ -120,7 +120,7 @@ def test_sim_config_file(short_traj, tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["--effect", "gremlins"], "unknown effect 'gremlins'"),
     (["--effect", "backlash=big"], "size 'big' is not a number"),
-    (["--noise", "-1"], "--noise must be a number >= 0"),
+    (["--noise", "-1"], "-1.0 N·m is not a torque noise sigma"),
     (["--host", "10.0.0.1"], "--host is for --backend kvp"),
     (["-o", "log.csv"], "name it .h5 or .hdf5"),
 ])

@@ -186,6 +186,9 @@ def test_garbage_bytes_give_a_clear_error(scripted):
     c = KvpClient("127.0.0.1", srv.port, timeout=1)
     with pytest.raises(KvpProtocolError, match="message id"):
         c.read("$OV_PRO")
+    web = scripted(lambda i, mid: [b"HTTP/1.1 400 Bad Request\r\n\r\n"])  # a web server or proxy at that address
+    with pytest.raises(KvpProtocolError, match="not a KUKAVARPROXY server"):
+        KvpClient("127.0.0.1", web.port, timeout=1).read("$OV_PRO")
 
 
 def test_non_ascii_value_is_a_protocol_error(scripted):

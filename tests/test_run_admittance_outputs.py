@@ -24,8 +24,8 @@ from kukaid.control.runlog import read_run
 from kukaid.params import save_params
 from kukaid.sim import SimConfig
 from kukaid_cli.main import cli
+from shared_data import SHARED
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
 EMPS = SHARED / "datasets" / "emps" / "DATA_EMPS.mat"
 
 
@@ -180,6 +180,20 @@ def test_an_interrupt_between_cycles_stops_the_run_and_keeps_the_control_group(p
     assert control["gamma_r"].size == log.n_samples and 200 < log.n_samples < 260
     assert not (tmp_path / "keep.partial.h5").exists()
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == handlers  # given back
+
+
+def test_an_interrupt_in_the_first_cycle_records_nothing_and_blocks_nothing(params, tmp_path, monkeypatch):
+    """Ctrl-C while the estimator takes its first samples: the run stops in its first cycle, which is
+    no log (one sample); no partial file is left to stand in the way of the next run."""
+    from kukaid.control.torque_residual import TorqueResidual
+
+    _signal_at(monkeypatch, TorqueResidual, "update", 1, signal.SIGINT)
+    out = tmp_path / "early.h5"
+    r = _run(["--params", params, "--duration", "30", "--operator", "push", "-o", out])
+    assert r.exit_code == 130, r.output
+    assert r.stderr.strip().splitlines() == ["kukaid: error: run-admittance: stopped: interrupted in the first control "
+                                             "cycle; nothing recorded"]
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_an_interrupt_cuts_the_reports_comparison_run(params, tmp_path, monkeypatch):

@@ -437,8 +437,11 @@ class KvpClient:
             head = self._recv_exact(4, deadline, name)
             rid, length = struct.unpack(">HH", head)
             if rid != msg_id:
+                text = head[:2].decode("ascii", "replace") if all(32 <= b < 127 for b in head) else ""
+                hint = (f"; the reply starts with text ({text!r}...): not a KUKAVARPROXY server (a web server or "
+                        "proxy at that address?)" if text else " (garbage or out-of-order reply)")
                 raise KvpProtocolError(f"KUKAVARPROXY at {self.host}:{self.port}: reply to {name} has message "
-                                       f"id {rid}, expected {msg_id} (garbage or out-of-order reply)")
+                                       f"id {rid}, expected {msg_id}{hint}")
             if length < 6 or length > self.max_value + 6:
                 raise KvpProtocolError(f"KUKAVARPROXY at {self.host}:{self.port}: reply to {name} announces "
                                        f"{length} bytes (allowed 6 to {self.max_value + 6})")
