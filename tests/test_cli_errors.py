@@ -262,6 +262,7 @@ def test_fit_cutoff_above_the_logs_nyquist_names_the_option(files):
 
 @pytest.mark.parametrize("make_args, kind", [
     (lambda d, o: ["excite", "friction", "-o", o], "kukaid.params/1"),
+    (lambda d, o: ["excite", "friction", "-o", o], "kukaid.robot-trajectory/1"),  # six axes are not one
     (lambda d, o: ["fit", d / "inertia.h5", "--friction-model", "coulomb-viscous", "-o", o], "kukaid.trajectory/1"),
     (lambda d, o: ["fit", d / "inertia.h5", "--friction-model", "coulomb-viscous", "-o", o], None),
     (lambda d, o: ["diagnose", "--params", d / "params.json", "--log", d / "inertia.h5", "-o", o],
