@@ -64,7 +64,7 @@ def plot_runs(runs: Sequence[tuple[str, dict[str, np.ndarray], dict[str, Any]]],
             a.fill_between(t, 0, 1, where=det, transform=a.get_xaxis_transform(), color="C2", alpha=0.12,
                            label="detected")
         a.set_ylabel("torque, N·m", fontsize=8)
-        a.legend(loc="upper right", fontsize=6)
+        a.legend(loc="best", fontsize=6)  # where it covers the fewest samples
         a = axes[c][1]
         a.plot(t, d["D"], lw=0.9, label="D in use")
         if "D_floor" in d and np.any(d["D_floor"] > 0):
@@ -76,7 +76,7 @@ def plot_runs(runs: Sequence[tuple[str, dict[str, np.ndarray], dict[str, Any]]],
         for e in m.get("stability_log", []):
             a.axvline(e["time"], color="C3", lw=0.5, ls=":")
         a.set_ylabel("damping,\nN·m·s/rad", fontsize=8)
-        a.legend(loc="upper right", fontsize=6)
+        a.legend(loc="best", fontsize=6)  # where it covers the fewest samples
         a = axes[c][2]
         a.plot(t, d["sigma_dot"], lw=0.9)
         a.set_ylabel("reference velocity\nσ̇, rad/s", fontsize=8)
@@ -88,7 +88,7 @@ def plot_runs(runs: Sequence[tuple[str, dict[str, np.ndarray], dict[str, Any]]],
             a.axhline(math.degrees(goal), color="0.5", lw=0.6, ls=":", label="person's goal")
         a.set_ylabel("position, deg", fontsize=8)
         a.set_xlabel("time, s", fontsize=8)
-        a.legend(loc="lower right", fontsize=6)
+        a.legend(loc="best", fontsize=6)
         for a in axes[c]:
             a.tick_params(labelsize=7)
     # metrics table across the bottom row, filling it (a margin below the table, whatever the rows)
