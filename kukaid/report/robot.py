@@ -23,6 +23,11 @@ def _g(v: Any, digits: int = 4) -> str:
     return "-" if v is None else f"{v:.{digits}g}"
 
 
+def _pct(x: float) -> str:
+    """A relative figure in %, two significant digits, never in exponent form (560 %, not 5.6e+02 %)."""
+    return f"{x:.2g} %" if x < 99.5 else f"{x:.0f} %"
+
+
 def page_base_parameters(params: dict, source: str):
     """Base-parameter table and the fit's metrics."""
     bp, mt = params["base_parameters"], params.get("metrics") or {}
@@ -39,7 +44,7 @@ def page_base_parameters(params: dict, source: str):
     for name, v, ls, s in zip(bp["names"], bp["values"], bp.get("least_squares", bp["values"]), sig):
         short = name if len(name) <= 70 else name[:67] + "..."
         cells.append([short, _g(v), _g(ls), _g(s, 3), _g(None if s is None else s * cf, 3),
-                      "-" if s is None or not ls else f"{100 * s / abs(ls):.2g} %"])
+                      "-" if s is None or not ls else _pct(100 * s / abs(ls))])
     ax = fig.add_axes([0.03, 0.06, 0.94, 0.87])
     _add_table(ax, cells, ["base parameter (kg, kg·m, kg·m²)", "estimate", "least sq.", "σ", f"σ × {cf:.2f}",
                            "rel. σ"], fontsize=5.5, col_widths=[0.55, 0.09, 0.09, 0.08, 0.09, 0.08])
