@@ -40,5 +40,5 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
         click.echo(json.dumps(jsonable(to_json(scores)), indent=2))
     else:
         prismatic = (params.get("provenance") or {}).get("joint") == "prismatic"
-        for line in table(scores, "N" if prismatic else "N*m"):
+        for line in table(scores, "N" if prismatic else "N·m"):
             click.echo(line)

@@ -175,7 +175,7 @@ def test_table_units_of_a_prismatic_axis():
     from kukaid.identify.fit import format_table
 
     text = format_table(_table_params("prismatic", maxwell=True))
-    assert "MSE 5.155 N^2;" in text and "N^2m^2" not in text
-    assert "k = 1000 N/m" in text and "W = 2 N" in text and "N*m" not in text
+    assert "MSE 5.155 N²;" in text and "N²m²" not in text
+    assert "k = 1000 N/m" in text and "W = 2 N" in text and "N·m" not in text
     text = format_table(_table_params("revolute", maxwell=True))
-    assert "MSE 5.155 N^2m^2" in text and "k = 1000 N*m/rad" in text and "W = 2 N*m" in text
+    assert "MSE 5.155 N²m²" in text and "k = 1000 N·m/rad" in text and "W = 2 N·m" in text

@@ -87,7 +87,7 @@ class Diagnosis:
 
     def lines(self) -> list[str]:
         """Human-readable summary, one string per line."""
-        u = "N" if self.sigs and self.sigs[0].joint == "prismatic" else "N*m"
+        u = "N" if self.sigs and self.sigs[0].joint == "prismatic" else "N·m"
         out = [f"gap before: RMSE {self.rmse_before:.4g} {u} = {self.rmse_before / self.noise_floor:.2f} x noise "
                f"floor {self.noise_floor:.4g} {u} (raw torque noise {self.noise_sigma:.4g} {u}); relative error "
                f"{100 * self.rel_before:.2f} %" if self.noise_floor > 0 else

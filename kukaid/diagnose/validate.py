@@ -167,7 +167,7 @@ def to_json(scores: dict[int, AxisScore]) -> dict[str, Any]:
             "mean_relative_error": float(np.mean([s.rel_error for s in scores.values()])) if scores else math.nan}
 
 
-def table(scores: dict[int, AxisScore], unit: str = "N*m") -> list[str]:
+def table(scores: dict[int, AxisScore], unit: str = "N·m") -> list[str]:
     """A text table, one line per axis."""
     out = [f"{'axis':<5} {'RMSE (' + unit + ')':>13} {'rel. error':>11} {'R2':>8} {'samples':>8}"]
     for ax, s in scores.items():

@@ -302,11 +302,11 @@ def format_table(params: dict) -> str:
     unc = params.get("uncertainty", {})
     rows = []
     if (params.get("provenance") or {}).get("joint") == "prismatic":
-        units = {"Fc": "N", "Fs": "N", "vs": "m/s", "delta": "-", "Fv": "N*s/m", "Izz": "kg (mass)",
-                 "Mx": "N", "My": "N", "offset": "N", "k": "N/m", "W": "N", "mse": "N^2"}
+        units = {"Fc": "N", "Fs": "N", "vs": "m/s", "delta": "-", "Fv": "N·s/m", "Izz": "kg (mass)",
+                 "Mx": "N", "My": "N", "offset": "N", "k": "N/m", "W": "N", "mse": "N²"}
     else:
-        units = {"Fc": "N*m", "Fs": "N*m", "vs": "rad/s", "delta": "-", "Fv": "N*m*s/rad", "Izz": "kg*m^2",
-                 "Mx": "N*m", "My": "N*m", "offset": "N*m", "k": "N*m/rad", "W": "N*m", "mse": "N^2m^2"}
+        units = {"Fc": "N·m", "Fs": "N·m", "vs": "rad/s", "delta": "-", "Fv": "N·m·s/rad", "Izz": "kg·m²",
+                 "Mx": "N·m", "My": "N·m", "offset": "N·m", "k": "N·m/rad", "W": "N·m", "mse": "N²m²"}
     items = [(k, v) for k, v in params["friction"].items() if k != "model"]
     items += list(params["inertial"].items())
     if "offset" in params:

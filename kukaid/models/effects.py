@@ -172,7 +172,7 @@ class ThermalDrift(Effect):
     def describe(self, nl, coefs, std, model):
         d = super().describe(nl, coefs, std, model)
         unit = {"temperature": "degC", "time": "s", "energy": "J"}[nl["coordinate"]]
-        d["unit"] = (f"N*m per {unit} of Coulomb friction" if nl["form"] == "coulomb"
+        d["unit"] = (f"N·m per {unit} of Coulomb friction" if nl["form"] == "coulomb"
                      else f"fraction of the friction per {unit}")
         return d
 
