@@ -327,6 +327,16 @@ def test_ring_mode_rides_out_an_outage_shorter_than_the_ring(virtual_krc4, tmp_p
     _match_truth(log, src.truth(), min_pair_fraction=1.0, q_tol_deg=5.1e-5, tau_tol=5.1e-4)
 
 
+def test_rob_timer_is_read_across_its_rollover():
+    """$ROB_TIMER rolls over after 2**31 ms (taken to restart at 0, as both capture modes assume);
+    the capture's time goes on."""
+    from kukaid.krc.kvp_capture import _RobTimer
+
+    clock = _RobTimer()
+    raws = [2**31 - 24, 2**31 - 12, 0, 12]
+    assert [clock(r) for r in raws] == [0.0, 12.0, 24.0, 36.0]
+
+
 def test_poll_keeps_each_controller_sample_once():
     """The rule of poll mode (`_NewSample`) on the clocks a controller may have."""
     from kukaid.krc.kvp_capture import _NewSample

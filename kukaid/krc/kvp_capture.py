@@ -18,8 +18,9 @@ Two modes:
     stamped on the PC with ``time.monotonic()`` at the middle of their exchanges (network jitter
     shows as uneven spacing, recorded, not hidden) and kept when their values change, or two
     cycles after the last one (a sample arriving between the position and the torque requests
-    may then add one row that pairs the new position with the old torque).  Held repeats of one sample (kukaid before this change logged each
-    12 ms sample about 100 times, and ``kukaid fit`` refuses such logs) are never written.
+    may then add one row that pairs the new position with the old torque).  Held repeats of one
+    sample (kukaid 0.1's poll mode logged each 12 ms sample about 100 times; ``kukaid fit`` refuses
+    such logs) are never written.
 ``ring``
     Read blocks of samples taken every interpolation cycle by the KRL ring-buffer logger
     (:mod:`kukaid.krc.krl_logger`); sample times come from the controller's ``$ROB_TIMER`` (ms),
@@ -312,6 +313,25 @@ def _has_timer(client: KvpClient) -> bool:
         return False  # the link: the poll loop reconnects; stamped on the PC meanwhile
 
 
+class _RobTimer:
+    """``$ROB_TIMER`` readings (ms, a 32-bit INT that rolls over) as ms since the capture's first one."""
+
+    def __init__(self) -> None:
+        self._first: int | None = None
+        self._last: int | None = None
+        self._unwrap = 0
+
+    def __call__(self, raw: int) -> float:
+        t = int(raw) + self._unwrap
+        if self._last is not None and t < self._last - 2**30:  # rolled over
+            self._unwrap += 2**31
+            t += 2**31
+        if self._first is None:
+            self._first = t
+        self._last = t
+        return float(t - self._first)
+
+
 class _NewSample:
     """Which polls bring a new controller sample (see the module docstring, ``poll``).
 
@@ -337,19 +357,13 @@ class _NewSample:
             new = True
         elif stamp_ms <= self.kept_ms:
             new = False
-        else:
-            changed = not np.array_equal(values, self.kept_values)
-            if self.stamps_samples:  # only a poll that saw one sample throughout: never a mixed row
-                new = one_sample
-            else:  # new values are a new sample, or exactly repeated ones two cycles on (a standing axis)
-                new = changed or stamp_ms - self.kept_ms >= 2 * self.cycle_ms
+        elif self.stamps_samples:  # only a poll that saw one sample throughout: never a mixed row
+            new = one_sample
+        else:  # new values are a new sample, or exactly repeated ones two cycles on (a standing axis)
+            new = not np.array_equal(values, self.kept_values) or stamp_ms - self.kept_ms >= 2 * self.cycle_ms
         if new:
             self.kept_ms, self.kept_values = stamp_ms, values
         return new
-
-
-#: the shortest interpolation cycle of a KR C4, ms
-_MIN_CYCLE_MS = 4.0
 
 
 def _poll_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps, stop, t0, duration,
@@ -362,9 +376,7 @@ def _poll_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
     errors = 0
     last_progress = 0.0
     is_new = _NewSample(IPO_MS)
-    timer0: int | None = None
-    last_raw: int | None = None
-    unwrap = 0
+    clock = _RobTimer()
     gap_start: float | None = None  # controller time of the last sample before a dropped link
     polls = held = 0
     te = time.monotonic()
@@ -398,15 +410,7 @@ def _poll_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
             except KeyError as e:
                 raise KvpValueError(f"$AXIS_ACT_MEAS has no field {e.args[0]} (axis not present)") from None
             polls += 1
-            if raw is not None:
-                if last_raw is not None and raw + unwrap < last_raw - 2**30:  # $ROB_TIMER rolled over
-                    unwrap += 2**31
-                last_raw = raw + unwrap
-                if timer0 is None:
-                    timer0 = last_raw
-                stamp_ms = float(last_raw - timer0)
-            else:
-                stamp_ms = (0.5 * (ts + te) - t0) * 1000.0
+            stamp_ms = clock(raw) if raw is not None else (0.5 * (ts + te) - t0) * 1000.0
             if is_new(stamp_ms, np.concatenate([q, tau]), raw is not None):
                 t = stamp_ms / 1000.0
                 if gap_start is not None:  # the first sample after a dropped link ends its gap
@@ -461,9 +465,8 @@ def _ring_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
     client.write("KID_RD", str(done))
     latencies.append(client.last_latency)
     ovf0 = _ovf(client) or 0  # after the hand-back: overflows from before this capture do not count
-    timer0: int | None = None
-    last_timer: int | None = None
-    unwrap = 0
+    clock = _RobTimer()
+    last_ms: float | None = None
     errors = 0
     blocks = 0
     last_progress = 0.0
@@ -480,19 +483,14 @@ def _ring_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
             for k in range(done + 1, wr + 1):
                 arr = parse_block(parse_string(rd(slot_name(k, layout)), slot_name(k, layout)), k, layout)
                 for row in arr:
-                    timer = int(row[0]) + unwrap
-                    if last_timer is not None and timer < last_timer - 2**30:  # $ROB_TIMER rolled over
-                        unwrap += 2**31
-                        timer += 2**31
-                    if timer0 is None:
-                        timer0 = timer
-                    t = (timer - timer0) / 1000.0
-                    if last_timer is not None and timer - last_timer > 1.5 * IPO_MS:
-                        g = [(last_timer - timer0) / 1000.0, t]
+                    ms = clock(row[0])
+                    t = ms / 1000.0
+                    if last_ms is not None and ms - last_ms > 1.5 * IPO_MS:
+                        g = [last_ms / 1000.0, t]
                         rec.flush()
                         writer.mark_gap(*g)
                         gaps.append(g)
-                    last_timer = timer
+                    last_ms = ms
                     q = row[1:1 + a_n][cols] * _DEG
                     tau = row[1 + a_n:1 + 2 * a_n][cols]
                     temp = _temp_to_c(row[1 + 2 * a_n:1 + 3 * a_n][cols], temp_unit)
