@@ -120,8 +120,6 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
             with progress_bar(total, f"capture ({backend})") as update:
                 result = capture(be, output, force=force, progress=update, stop=stop if backend == "sim" else None)
         interrupted = not result.complete
-        if backend == "kvp":  # it ends a --duration capture at a signal as it ends --until-interrupt's
-            interrupted = result.info.get("stopped_by") == "signal" and not until_interrupt
     except KeyboardInterrupt:
         interrupted = True
     finally:

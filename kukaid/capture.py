@@ -211,9 +211,11 @@ class KvpCapture:
         info = capture_kvp(output, self.host, self.port, self.axes, self.duration, self.until_interrupt,
                            self.mode, progress, attrs=self.extra_attrs or None, stop_event=stop)
         info = dict(info or {})
+        # complete: the duration ran out, or an interrupt ended --until-interrupt (its normal end)
+        why = info.get("stopped_by")
+        complete = why == "duration" or (self.until_interrupt and why in ("signal", "stop-event"))
         return CaptureResult(output=Path(info.get("output", output)), n_samples=int(info.get("n_samples", 0)),
-                             duration=float(info.get("duration_s", 0.0)),
-                             complete=info.get("stopped_by") != "error", info=info)
+                             duration=float(info.get("duration_s", 0.0)), complete=complete, info=info)
 
 
 def load_kvp_capture() -> Callable[..., dict]:
