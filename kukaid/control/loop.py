@@ -206,6 +206,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
         rbf.set_cycle(cfg.cycle)
     t_init_end = cfg.init_time if cfg.init_move else 0.0
     t_adm = t_init_end + cfg.init_rest
+    rest = RestHold(cfg.cycle)
+    q_hold = q_start + cfg.init_move
     log: dict[str, list] = {k: [] for k in _KEYS}
     D_now = cfg.D
     n_cycles = int(math.ceil((t_adm + cfg.duration) / cfg.cycle - 1e-9))
@@ -214,7 +216,11 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
         if tr <= t_adm:  # initiation move (eq. 12), then rest while Γu settles
             x = min(tr / cfg.init_time, 1.0) if cfg.init_move else 1.0
             phase = PHASE_INIT if tr <= t_init_end else PHASE_REST
-            q_cmd, clipped = limiter.apply(q_start + cfg.init_move * x ** 3 * (10 - 15 * x + 6 * x * x))
+            q_ref = q_start + cfg.init_move * x ** 3 * (10 - 15 * x + 6 * x * x)
+            if phase == PHASE_REST:
+                q_hold = rest.step(q_hold, last.q, moving=r.mode == DYNAMIC, contact=r.detected)
+                q_ref = q_hold
+            q_cmd, clipped = limiter.apply(q_ref)
             adm.reset(q_cmd)
             sd = 0.0
         else:
@@ -234,9 +240,14 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
                 floor = max(floor, grip.step(r.gamma_r, contact=r.detected, D_in_use=D_now))
             D_now = max(D_base, floor)
             sigma, sd = adm.step(gamma, D_now)
-            if braking and sd * sd0 < 0.0:  # braked to a stop
-                adm.reset(sigma, 0.0)
+            if (braking and sd * sd0 < 0.0) or (not r.detected and abs(sd) < rest.v_stop):
+                adm.reset(sigma, 0.0)  # braked or coasted to a stop: the reference stands
                 sd = 0.0
+            if sd == 0.0:
+                sigma = rest.step(sigma, last.q, moving=r.mode == DYNAMIC, contact=r.detected)
+                adm.reset(sigma, 0.0)
+            else:
+                rest.step(sigma, last.q, moving=True, contact=r.detected)
             q_cmd, clipped = limiter.apply(sigma)
             if clipped:  # no wind-up: the admittance continues from what was sent
                 adm.reset(q_cmd, limiter.v)
@@ -278,6 +289,38 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
         if progress is not None and k % 25 == 0:
             progress(tr)
     return log, "completed"
+
+
+class RestHold:
+    """Where the reference stands when the axis rests: where the axis actually stopped.
+
+    A position servo with an integrator keeps pushing towards a reference the axis stopped short
+    of or overshot (the settling of the initiation move, the tail of a coasting reference), and
+    against static friction its torque then ramps with no motion at all: to a sensorless estimator
+    exactly a person holding the axis.  So once the reference has stood for ``settle`` s with the
+    estimator quasi-static and nothing detected, the reference moves (once per rest) to the
+    measured position, if that is within ``max_shift`` rad (farther is not settling: then the
+    reference stays).  A reference coasting slower than ``v_stop`` rad/s with nothing detected is
+    stopped.
+    """
+
+    def __init__(self, cycle: float, settle: float = 0.25, max_shift: float = math.radians(0.05),
+                 v_stop: float = 2e-3) -> None:
+        self.need = max(1, int(round(settle / cycle)))
+        self.max_shift, self.v_stop = max_shift, v_stop
+        self.count = 0
+        self.done = False
+
+    def step(self, q_ref: float, q_meas: float, moving: bool, contact: bool) -> float:
+        """The reference to hold this cycle (``q_ref`` standing; ``moving``/``contact``: start over)."""
+        if moving or contact:
+            self.count, self.done = 0, False
+            return q_ref
+        self.count += 1
+        if self.done or self.count < self.need:
+            return q_ref
+        self.done = True
+        return q_meas if abs(q_meas - q_ref) <= self.max_shift else q_ref
 
 
 def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:

@@ -113,7 +113,8 @@ class TorqueResidual:
                  release: float | None = None, cutoff: float = 5.0, order: int = 3, u_window: float = 0.12,
                  zeta0: Any = None, qd_thr: float | None = None, u_tau: float = 1.0, u_holdoff: float = 1.0,
                  switch_tau: float = 0.15, regrip_time: float = 1.0, regrip_share: float = 0.6,
-                 switch_quiet: float = 1.0) -> None:
+                 switch_quiet: float = 1.0, floor_tau: float = 5.0, floor_k: float = 4.0,
+                 floor_cap: float = 3.0, floor_prior: float = 1.0, switch_share: float = 2.0) -> None:
         self.model = model
         self._rigid, self._friction = model.rigid, model.friction  # the model's terms as functions
         self.sample_time = _check("sample_time", sample_time, 0.0, 1.0)
@@ -129,6 +130,11 @@ class TorqueResidual:
         self.regrip_time = _check("regrip_time", regrip_time, 0.0, 60.0, open_lo=False)
         self.regrip_share = _check("regrip_share", regrip_share, 0.0, 1.0)
         self.switch_quiet = _check("switch_quiet", switch_quiet, 0.0, 10.0, open_lo=False)
+        self.floor_tau = _check("floor_tau", floor_tau, 0.0, 600.0)
+        self.floor_k = _check("floor_k", floor_k, 0.0, 100.0, open_lo=False)
+        self.floor_cap = _check("floor_cap", floor_cap, 1.0, 100.0, open_lo=False)
+        self.switch_share = _check("switch_share", switch_share, 0.0, 100.0)
+        self.floor_prior = _check("floor_prior", floor_prior, 0.0, 600.0, open_lo=False)
         self.qd_thr = _check("qd_thr", model.qd_thr if qd_thr is None else qd_thr, 0.0, open_lo=False)
         self.cutoff, self.order = float(cutoff), int(order)
         fs = 1.0 / self.sample_time
@@ -195,11 +201,15 @@ class TorqueResidual:
             f.reset(x0)
         self._mode = QUASI_STATIC
         self._last_sign = 0.0
-        self._u_sum = 0.0
         self._u_n = 0
         self._u_need = max(1, int(round(self.u_window / self.sample_time)))
         self._gamma_u = 0.0
         self._since_contact = math.inf  # s since the last detection ended
+        # mean square of Γr at rest out of contact, N²m²: it starts as if floor_prior s had shown a
+        # residual at the cap (cautious until the model has shown how well it holds at rest)
+        self._rest_n = int(round(self.floor_prior / self.sample_time))
+        self._rest_ms = (self.floor_cap * self.threshold / self.floor_k) ** 2 if self.floor_k > 0 else 0.0
+        self.rest_threshold_max = self.threshold
         self._bump = 0.0  # Γp jump of the last mode switch, fading
         self._since_switch = math.inf  # s since the axis last started or stopped
         self._moving = False
@@ -213,6 +223,25 @@ class TorqueResidual:
     @property
     def detected(self) -> bool:
         return self._detected if self._started else False
+
+    @property
+    def rest_threshold(self) -> float:
+        """The start threshold at rest, N·m: ``threshold``, or ``floor_k`` times the RMS of Γr at rest
+        out of contact when that is larger (a model that misses part of the friction at rest then
+        needs a firmer push, instead of moving the axis by itself), at most ``floor_cap`` x
+        ``threshold``."""
+        return min(max(self.threshold, self.floor_k * math.sqrt(self._rest_ms)), self.floor_cap * self.threshold)
+
+    # -- Γu, the quasi-static model's offset at rest ---------------------------------------------
+    def _learn_rest(self, raw: float, h: float) -> None:
+        """Out of contact at rest: Γu is the mean of the raw residual over the first ``u_window`` s of
+        a rest (eq. 13), then follows it with the time constant ``u_tau`` while the difference stays
+        below half the start threshold at rest (a push building up is not learnt)."""
+        if self._u_n < self._u_need:
+            self._u_n += 1
+            self._gamma_u += (raw - self._gamma_u) / self._u_n
+        elif abs(raw - self._gamma_u) < 0.5 * self.rest_threshold:
+            self._gamma_u += min(h / self.u_tau, 1.0) * (raw - self._gamma_u)
 
     def update(self, q: float, tau: float, dt: float | None = None) -> ResidualSample:
         """Feed one measurement (position rad, motor torque N·m); return the new residual.
@@ -262,15 +291,12 @@ class TorqueResidual:
             if self._k.size:
                 self._zeta = q - self._last_sign * (self._W / self._k)
         quasi = self._mode == QUASI_STATIC
+        if quasi and old_mode == DYNAMIC and not self._detected:
+            self._u_n = 0  # a new rest: Γu anew from its start (the paper: eq. 13)
         raw = tau_f - pred_f  # what Γu must add for Γr = 0
-        if (quasi and not self._detected and self._since_contact >= self.u_holdoff
-                and (self._u_n < self._u_need or abs(raw - self._gamma_u) < 0.5 * self.threshold)):
-            if self._u_n < self._u_need:  # first estimate after a reset: the mean
-                self._u_sum += raw
-                self._u_n += 1
-                self._gamma_u = self._u_sum / self._u_n
-            else:
-                self._gamma_u += min(h / self.u_tau, 1.0) * (raw - self._gamma_u)
+        learning = quasi and not self._detected and self._since_contact >= self.u_holdoff
+        if learning:
+            self._learn_rest(raw, h)
         new_u = self._gamma_u if quasi else 0.0
         if self._mode != old_mode:  # bumpless: the prediction does not jump at a switch
             self._bump += old_u - new_u
@@ -290,8 +316,17 @@ class TorqueResidual:
                 self._since_contact = 0.0
         else:
             start = self.threshold
-            if self._since_contact < self.regrip_time and self._since_switch >= self.switch_quiet:
-                start = max(self.release, self.regrip_share * self.threshold)
+            if quasi:
+                if learning and self._u_n >= self._u_need:  # a mean at first, then forgetting
+                    self._rest_n += 1
+                    w = max(h / self.floor_tau, 1.0 / self._rest_n)
+                    self._rest_ms += w * (gamma_r * gamma_r - self._rest_ms)
+                start = self.rest_threshold
+                self.rest_threshold_max = max(self.rest_threshold_max, start)
+            if self._since_switch < self.switch_quiet:  # a start or a stop: friction and backlash spikes
+                start = max(start, self.switch_share * self.threshold)
+            elif self._since_contact < self.regrip_time:
+                start = max(self.release, self.regrip_share * start)
             self._detected = a >= start
             self._since_contact += h
         return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, new_u)

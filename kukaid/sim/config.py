@@ -23,9 +23,13 @@ from kukaid.errors import SimConfigError
 from kukaid.jsonfile import read_json
 
 INF = math.inf
+#: friction laws of the plant: "gms" (the estimator's own: Maxwell-slip at rest, exactly Stribeck
+#: sliding, :mod:`kukaid.sim.friction_sim`) and "lugre" (Canudas de Wit et al. 1995, independent of it)
+FRICTION_LAWS = ("gms", "lugre")
 
 
-# field -> (kind, low, high, doc).  kind: "float", "int", "bool", "vec" (list of floats).
+# field -> (kind, low, high, doc).  kind: "float", "int", "bool", "vec" (list of floats), "choice"
+# (one of FRICTION_LAWS).
 FIELDS: dict[str, tuple[str, float, float, str]] = {
     "axis": ("int", 1, 12, "axis number, KUKA numbering"),
     # truth: friction, eq. (1)
@@ -40,6 +44,13 @@ FIELDS: dict[str, tuple[str, float, float, str]] = {
     "ms_zeta0": ("vec", -1.0, 1.0, "Maxwell-slip element positions at reset relative to q0, rad"),
     "ms_damping": ("float", 0.0, 5.0, "pre-sliding damping ratio of the Maxwell-slip elements (c_i = 2 zeta sqrt(k_i Izz))"),
     "v_blend": ("float", 1e-6, 1.0, "speed above which friction is pure Stribeck, rad/s"),
+    # truth: the friction law (the estimator's own Maxwell-slip/Stribeck, or LuGre, independent of it)
+    "friction_law": ("choice", 0, 0, "friction law of the plant: gms (Maxwell-slip at rest, Stribeck sliding) or lugre"),
+    "lugre_sigma0": ("float", 1.0, 1e8, "LuGre bristle stiffness sigma0, N·m/rad"),
+    "lugre_zeta": ("float", 0.0, 5.0, "LuGre bristle damping ratio (sigma1 = 2 zeta sqrt(sigma0 Izz))"),
+    "fric_pos_amp": ("float", 0.0, 0.9, "position dependence of the friction magnitude: relative amplitude a of 1 + a sin(n q + phi)"),
+    "fric_pos_n": ("float", 0.0, 1e3, "position dependence of the friction: periods per rad n"),
+    "fric_pos_phi": ("float", -10.0, 10.0, "position dependence of the friction: phase phi, rad"),
     # truth: rigid body, eqs. (6)-(8)
     "Izz": ("float", 1e-4, 1e4, "moment of inertia, kg·m²"),
     "Mx": ("float", -1e4, 1e4, "gravity torque amplitude (cos q), N·m"),
@@ -58,6 +69,8 @@ FIELDS: dict[str, tuple[str, float, float, str]] = {
     "sample_time": ("float", 1e-3, 1.0, "sample interval of $AXIS_ACT_MEAS/$TORQUE_AXIS_ACT, s"),
     "noise_sigma": ("float", 0.0, 100.0, "standard deviation of the torque noise, N·m"),
     "quant_deg": ("float", 0.0, 1.0, "position resolution of $AXIS_ACT_MEAS, degrees (0: none)"),
+    "tau_quant": ("float", 0.0, 100.0, "resolution of $TORQUE_AXIS_ACT, N·m (0: none)"),
+    "tau_delay": ("int", 0, 10, "samples by which $TORQUE_AXIS_ACT lags the position"),
     "jitter": ("float", 0.0, 0.005, "max. timing jitter of a sample, s (uniform, +-)"),
     # motor temperature (first-order thermal model)
     "T_amb": ("float", -50.0, 200.0, "ambient temperature, °C"),
@@ -85,9 +98,14 @@ class SimConfig:
     Table 2; ``ms_zeta0`` are element positions relative to the reset position, clamped to
     saturation); ``ms_damping`` (pre-sliding damping ratio of the elements, default 0: pure
     Maxwell-slip); ``v_blend`` (speed above which steady friction is exactly Stribeck);
+    ``friction_law`` ("gms", the estimator's own law as above, or "lugre": one bristle state of
+    stiffness ``lugre_sigma0`` N·m/rad and damping ratio ``lugre_zeta``, stiction ``Fs``, the
+    Maxwell-slip fields unused); ``fric_pos_amp, fric_pos_n, fric_pos_phi`` (friction magnitude
+    times 1 + a sin(n q + phi));
     ``Izz, Mx, My`` (rigid body).  Servo: ``servo_rate`` Hz, ``Kp`` 1/s, ``Kv`` rad/s, ``Ki`` 1/s,
     feedforward model ``ctrl_Izz, ctrl_Mx``, torque limit ``tau_max`` N·m.  Measurement:
-    ``sample_time`` s, ``noise_sigma`` N·m, ``quant_deg`` degrees, ``jitter`` s.  Thermal:
+    ``sample_time`` s, ``noise_sigma`` N·m, ``quant_deg`` degrees, ``tau_quant`` N·m (torque
+    resolution), ``tau_delay`` (samples the torque lags the position), ``jitter`` s.  Thermal:
     ``T_amb, T0`` °C, ``R_th`` K/W, ``C_th`` J/K, ``r_cu`` W/(N·m)².  Vibration: ``vibration``,
     ``vib_amplitude`` rad, ``vib_freq`` Hz, ``vib_zeta``.  ``effects``: hidden effects
     {name: parameters}, see :mod:`kukaid.sim.effects`.
@@ -104,6 +122,12 @@ class SimConfig:
     ms_zeta0: tuple[float, ...] = _PAPER_ZETA
     ms_damping: float = 0.0
     v_blend: float = 0.0017
+    friction_law: str = "gms"
+    lugre_sigma0: float = 2.0e5
+    lugre_zeta: float = 1.0
+    fric_pos_amp: float = 0.0
+    fric_pos_n: float = 0.0
+    fric_pos_phi: float = 0.0
     Izz: float = 2.2836
     Mx: float = 18.4789
     My: float = 0.0
@@ -119,6 +143,8 @@ class SimConfig:
     sample_time: float = 0.012
     noise_sigma: float = 0.5
     quant_deg: float = 1e-4
+    tau_quant: float = 0.0
+    tau_delay: int = 0
     jitter: float = 0.0
     T_amb: float = 25.0
     T0: float = math.nan
@@ -169,18 +195,44 @@ class SimConfig:
         return Stribeck(self.Fc, self.Fs, self.vs, self.delta, self.Fv)
 
     def truth_params(self) -> dict:
-        """The truth as a ``kukaid.params/1`` dictionary (friction, inertial, maxwell_slip, effects)."""
+        """The truth as a ``kukaid.params/1`` dictionary (friction, inertial, maxwell_slip, effects).
+
+        A LuGre plant has no Maxwell-slip elements: its section holds the elements closest to
+        LuGre's pre-sliding (:func:`lugre_elements`), what identification would find at best,
+        not a truth the estimator shares."""
+        ms = {"k": list(self.ms_k), "W": list(self.ms_W), "zeta0": list(self.ms_zeta0)}
+        if self.friction_law == "lugre":
+            k, W = lugre_elements(self.lugre_sigma0, self.Fs)
+            ms = {"k": k, "W": W, "zeta0": [0.0] * len(k)}
         return {
             "schema": "kukaid.params/1",
             "axis": int(self.axis),
             "friction": {"model": "stribeck", "Fc": self.Fc, "Fs": self.Fs, "vs": self.vs,
                          "delta": self.delta, "Fv": self.Fv},
             "inertial": {"Izz": self.Izz, "Mx": self.Mx, "My": self.My},
-            "maxwell_slip": {"k": list(self.ms_k), "W": list(self.ms_W), "zeta0": list(self.ms_zeta0)},
+            "maxwell_slip": ms,
             "mode_switch": {"qd_thr": self.v_blend},
             "effects": json.loads(json.dumps(self.effects)),
-            "provenance": {"source": "virtual-krc4 truth"},
+            "provenance": {"source": "virtual-krc4 truth", "friction_law": self.friction_law},
         }
+
+
+def lugre_elements(sigma0: float, Fs: float, breaks: tuple[float, ...] = (0.5, 1.5, 4.0)) -> tuple[list[float], list[float]]:
+    """Maxwell-slip elements (k N·m/rad, W N·m) whose reversal curve matches LuGre's at rest.
+
+    After a stop LuGre's bristles are deflected to ``z = Fs/sigma0``; reversing by ``x`` swings the
+    friction by ``R(x) = 2 Fs (1 - exp(-sigma0 x / Fs))`` (initial stiffness 2 sigma0).  The
+    elements' swing ``sum min(k_i x, 2 W_i)`` is the piecewise-linear interpolation of R through
+    ``x = breaks * Fs/sigma0``, reaching the full swing 2 Fs at the last break.
+    """
+    x0 = Fs / sigma0
+    xs = [0.0] + [b * x0 for b in breaks]
+    R = [2.0 * Fs * (1.0 - math.exp(-x / x0)) for x in xs]
+    R[-1] = 2.0 * Fs
+    slopes = [(R[i + 1] - R[i]) / (xs[i + 1] - xs[i]) for i in range(len(breaks))] + [0.0]
+    k = [slopes[i] - slopes[i + 1] for i in range(len(breaks))]
+    W = [0.5 * ki * xs[i + 1] for i, ki in enumerate(k)]
+    return k, W
 
 
 def truth_params(cfg: SimConfig) -> dict:
@@ -192,7 +244,10 @@ def _validate(cfg: SimConfig, where: str) -> None:
     for name, (kind, lo, hi, doc) in FIELDS.items():
         v = getattr(cfg, name)
         fw = f"{where}: field '{name}' ({doc})"
-        if kind == "bool":
+        if kind == "choice":
+            if v not in FRICTION_LAWS:
+                raise SimConfigError(f"{fw} must be one of {', '.join(FRICTION_LAWS)}, got {json.dumps(v, default=str)}")
+        elif kind == "bool":
             if not isinstance(v, (bool, int)) or v not in (0, 1, True, False):
                 raise SimConfigError(f"{fw} must be true or false, got {json.dumps(v, default=str)}")
             object.__setattr__(cfg, name, bool(v))

@@ -9,16 +9,17 @@ from __future__ import annotations
 import math
 
 # state vector
-S_Q, S_V, S_I, S_T, S_VX, S_VXD, S_BDIR, S_BS, S_BSIGN, S_TAU, S_QREF = range(11)
-N_STATE = 11
+S_Q, S_V, S_I, S_T, S_VX, S_VXD, S_BDIR, S_BS, S_BSIGN, S_TAU, S_QREF, S_Z, S_ZD = range(13)
+N_STATE = 13
 
 # parameter vector
 (P_IZZ, P_MX, P_MY, P_FC, P_FS, P_VS, P_DELTA, P_FV, P_SUMW, P_VBL,
  P_KP, P_KV, P_KI, P_CIZZ, P_CMX, P_TMAX,
  P_TAMB, P_RTH, P_CTH, P_RCU,
  P_VIBG, P_VIBW, P_VIBZ,
- P_OFF, P_RA, P_RN, P_RPHI, P_KAPPA, P_TREF, P_LOADC, P_BA, P_BTAU, P_BVON) = range(33)
-N_PARAM = 33
+ P_OFF, P_RA, P_RN, P_RPHI, P_KAPPA, P_TREF, P_LOADC, P_BA, P_BTAU, P_BVON,
+ P_LUGRE, P_S0, P_S1, P_FPA, P_FPN, P_FPPHI) = range(39)
+N_PARAM = 39
 
 
 def servo_block(n_ticks, dt, nsub, qref, vff, aff, wn, text, st, F, E, p, k, w, c,
@@ -31,6 +32,13 @@ def servo_block(n_ticks, dt, nsub, qref, vff, aff, wn, text, st, F, E, p, k, w, 
     are updated in place.  Element j (stiffness ``k[j]``, damping ``c[j]``, saturation share
     ``w[j]``) has spring stretch ``E[j]`` and torque ``F[j] = k e + c de/dt``, clamped to its
     saturation; while clamped (slipping) the stretch relaxes, ``k e + c de/dt = F`` (implicit).
+
+    With ``p[P_LUGRE]`` = 1 the elements are not used: friction is LuGre (Canudas de Wit et al.
+    1995), one bristle state ``z`` (``st[S_Z]``, rad) with ``dz/dt = v - sigma0 |v| z / g(v)``,
+    ``F = sigma0 z + sigma1 dz/dt + Fv v``, ``g`` the Stribeck magnitude (stiction ``Fs`` at rest);
+    ``z`` is updated implicitly (unconditionally stable).  ``P_FPA``/``P_FPN``/``P_FPPHI`` make
+    the friction magnitude depend on position: ``g`` and the saturations times
+    ``1 + a sin(n q + phi)`` (either law).
     """
     Izz = p[P_IZZ]
     Mx = p[P_MX]
@@ -65,6 +73,12 @@ def servo_block(n_ticks, dt, nsub, qref, vff, aff, wn, text, st, F, E, p, k, w, 
     bA = p[P_BA]
     btau = p[P_BTAU]
     bvon = p[P_BVON]
+    lugre = p[P_LUGRE] != 0.0
+    s0 = p[P_S0]
+    s1 = p[P_S1]
+    fpa = p[P_FPA]
+    fpn = p[P_FPN]
+    fpphi = p[P_FPPHI]
 
     q = st[S_Q]
     v = st[S_V]
@@ -77,6 +91,8 @@ def servo_block(n_ticks, dt, nsub, qref, vff, aff, wn, text, st, F, E, p, k, w, 
     bsign = st[S_BSIGN]
     tau_m = st[S_TAU]
     q_r = st[S_QREF]
+    z = st[S_Z]
+    zd = st[S_ZD]
 
     ne = len(k)
     h = dt / nsub
@@ -129,8 +145,11 @@ def servo_block(n_ticks, dt, nsub, qref, vff, aff, wn, text, st, F, E, p, k, w, 
             cq = math.cos(q)
             # friction state -> torque
             Fel = 0.0
-            for j in range(ne):
-                Fel += F[j]
+            if lugre:
+                Fel = s0 * z + s1 * zd
+            else:
+                for j in range(ne):
+                    Fel += F[j]
             Ff = Fel + Fv * scaleT * v
             tau_ext = te
             eff = off + tb
@@ -143,19 +162,29 @@ def servo_block(n_ticks, dt, nsub, qref, vff, aff, wn, text, st, F, E, p, k, w, 
             pfric += Ff * v
             # saturation of the elements at the new speed and position
             s = v if v >= 0.0 else -v
-            xb = (s - vhalf) / vhalf
-            if xb <= 0.0:
-                S = sumW
+            if lugre:
+                S = Fc + dF * math.exp(-math.pow(s / vs, delta))
             else:
-                if xb > 1.0:
-                    xb = 1.0
-                b = xb * xb * (3.0 - 2.0 * xb)
-                g = Fc + dF * math.exp(-math.pow(s / vs, delta))
-                S = (1.0 - b) * sumW + b * g
+                xb = (s - vhalf) / vhalf
+                if xb <= 0.0:
+                    S = sumW
+                else:
+                    if xb > 1.0:
+                        xb = 1.0
+                    b = xb * xb * (3.0 - 2.0 * xb)
+                    g = Fc + dF * math.exp(-math.pow(s / vs, delta))
+                    S = (1.0 - b) * sumW + b * g
             if loadc != 0.0:
                 mc = Mx * math.cos(q)
                 S += loadc * (mc if mc >= 0.0 else -mc)
             S *= scaleT
+            if fpa != 0.0:
+                S *= 1.0 + fpa * math.sin(fpn * q + fpphi)
+            if lugre:  # implicit bristle update: z' = (z + h v) / (1 + h sigma0 |v| / g)
+                z_new = (z + dq) / (1.0 + h * s0 * s / S)
+                zd = (z_new - z) / h
+                z = z_new
+                continue
             for j in range(ne):
                 ej = E[j] + dq
                 Fj = k[j] * ej + c[j] * v
@@ -190,6 +219,8 @@ def servo_block(n_ticks, dt, nsub, qref, vff, aff, wn, text, st, F, E, p, k, w, 
     st[S_BSIGN] = bsign
     st[S_TAU] = tau_m
     st[S_QREF] = q_r
+    st[S_Z] = z
+    st[S_ZD] = zd
     return rec
 
 

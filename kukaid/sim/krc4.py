@@ -164,6 +164,10 @@ class VirtualKRC4:
         p[K.P_OFF], p[K.P_RA], p[K.P_RN], p[K.P_RPHI] = eff["off"], eff["rA"], eff["rN"], eff["rPhi"]
         p[K.P_KAPPA], p[K.P_TREF], p[K.P_LOADC] = eff["kappa"], eff["Tref"], eff["loadc"]
         p[K.P_BA], p[K.P_BTAU], p[K.P_BVON] = eff["bA"], eff["btau"], eff["bvon"]
+        lugre = c.friction_law == "lugre"
+        p[K.P_LUGRE], p[K.P_S0] = float(lugre), c.lugre_sigma0
+        p[K.P_S1] = 2.0 * c.lugre_zeta * math.sqrt(c.lugre_sigma0 * c.Izz)
+        p[K.P_FPA], p[K.P_FPN], p[K.P_FPPHI] = c.fric_pos_amp, c.fric_pos_n, c.fric_pos_phi
         self._p = p
         self._k = np.asarray(c.ms_k, dtype=float)
         self._w = np.asarray(c.ms_W, dtype=float) / c.sum_W
@@ -172,8 +176,12 @@ class VirtualKRC4:
         self._kernel = K.get_kernel()
         # physics sub-steps: at least cfg.substeps, and enough for the stiffest mode (the
         # Maxwell-slip springs against the inertia) to be integrated accurately (w h <= 0.3)
-        w_max = math.sqrt(float(np.sum(self._k)) / c.Izz)
-        d_max = float(np.sum(self._c) + c.Fv) / c.Izz  # explicit damping rate, 1/s
+        if lugre:
+            w_max = math.sqrt(c.lugre_sigma0 / c.Izz)
+            d_max = float(p[K.P_S1] + c.Fv) / c.Izz
+        else:
+            w_max = math.sqrt(float(np.sum(self._k)) / c.Izz)
+            d_max = float(np.sum(self._c) + c.Fv) / c.Izz  # explicit damping rate, 1/s
         self.substeps = max(int(c.substeps), int(math.ceil(w_max * self.dt / 0.3)),
                             int(math.ceil(d_max * self.dt / 0.5)))
         self._tau_ext: float | Callable = 0.0
@@ -199,11 +207,16 @@ class VirtualKRC4:
             F = np.sign(direction) * W
         self._F = F.astype(float)
         self._E = self._F / self._k  # spring stretches at rest
+        lugre = c.friction_law == "lugre"
+        if lugre:  # bristles at rest: unloaded, or deflected to stiction after a move (F = Fs)
+            self._F = np.zeros_like(self._F)
+            F = np.array([0.0 if not direction else float(np.sign(direction)) * c.Fs])
         st = np.zeros(K.N_STATE)
         st[K.S_Q] = q0
         st[K.S_T] = c.temp0
         st[K.S_QREF] = q0
         st[K.S_BDIR] = 0.0 if direction is None else float(np.sign(direction))  # gear contact side
+        st[K.S_Z] = float(F.sum()) / c.lugre_sigma0 if lugre else 0.0
         eff = self._p
         hold = c.Mx * math.cos(q0) + eff[K.P_MY] * math.sin(q0) + float(F.sum()) + eff[K.P_OFF]
         if eff[K.P_RA]:
@@ -211,6 +224,7 @@ class VirtualKRC4:
         st[K.S_I] = float(np.clip(hold - c.ctrl_Mx * math.cos(q0), -c.tau_max, c.tau_max))
         st[K.S_TAU] = st[K.S_I] + c.ctrl_Mx * math.cos(q0)
         self._st = st
+        self._tau_hist = np.full(c.tau_delay, st[K.S_TAU])  # torque samples not yet reported (tau_delay)
         self._tick = 0
         self._t_req = 0.0
         ss = np.random.SeedSequence(self.seed)
@@ -373,10 +387,13 @@ class VirtualKRC4:
             raise KukaidError(f"virtual KR C4: the simulation diverged before t = {self.t:.3f} s; "
                               f"check the configuration (Izz, ms_k, Kv, servo_rate)")
         q, tau, qcmd, temp, te, _v = out
+        if c.tau_delay:  # $TORQUE_AXIS_ACT reports the motor torque of tau_delay samples ago
+            both = np.concatenate([self._tau_hist, tau])
+            tau, self._tau_hist = both[:m], both[m:]
         return {
             "time": (t0 + 1 + samp) * self.dt,
             "q": self._quantise(q),
-            "tau": tau + c.noise_sigma * self._rng_noise.standard_normal(m),
+            "tau": self._quantise_tau(tau + c.noise_sigma * self._rng_noise.standard_normal(m)),
             "q_cmd": qcmd,
             "temp": np.round(temp, 2),
             "tau_ext_true": te,
@@ -388,10 +405,16 @@ class VirtualKRC4:
             return q.copy()
         return np.round(np.degrees(q) / qd) * qd * (math.pi / 180.0)
 
+    def _quantise_tau(self, tau: np.ndarray) -> np.ndarray:
+        r = self.cfg.tau_quant
+        return tau if r <= 0 else np.round(tau / r) * r
+
     def read(self) -> dict[str, float]:
-        """The latest measurement now: ``q`` rad (quantised), ``tau`` N·m (noisy), ``temp`` °C."""
+        """The latest measurement now: ``q`` rad (quantised), ``tau`` N·m (noisy, delayed and
+        quantised as the samples are), ``temp`` °C."""
         q = float(self._quantise(np.array([self._st[K.S_Q]]))[0])
-        tau = float(self._st[K.S_TAU] + self.cfg.noise_sigma * self._rng_read.standard_normal())
+        tau_m = float(self._tau_hist[0]) if self._tau_hist.size else float(self._st[K.S_TAU])
+        tau = float(self._quantise_tau(np.array([tau_m + self.cfg.noise_sigma * self._rng_read.standard_normal()]))[0])
         return {"q": q, "tau": tau, "temp": round(float(self._st[K.S_T]), 2)}
 
     def run(self, traj: Any, progress: Callable[[float], None] | None = None, settle: float = 0.5):
