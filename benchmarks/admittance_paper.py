@@ -294,7 +294,7 @@ def print_sweep(rows: list[dict]) -> None:
 
 
 def print_markdown(doc: dict) -> None:
-    """The README's tables from :func:`benchmark` / :func:`sweep` results (JSON as saved)."""
+    """The tables of docs/admittance.md from :func:`benchmark` / :func:`sweep` results (JSON as saved)."""
     res = doc["results"]
     print("| cycle | vs | measure | mean diff [95 % CI] | rel | wins (s/o/f) | Wilcoxon p |")
     print("|---|---|---|---|---|---|---|")
@@ -345,7 +345,7 @@ def main() -> None:
     ap.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     ap.add_argument("--save", help="also write the JSON results to this file")
     ap.add_argument("--markdown", metavar="RESULTS.json",
-                    help="print the README's markdown tables from saved results (no runs)")
+                    help="print docs/admittance.md's markdown tables from saved results (no runs)")
     a = ap.parse_args()
     if a.markdown:
         with open(a.markdown) as f:

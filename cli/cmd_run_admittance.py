@@ -31,11 +31,6 @@ def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> No
                                f"[{lo:.4g}, {hi:.4g}] degrees ({where})")
 
 
-def _partial_path(output: Path) -> Path:
-    """Where a run is recorded while the robot moves: ``run.partial.h5`` beside ``run.h5``."""
-    return output.with_name(f"{output.stem}.partial{output.suffix}")
-
-
 def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hint: str = "",
                      error: type | None = None) -> None:
     """A one-axis parameter file drives the axis that moves only if it is a model of that axis:
@@ -53,88 +48,6 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
                              f"revolute axis (rad, N·m); fit a model of that axis")
     if file_axis is not None and int(file_axis) != axis:
         raise (error or ParamFileError)(f"{params_path}: a model of A{file_axis} cannot drive {where}{hint}")
-
-
-class _Interrupts:
-    """Ctrl-C and SIGTERM while a run goes on, counted instead of raised.
-
-    A KeyboardInterrupt raised by the signal handler lands wherever Python happens to be: between
-    two cycles, in the estimator, in the log writer, in a weakref callback (where Python prints it
-    and drops it), after the loop.  Only one raised inside ``backend.cycle`` is the loop's to handle
-    (it holds the robot and returns the run, "stopped: interrupted"); anywhere else it ended the
-    command with exit 130 and no control group, or was lost.  So the handler only counts, and
-    :class:`_StopOnInterrupt` raises the interrupt inside ``backend.cycle``, at the next cycle."""
-
-    def __init__(self) -> None:
-        self.count = 0
-        self._old: dict = {}
-
-    def _on_signal(self, *_: object) -> None:
-        self.count += 1
-
-    def __enter__(self) -> "_Interrupts":
-        import signal
-
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            self._old[sig] = signal.signal(sig, self._on_signal)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        import signal
-
-        for sig, old in self._old.items():
-            signal.signal(sig, old if old is not None else signal.SIG_DFL)
-
-
-class _StopOnInterrupt:
-    """A backend whose ``cycle`` raises KeyboardInterrupt once an interrupt newer than ``seen`` has
-    come, before a new reference is sent (see :class:`_Interrupts`); everything else is the backend's."""
-
-    def __init__(self, backend, interrupts: _Interrupts, seen: int = 0) -> None:
-        self._backend, self._interrupts, self._seen = backend, interrupts, seen
-
-    def __getattr__(self, name: str):
-        return getattr(self._backend, name)
-
-    def cycle(self, q_cmd, dt):
-        if self._interrupts.count > self._seen:
-            raise KeyboardInterrupt
-        return self._backend.cycle(q_cmd, dt)
-
-
-def _kept(e: BaseException, n: int, partial: Path, output: Path) -> BaseException:
-    """The error to raise when the command fails after the run was set up: the old output is left
-    as it was, and what the run recorded stays in the partial file, named in the error's one line.
-
-    Kept, not removed: on a real robot the partial log is the only record of a motion that
-    happened (what the axis did up to the failure, the thing to look at after a crash), and
-    "nothing already recorded is ever lost".  It is not put in place of the output: a failed
-    command does not replace what the output held (with --force, an earlier run's log).  A file
-    without a sample records nothing and is removed."""
-    import os
-
-    from kukaid.errors import KukaidError
-
-    if n == 0:
-        partial.unlink(missing_ok=True)
-        return e
-    if not partial.exists():
-        return e
-    where = f"the {n} samples recorded are kept in {partial} ({output} is not changed)"
-    if isinstance(e, KukaidError):
-        new, code = KukaidError(f"{e}; {where}"), e.exit_code
-    elif isinstance(e, KeyboardInterrupt):
-        new, code = KukaidError(f"interrupted; {where}"), 130
-    elif isinstance(e, OSError):
-        at = f"{e.filename}: " if getattr(e, "filename", None) else ""
-        new, code = KukaidError(f"{at}{e.strerror or e}; {where}"), 1
-    elif isinstance(e, Exception) and not os.environ.get("KUKAID_DEBUG"):
-        new, code = KukaidError(f"internal error ({type(e).__name__}: {e}); {where}; rerun with KUKAID_DEBUG=1 "
-                                "for a traceback"), 2
-    else:
-        return e
-    new.exit_code = code
-    return new
 
 
 @click.command("run-admittance")
@@ -224,17 +137,15 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     import dataclasses
     import json
     import math
-    import os
 
     import numpy as np
 
     from kukaid.control.loop import LoopConfig, run_admittance
     from kukaid.control.metrics import operator_metrics
     from kukaid.control.rbf import RBFConfig
-    from kukaid.control.runlog import write_run
-    from kukaid.logs import AxisLogWriter
+    from kukaid.control.recorder import RunRecorder, check_no_partial
     from kukaid.control.safety import SafetyLimits, check_motion_allowed
-    from kukaid.errors import DiskFullError, KukaidError, OptionError, ParamFileError
+    from kukaid.errors import KukaidError, OptionError, ParamFileError
     from kukaid.jsonfile import jsonable
     from kukaid.jsonfile import read_json
     from kukaid.params import is_robot_params, load_params, model_from_params, validate_robot_params
@@ -249,10 +160,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if p is not None:
             refuse_overwrite(p, force)
             check_writable(p)  # before the robot moves: the record of the run must be writable
-    partial = _partial_path(output)
-    if partial.exists() or partial.is_symlink():  # a run that was killed or failed: recorded data, never replaced
-        raise KukaidError(f"{partial}: the record of an earlier run that did not finish is in the way (a run is "
-                          f"recorded there while the robot moves); move it away or remove it, then run again")
+    check_no_partial(output)  # a run that was killed or failed: recorded data, never replaced
     if backend == "kvp" and axis > 6:
         raise click.BadParameter(f"{axis}: a KR C4 over KUKAVARPROXY moves A1..A6", param_hint="--axis")
     if backend == "kvp" and (sim_config is not None or noise is not None or program is not None):
@@ -374,97 +282,42 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         attrs.update(host=host, port=port)
         axis_id = axis
 
-    # The run is recorded to the partial file while the robot moves (a killed run leaves it,
-    # readable); the finished run's whole record (the control group added) replaces it, and it
-    # replaces the output (and the PDF its own) only when the run has ended and everything is
-    # written: an output is never truncated or lost by a run that fails.
+    # recorded to NAME.partial.h5 while the robot moves; the outputs replaced only when the run has ended
     channels = ("q", "tau", "q_cmd") + (("tau_ext_true",) if backend == "sim" else ())
     lam = cfg.rbf.lam if cfg.rbf is not None else RBFConfig().lam
     notes: list[str] = []
-    pdf_tmp: Path | None = None
-    with _Interrupts() as interrupts:
-        writer = AxisLogWriter(partial, axes=(axis_id,), channels=channels,
-                               attrs={**attrs, "source": "kukaid run-admittance (while running)",
-                                      "experiment": "admittance"})
+    with RunRecorder(output, axis=axis_id, channels=channels, attrs=attrs, report=report, force=force) as rec:
+        with progress(cfg.init_time + cfg.init_rest + cfg.duration, f"run-admittance ({backend})") as update:
+            run = rec.record(lambda on_row: run_admittance(rec.guard(be), model, cfg, progress=update, on_row=on_row))
 
-        def on_row(row):
-            if row["time"] > writer.last_time:  # a stop repeats the last measurement
-                writer.append(row["time"], **{c: [row[c]] for c in channels})
-
-        try:
-            if interrupts.count:  # before the robot starts: it does not
-                raise KeyboardInterrupt
-            with progress(cfg.init_time + cfg.init_rest + cfg.duration, f"run-admittance ({backend})") as update:
-                run = run_admittance(_StopOnInterrupt(be, interrupts), model, cfg, progress=update, on_row=on_row)
-            # the interrupts the run has answered (stopped by one, or none): any later one is new
-            answered = interrupts.count if run.status == "stopped: interrupted" else 0
-        except DiskFullError as e:
-            # recording stopped and so did the robot: a run stopped by the safety logic, whose
-            # samples replace the output as a stopped run's do (no room for the control group)
-            writer.close()
-            if writer.n == 0 or not partial.exists():
-                raise
-            os.replace(partial, output)
-            msg = str(e)
-            msg = f"{output}: {msg[len(str(partial)) + 2:]}" if msg.startswith(f"{partial}: ") else msg
-            if report is not None:
-                msg += "; no report made" + (f" ({report} is not changed)" if report.exists() else "")
-            raise DiskFullError(msg) from None
-        except BaseException as e:
-            writer.close()
-            err = _kept(e, writer.n, partial, output)
-            if err is e:
-                raise
-            raise err from e
-        writer.close()
-        if np.unique(run.data["time"]).size < 2:  # stopped in its first cycle: no log to write, nothing to keep
-            partial.unlink(missing_ok=True)
-            err = KukaidError(f"run-admittance: {run.status} in the first control cycle; nothing recorded"
-                              + (f" ({output} is not changed)" if output.exists() else ""))
-            err.exit_code = 130 if run.status == "stopped: interrupted" else 3
-            raise err
-        try:
-            if backend == "sim":  # the paper's measures over the fixed window of a human operator
+        def metrics() -> None:  # the paper's measures over the fixed window of a human operator
+            if backend == "sim":
                 run.metrics.update(operator_metrics(run.data, op, lam, scfg.sample_time))
-            write_run(partial, run, axis=axis_id, attrs=attrs)  # atomic: the streamed log until it is written
-            if report is not None:
-                import tempfile
 
-                from kukaid.control.plots import plot_runs
+        def draw(path: Path) -> None:
+            from kukaid.control.plots import plot_runs
 
-                runs = [(f"{damping} damping" + (f" (D {D:g})" if damping == "constant" else f" (D0 {D:g})"),
-                         run.data, run.metrics)]
-                if backend == "sim":  # the other controller on the same operator, side by side
-                    other = _comparison(run, cfg, damping, D, model, sim_backend, lam, scfg, interrupts, answered,
-                                        notes)
-                    if other is not None:
-                        runs.append(other)
-                        runs.sort(key=lambda r: not r[0].startswith("constant"))
-                who = f", operator {operator} seed {seed}" if backend == "sim" else ""
-                fd, name = tempfile.mkstemp(prefix=f".{report.name}.", suffix=".tmp", dir=report.parent)
-                os.close(fd)
-                pdf_tmp = Path(name)
-                plot_runs(runs, pdf_tmp, title=f"kukaid run-admittance ({damping} damping, {backend}{who}, "
-                                               f"cycle {1000 * cfg.cycle:g} ms)")
-            if not force:  # refused before the run; someone may have made one meanwhile
-                for p in (output, report):
-                    if p is not None and p.exists():
-                        raise KukaidError(f"{p}: appeared while the robot moved; not replaced")
-            os.replace(partial, output)
-        except BaseException as e:
-            if pdf_tmp is not None:
-                pdf_tmp.unlink(missing_ok=True)
-            err = _kept(e, writer.n, partial, output)
-            if err is e:
-                raise
-            raise err from e
-        if pdf_tmp is not None:
-            try:
-                os.replace(pdf_tmp, report)
-            except OSError as e:
-                pdf_tmp.unlink(missing_ok=True)
-                raise KukaidError(f"{report}: cannot write: {e.strerror or e}; the run log {output} is complete") \
-                    from None
+            runs = [(f"{damping} damping" + (f" (D {D:g})" if damping == "constant" else f" (D0 {D:g})"),
+                     run.data, run.metrics)]
+            if backend == "sim":  # the other controller on the same operator, side by side
+
+                def other_run(cfg2, seen):
+                    be2, op2 = sim_backend(cfg2)
+                    run2 = run_admittance(rec.guard(be2, seen), model, cfg2)
+                    run2.metrics.update(operator_metrics(run2.data, op2, lam, scfg.sample_time))
+                    return run2
+
+                compared = rec.comparison(run, cfg, other_run, notes)
+                if compared is not None:
+                    other, run2, cut = compared
+                    label = f"{other} damping (D {D:g}{', for comparison' if other == 'constant' else ''})"
+                    runs.append((label + (f", {cut}" if cut else ""), run2.data, run2.metrics))
+                    runs.sort(key=lambda r: not r[0].startswith("constant"))
+            who = f", operator {operator} seed {seed}" if backend == "sim" else ""
+            plot_runs(runs, path, title=f"kukaid run-admittance ({damping} damping, {backend}{who}, "
+                                        f"cycle {1000 * cfg.cycle:g} ms)")
+
+        rec.finish(run, metrics=metrics, report=draw)
         # the summary too is printed while the signals are counted: one coming now is not an exit 130
         if as_json:
             for w in [*(run.metrics.get("warnings") or ()), *notes]:  # the JSON holds them too; a person reads stderr
@@ -493,50 +346,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             click.echo(f"kukaid: error: run-admittance: {run.status} (the run log {output} holds every cycle until then)",
                        err=True)
             raise SystemExit(3)
-        if interrupts.count > 0 and run.status.startswith("completed"):  # Ctrl-C/SIGTERM after the run had ended
+        if rec.interrupts.count > 0 and run.status.startswith("completed"):  # Ctrl-C/SIGTERM after the run had ended
             click.echo(f"kukaid: error: run-admittance: interrupted after the run had completed (the run log {output} "
                        "is complete)", err=True)
             raise SystemExit(3)
 
-
-def _comparison(run, cfg, damping, D, model, sim_backend, lam, scfg, interrupts, answered, notes):
-    """The report's other controller on the same simulated person: ``(label, data, metrics)``, or
-    None when there is nothing to compare.  After an interrupt it is cut where the run stopped (a
-    Ctrl-C asks for an end, not for another run of the full length); an interrupt newer than the
-    ``answered`` ones skips it, or stops it while it runs.  What was cut or left out is said in
-    ``notes``."""
-    import dataclasses
-
-    from kukaid.control.loop import run_admittance
-    from kukaid.control.metrics import operator_metrics
-
-    other = "adaptive" if damping == "constant" else "constant"
-    cfg2 = dataclasses.replace(cfg, damping=other, rbf=None if other == "constant" else cfg.rbf)
-    interrupted = run.status == "stopped: interrupted"
-    if interrupts.count > answered:
-        notes.append(f"the report has no comparison run ({other} damping): interrupted before it started")
-        return None
-    t_end = float(run.data["time"][-1]) if run.data["time"].size else 0.0
-    if interrupted:
-        t_adm = (cfg.init_time if cfg.init_move else 0.0) + cfg.init_rest
-        if t_end - t_adm < cfg.cycle:
-            notes.append(f"the report has no comparison run ({other} damping): this run was interrupted at "
-                         f"t = {t_end:.2f} s, before the admittance started")
-            return None
-        cfg2 = dataclasses.replace(cfg2, duration=t_end - t_adm)
-    be2, op2 = sim_backend(cfg2)
-    run2 = run_admittance(_StopOnInterrupt(be2, interrupts, answered), model, cfg2)
-    run2.metrics.update(operator_metrics(run2.data, op2, lam, scfg.sample_time))
-    label = f"{other} damping (D {D:g}{', for comparison' if other == 'constant' else ''})"
-    if not run2.status.startswith("completed"):
-        t2 = float(run2.data["time"][-1]) if run2.data["time"].size else 0.0
-        notes.append(f"the report's comparison run ({other} damping) {run2.status} at t = {t2:.2f} s; the report "
-                     "shows it until then")
-        label += f", {run2.status}"
-        run2.metrics["status"] = run2.status
-    elif interrupted:
-        notes.append(f"the report's comparison run ({other} damping) is cut at t = {t_end:.2f} s, where this run "
-                     "was interrupted")
-        label += f", cut at t = {t_end:.2f} s"
-        run2.metrics["status"] = f"cut at t = {t_end:.2f} s (the run was interrupted)"
-    return label, run2.data, run2.metrics

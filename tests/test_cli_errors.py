@@ -203,7 +203,7 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
      ["--duration and --until-interrupt"]),
 ])
 def test_option_errors_are_usage_errors(files, tmp_path, monkeypatch, args, pieces):
-    """Contradictory or out-of-range options: exit status 2 (the README's usage error), one line, no output."""
+    """Contradictory or out-of-range options: exit status 2 (the usage error of docs/errors.md), one line, no output."""
     monkeypatch.chdir(tmp_path)
     _one_line_error(_run(*[a.format(d=files) for a in args]), *pieces, code=2)
     assert os.listdir(tmp_path) == []

@@ -408,7 +408,7 @@ def test_adaptive_damping_with_a_firm_grip_through_the_cli(files, tmp_path, seed
     grip floor estimates the stiffness from the first rebound and raises the damping (logged with
     its reason and per cycle), no oscillation outlasts it, the torque stop is never reached, the
     person gets to the goal.  (Not every firm person: on this plant seeds 5 and 8 still ring for
-    1.6-1.9 s after the first action, as constant D 50 does for 8 and 14; see the README.)"""
+    1.6-1.9 s after the first action, as constant D 50 does for 8 and 14; see docs/admittance.md.)"""
     from kukaid.control.metrics import damping_delay
 
     out = tmp_path / "firm.h5"
