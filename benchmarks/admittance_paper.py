@@ -1,8 +1,18 @@
-"""The paper's hand-guiding experiment (experiment 4) as a paired benchmark with a human arm.
+"""The paper's hand-guiding experiment (experiment 4) as a paired benchmark with a human arm, on
+the plant family (kukaid.sim.family: half of it LuGre, a friction law the estimator was not built on).
 
-Usage: python benchmarks/admittance_paper.py [--operators 30] [--cycles 0.024,0.012] [--json]
-                                             [--sweep] [--params PARAMS.json] [--save RESULTS.json]
-                                             [--arm human|spring] [--seed-offset N] [--cutoff HZ]
+Usage: python benchmarks/admittance_paper.py [--operators 30] [--seed-offsets 0,1000] [--cycles 0.024,0.012]
+                                             [--plants family|paper] [--json] [--jobs N] [--sweep]
+                                             [--params PARAMS.json] [--save RESULTS.json]
+                                             [--arm human|spring] [--cutoff HZ] [--quick]
+
+Operator i of a seed set (seed offset + i) meets plant FAMILY[(i // 3) % 6] drawn from its seed
+(every member sees every grip; half the operators are on a LuGre plant), with that plant's own
+parameter file (the truth with identification errors; for LuGre the closest Maxwell-slip elements).
+--plants paper: the paper's A3 for everybody, the controller's model with fixed errors (below).
+The firm grips also meet constant D 100, 150 and 200: the lightest constant damping with no firm run
+counted as oscillating and no torque-stop trip is what the adaptive law is compared with on firm
+grips (a D 50 that rings there is no fair reference: it is reported as ringing).
 
 Every operator (a seeded person from kukaid.sim.human: a third each soft, ordinary and firm
 grips) meets every controller with the same seed (the same person, the same sensor noise and
@@ -29,6 +39,7 @@ import argparse
 import dataclasses
 import json
 import math
+import os
 import sys
 import time
 
@@ -105,11 +116,13 @@ def controller_model(params: dict | None = None):
 
 def run_one(model, seed: int, damping: str, D: float, cycle: float, rbf=None, grip: str | None = None,
             duration: float = 13.0, lam: float = 0.05, coupling=None, arm: str = "human", cutoff: float = 5.0,
-            with_run: bool = False, floor=None):
+            with_run: bool = False, floor=None, plant=None):
     """One paired run; returns the window metrics (cost with ``lam``) plus run-level checks (and, with
     ``with_run``, the :class:`~kukaid.control.loop.AdmittanceRun` too: ``(metrics, run)``).
     ``floor(operator)``: a class used instead of the adaptive law's grip floor
-    (:class:`~kukaid.control.stability.CouplingFloor`), made for this run's operator (admittance_oracle.py)."""
+    (:class:`~kukaid.control.stability.CouplingFloor`), made for this run's operator (admittance_oracle.py).
+    ``plant`` (a :class:`kukaid.sim.family.Plant`): its truth and its own parameter file instead of the
+    paper's A3 and ``model``."""
     from kukaid.robot import SimRobot
     from kukaid.control.loop import LoopConfig, run_admittance
     from kukaid.control.metrics import damping_delay, window_metrics
@@ -124,7 +137,11 @@ def run_one(model, seed: int, damping: str, D: float, cycle: float, rbf=None, gr
     t_op = cfg.init_time + cfg.init_rest + 0.8
     op = (SpringArm(seed, q0 + cfg.init_move, t_op) if arm == "spring" else
           make_operator("human", seed, q0 + cfg.init_move, t_start=t_op, grip=grip))
-    be = SimRobot(VirtualKRC4(SimConfig(), seed=seed), q0, op)
+    if plant is not None:
+        from kukaid.params import model_from_params
+
+        model = model_from_params(plant.params)
+    be = SimRobot(VirtualKRC4(plant.cfg if plant is not None else SimConfig(), seed=seed), q0, op)
     if floor is not None:
         from unittest import mock
 
@@ -140,7 +157,7 @@ def run_one(model, seed: int, damping: str, D: float, cycle: float, rbf=None, gr
     after = d["time"] > t_rel - t0 + op.p.release_time + 0.05
     damp, sustained = damping_delay(m["osc_runs"], [e["time"] for e in run.metrics.get("stability_log", [])])
     move = op.p.goal - op.p.q_start
-    m.update(seed=seed, grip=op.p.grip, status=run.status,
+    m.update(seed=seed, grip=op.p.grip, status=run.status, plant=plant.name if plant is not None else "paper",
              torque_stop=run.status.startswith("stopped: measured torque"),
              false_after_release=int(np.sum(d["detected"][after])) if math.isfinite(t_rel) else 0,
              end_error=float(abs(d["q"][-1] - op.p.goal) / abs(move)),
@@ -172,59 +189,143 @@ def paired(a: np.ndarray, b: np.ndarray) -> dict:
 
 CONTROLLERS = (("D35", "constant", 35.0), ("D50", "constant", 50.0), ("D70", "constant", 70.0),
                ("adaptive", "adaptive", 50.0))
+#: constant dampings run on firm grips only, to find the lightest that is stable for all of them
+FIRM_REFERENCES = (("D100", "constant", 100.0), ("D150", "constant", 150.0), ("D200", "constant", 200.0))
+
+
+def _operators(n_ops: int, seed_offsets: tuple[int, ...], plants: str) -> list[tuple[int, str, object]]:
+    """(seed, grip, plant) of every operator: seed set by seed set, grips by thirds, plant members
+    in turn every three operators (so every member meets every grip)."""
+    from kukaid.sim.family import FAMILY, plant
+
+    ops = []
+    for off in seed_offsets:
+        for i in range(n_ops):
+            seed = off + i
+            ops.append((seed, GRIPS[i % 3], plant(FAMILY[(i // 3) % len(FAMILY)], seed) if plants == "family" else None))
+    return ops
+
+
+def _job(args):
+    model, seed, damping, D, cyc, rbf, grip, arm, coupling, cutoff, plant = args
+    return run_one(model, seed, damping, D, cyc, rbf=rbf, grip=grip, arm=arm, coupling=coupling, cutoff=cutoff,
+                   plant=plant)
 
 
 def benchmark(n_ops: int, cycles: tuple[float, ...], model, rbf=None, controllers=CONTROLLERS,
-              arm: str = "human", seed_offset: int = 0, coupling=None, cutoff: float = 5.0) -> dict:
-    """Operator i has seed ``seed_offset + i`` and grip ``GRIPS[i % 3]`` (the same for every controller)."""
+              arm: str = "human", seed_offset: int = 0, coupling=None, cutoff: float = 5.0,
+              seed_offsets: tuple[int, ...] | None = None, plants: str = "paper", firm_refs=(), jobs: int = 1) -> dict:
+    """Operator i of each seed set has seed ``offset + i`` and grip ``GRIPS[i % 3]`` (the same for every
+    controller); ``firm_refs`` controllers meet the firm grips only.  ``jobs`` worker processes."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    ops = _operators(n_ops, seed_offsets or (seed_offset,), plants)
     out: dict = {}
     for cyc in cycles:
-        runs: dict[str, list[dict]] = {name: [] for name, _, _ in controllers}
-        for i in range(n_ops):
-            grip = GRIPS[i % 3]
-            for name, damping, D in controllers:
-                runs[name].append(run_one(model, seed_offset + i, damping, D, cyc, rbf=rbf if damping == "adaptive" else None,
-                                          grip=grip, arm=arm, coupling=coupling if damping == "adaptive" else None,
-                                          cutoff=cutoff))
+        plan = [(name, k, (model, seed, damping, D, cyc, rbf if damping == "adaptive" else None, grip, arm,
+                           coupling if damping == "adaptive" else None, cutoff, pl))
+                for name, damping, D in (*controllers, *firm_refs)
+                for k, (seed, grip, pl) in enumerate(ops)
+                if grip == "firm" or (name, damping, D) not in firm_refs]
+        if jobs > 1:
+            with ProcessPoolExecutor(jobs) as ex:
+                done = list(ex.map(_job, [a for _, _, a in plan], chunksize=2))
+        else:
+            done = [_job(a) for _, _, a in plan]
+        runs: dict[str, list[dict]] = {}
+        for (name, k, _), r in zip(plan, done):
+            runs.setdefault(name, []).append(r)
         res: dict = {"runs": runs, "per_controller": {}, "paired": {}}
         for name, rs in runs.items():
             col = lambda k: np.array([r[k] for r in rs], dtype=float)  # noqa: E731
+            firm = [r for r in rs if r["grip"] == "firm"]
             res["per_controller"][name] = {
+                "n": len(rs),
                 "xi": float(np.mean(col("xi"))), "dgamma2": float(np.mean(col("dgamma2"))),
                 "xi_true": float(np.mean(col("xi_true"))), "dgamma2_true": float(np.mean(col("dgamma2_true"))),
                 "dgamma2_ratio": float(np.mean(col("dgamma2") ) / np.mean(col("dgamma2_true"))),
                 "dgamma2_ratio_max": float(np.max(col("dgamma2_ratio"))),
                 "dgamma2_ratio_over_2": int(np.sum(col("dgamma2_ratio") > 2.0)),
                 "oscillating": int(np.sum(col("oscillating"))), "torque_stop": int(np.sum(col("torque_stop"))),
+                "oscillating_firm": int(sum(r["oscillating"] for r in firm)),
+                "torque_stop_firm": int(sum(r["torque_stop"] for r in firm)),
                 "false_after_release": int(np.sum(col("false_after_release"))),
                 "end_error_median": float(np.median(col("end_error"))), "end_error_max": float(np.max(col("end_error"))),
                 "end_error_soft_max": float(np.max([r["end_error"] for r in rs if r["grip"] == "soft"] or [math.nan])),
                 "stab_events": int(np.sum(col("stab_events"))), "osc_ptp_max": float(np.max(col("osc_ptp"))),
                 "damp_time_max": float(np.max(col("damp_time"))),
-                "xi_true_by_grip": {g: float(np.mean([r["xi_true"] for r in rs if r["grip"] == g])) for g in GRIPS},
+                "xi_true_by_grip": {g: float(np.mean([r["xi_true"] for r in rs if r["grip"] == g] or [math.nan]))
+                                    for g in GRIPS},
+                "lugre_share": float(np.mean([r["plant"].startswith("lugre") for r in rs])),
             }
         ad = runs.get("adaptive")
         if ad:
+            by_key = {(r["seed"], r["grip"]): r for r in ad}
             for name, rs in runs.items():
                 if name == "adaptive":
                     continue
                 res["paired"][name] = {}
                 for key in ("xi", "dgamma2", "xi_true", "dgamma2_true"):
-                    a = np.array([r[key] for r in ad])
+                    a = np.array([by_key[(r["seed"], r["grip"])][key] for r in rs])
                     b = np.array([r[key] for r in rs])
                     pr = paired(a, b)
                     for g in GRIPS:
-                        sel = np.array([r["grip"] == g for r in ad])
+                        sel = np.array([r["grip"] == g for r in rs])
                         pr[f"wins_{g}"] = int(np.sum(a[sel] < b[sel]))
                         pr[f"n_{g}"] = int(np.sum(sel))
                     res["paired"][name][key] = pr
+            # the lightest constant damping stable for every firm grip: the fair reference there
+            stable = [(D, name) for name, damping, D in (*controllers, *firm_refs)
+                      if damping == "constant" and name in runs
+                      and res["per_controller"][name]["oscillating_firm"] == 0
+                      and res["per_controller"][name]["torque_stop_firm"] == 0]
+            if stable:
+                D_ref, ref = min(stable)
+                firm = [r for r in runs[ref] if r["grip"] == "firm"]
+                a = np.array([by_key[(r["seed"], r["grip"])]["xi_true"] for r in firm])
+                b = np.array([r["xi_true"] for r in firm])
+                res["firm_reference"] = {"controller": ref, "D": D_ref, **paired(a, b)}
         out[f"{cyc:g}"] = res
     return out
+
+
+def acceptance(res: dict) -> list[tuple[str, bool, str]]:
+    """Issue 22's lines, each (line, holds, figures)."""
+    rows = []
+    for cyc, r in res.items():
+        ms = f"{float(cyc) * 1000:.0f} ms"
+        pc, pr = r["per_controller"], r["paired"].get("D50", {}).get("xi_true")
+        if pr:
+            ok = pr["diff"] < 0 and pr["ci"][1] < 0 and pr["wins"] >= 0.75 * pr["n"]
+            rows.append((f"{ms}: adaptive vs D 50 on ξ (true), CI < 0, wins >= 75 %", ok,
+                         f"{100 * pr['rel']:+.1f} %, CI [{pr['ci'][0]:+.3f}, {pr['ci'][1]:+.3f}], "
+                         f"wins {pr['wins']}/{pr['n']}"))
+        fr = r.get("firm_reference")
+        rows.append((f"{ms}: firm grips, adaptive vs the lightest stable constant D, wins >= 80 %",
+                     bool(fr) and fr["wins"] >= 0.8 * fr["n"],
+                     f"vs {fr['controller']}: {100 * fr['rel']:+.1f} %, wins {fr['wins']}/{fr['n']}" if fr else
+                     "no constant damping was stable for every firm grip"))
+        ad = pc.get("adaptive", {})
+        rows.append((f"{ms}: adaptive runs counted as oscillating = 0", ad.get("oscillating", 1) == 0,
+                     f"{ad.get('oscillating')}"))
+        stops = {n: p["torque_stop"] for n, p in pc.items() if n in ("adaptive", "D50")}
+        rows.append((f"{ms}: torque-stop trips (adaptive, D 50) = 0", not any(stops.values()), f"{stops}"))
+        false = {n: p["false_after_release"] for n, p in pc.items()}
+        rows.append((f"{ms}: detections after any release = 0", not any(false.values()),
+                     f"{sum(false.values())} cycles"))
+        ratio = {n: round(p["dgamma2_ratio"], 2) for n, p in pc.items() if n in ("adaptive", "D50")}
+        rows.append((f"{ms}: estimated/true mean squared dΓ <= 2", all(v <= 2 for v in ratio.values()), f"{ratio}"))
+    return rows
 
 
 def print_table(res: dict, n_ops: int) -> None:
     for cyc, r in res.items():
         print(f"\n== control cycle {float(cyc) * 1000:.0f} ms, {n_ops} operators (soft/ordinary/firm by thirds) ==")
+        fr = r.get("firm_reference")
+        if fr:
+            print(f"firm grips: lightest constant damping stable for all of them: {fr['controller']}; adaptive vs it "
+                  f"on ξ (true): {100 * fr['rel']:+.1f} %, CI [{fr['ci'][0]:+.3f}, {fr['ci'][1]:+.3f}], "
+                  f"wins {fr['wins']}/{fr['n']}")
         print(f"{'controller':>9} | {'xi Gr':>7} {'dG2 Gr':>7} | {'xi true':>7} {'dG2 true':>8} | {'dG2 est/true':>12} |"
               f" {'osc':>3} {'stop':>4} {'false':>5} | {'end err med/max (soft max)':>26} | {'stab ev':>7} {'damp s':>6}")
         for name, p in r["per_controller"].items():
@@ -334,12 +435,19 @@ def main() -> None:
     ap.add_argument("--sweep", action="store_true", help="also the sensitivity sweep (24 ms)")
     ap.add_argument("--arm", choices=("human", "spring"), default="human",
                     help="operator model: the human arm of kukaid.sim.human, or the independent SpringArm")
-    ap.add_argument("--controllers", default="D35,D50,D70,adaptive", help="which controllers to run")
+    ap.add_argument("--controllers", default="D50,adaptive",
+                    help="which controllers to run (of D35, D50, D70, adaptive) besides the firm references")
     ap.add_argument("--sweep-operators", type=int, default=15)
     ap.add_argument("--monitor-rule", choices=("double", "decay"), default="double",
                     help="adaptive mode: how the stability monitor raises the damping (CouplingConfig.monitor_rule)")
-    ap.add_argument("--seed-offset", type=int, default=0,
-                    help="operator i gets seed N + i (held-out operators: e.g. 1000; grips still by thirds)")
+    ap.add_argument("--seed-offsets", default="0,1000",
+                    help="seed sets: operator i of a set gets seed N + i (0: the operators the law was developed on; "
+                         "1000: held out)")
+    ap.add_argument("--plants", choices=("family", "paper"), default="family",
+                    help="family: kukaid.sim.family by turns (half LuGre), each with its own parameter file; "
+                         "paper: the paper's A3 and the model with fixed errors")
+    ap.add_argument("--jobs", type=int, default=0, help="worker processes [the machine's cores]")
+    ap.add_argument("--quick", action="store_true", help="3 operators, one seed set, 24 ms (the test suite runs it)")
     ap.add_argument("--cutoff", type=float, default=5.0,
                     help="the estimator's low-pass, Hz (LoopConfig.cutoff; the paper's 5 Hz), for every controller")
     ap.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
@@ -358,6 +466,10 @@ def main() -> None:
         params = load_params(a.params)
     model = controller_model(params)
     cycles = tuple(float(c) for c in a.cycles.split(","))
+    offsets = tuple(int(x) for x in a.seed_offsets.split(","))
+    if a.quick:
+        a.operators, offsets, cycles = 3, offsets[:1], cycles[:1]
+    jobs = a.jobs or os.cpu_count() or 1
     t = time.perf_counter()
     ctl = tuple(c for c in CONTROLLERS if c[0] in a.controllers.split(","))
     cpl = None
@@ -365,14 +477,16 @@ def main() -> None:
         from kukaid.control.stability import CouplingConfig
 
         cpl = CouplingConfig(monitor_rule=a.monitor_rule)
-    res = benchmark(a.operators, cycles, model, controllers=ctl, arm=a.arm, seed_offset=a.seed_offset,
-                    coupling=cpl, cutoff=a.cutoff)
+    res = benchmark(a.operators, cycles, model, controllers=ctl, arm=a.arm, seed_offsets=offsets, coupling=cpl,
+                    cutoff=a.cutoff, plants="paper" if a.params else a.plants, firm_refs=FIRM_REFERENCES, jobs=jobs)
+    checks = acceptance(res)
     rows = sweep(a.sweep_operators, model) if a.sweep else None
     secs = time.perf_counter() - t
     from kukaid.jsonfile import jsonable
 
-    doc = jsonable({"operators": a.operators, "seed_offset": a.seed_offset, "arm": a.arm,
-                    "monitor_rule": a.monitor_rule, "cutoff": a.cutoff, "results": res, "sweep": rows, "seconds": secs})
+    doc = jsonable({"operators": a.operators, "seed_offsets": offsets, "plants": a.plants, "arm": a.arm,
+                    "monitor_rule": a.monitor_rule, "cutoff": a.cutoff, "results": res, "sweep": rows,
+                    "acceptance": [{"line": l, "holds": ok, "figures": f} for l, ok, f in checks], "seconds": secs})
     if a.save:
         with open(a.save, "w") as f:
             json.dump(doc, f)
@@ -380,9 +494,12 @@ def main() -> None:
         json.dump(doc, sys.stdout)
         print()
         return
-    print_table(res, a.operators)
+    print_table(res, a.operators * len(offsets))
     if rows is not None:
         print_sweep(rows)
+    print("\n== issue 22's acceptance ==")
+    for line, ok, fig in checks:
+        print(f"{'holds' if ok else 'FAILS':>5}  {line}: {fig}")
     print(f"\n({secs:.0f} s)")
 
 

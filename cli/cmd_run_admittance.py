@@ -108,6 +108,12 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
               help="sim: JSON overriding the simulator's truth and settings.")
 @click.option("--noise", type=float, help="sim: torque noise sigma, N·m [0.5].")
+@click.option("--plant-friction", type=click.Choice(["gms", "lugre"]),
+              help="sim: the simulated axis's friction law [gms, the estimator's own: Maxwell-slip at rest, "
+                   "Stribeck sliding; lugre: LuGre (stiction, bristles), a law the estimator was not built on].")
+@click.option("--strict", is_flag=True,
+              help="Exit with status 4 when the run completed with warnings (did not settle, a detection with "
+                   "nobody touching, the threshold at rest had to rise).")
 @click.option("--program", type=click.Path(dir_okay=False, path_type=Path),
               help="sim with a robot parameter file: a robot trajectory (`kukaid excite fourier --robot`) the "
                    "other axes follow meanwhile [they stand at mid range].")
@@ -120,8 +126,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
             duration: float, cycle: float, cutoff: float, init_move: float, q_min: float | None, q_max: float | None,
             qd_max: float, qdd_max: float, tau_max: float, max_age: float, backend: str, operator: str, seed: int,
-            q0: float, grip: str | None, sim_config: Path | None, noise: float | None, program: Path | None,
-            enable_motion: bool, host: str, port: int, axis: int) -> None:
+            q0: float, grip: str | None, sim_config: Path | None, noise: float | None, plant_friction: str | None,
+            strict: bool, program: Path | None, enable_motion: bool, host: str, port: int, axis: int) -> None:
     """Push the axis by hand without a force sensor: estimate the external torque Γr from the
     identified model (eqs. 12-14) and let an admittance (eqs. 15-16) with constant or adaptive
     damping (eqs. 17-22) move the reference, bounded and watched (position window, speed,
@@ -130,7 +136,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     The default backend is the virtual KR C4 with a simulated operator.  A real robot
     (--backend kvp) moves only with --enable-motion and a finite position window, through the
     KRL program of `kukaid krl-follower` (which clamps to its own window and stops when this
-    command's heartbeat stops).  Exit status 3: the run stopped early (the log says why); Ctrl-C
+    command's heartbeat stops).  A one-axis parameter file without Maxwell-slip elements is
+    refused (at rest the axis would move by itself).  Exit status 3: the run stopped early (the
+    log says why); 4 (with --strict): it completed with warnings; Ctrl-C
     or SIGTERM stops it at the next cycle, and the log and report are still written (the
     report's comparison run cut where the run stopped).
     """
@@ -163,8 +171,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     check_no_partial(output)  # a run that was killed or failed: recorded data, never replaced
     if backend == "kvp" and axis > 6:
         raise click.BadParameter(f"{axis}: a KR C4 over KUKAVARPROXY moves A1..A6", param_hint="--axis")
-    if backend == "kvp" and (sim_config is not None or noise is not None or program is not None):
-        raise click.UsageError("--sim-config, --noise and --program are for --backend sim")
+    if backend == "kvp" and (sim_config is not None or noise is not None or program is not None
+                             or plant_friction is not None):
+        raise click.UsageError("--sim-config, --noise, --plant-friction and --program are for --backend sim")
     raw = read_json(params_path, ParamFileError)
     robot_file = is_robot_params(raw)  # a whole robot (`kukaid fit --robot`): Γr of the axis from every axis
     if robot_file:
@@ -180,6 +189,12 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             _check_axis_kind(params, params_path, axis, f"A{axis} of the KR C4 (--axis {axis})",
                              f"; pass --axis {params.get('axis')} for that axis", error=OptionError)
         model = model_from_params(params)
+        from kukaid.control.loop import check_guidable
+
+        try:
+            check_guidable(model)
+        except KukaidError as e:
+            raise ParamFileError(f"{params_path}: {str(e).removeprefix('run-admittance: ')}") from None
     rbf = None
     if damping == "adaptive":
         dmin = 0.3 * D if D_min is None else D_min
@@ -220,6 +235,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if noise is not None:
             check_noise(noise)
             scfg = scfg.replace(noise_sigma=noise)
+        if plant_friction is not None:
+            scfg = scfg.replace(friction_law=plant_friction)
         if abs(scfg.sample_time - 0.012) > 1e-9:
             cfg = dataclasses.replace(cfg, sample_time=scfg.sample_time)
         q0r = math.radians(q0)
@@ -229,8 +246,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if robot_file:  # the six-axis virtual KR C4 of that robot, the other axes standing at their mid range
             from kukaid.sim.robot_plant import RobotSimConfig, VirtualRobotKRC4
 
-            if sim_config is not None or noise is not None:
-                raise click.UsageError("--sim-config and --noise are for one-axis parameter files")
+            if sim_config is not None or noise is not None or plant_friction is not None:
+                raise click.UsageError("--sim-config, --noise and --plant-friction are for one-axis parameter files")
             plant = VirtualRobotKRC4(RobotSimConfig(robot=params["robot"]["urdf"]), seed=seed)
             cfg = dataclasses.replace(cfg, sample_time=plant.cfg.sample_time)
             lo_, hi_ = (np.asarray(x, float) for x in (plant.model_nominal.lowerPositionLimit,
@@ -346,6 +363,10 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             click.echo(f"kukaid: error: run-admittance: {run.status} (the run log {output} holds every cycle until then)",
                        err=True)
             raise SystemExit(3)
+        if strict and run.metrics.get("warnings"):
+            click.echo(f"kukaid: error: run-admittance: completed with {len(run.metrics['warnings'])} warning(s) "
+                       "(--strict)", err=True)
+            raise SystemExit(4)
         if rec.interrupts.count > 0 and run.status.startswith("completed"):  # Ctrl-C/SIGTERM after the run had ended
             click.echo(f"kukaid: error: run-admittance: interrupted after the run had completed (the run log {output} "
                        "is complete)", err=True)

@@ -21,6 +21,8 @@ import click
 @click.option("--sim-config", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="JSON overrides of the simulator's truth and settings.")
 @click.option("--noise", type=float, help="Torque noise sigma, N·m.")
+@click.option("--plant-friction", type=click.Choice(["gms", "lugre"]),
+              help="Friction law of the simulated axis [gms: Maxwell-slip at rest, Stribeck sliding; lugre: LuGre].")
 @click.option("--duration", type=click.FloatRange(0.0, 7 * 86400.0, min_open=True),
               help="Stop after this many seconds (default: until Ctrl-C/SIGTERM).")
 @click.option("--speed", type=click.FloatRange(0.01, 100.0), default=1.0, show_default=True,
@@ -45,7 +47,7 @@ import click
               help="--operator: seconds after the start when the hand begins; with --follower, seconds after "
                    "the run begins (KID_RUN TRUE), so the hand does not depend on when the client connects.")
 def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str | None, seed: int, sim_config: Path | None,
-            noise: float | None, duration: float | None, speed: float, ring_axes: tuple[int, ...],
+            noise: float | None, plant_friction: str | None, duration: float | None, speed: float, ring_axes: tuple[int, ...],
             truth_path: Path | None, force: bool, delay: float, q0: float | None, follower_window: tuple[float, float] | None,
             stale_ms: int, operator: str | None, operator_start: float, grip: str | None) -> None:
     """Serve the virtual KR C4's live variables over KUKAVARPROXY until interrupted.
@@ -79,12 +81,16 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
 
         traj = load_trajectory(traj_path)
         check_limits(traj, where=str(traj_path))
+    if plant_friction is not None and (robot is not None or hasattr(traj, "axes")):
+        raise click.UsageError("--plant-friction is for the one-axis simulator (not with --robot or a robot trajectory)")
     if robot is not None or hasattr(traj, "axes"):
         _serve_robot(host, port, traj, robot, seed, sim_config, duration, speed, ring_axes, truth_path, delay,
                      dict(axis=axis if click.get_current_context().get_parameter_source("axis").name != "DEFAULT" else None,
                           noise=noise, q0=q0, follower=follower_window, operator=operator))
         return
     cfg = load_sim_config(sim_config) if sim_config else SimConfig()
+    if plant_friction is not None:
+        cfg = cfg.replace(friction_law=plant_friction)
     if noise is not None:
         check_noise(noise)
         cfg = cfg.replace(noise_sigma=noise)

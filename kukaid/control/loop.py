@@ -126,6 +126,7 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     record as it is made (to write it to disk while the robot moves).
     """
     cfg = config or LoopConfig()
+    check_guidable(model)
     if isinstance(model, RobotTorqueModel):  # a robot model: Γr of the guided axis from every axis's motion
         est = GuidedAxisResidual(model, backend.axis, sample_time=cfg.sample_time, threshold=cfg.threshold,
                                  release=cfg.release_torque, cutoff=cfg.cutoff)
@@ -173,7 +174,29 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
         metrics["robot_lag"] = grip.robot_lag
     if est.ignored_effects:
         metrics["ignored_effects"] = est.ignored_effects
+    rest_thr = getattr(est, "rest_threshold_max", cfg.threshold)
+    metrics["rest_threshold_max"] = float(rest_thr)
+    if rest_thr > 1.05 * cfg.threshold:  # the model's friction at rest is worse than the threshold assumes
+        metrics.setdefault("warnings", []).append(
+            f"at rest, with nothing detected, Γr wandered so far ({rest_thr / est.floor_k:.3g} N·m RMS) that the "
+            f"threshold at rest rose from {cfg.threshold:g} to {rest_thr:.3g} N·m (a push there needs that much): "
+            "the parameter file's friction at rest does not match the axis; refit its Maxwell-slip elements "
+            "(kukaid fit --presliding)")
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
+
+
+def check_guidable(model: Any) -> None:
+    """Refuse a one-axis model without Maxwell-slip elements before anything moves: at rest it has no
+    friction state, so static friction held by the gear reads as a push and the axis moves by itself
+    (measured: 3.5 degrees in 20 s with nobody touching it)."""
+    if isinstance(model, RobotTorqueModel):
+        return
+    ms = getattr(model, "maxwell_slip", None)
+    if ms is None or len(ms.k) == 0:
+        raise KukaidError("run-admittance: the parameter file has no Maxwell-slip elements, so at rest static "
+                          "friction cannot be told from a push and the axis would move by itself; fit them from a "
+                          "pre-sliding experiment (kukaid excite presliding, kukaid capture, then kukaid fit ... "
+                          "--presliding LOG)")
 
 
 def _measured(s: Any, est: Any) -> tuple[Any, Any]:
@@ -336,9 +359,14 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
       the truth) nobody pushes: the true external torque over the last 0.25 s is below the
       detection threshold on average (a push still on but never detected is not a settled run);
     * ``displacement`` rad: q at the end minus q when the admittance started;
-    * ``warnings`` (with the truth): the estimate disagreed grossly with what happened — Γr's
-      error RMS above both the threshold and half the true torque's RMS (a push the controller
-      did not see, or a simulation that went wrong), or a push still on at the end.
+    * ``false_after_release`` (with the truth): detected cycles from 0.3 s after the last cycle
+      with |tau_ext_true| >= 1 N·m on (nobody touching);
+    * ``warnings``: the run did not settle; (with the truth) the estimate disagreed grossly with
+      what happened — Γr's error RMS above both the threshold and half the true torque's RMS (a
+      push the controller did not see, or a simulation that went wrong) — or a push still on at
+      the end; a detection with nobody touching (before the first push or after the release); Γr
+      beyond the threshold with nobody touching (not taken for a push).  :func:`run_admittance`
+      adds one when the threshold at rest had to rise (the model's friction at rest is off).
     """
     lam = cfg.rbf.lam if cfg.rbf is not None else RBFConfig().lam
     ph = data["phase"] == PHASE_ADMITTANCE
@@ -380,8 +408,10 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     out["displacement"] = float(data["q"][idx[-1]] - data["q"][idx[0]])
     out["peak_speed"] = float(np.max(np.abs(data["sigma_dot"][ph])))
     out["settled"] = bool(abs(data["sigma_dot"][idx[-1]]) < 1e-3 and not det[idx[-1]])
+    warnings: list[str] = []
+    if not out["settled"]:
+        warnings.append("the run did not settle: at the end the reference still moves or a push is detected")
     if has_truth:
-        warnings: list[str] = []
         te_rms = float(np.sqrt(np.nanmean(te[ph] ** 2)))
         if out["residual_rmse"] > max(cfg.threshold, 0.5 * te_rms):
             warnings.append(f"the estimated external torque disagrees grossly with the true one: error RMS "
@@ -394,7 +424,19 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
             if not det[idx[-1]]:
                 warnings.append(f"at the end the true external torque is {te_end:.3g} N·m on average (last 0.25 s), "
                                 f"above the detection threshold {cfg.threshold:g} N·m, and nothing is detected")
-        out["warnings"] = warnings
+        # nobody touching: from the release (the last true torque >= 1 N·m, + 0.3 s) on
+        touched = np.flatnonzero(ph & (np.abs(te) >= 1.0))
+        after = ph & (np.arange(t.size) > touched[-1] + int(round(0.3 / cfg.cycle))) if touched.size else ph
+        out["false_after_release"] = int(np.sum(det & after)) if touched.size else 0
+        untouched = ph & (np.abs(te) < 1.0) & ~det
+        if out["false_detections"] or out["false_after_release"]:
+            warnings.append(f"detected a push with nobody touching the axis: {out['false_detections']} cycles before "
+                            f"the first push, {out['false_after_release']} after the release (the axis moved by itself)")
+        elif untouched.any() and np.max(np.abs(gr[untouched])) >= cfg.threshold:
+            warnings.append(f"with nobody touching the axis Γr reached {np.max(np.abs(gr[untouched])):.3g} N·m, "
+                            f"beyond the threshold {cfg.threshold:g} N·m (not taken for a push: the threshold at "
+                            "rest had risen, or the axis was starting or stopping)")
+    out["warnings"] = warnings
     out["D_range"] = [float(np.min(data["D"][ph])), float(np.max(data["D"][ph]))]
     return out
 

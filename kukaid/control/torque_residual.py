@@ -13,13 +13,19 @@ Online, causal version (what a controller can do):
 
 * torque, position and the velocity and acceleration obtained by differencing positions all pass
   through the same causal 3rd-order Butterworth low-pass (5 Hz), so they stay aligned in time;
-* Γu, the unmodelled quasi-static torque, is minus the raw residual's mean over the first
-  ``u_window`` seconds after :meth:`TorqueResidual.reset` (the axis at rest, nobody touching it),
-  then tracked by a slow first-order observer (time constant ``u_tau``) **only while nobody is in
-  contact**: quasi-static mode, no detection, ``u_holdoff`` s since the last contact ended, and
-  |Γr| below half the threshold (so a push building up is not learnt as an offset).
-  In contact it is frozen, so a push that is still there when the axis stops is never absorbed
-  into Γu (and cannot come back with the opposite sign at the release);
+* Γu, the unmodelled quasi-static torque, is taken anew at the start of every rest (the paper's
+  eq. 13; a rest begins when the axis stops, or when a contact ends with the axis standing): the
+  mean raw residual over its first ``u_window`` s, then, while the axis settles (``switch_quiet``
+  s), a close follower (time constant ``u_window``), then, only while nobody is in contact
+  (quasi-static, no detection, the innovation below half the start threshold at rest, so a push
+  building up is not learnt), recursive least squares with forgetting ``u_tau`` of an offset and
+  a gain ``beta`` on the model's pre-sliding torque since the rest began: a plant whose
+  pre-sliding friction is stiffer or softer than the model's (another friction law) is followed.
+  In contact Γu is frozen, so a push that is still there when the axis stops is never absorbed;
+* at rest, out of contact, the RMS of Γr is tracked (forgetting ``floor_tau``): the start threshold
+  at rest is at least ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model
+  whose friction at rest does not match the axis needs a firmer push instead of moving the axis
+  by itself (``rest_threshold_max`` says how far it had to rise);
 * friction is continuous across the mode switch: up to ``qd_thr`` the Maxwell-slip torque, from
   ``3 qd_thr`` on the Stribeck curve, linearly blended in between (on the differenced speed,
   ``BLEND``); and every change of mode
@@ -27,13 +33,12 @@ Online, causal version (what a controller can do):
   Γp at the switch is carried as an offset that fades with the time constant ``switch_tau``;
 * at every dynamic -> quasi-static transition the Maxwell-slip elements are re-initialised
   saturated in the direction of the last motion, relative to the stop position (eq. 12);
-* detection: Γr is "detected" when |Γr| >= ``threshold`` and stays so until |Γr| < ``release``
-  (hysteresis), so a residual hovering at the threshold does not chatter; for ``regrip_time`` s
-  after a detection ended, a new one starts already at ``regrip_share`` x ``threshold`` (the
-  person is probably still holding on: the start threshold does not hold the axis short of
-  where they push), except within ``switch_quiet`` s of the axis starting or stopping (a change
-  of mode, or the differenced speed crossing ``qd_thr``: starts and stops leave short spikes in
-  Γr, the paper's backlash spikes, that must not restart it).
+* detection: Γr is "detected" when |Γr| >= the start threshold and stays so until |Γr| <
+  ``release`` (hysteresis), so a residual hovering at the threshold does not chatter; within
+  ``switch_quiet`` s of the axis starting or stopping (a change of mode, or the differenced speed
+  crossing ``qd_thr``) or of a rest beginning the start threshold is ``switch_share`` x
+  ``threshold``: starts and stops leave short spikes in Γr (the paper's backlash spikes, the
+  friction settling, the servo's overshoot) that must not move the axis.
 
 Effects a diagnosis added to the parameter file are included when they depend on position only
 (``gravity_sine``, ``torque_offset``, ``position_ripple``); others are listed in
@@ -57,6 +62,9 @@ QUASI_STATIC = "quasi-static"
 BLEND = (1.0, 3.0)
 #: default holding threshold (end of a detection) as a share of the start threshold
 RELEASE_SHARE = 0.3
+#: Γu's least squares at rest: prior covariance (offset N²m², -, gain²) and the largest gain correction
+GAIN_P0 = (25.0, 0.0, 0.25)
+GAIN_MAX = 1.0
 #: effects of a parameter file that the online residual evaluates
 SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
 
@@ -100,10 +108,11 @@ class TorqueResidual:
     cutoff, order : causal Butterworth low-pass, Hz and order (paper: 5 Hz, 3).
     u_window : length of the initial Γu averaging (at rest, after a reset), s.
     u_tau : time constant of the Γu observer out of contact, s.
-    u_holdoff : Γu stays frozen this long after a contact ended, s.
     switch_tau : time constant with which the jump of Γp at a mode switch fades, s.
-    regrip_time, regrip_share : for this long (s) after a detection ended, the start threshold is
-        this share of ``threshold`` (but not within ``switch_quiet`` s of a start or stop).
+    switch_quiet, switch_share : within ``switch_quiet`` s of the axis starting or stopping, or of a
+        rest beginning, a detection needs ``switch_share`` x ``threshold``.
+    floor_tau, floor_k, floor_cap : at rest the start threshold is at least ``floor_k`` x the RMS of
+        Γr at rest out of contact (forgetting ``floor_tau`` s), at most ``floor_cap`` x ``threshold``.
     zeta0 : Maxwell-slip element positions relative to the start position, rad (parameter file's
         ``maxwell_slip.zeta0``); default zero (Γu absorbs the unknown initial state).
     qd_thr : mode-switching velocity threshold, rad/s (default the model's).
@@ -111,10 +120,9 @@ class TorqueResidual:
 
     def __init__(self, model: JointTorqueModel, sample_time: float = 0.012, threshold: float = 5.0,
                  release: float | None = None, cutoff: float = 5.0, order: int = 3, u_window: float = 0.12,
-                 zeta0: Any = None, qd_thr: float | None = None, u_tau: float = 1.0, u_holdoff: float = 1.0,
-                 switch_tau: float = 0.15, regrip_time: float = 1.0, regrip_share: float = 0.6,
-                 switch_quiet: float = 1.0, floor_tau: float = 5.0, floor_k: float = 4.0,
-                 floor_cap: float = 3.0, floor_prior: float = 1.0, switch_share: float = 2.0) -> None:
+                 zeta0: Any = None, qd_thr: float | None = None, u_tau: float = 1.0,
+                 switch_tau: float = 0.15, switch_quiet: float = 1.0, floor_tau: float = 5.0, floor_k: float = 4.0,
+                 floor_cap: float = 3.0, switch_share: float = 2.0) -> None:
         self.model = model
         self._rigid, self._friction = model.rigid, model.friction  # the model's terms as functions
         self.sample_time = _check("sample_time", sample_time, 0.0, 1.0)
@@ -125,21 +133,17 @@ class TorqueResidual:
                               f"{self.threshold} N·m")
         self.u_window = _check("u_window", u_window, 0.0, 60.0, open_lo=False)
         self.u_tau = _check("u_tau", u_tau, 0.0, 600.0)
-        self.u_holdoff = _check("u_holdoff", u_holdoff, 0.0, 60.0, open_lo=False)
         self.switch_tau = _check("switch_tau", switch_tau, 0.0, 10.0)
-        self.regrip_time = _check("regrip_time", regrip_time, 0.0, 60.0, open_lo=False)
-        self.regrip_share = _check("regrip_share", regrip_share, 0.0, 1.0)
         self.switch_quiet = _check("switch_quiet", switch_quiet, 0.0, 10.0, open_lo=False)
         self.floor_tau = _check("floor_tau", floor_tau, 0.0, 600.0)
         self.floor_k = _check("floor_k", floor_k, 0.0, 100.0, open_lo=False)
         self.floor_cap = _check("floor_cap", floor_cap, 1.0, 100.0, open_lo=False)
         self.switch_share = _check("switch_share", switch_share, 0.0, 100.0)
-        self.floor_prior = _check("floor_prior", floor_prior, 0.0, 600.0, open_lo=False)
         self.qd_thr = _check("qd_thr", model.qd_thr if qd_thr is None else qd_thr, 0.0, open_lo=False)
         self.cutoff, self.order = float(cutoff), int(order)
         fs = 1.0 / self.sample_time
         # q, qd, qdd, tau, predicted torque
-        self._filters = [CausalButterworth(cutoff, fs, order) for _ in range(5)]
+        self._filters = [CausalButterworth(cutoff, fs, order) for _ in range(6)]  # + Fp, for Γu's gain
         ms = model.maxwell_slip
         self._k = np.asarray(ms.k, dtype=float) if ms is not None else np.zeros(0)
         self._W = np.asarray(ms.W, dtype=float) if ms is not None else np.zeros(0)
@@ -197,18 +201,21 @@ class TorqueResidual:
         self._qd_prev = 0.0
         self._zeta = [q + float(v) for v in self._zeta0]
         fp0 = self._maxwell_slip(q)  # elements beyond their saturation slip back to it
-        for f, x0 in zip(self._filters, (q, 0.0, 0.0, tau, self.static_torque(q) + fp0)):
+        for f, x0 in zip(self._filters, (q, 0.0, 0.0, tau, self.static_torque(q) + fp0, fp0)):
             f.reset(x0)
         self._mode = QUASI_STATIC
         self._last_sign = 0.0
         self._u_n = 0
         self._u_need = max(1, int(round(self.u_window / self.sample_time)))
-        self._gamma_u = 0.0
-        self._since_contact = math.inf  # s since the last detection ended
-        # mean square of Γr at rest out of contact, N²m²: it starts as if floor_prior s had shown a
-        # residual at the cap (cautious until the model has shown how well it holds at rest)
-        self._rest_n = int(round(self.floor_prior / self.sample_time))
-        self._rest_ms = (self.floor_cap * self.threshold / self.floor_k) ** 2 if self.floor_k > 0 else 0.0
+        self._gamma_u = 0.0  # Γu at the rest's anchor, N·m
+        self._beta = 0.0  # Γu's gain on the model's pre-sliding torque since the anchor (plant / model - 1)
+        self._fp_anchor = fp0
+        self._fp_f = fp0
+        self._P = list(GAIN_P0)
+        self._since_rest = math.inf  # s since the present rest began (a stop, or a contact ended at rest)
+        # mean square of Γr at rest out of contact, N²m², from the level where the start threshold
+        # is ``threshold``
+        self._rest_ms = (self.threshold / self.floor_k) ** 2 if self.floor_k > 0 else 0.0
         self.rest_threshold_max = self.threshold
         self._bump = 0.0  # Γp jump of the last mode switch, fading
         self._since_switch = math.inf  # s since the axis last started or stopped
@@ -233,15 +240,44 @@ class TorqueResidual:
         return min(max(self.threshold, self.floor_k * math.sqrt(self._rest_ms)), self.floor_cap * self.threshold)
 
     # -- Γu, the quasi-static model's offset at rest ---------------------------------------------
+    def _at_rest(self) -> float:
+        """Γu, N·m: the offset at the rest's anchor plus ``beta`` times the model's pre-sliding torque
+        since then (the plant's pre-sliding friction may be stiffer or softer than the model's)."""
+        return self._gamma_u + self._beta * (self._fp_f - self._fp_anchor)
+
+    def _new_rest(self) -> None:
+        """A rest begins (the axis stopped, or a contact ended at rest): Γu anew (the paper: eq. 13),
+        re-anchored where the pre-sliding torque is now; ``beta`` is kept (a property of the axis)."""
+        self._gamma_u = self._at_rest()
+        self._fp_anchor = self._fp_f
+        self._P = list(GAIN_P0)
+        self._u_n = 0
+        self._since_rest = 0.0
+
     def _learn_rest(self, raw: float, h: float) -> None:
         """Out of contact at rest: Γu is the mean of the raw residual over the first ``u_window`` s of
-        a rest (eq. 13), then follows it with the time constant ``u_tau`` while the difference stays
-        below half the start threshold at rest (a push building up is not learnt)."""
+        a rest (eq. 13), then follows it: closely (time constant ``u_window``) while the axis settles
+        (``switch_quiet`` s from the stop, when a push needs ``switch_share`` x the threshold), then by
+        recursive least squares of the offset and ``beta`` (forgetting ``u_tau``) while the innovation
+        stays below half the start threshold at rest (a push building up is not learnt)."""
+        e = raw - self._at_rest()
         if self._u_n < self._u_need:
             self._u_n += 1
-            self._gamma_u += (raw - self._gamma_u) / self._u_n
-        elif abs(raw - self._gamma_u) < 0.5 * self.rest_threshold:
-            self._gamma_u += min(h / self.u_tau, 1.0) * (raw - self._gamma_u)
+            self._gamma_u += e / self._u_n
+        elif self._since_rest < self.switch_quiet:
+            self._gamma_u += min(h / max(self.u_window, h), 1.0) * e
+        elif abs(e) < 0.5 * self.rest_threshold:
+            x = self._fp_f - self._fp_anchor
+            lam = math.exp(-h / self.u_tau)
+            p00, p01, p11 = self._P
+            g0, g1 = p00 + p01 * x, p01 + p11 * x
+            den = lam + g0 + g1 * x
+            k0, k1 = g0 / den, g1 / den
+            self._gamma_u += k0 * e
+            self._beta = min(max(self._beta + k1 * e, -GAIN_MAX), GAIN_MAX)
+            p00, p01, p11 = (p00 - k0 * g0) / lam, (p01 - k0 * g1) / lam, (p11 - k1 * g1) / lam
+            f = min(1.0, GAIN_P0[0] / p00 if p00 > 0 else 1.0, GAIN_P0[2] / p11 if p11 > 0 else 1.0)
+            self._P = [f * p00, f * p01, f * p11]  # no wind-up while the axis stands still
 
     def update(self, q: float, tau: float, dt: float | None = None) -> ResidualSample:
         """Feed one measurement (position rad, motor torque N·m); return the new residual.
@@ -259,7 +295,7 @@ class TorqueResidual:
         qd_raw = (q - self._q_prev) / h
         qdd_raw = (qd_raw - self._qd_prev) / h
         self._q_prev, self._qd_prev = q, qd_raw
-        fq, fqd, fqdd, ftau, fpred = self._filters
+        fq, fqd, fqdd, ftau, fpred, ffp = self._filters
         # The prediction is evaluated sample by sample on the raw (differenced) signals, switching
         # friction model on the raw speed, and then low-passed by the same filter as the torque:
         # the filter is linear, so predicted and measured torque pass through identical dynamics
@@ -278,8 +314,9 @@ class TorqueResidual:
         pred_raw = self._rigid.Izz * qdd_raw + self.static_torque(q) + fric_raw
         q_f, qd_f, qdd_f, tau_f = fq.step(q), fqd.step(qd_raw), fqdd.step(qdd_raw), ftau.step(tau)
         pred_f = fpred.step(pred_raw)
+        fp_f = ffp.step(fp_raw)
 
-        old_mode, old_u = self._mode, (self._gamma_u if self._mode == QUASI_STATIC else 0.0)
+        old_mode, old_u = self._mode, (self._at_rest() if self._mode == QUASI_STATIC else 0.0)
         if abs(qd_f) >= self.qd_thr:
             self._mode = DYNAMIC
             self._last_sign = math.copysign(1.0, qd_f)
@@ -292,12 +329,13 @@ class TorqueResidual:
                 self._zeta = q - self._last_sign * (self._W / self._k)
         quasi = self._mode == QUASI_STATIC
         if quasi and old_mode == DYNAMIC and not self._detected:
-            self._u_n = 0  # a new rest: Γu anew from its start (the paper: eq. 13)
+            self._new_rest()
         raw = tau_f - pred_f  # what Γu must add for Γr = 0
-        learning = quasi and not self._detected and self._since_contact >= self.u_holdoff
+        self._fp_f = fp_f
+        learning = quasi and not self._detected
         if learning:
             self._learn_rest(raw, h)
-        new_u = self._gamma_u if quasi else 0.0
+        new_u = self._at_rest() if quasi else 0.0
         if self._mode != old_mode:  # bumpless: the prediction does not jump at a switch
             self._bump += old_u - new_u
         moving = v > thr  # the axis starting or stopping (on the differenced speed)
@@ -312,23 +350,19 @@ class TorqueResidual:
         a = abs(gamma_r)
         if self._detected:
             self._detected = a >= self.release
-            if not self._detected:
-                self._since_contact = 0.0
+            if not self._detected and quasi:  # a contact ended at rest: the friction held may differ now
+                self._new_rest()
         else:
             start = self.threshold
             if quasi:
-                if learning and self._u_n >= self._u_need:  # a mean at first, then forgetting
-                    self._rest_n += 1
-                    w = max(h / self.floor_tau, 1.0 / self._rest_n)
-                    self._rest_ms += w * (gamma_r * gamma_r - self._rest_ms)
+                if learning and self._u_n >= self._u_need and self._since_rest >= self.switch_quiet:
+                    self._rest_ms += min(h / self.floor_tau, 1.0) * (gamma_r * gamma_r - self._rest_ms)
                 start = self.rest_threshold
                 self.rest_threshold_max = max(self.rest_threshold_max, start)
-            if self._since_switch < self.switch_quiet:  # a start or a stop: friction and backlash spikes
+            if min(self._since_switch, self._since_rest) < self.switch_quiet:  # starts, stops: spikes
                 start = max(start, self.switch_share * self.threshold)
-            elif self._since_contact < self.regrip_time:
-                start = max(self.release, self.regrip_share * start)
             self._detected = a >= start
-            self._since_contact += h
+            self._since_rest += h
         return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, new_u)
 
 

@@ -64,7 +64,7 @@ def plant(name: str, seed: int = 0) -> Plant:
         Izz=Izz, Mx=Mx, ctrl_Izz=Izz * u(0.95, 1.05), ctrl_Mx=Mx * u(0.95, 1.05),
         ms_W=tuple(w * u(0.8, 1.2) for w in base.ms_W), ms_k=tuple(k * u(0.7, 1.4) for k in base.ms_k),
         Kp=u(30.0, 50.0), Kv=u(120.0, 170.0), Ki=u(20.0, 50.0),
-        noise_sigma=u(0.3, 0.7), vib_amplitude=u(0.0, 5e-5), vib_freq=u(0.5, 2.0))
+        noise_sigma=u(0.3, 0.7), vib_amplitude=u(0.0, 1e-5), vib_freq=u(0.5, 2.0))
     parts = set(name.split("-")[1:])
     if name.startswith("lugre"):
         kw.update(friction_law="lugre", lugre_sigma0=float(math.exp(u(math.log(1e5), math.log(4e5)))),

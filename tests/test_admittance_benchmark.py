@@ -1,0 +1,25 @@
+"""benchmarks/admittance_paper.py at its --quick size: it runs on the plant family and reports issue
+22's acceptance lines (the figures themselves come from the full run, docs/admittance.md)."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_admittance_benchmark_quick_runs_on_the_plant_family():
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "admittance_paper.py"), "--quick", "--json",
+                          "--jobs", "1"], capture_output=True, text=True, check=True, timeout=600)
+    doc = json.loads(out.stdout)
+    assert doc["plants"] == "family"
+    res = doc["results"]["0.024"]
+    runs = res["runs"]
+    assert {r["plant"] for r in runs["adaptive"]} == {"gms"}  # operators 0-2 meet the first member
+    assert len(runs["D50"]) == len(runs["adaptive"]) == 3
+    assert len(runs["D150"]) == 1                             # the firm references meet firm grips only
+    lines = [a["line"] for a in doc["acceptance"]]
+    assert any("lightest stable constant D" in line for line in lines)
+    assert any("detections after any release" in line for line in lines)

@@ -1,0 +1,238 @@
+"""Hand guiding never moves the axis by itself: on plants whose friction is not the estimator's own
+(the plant family of kukaid.sim.family, LuGre among them), after initiation moves up and down and
+after a guided move has ended, with either damping; and a parameter file that cannot hold at rest
+is refused before anything moves."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from kukaid.control.loop import PHASE_ADMITTANCE, LoopConfig, RestHold, check_guidable, run_admittance
+from kukaid.control.torque_residual import TorqueResidual
+from kukaid.errors import KukaidError
+from kukaid.params import model_from_params
+from kukaid.robot import SimRobot
+from kukaid.sim import SimConfig, VirtualKRC4
+from kukaid.sim.config import lugre_elements
+from kukaid.sim.family import FAMILY, plant
+from kukaid.sim.operator import PushOperator
+from kukaid_cli.main import cli
+
+Q0 = math.radians(30.0)
+DAMPINGS = (("constant", 0.024), ("adaptive", 0.012))
+
+
+def _traj(q0: float, move_deg: float):
+    class T:
+        pass
+
+    t = np.arange(0.0, 0.61, 0.012)
+    x = np.clip(t / 0.6, 0.0, 1.0)
+    tr = T()
+    tr.t, tr.q = t, q0 + math.radians(move_deg) * x ** 3 * (10 - 15 * x + 6 * x * x)
+    return tr
+
+
+# -- the LuGre plant -----------------------------------------------------------------------------
+@pytest.mark.parametrize("move", [1.0, -1.0])
+def test_lugre_stiction_holds_the_friction_of_the_move_at_rest(move):
+    """After a move against (or with) gravity the LuGre axis rests holding about Fs of friction in the
+    direction of the move: the motor torque differs from gravity by it (the estimator's Maxwell-slip
+    law would hold sum W instead)."""
+    c = SimConfig(friction_law="lugre", vibration=False, noise_sigma=0.0, Fs=20.0, Fc=15.0)
+    sim = VirtualKRC4(c, seed=1)
+    sim.reset(Q0)
+    sim.follow(_traj(Q0, move))
+    d = sim.advance(1.0)
+    held = d["tau"][-1] - c.Mx * math.cos(d["q"][-1])
+    assert held == pytest.approx(math.copysign(c.Fs, move), rel=0.15)
+    assert c.sum_W < 0.8 * c.Fs  # not the estimator's law at rest
+
+
+def test_lugre_slides_on_the_stribeck_curve():
+    """While sliding steadily LuGre's friction is Stribeck's: g(v) sign(v) + Fv v."""
+    c = SimConfig(friction_law="lugre", vibration=False, noise_sigma=0.0, Mx=0.0, ctrl_Mx=0.0)
+    sim = VirtualKRC4(c, seed=1)
+    sim.reset(0.0)
+
+    class T:
+        pass
+
+    for v in (0.02, 0.3):
+        sim.reset(0.0)
+        tr = T()
+        tr.t = np.arange(0.0, 3.0, 0.012)
+        tr.q = v * np.maximum(tr.t - 0.5, 0.0) ** 2 / 1.0
+        tr.q = np.where(tr.t < 1.5, v * np.maximum(tr.t - 0.5, 0.0) ** 2 / 2.0, v * 0.5 + v * (tr.t - 1.5))
+        sim.follow(tr)
+        d = sim.advance(3.0)
+        plateau = (d["time"] > 2.0) & (d["time"] < 2.9)
+        expected = c.stribeck()(v)
+        assert np.mean(d["tau"][plateau]) == pytest.approx(float(expected), rel=0.05)
+
+
+def test_servo_settles_with_a_small_overshoot():
+    for law in ("gms", "lugre"):
+        sim = VirtualKRC4(SimConfig(friction_law=law, vibration=False, noise_sigma=0.0), seed=1)
+        sim.reset(Q0, direction=1)
+        sim.advance(0.5)
+        sim.command(Q0 + math.radians(0.2))
+        d = sim.advance(1.5)
+        dq = np.degrees(d["q"] - Q0)
+        assert 0.02 < dq.max() - 0.2 < 0.1      # 10-50 % overshoot of a 0.2 degree step
+        assert abs(dq[-1] - 0.2) < 0.002         # and settles
+
+
+def test_lugre_elements_match_the_reversal_curve():
+    k, W = lugre_elements(2e5, 17.0)
+    assert sum(W) == pytest.approx(17.0)        # the full swing 2 Fs
+    assert sum(k) > 2e5                         # reversal stiffness near 2 sigma0, above the virgin sigma0
+
+
+# -- the family ----------------------------------------------------------------------------------
+def test_family_members_are_seeded_and_half_of_them_lugre():
+    a, b = plant("lugre-all", 7), plant("lugre-all", 7)
+    assert a.cfg == b.cfg and a.params == b.params
+    assert plant("lugre-all", 8).cfg != a.cfg
+    laws = [plant(name, 0).friction_law for name in FAMILY]
+    assert laws.count("lugre") == laws.count("gms") == len(FAMILY) // 2
+    assert a.cfg.tau_delay == 1 and a.cfg.tau_quant > 0 and a.cfg.fric_pos_amp > 0
+    assert a.params["maxwell_slip"]["k"]                # what identification gives: elements
+    with pytest.raises(KukaidError, match="unknown member"):
+        plant("stiction")
+
+
+def _quiet_run(p, damping, cycle, move, duration, operator=None):
+    cfg = LoopConfig(damping=damping, cycle=cycle, duration=duration, init_move=math.radians(move))
+    be = SimRobot(VirtualKRC4(p.cfg, seed=p.seed), Q0, operator)
+    return run_admittance(be, model_from_params(p.params), cfg)
+
+
+def _drift_and_detections(run, t_from: float = 0.0):
+    """Largest |q - q at the window's start| (degrees) and detected cycles, from ``t_from`` s on, or
+    with ``t_from`` < 0 from when the reference stood after the release at -``t_from`` s (the guided
+    move, coasting included, has ended)."""
+    d = run.data
+    if t_from < 0:
+        t_from = float(d["time"][(d["time"] > -t_from) & (d["sigma_dot"] == 0.0)][0])
+    w = (d["phase"] == PHASE_ADMITTANCE) & (d["time"] >= t_from)
+    i0 = np.flatnonzero(w)[0]
+    return float(np.degrees(np.max(np.abs(d["q"][w] - d["q"][i0])))), int(d["detected"][w].sum())
+
+
+@pytest.mark.parametrize("name", FAMILY)
+def test_nobody_touching_the_axis_never_moves(name):
+    """60 s with nobody there, after the initiation move up (against gravity) and down, both
+    dampings: drift < 0.05 degree (the ambient vibration included), no detection."""
+    p = plant(name, seed=11)
+    for damping, cycle in DAMPINGS:
+        for move in (1.0, -1.0):
+            run = _quiet_run(p, damping, cycle, move, 60.0)
+            drift, n_det = _drift_and_detections(run)
+            assert run.status == "completed"
+            assert drift < 0.05 and n_det == 0, (damping, move, drift, n_det)
+            assert "detected a push with nobody" not in " ".join(run.metrics["warnings"])
+
+
+@pytest.mark.parametrize("name", FAMILY)
+def test_after_a_guided_move_ends_the_axis_stays(name):
+    """A push moves the axis some degrees and lets go; from when the reference has coasted to a stop
+    on, for about 30 s, the axis stands (< 0.05 degree) and nothing is detected."""
+    p = plant(name, seed=12)
+    for damping, cycle in DAMPINGS:
+        for move in (1.0, -1.0):
+            op = PushOperator(amplitude=15.0 * move, t_start=2.0, duration=2.0, ramp=0.3)
+            run = _quiet_run(p, damping, cycle, move, 35.0, op)
+            moved = run.data["q"][-1] - run.data["q"][0]
+            drift, n_det = _drift_and_detections(run, t_from=-op.t_end)
+            assert abs(math.degrees(moved)) > 5.0 and math.copysign(1.0, moved) == move  # it was guided
+            assert drift < 0.05 and n_det == 0, (damping, move, drift, n_det)
+            assert run.metrics["false_after_release"] == 0
+
+
+# -- the estimator at rest -----------------------------------------------------------------------
+def _model(**kw):
+    return model_from_params(SimConfig().replace(**kw).truth_params())
+
+
+def test_gamma_u_is_taken_anew_at_every_rest():
+    """The paper's Γu (eq. 13) at the start of every quasi-static phase: a friction held at the second
+    rest that differs from the first by 12 N·m is not a push."""
+    m = _model(vibration=False)
+    est = TorqueResidual(m, sample_time=0.012)
+    det = []
+    for k in range(1500):
+        x = min(max((k - 200) / 100.0, 0.0), 1.0)  # a 0.06 rad minimum-jerk move from sample 200 to 300
+        q = Q0 + 0.06 * x ** 3 * (10 - 15 * x + 6 * x * x)
+        v = 0.06 * 30 * x * x * (1 - x) ** 2 / 1.2
+        # static friction held at each rest, unknown to the model: 3 N·m, then (0.7 s after the stop) -9 N·m
+        held = 3.0 if k < 200 else -9.0 + (float(m.friction(1e-3)) + 9.0) * max(0.0, 1.0 - (k - 300) / 60.0)
+        tau = m.rigid.Mx * math.cos(q) + m.rigid.Izz * 0.0 + (float(m.friction(v)) if 200 <= k < 300 else held)
+        r = est.update(q, tau)
+        if k > 300:
+            det.append(r.detected)
+    assert not any(det)
+    assert abs(r.gamma_r) < 1.0
+
+
+def test_threshold_at_rest_rises_with_a_wandering_residual_and_no_push_is_seen():
+    """A model whose friction at rest is off wanders at rest (here ±4 N·m at 1 Hz): the start
+    threshold at rest rises to floor_k x its RMS (capped), and none of it is detected; a 20 N·m push
+    still is."""
+    m = _model()
+    est = TorqueResidual(m, sample_time=0.012, threshold=5.0)
+    det = []
+    for k in range(3000):
+        t = k * 0.012
+        wander = 4.0 * math.sin(2 * math.pi * 1.0 * t) * min(t / 5.0, 1.0)
+        push = 20.0 if k >= 2800 else 0.0
+        r = est.update(Q0, m.rigid.Mx * math.cos(Q0) + wander - push)
+        det.append(r.detected)
+    assert not any(det[:2800]) and any(det[2800:])
+    assert 5.0 < est.rest_threshold_max <= 15.0
+
+
+def test_rest_hold_moves_the_reference_to_where_the_axis_stopped_once():
+    hold = RestHold(cycle=0.012, settle=0.06)
+    q_ref, out = 1.0, []
+    for k in range(10):
+        q_ref = hold.step(q_ref, 1.0004 + 1e-5 * k, moving=False, contact=False)
+        out.append(q_ref)
+    assert out[:4] == [1.0] * 4 and out[4:] == [1.0004 + 4e-5] * 6  # after the settle, once
+    assert hold.step(1.0, 1.0004, moving=True, contact=False) == 1.0  # moving again: starts over
+    far = RestHold(cycle=0.012, settle=0.0)
+    assert far.step(1.0, 1.1, moving=False, contact=False) == 1.0  # 5.7 degrees away: held, not snapped
+
+
+# -- parameter files that cannot hold at rest ----------------------------------------------------
+def test_a_file_without_maxwell_slip_elements_is_refused_before_anything_moves(tmp_path):
+    p = SimConfig().truth_params()
+    del p["maxwell_slip"]
+    with pytest.raises(KukaidError, match="no Maxwell-slip elements"):
+        check_guidable(model_from_params(p))
+    f = tmp_path / "noms.json"
+    f.write_text(json.dumps(p))
+    out = tmp_path / "run.h5"
+    res = CliRunner().invoke(cli, ["run-admittance", "--params", str(f), "-o", str(out), "--duration", "1"])
+    assert res.exit_code == 1
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and str(f) in err[0] and "--presliding" in err[0], err
+    assert not out.exists() and not list(tmp_path.glob("*.partial.h5"))
+
+
+def test_strict_exits_4_when_the_run_did_not_settle_and_lugre_is_selectable(tmp_path):
+    f = tmp_path / "p.json"
+    f.write_text(json.dumps(SimConfig().truth_params()))
+    args = ["run-admittance", "--params", str(f), "--operator", "push", "--duration", "2.5", "--json",
+            "--plant-friction", "lugre"]
+    res = CliRunner().invoke(cli, args + ["-o", str(tmp_path / "a.h5")])
+    assert res.exit_code == 0, res.output
+    m = json.loads(res.stdout)
+    assert not m["settled"] and any("did not settle" in w for w in m["warnings"])
+    res = CliRunner().invoke(cli, args + ["-o", str(tmp_path / "b.h5"), "--strict"])
+    assert res.exit_code == 4 and "--strict" in res.stderr
+    assert (tmp_path / "b.h5").exists()  # the run is recorded all the same
