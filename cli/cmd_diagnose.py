@@ -56,7 +56,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     refuse_other_kind(output, force, SCHEMA)
     stage = stages("diagnose")
     params = load_params(params_path)
-    stage(f"reading {len(logs)} log{'s' if len(logs) != 1 else ''}")
+    stage("reading the logs")
     data = [read_log(p) for p in logs]
     if axis is not None:
         for p, lg in zip(logs, data):

@@ -200,7 +200,7 @@ def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decima
             raise ParamFileError(f"{coupling}: must be a {model.n} x {model.n} matrix of finite numbers, "
                                  f"got shape {cpl.shape}")
     stage = stages("fit")
-    stage(f"reading {len(logs)} log{'s' if len(logs) != 1 else ''}")
+    stage("reading the logs")
     data = [read_log(p) for p in logs]
     stage(f"fitting A1..A{model.n} of {robot} (base parameters, then the physically consistent estimate)")
     with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off"):
@@ -213,11 +213,9 @@ def _summary(params: dict, output, as_json: bool, table) -> None:
     """The fit's figures on stdout: the table, or with --json the parameter file written (with
     ``"output"``: where), so a script reads the figures without parsing text."""
     if as_json:
-        import json
+        from kukaid_cli._util import echo_json
 
-        from kukaid.jsonfile import jsonable
-
-        click.echo(json.dumps(jsonable({"output": str(output), **params}), indent=2))
+        echo_json({"output": str(output), **params})
     else:
         click.echo(table(params))
     click.echo(f"{output}: parameters written", err=True)

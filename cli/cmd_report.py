@@ -58,7 +58,7 @@ def _robot_report(params, friction, inertia, presliding, logs, axis, output, sta
     from kukaid.report.robot import make_robot_report
 
     validate_robot_params(d, str(params))
-    stage(f"reading {len(logs)} log{'s' if len(logs) != 1 else ''}")
+    stage("reading the logs")
     n = make_robot_report(d, output, [read_log(p) for p in logs], source=str(params), stage=stage)
     _written(output, n)
     return True
