@@ -12,13 +12,33 @@ import click
 from kukaid.errors import KukaidError
 
 
+def on_terminal() -> bool:
+    """Progress is shown only when stderr is a terminal: in a pipe or a log file it is noise, and
+    stderr keeps to what went wrong (one line)."""
+    return sys.stderr.isatty()
+
+
+def stages(command: str) -> Callable[[str], None]:
+    """Stage lines for a step whose length is not known beforehand: ``stage("fitting")`` prints
+    ``kukaid: fit: fitting (2.1 s)`` on stderr, the time since the command started; on a terminal only."""
+    import time
+
+    if not on_terminal():
+        return lambda text: None
+    t0 = time.monotonic()
+
+    def stage(text: str) -> None:
+        click.echo(f"kukaid: {command}: {text} ({time.monotonic() - t0:.1f} s)", err=True)
+
+    return stage
+
+
 @contextmanager
 def progress(total: float, label: str) -> Iterator[Callable[[float], None]]:
     """A progress bar on stderr; yields ``update(done)`` taking the absolute amount done.
 
-    Only on a terminal: in a pipe or a log file a bar is noise, and stderr keeps to what went
-    wrong (one line)."""
-    if not sys.stderr.isatty():
+    Only on a terminal (:func:`on_terminal`)."""
+    if not on_terminal():
         yield lambda done: None
         return
     with click.progressbar(length=max(int(total * 1000), 1), label=label, file=sys.stderr,
@@ -32,6 +52,18 @@ def progress(total: float, label: str) -> Iterator[Callable[[float], None]]:
                 state["pos"] = pos
 
         yield update
+
+
+def echo_json(d: dict) -> None:
+    """A command's figures as JSON on stdout (``--json``)."""
+    import json
+
+    from kukaid.jsonfile import jsonable
+
+    click.echo(json.dumps(jsonable(d), indent=2))
+
+
+JSON_HELP = "Print what was written and its figures as JSON on stdout."
 
 
 @contextmanager

@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+from kukaid_cli._util import JSON_HELP
+
 from kukaid_cli._util import progress as progress_bar
 
 
@@ -15,6 +17,7 @@ from kukaid_cli._util import progress as progress_bar
 @click.option("--backend", type=click.Choice(["sim", "kvp"]), default="sim", show_default=True,
               help="sim: the virtual KR C4; kvp: a KR C4 over KUKAVARPROXY.")
 @click.option("--force", is_flag=True, help="Replace an existing log.")
+@click.option("--json", "as_json", is_flag=True, help=JSON_HELP)
 # sim
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="sim: seed of noise, vibration and effects.")
@@ -38,7 +41,7 @@ from kukaid_cli._util import progress as progress_bar
 @click.option("--until-interrupt", is_flag=True, help="kvp: record until Ctrl-C / SIGTERM (not with --duration).")
 @click.option("--mode", type=click.Choice(["poll", "ring"]), default="poll", show_default=True,
               help="kvp: poll variables, or read kukaid's KRL ring-buffer logger.")
-def command(trajectory: Path | None, output: Path, backend: str, force: bool, seed: int, sim_config: Path | None,
+def command(trajectory: Path | None, output: Path, backend: str, force: bool, as_json: bool, seed: int, sim_config: Path | None,
             noise: float | None, effects: tuple[str, ...], chunk: float, settle: float, host: str, port: int,
             axes: tuple[int, ...], duration: float | None, until_interrupt: bool, mode: str) -> None:
     """Run TRAJECTORY (from `kukaid excite`) on a backend and record an axis log.
@@ -138,6 +141,12 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, se
                 kept = ""
         click.echo(f"kukaid: error: capture interrupted{kept}", err=True)
         raise SystemExit(130)
+    if as_json:
+        from kukaid_cli._util import echo_json
+
+        echo_json({"output": str(result.output), "samples": result.n_samples, "duration": result.duration,
+                   "backend": backend, "source": be.name, "seed": seed if backend == "sim" else None,
+                   "complete": result.complete})
     click.echo(f"{result.output}: {result.n_samples} samples, {result.duration:.2f} s "
                f"({be.name}{', seed ' + str(seed) if backend == 'sim' else ''})", err=True)
 

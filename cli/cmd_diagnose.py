@@ -40,7 +40,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     from kukaid.atomic import atomic_paths
     from kukaid.logs import read_log
     from kukaid_cli._util import (check_outputs, check_suffix, option_in_data_error, refuse_other_kind,
-                                  require_positive)
+                                  require_positive, stages)
     from kukaid.params import load_params, save_params, validate_params
     from kukaid.params.axis import SCHEMA
     from kukaid.diagnose.workflow import diagnose
@@ -54,14 +54,17 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     check_suffix(report, ".pdf")
     check_outputs([output, report], [params_path, *logs])
     refuse_other_kind(output, force, SCHEMA)
+    stage = stages("diagnose")
     params = load_params(params_path)
+    stage("reading the logs")
     data = [read_log(p) for p in logs]
     if axis is not None:
         for p, lg in zip(logs, data):
             if axis not in lg.axes:
                 raise KukaidError(f"{p}: axis A{axis} is not in the log (axes: {list(lg.axes)})")
     with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off"):  # its limit: the log's rate
-        result = diagnose(params, data, axis=axis, cutoff=cutoff, alpha=alpha, max_steps=max_steps)
+        result = diagnose(params, data, axis=axis, cutoff=cutoff, alpha=alpha, max_steps=max_steps,
+                          source=str(params_path), stage=stage)
     if output is not None:
         validate_params(result.params, str(output))  # a problem names -o, not a temporary file
     with atomic_paths(*[p for p in (output, report) if p is not None]) as tmps:  # both or neither
@@ -71,6 +74,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
         if report is not None:
             from kukaid.diagnose.plots import write_report
 
+            stage("drawing the report")
             write_report(result, next(tmp))
     if as_json:
         click.echo(json.dumps(result.to_json(), indent=2))

@@ -7,6 +7,8 @@ from typing import Any
 
 import click
 
+from kukaid_cli._util import JSON_HELP
+
 KINDS = ("friction", "inertia", "presliding", "validation", "fourier")
 _ONE_AXIS = KINDS[:4]
 
@@ -90,6 +92,7 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
               help="Largest deviation of the KRL via-point path from the trajectory, degrees, > 0 "
                    "[0.005; fourier 0.05]; with --krl.")
 @click.option("--force", is_flag=True, help="Replace an existing file of another kind (-o) or KRL program files.")
+@click.option("--json", "as_json", is_flag=True, help=JSON_HELP)
 @click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="Axis (KUKA numbering).")
 # limits
 @click.option("--limits", "limits_file", type=click.Path(dir_okay=False, path_type=Path),
@@ -145,7 +148,7 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
 @click.option("--seed", type=int, help="fourier: seed of the optimiser's random starts [0].")
 @click.option("--centres-deg", help="fourier: centre of each joint's motion, deg, comma-separated [middle of the ranges].")
 def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: float | None,
-            force: bool, axis: int, limits_file: Path | None, q_min_deg: float | None, q_max_deg: float | None,
+            force: bool, as_json: bool, axis: int, limits_file: Path | None, q_min_deg: float | None, q_max_deg: float | None,
             qd_max_deg: float | None, qdd_max_deg: float | None, **opts: Any) -> None:
     """Write the trajectory of experiment KIND (friction, inertia, presliding, validation, fourier).
 
@@ -161,8 +164,8 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     from kukaid.excite.fourier import ROBOT_SCHEMA
     from kukaid.excite.trajectory import SCHEMA
     from kukaid.krc.krl import check_krl_name
-    from kukaid_cli._util import (check_outputs, check_suffix, krl_texts, refuse_other_kind, require_positive,
-                                  usage_errors)
+    from kukaid_cli._util import (check_outputs, check_suffix, echo_json, krl_texts, refuse_other_kind,
+                                  require_positive, usage_errors)
 
     check_suffix(output, ".json")
     check_outputs([output], [limits_file])
@@ -177,7 +180,7 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     kwargs = _generator_options(kind, opts)
     if kind == "fourier":
         _fourier(output, krl_dir, krl_name, krl_tol, force, limits_file, q_min_deg, q_max_deg, qd_max_deg,
-                 qdd_max_deg, kwargs)
+                 qdd_max_deg, kwargs, as_json)
         return
     limits = AxisLimits.kr6_r700_sixx(axis)
     if limits_file is not None:
@@ -194,6 +197,8 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
             raise TrajectoryError(_option_names(str(e))) from None
     files = {output: traj.json_text()}
     msg = f"{output}: {kind} trajectory of A{axis}, {traj.n_samples} samples, {traj.duration:.2f} s"
+    figures = {"output": str(output), "kind": kind, "axes": [axis], "samples": traj.n_samples,
+               "duration": traj.duration, "krl": None}
     if krl_dir is not None:
         from kukaid.krc.krl import krl_program
 
@@ -201,9 +206,17 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
                                         tol_deg=0.005 if krl_tol is None else krl_tol)
         files.update(krl_texts(krl_dir, {f"{summary['name']}.src": src, f"{summary['name']}.dat": dat}, force))
         msg += f"; KRL {krl_dir / summary['name']}.src/.dat, {summary['points']} via points"
+        figures["krl"] = _krl_figures(krl_dir, summary)
     check_outputs(files, [limits_file])
     write_texts_atomic(files)  # all or nothing
+    if as_json:
+        echo_json(figures)
     click.echo(msg, err=True)
+
+
+def _krl_figures(krl_dir: Path, summary: dict) -> dict:
+    return {"src": str(krl_dir / f"{summary['name']}.src"), "dat": str(krl_dir / f"{summary['name']}.dat"),
+            "via_points": summary["points"]}
 
 
 def _option_names(msg: str) -> str:
@@ -237,7 +250,7 @@ def _generator_options(kind: str, opts: dict[str, Any]) -> dict[str, Any]:
 def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: float | None, force: bool,
              limits_file: Path | None,
              q_min_deg: float | None, q_max_deg: float | None, qd_max_deg: float | None, qdd_max_deg: float | None,
-             kwargs: dict[str, Any]) -> None:
+             kwargs: dict[str, Any], as_json: bool) -> None:
     """`kukaid excite fourier`: every axis of the robot, limits from its URDF."""
     from kukaid.atomic import write_texts_atomic
     from kukaid.errors import TrajectoryError
@@ -245,7 +258,7 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
     from kukaid.jsonfile import read_json
     from kukaid.models.limits import AxisLimits
     from kukaid.models.urdf import load_model
-    from kukaid_cli._util import check_outputs, krl_texts, usage_errors
+    from kukaid_cli._util import check_outputs, echo_json, krl_texts, progress, usage_errors
 
     ctx = click.get_current_context()
     if ctx.get_parameter_source("axis") != click.core.ParameterSource.DEFAULT:
@@ -264,19 +277,25 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
                                   f"{', '.join(sorted(known))}")
         limits = [AxisLimits.from_dict(over[lim.name], base=lim, where=f"{limits_file}: {lim.name}")
                   if lim.name in over else lim for lim in limits]
-    with usage_errors(types=(TrajectoryError,)):  # an option out of range (a broken limit stays 1)
-        traj = fourier(robot=robot, limits=limits, model=model, **kwargs)
+    with usage_errors(types=(TrajectoryError,)), progress(1.0, "excite fourier") as update:
+        traj = fourier(robot=robot, limits=limits, model=model, progress=update, **kwargs)
     files = {output: traj.json_text()}
     msg = (f"{output}: fourier trajectory of {len(traj.axes)} axes, {traj.n_samples} samples, {traj.duration:.2f} s, "
            f"regressor condition number {traj.params['cond']:.4g}")
+    figures = {"output": str(output), "kind": "fourier", "robot": traj.robot, "axes": list(traj.axes),
+               "samples": traj.n_samples, "duration": traj.duration, "condition_number": traj.params["cond"],
+               "krl": None}
     if krl_dir is not None:
         from kukaid.krc.krl import krl_program_robot
 
         src, dat, summary = krl_program_robot(traj, name=krl_name, tol_deg=0.05 if krl_tol is None else krl_tol)
         files.update(krl_texts(krl_dir, {f"{summary['name']}.src": src, f"{summary['name']}.dat": dat}, force))
         msg += f"; KRL {krl_dir / summary['name']}.src/.dat, {summary['points']} via points"
+        figures["krl"] = _krl_figures(krl_dir, summary)
     check_outputs(files, [limits_file])
     write_texts_atomic(files)
+    if as_json:
+        echo_json(figures)
     click.echo(msg, err=True)
     if traj.params["cond"] > COND_WARN:
         click.echo(f"warning: regressor condition number {traj.params['cond']:.3g} (above {COND_WARN:g}): the base "

@@ -20,6 +20,8 @@ import click
               help="Parameter file to write (JSON, kukaid.params/1); an existing parameter file of the same kind "
                    "is replaced (fitted parameters are derived from the logs), any other file only with --force.")
 @click.option("--force", is_flag=True, help="Replace an existing file that is not a parameter file of this kind.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the parameter file written as JSON on stdout (with \"output\"), not the table.")
 @click.option("--method", type=click.Choice(["joint", "staged"]), default="joint", show_default=True,
               help="Stribeck fit: joint (all dynamic samples) or staged (the paper's eqs. 2-5).")
 @click.option("--friction-model", type=click.Choice(["auto", "stribeck", "coulomb-viscous"]), default=None,
@@ -57,7 +59,7 @@ import click
 @click.option("--coupling", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="With --robot --torque-side motor: n x n JSON matrix, motor angles = ratio (I + C) q "
                    "(the coupled wrist drives).")
-def command(logs, friction, inertia, presliding, axis, output, force, method, friction_model, gravity, offset, elements,
+def command(logs, friction, inertia, presliding, axis, output, force, as_json, method, friction_model, gravity, offset, elements,
             cutoff, order, qd_thr, edge, decimate, reversal_window, diff, bound, robot, prior_weight, torque_side,
             stribeck_vs, rotor_inertia, coupling) -> None:
     """Fit Stribeck friction, Izz/Mx and Maxwell-slip elements from axis logs (HDF5 or CSV);
@@ -74,7 +76,7 @@ def command(logs, friction, inertia, presliding, axis, output, force, method, fr
     require_positive(("--cutoff", cutoff))
     if robot is not None:
         _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decimate, prior_weight, torque_side,
-                   stribeck_vs, rotor_inertia, coupling)
+                   stribeck_vs, rotor_inertia, coupling, as_json)
         return
     friction_model = friction_model or "auto"
     decimate = decimate or 1
@@ -83,7 +85,8 @@ def command(logs, friction, inertia, presliding, axis, output, force, method, fr
     from kukaid.identify.stribeck_fit import check_bound
     from kukaid.params import save_params
     from kukaid.params.axis import SCHEMA
-    from kukaid_cli._util import check_outputs, check_suffix, option_in_data_error, refuse_other_kind, usage_errors
+    from kukaid_cli._util import (check_outputs, check_suffix, option_in_data_error, refuse_other_kind, stages,
+                                  usage_errors)
 
     check_suffix(output, ".json")
     check_outputs([output], [*logs, *friction, *inertia, presliding])
@@ -109,14 +112,14 @@ def command(logs, friction, inertia, presliding, axis, output, force, method, fr
             raise click.BadParameter(f"{name}: no such parameter (parameters: {', '.join(known)})", param_hint="--bound")
         with usage_errors("--bound"):
             check_bound(name, lo, hi)
+    stages("fit")("reading, pre-processing and fitting the logs")
     with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off"):  # its limit: the log's rate
         params = fit_axis(logs=list(logs), friction=list(friction), inertia=list(inertia), presliding=presliding,
                           axis=axis, method=method, friction_model=friction_model, gravity=gravity, offset=offset,
                           n_elements=elements, bounds=bounds or None, cutoff=cutoff, order=order, qd_thr=qd_thr,
                           edge=edge, decimate=decimate, reversal_window=reversal_window, diff=diff)
     save_params(output, params)
-    click.echo(format_table(params))
-    click.echo(f"{output}: parameters written", err=True)
+    _summary(params, output, as_json, format_table)
 
 
 #: options of the single-axis fit only, and of the robot fit (--robot) only; the others
@@ -162,14 +165,14 @@ def _flag(param: click.Parameter) -> str:
 
 
 def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decimate, prior_weight, torque_side,
-               stribeck_vs, rotor_inertia, coupling) -> None:
+               stribeck_vs, rotor_inertia, coupling, as_json) -> None:
     """``kukaid fit LOG... --robot``: the whole robot, written as kukaid.robot_params/1."""
     from kukaid.identify.robot_fit import PRIOR_WEIGHT, RobotFitSettings, fit_robot, format_robot_table
     from kukaid.logs import read_log
     from kukaid.models.robot import RobotModel
     from kukaid.params import save_robot_params
     from kukaid.params.robot import SCHEMA
-    from kukaid_cli._util import check_outputs, check_suffix, option_in_data_error, refuse_other_kind
+    from kukaid_cli._util import check_outputs, check_suffix, option_in_data_error, refuse_other_kind, stages
 
     if not logs:
         raise click.UsageError("give at least one log of the robot moving (LOG...)")
@@ -196,9 +199,23 @@ def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decima
         if cpl.shape != (model.n, model.n) or not np.all(np.isfinite(cpl)):
             raise ParamFileError(f"{coupling}: must be a {model.n} x {model.n} matrix of finite numbers, "
                                  f"got shape {cpl.shape}")
+    stage = stages("fit")
+    stage("reading the logs")
     data = [read_log(p) for p in logs]
+    stage(f"fitting A1..A{model.n} of {robot} (base parameters, then the physically consistent estimate)")
     with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off"):
         params = fit_robot(data, model, settings, coupling=cpl)
     save_robot_params(output, params)
-    click.echo(format_robot_table(params))
+    _summary(params, output, as_json, format_robot_table)
+
+
+def _summary(params: dict, output, as_json: bool, table) -> None:
+    """The fit's figures on stdout: the table, or with --json the parameter file written (with
+    ``"output"``: where), so a script reads the figures without parsing text."""
+    if as_json:
+        from kukaid_cli._util import echo_json
+
+        echo_json({"output": str(output), **params})
+    else:
+        click.echo(table(params))
     click.echo(f"{output}: parameters written", err=True)

@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+from kukaid_cli._util import JSON_HELP
+
 #: Output suffix -> format.
 OUTPUT_FORMATS = {".h5": "hdf5", ".hdf5": "hdf5", ".csv": "csv"}
 #: Options that only a MAT source uses (parameter name -> option).
@@ -21,6 +23,7 @@ TRACE_SUFFIXES = (".dat", ".r64")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Axis log to write: .h5/.hdf5 (HDF5), or .csv to convert back.")
 @click.option("--force", is_flag=True, help="Replace an existing output file (never the input).")
+@click.option("--json", "as_json", is_flag=True, help=JSON_HELP)
 @click.option("--time", "time_var", default=None, help="MAT: time variable (default 'time' or 't').")
 @click.option("--q", "q_var", default=None, help="MAT: position variable.")
 @click.option("--tau", "tau_var", default=None, help="MAT: torque (force) variable.")
@@ -46,7 +49,7 @@ TRACE_SUFFIXES = (".dat", ".r64")
               show_default=True,
               help="Trace: position = the measured position's instants (others interpolated linearly), finest = "
                    "the shortest sample time, common = only instants every channel has (no interpolation).")
-def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q_cmd_var, tau_scale, tau_scale_var,
+def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_var, tau_var, q_cmd_var, tau_scale, tau_scale_var,
             q_scale, time_scale, sample_time, joint, axis, gear_ratio, time_base) -> None:
     """Convert SOURCE (CSV, HDF5, MAT, KUKA Trace .dat/.r64) to an axis log.
 
@@ -80,7 +83,7 @@ def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q
 
     from kukaid.logs import read_log, write_csv, write_hdf5
 
-    options = {}
+    options, hints = {}, []
     if is_mat:
         from kukaid.logs.matlog import check_mat_options
 
@@ -91,7 +94,8 @@ def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q
             check_mat_options(source, tau_scale, tau_scale_var, q_scale, time_scale, sample_time)
         options = dict(time=time_var, q=q_var, tau=tau_var, q_cmd=q_cmd_var, tau_scale=tau_scale,
                        tau_scale_var=tau_scale_var, q_scale=q_scale, time_scale=time_scale, sample_time=sample_time,
-                       joint=joint, axis=_axes(source, axis))
+                       joint=joint if ctx.get_parameter_source("joint") != ParameterSource.DEFAULT else None,
+                       axis=_axes(source, axis), hints=hints)
     elif is_trace:
         options = dict(gear_ratio=gear_ratio, time_base=time_base)
     if source.suffix.lower() in (".h5", ".hdf5"):
@@ -106,7 +110,15 @@ def command(source: Path, output: Path, force: bool, time_var, q_var, tau_var, q
         write_hdf5(log, output)
     if "time_base_note" in log.attrs:
         click.echo(log.attrs["time_base_note"])
-    _warn_implausible(source, log)
+    for h in hints:  # units the file leaves open, and the option that says them
+        click.echo(f"kukaid: warning: load: {h}", err=True)
+    hints += _implausible(source, log)
+    if as_json:
+        from kukaid_cli._util import echo_json
+
+        echo_json({"output": str(output), "source": str(source), "samples": log.n_samples, "axes": list(log.axes),
+                   "joint": list(log.joint), "duration": log.duration, "time_base": log.attrs.get("time_base"),
+                   "warnings": hints})
     click.echo(f"{output}: {log.n_samples} samples of axes {', '.join(f'A{a}' for a in log.axes)}, "
                f"{log.duration:.2f} s", err=True)
 
@@ -123,16 +135,18 @@ def _axes(source: Path, text: str) -> int | list[int]:
 
 
 
-def _warn_implausible(source: Path, log) -> None:
+def _implausible(source: Path, log) -> list[str]:
     """A prismatic position beyond any linear track is probably a wrong --q-scale (revolute ones
-    beyond 720 degrees are refused by the readers): a warning, the log is written."""
+    beyond 720 degrees are refused by the readers): a warning (printed and returned), the log is written."""
     import numpy as np
 
     from kukaid.logs.core import MAX_PRISMATIC_M
 
+    out = []
     for c, (a, j) in enumerate(zip(log.axes, log.joint or ())):
         peak = float(np.max(np.abs(log.q[:, c]))) if j == "prismatic" and log.q.size else 0.0
         if peak > MAX_PRISMATIC_M:
-            click.echo(f"kukaid: warning: load: {source}: the position of A{a} (prismatic) reaches {peak:.6g} m, "
-                       f"beyond {MAX_PRISMATIC_M:g} m (longer than a linear track): wrong --q-scale, or "
-                       "millimetres as metres?", err=True)
+            out.append(f"{source}: the position of A{a} (prismatic) reaches {peak:.6g} m, beyond {MAX_PRISMATIC_M:g} "
+                       "m (longer than a linear track): wrong --q-scale, or millimetres as metres?")
+            click.echo(f"kukaid: warning: load: {out[-1]}", err=True)
+    return out

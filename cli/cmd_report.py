@@ -27,19 +27,23 @@ def command(params, friction, inertia, presliding, logs, axis, output) -> None:
 
     matplotlib.use("Agg")
     from kukaid.report import make_report
-    from kukaid_cli._util import check_outputs, check_suffix
+    from kukaid_cli._util import check_outputs, check_suffix, stages
 
     check_suffix(output, ".pdf")
     check_outputs([output], [params, *friction, *inertia, presliding, *logs])
-    if _robot_report(params, friction, inertia, presliding, logs, axis, output):
+    stage = stages("report")
+    if _robot_report(params, friction, inertia, presliding, logs, axis, output, stage):
         return
 
+    warnings: list[str] = []
     n = make_report(params, output, friction=list(friction), inertia=list(inertia), presliding=presliding,
-                    logs=list(logs), axis=axis)
+                    logs=list(logs), axis=axis, warnings=warnings, stage=stage)
+    for w in warnings:
+        click.echo(f"kukaid: warning: report: {w}", err=True)
     _written(output, n)
 
 
-def _robot_report(params, friction, inertia, presliding, logs, axis, output) -> bool:
+def _robot_report(params, friction, inertia, presliding, logs, axis, output, stage) -> bool:
     """A robot parameter file (kukaid.robot_params/1): its own report; False for any other file."""
     from kukaid.errors import ParamFileError
     from kukaid.jsonfile import read_json
@@ -54,7 +58,8 @@ def _robot_report(params, friction, inertia, presliding, logs, axis, output) -> 
     from kukaid.report.robot import make_robot_report
 
     validate_robot_params(d, str(params))
-    n = make_robot_report(d, output, [read_log(p) for p in logs], source=str(params))
+    stage("reading the logs")
+    n = make_robot_report(d, output, [read_log(p) for p in logs], source=str(params), stage=stage)
     _written(output, n)
     return True
 

@@ -34,20 +34,15 @@ def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> No
 def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hint: str = "",
                      error: type | None = None) -> None:
     """A one-axis parameter file drives the axis that moves only if it is a model of that axis:
-    revolute (rad, N·m; the virtual KR C4's axis and A1..A6 of a KR C4 over KUKAVARPROXY are) and,
-    when the file names its axis, the same number.  A model of another axis (EMPS, a prismatic
-    drive of 95 kg in N) read as N·m and rad makes a meaningless Γr: false detections move the axis."""
-    from kukaid.errors import ParamFileError
+    revolute (the virtual KR C4's axis and A1..A6 of a KR C4 over KUKAVARPROXY are) and, when the
+    file names its axis, the same number.  A model of another axis (EMPS, a prismatic drive of
+    95 kg in N) read as N·m and rad makes a meaningless Γr: false detections move the axis."""
+    from kukaid.params import check_model_of
 
-    joint = (params.get("provenance") or {}).get("joint") or "revolute"
-    file_axis = params.get("axis")
-    name = f"A{file_axis}" if file_axis is not None else "its axis"
-    if joint != "revolute":
-        units = "positions in m, forces in N" if joint == "prismatic" else f"joint type {joint!r}"
-        raise ParamFileError(f"{params_path}: a model of a {joint} axis ({name}, {units}) cannot drive {where}, a "
-                             f"revolute axis (rad, N·m); fit a model of that axis")
-    if file_axis is not None and int(file_axis) != axis:
-        raise (error or ParamFileError)(f"{params_path}: a model of A{file_axis} cannot drive {where}{hint}")
+    check_model_of(params, str(params_path), joint="revolute",
+                   use=f"they cannot drive {where}, a revolute axis (rad, N·m); fit a model of that axis")
+    check_model_of(params, str(params_path), axis=axis, use=f"a model of A{params.get('axis')} cannot drive {where}{hint}",
+                   error=error)
 
 
 @click.command("run-admittance")

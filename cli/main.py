@@ -37,6 +37,9 @@ class LazyGroup(click.Group):
             return super().main(args, prog_name, complete_var, False, **extra)
         try:
             rv = super().main(args, prog_name, complete_var, False, **extra)
+        except click.exceptions.NoArgsIsHelpError as e:  # `kukaid` or `kukaid CMD` alone: the help, as --help
+            click.echo(e.ctx.get_help())
+            sys.exit(0)
         except click.ClickException as e:
             ctx = getattr(e, "ctx", None)
             where = f"{ctx.info_name}: " if ctx is not None and ctx.parent is not None else ""

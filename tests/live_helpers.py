@@ -58,9 +58,12 @@ class CountingSource:
     given counts: a capture polls ``$AXIS_ACT_MEAS`` once a sample (``KID_WR`` once a ring poll),
     so a test can drop the link after sample 60 and stop after 60 more, at any speed."""
 
-    def __init__(self, source: Any, name: str = "$AXIS_ACT_MEAS") -> None:
+    def __init__(self, source: Any, name: str = "$AXIS_ACT_MEAS", step: Callable[[], None] | None = None) -> None:
+        """``step``: called at every counted read before it is served (a SimSource that is not
+        started, stepped one sample per poll: ``lambda: src.step(0.012)``)."""
         self.source = source
         self.name = name.upper()
+        self.step = step
         self.n = 0
         self.times: list[float] = []  # time.monotonic() of every counted read
         self._actions: dict[int, Callable[[], None]] = {}
@@ -77,6 +80,8 @@ class CountingSource:
                 self.n += 1
                 self.times.append(time.monotonic())
                 action = self._actions.pop(self.n, None)
+            if self.step is not None:
+                self.step()
             if action is not None:
                 action()
         return self.source.read(name)

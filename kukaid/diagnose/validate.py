@@ -136,15 +136,25 @@ def predict_axis(params: dict, log: Any, axis: int | None = None) -> dict[int, t
     return {ax: (pr.tau[keep], tau_hat[keep])}
 
 
-def validate(params: dict, logs: Sequence[Any], axis: int | None = None) -> dict[int, AxisScore]:
-    """Per-axis out-of-sample figures of the model of ``params`` on ``logs`` (pooled).
+def validate(params: dict, logs: Sequence[Any], axis: int | None = None,
+             source: str = "parameters") -> dict[int, AxisScore]:
+    """Per-axis out-of-sample figures of the model of ``params`` (read from ``source``) on ``logs`` (pooled).
 
     Raises
     ------
     KukaidError : an axis is missing from a log, or no sample is compared.
+    ParamFileError : a one-axis file of another axis than ``axis``, or of another joint type than the logs'.
     """
+    from kukaid.params import SCHEMA, check_model_of
+
     if not logs:
         raise KukaidError("validate needs at least one log")
+    if params.get("schema", SCHEMA) == SCHEMA:
+        ax = int(params.get("axis", 3)) if axis is None else int(axis)
+        check_model_of(params, source, axis=axis)
+        for log in logs:
+            if ax in log.axes:
+                check_model_of(params, source, joint=log.joint[log.index(ax)])
     predict = predictor_for(params)
     parts: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
     for log in logs:
@@ -157,6 +167,31 @@ def validate(params: dict, logs: Sequence[Any], axis: int | None = None) -> dict
         if tau.size == 0:
             raise KukaidError(f"A{ax}: no dynamic-mode samples in the logs (the axis does not move)")
         out[ax] = score(tau, hat)
+    return out
+
+
+def fitted_logs(params: dict) -> list[str]:
+    """The logs the model of ``params`` was fitted on, as its provenance names them (one axis:
+    ``{"friction": [...], "inertia": [...], "presliding": ..., "general": [...]}``; a robot: a list)."""
+    logs = (params.get("provenance") or {}).get("logs")
+    if isinstance(logs, dict):
+        logs = [x for v in logs.values() for x in (v if isinstance(v, list) else [v])]
+    return [str(x) for x in logs or () if x]
+
+
+def in_sample(params: dict, logs: Sequence[Any], params_path: Any = None) -> list[Any]:
+    """The ``logs`` (paths) that the model of ``params`` was fitted on (:func:`fitted_logs`): the
+    same file, the provenance's path taken from the working folder or from the parameter file's."""
+    import os
+    from pathlib import Path
+
+    bases = [Path.cwd()] + ([Path(params_path).resolve().parent] if params_path is not None else [])
+    fitted = {(b / f).resolve() for f in fitted_logs(params) for b in bases}
+    out = []
+    for p in logs:
+        here = Path(p).resolve()
+        if here in fitted or any(f.exists() and here.exists() and os.path.samefile(here, f) for f in fitted):
+            out.append(p)
     return out
 
 

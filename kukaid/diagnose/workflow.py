@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import copy
 import math
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -161,13 +161,16 @@ def _search(model: Model, sigs: Sequence[LogSignals], cand: C.Candidate) -> dict
 
 def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float = 0.01, min_effect: float = 0.15,
                      max_steps: int = 4, candidates: Sequence[str] | None = None,
-                     max_held_out: int = 3, alpha_held_out: float = 0.05) -> Diagnosis:
+                     max_held_out: int = 3, alpha_held_out: float = 0.05,
+                     stage: Callable[[str], None] | None = None) -> Diagnosis:
     """Run the workflow on prepared signals (see :func:`diagnose`)."""
+    stage = stage or (lambda text: None)
     if not sigs:
         raise KukaidError("diagnose needs at least one log")
     if sum(s.rows.size for s in sigs) < 50:
         raise FitError("fewer than 50 dynamic-mode samples in the logs: the axis barely moves; nothing to diagnose")
     joint = sigs[0].joint
+    stage("comparing the model with the data, refitting it as it is")
     given = model_from_params(params, joint).within_bounds()
     rmse0, rel0 = rmse_of(given, sigs)
     floor = noise_floor(sigs)
@@ -189,7 +192,8 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     rejected: list[dict] = []
     excluded: set[str] = set()
     tested = max_steps > 0
-    for _ in range(max_steps):
+    for k in range(max_steps):
+        stage(f"round {k + 1} of at most {max_steps}: testing the candidate effects")
         rd = Round(model, sigs)
         tests = []
         for n in names:
@@ -303,7 +307,8 @@ def preprocess_settings(params: dict) -> dict:
 
 def diagnose(params: dict, logs: Sequence[Any], axis: int | None = None, *, cutoff: float | None = None,
              order: int | None = None, qd_thr: float | None = None, alpha: float = 0.01,
-             min_effect: float = 0.15, max_steps: int = 4, candidates: Sequence[str] | None = None) -> Diagnosis:
+             min_effect: float = 0.15, max_steps: int = 4, candidates: Sequence[str] | None = None,
+             source: str = "parameters", stage: Callable[[str], None] | None = None) -> Diagnosis:
     """Find the effects the model of ``params`` misses in ``logs``, add them, refit.
 
     Parameters
@@ -317,6 +322,9 @@ def diagnose(params: dict, logs: Sequence[Any], axis: int | None = None, *, cuto
     min_effect : smallest effect worth naming, as RMS torque over the raw torque-noise sigma.
     max_steps : at most this many effects are added.
     candidates : restrict the library to these names.
+    stage : told what is being done (progress lines).
+    source : where ``params`` came from, for messages (a file of another axis than ``axis``, or of
+        another joint type than the logs', is refused: :func:`kukaid.params.check_model_of`).
 
     Returns
     -------
@@ -330,12 +338,17 @@ def diagnose(params: dict, logs: Sequence[Any], axis: int | None = None, *, cuto
         pre["order"] = int(order)
     if qd_thr is not None:
         pre["qd_thr"] = float(qd_thr)
+    from kukaid.params import check_model_of
+
+    check_model_of(params, source, axis=axis)
     if axis is None:
         axis = params.get("axis")
     sigs = []
     for i, log in enumerate(logs):
         ax = axis if axis is not None and axis in log.axes else (log.axes[0] if axis is None else axis)
+        if ax in log.axes:
+            check_model_of(params, source, joint=log.joint[log.index(ax)])
         sigs.append(prepare(log, ax, cutoff=pre["cutoff"], order=pre["order"], qd_thr=pre["qd_thr"],
                             name=str(log.attrs.get("source_file", f"log {i + 1}"))))
     return diagnose_signals(params, sigs, alpha=alpha, min_effect=min_effect, max_steps=max_steps,
-                            candidates=candidates)
+                            candidates=candidates, stage=stage)

@@ -25,7 +25,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -293,7 +293,7 @@ class FourierDesign:
 
 def design(model, limits: Sequence[AxisLimits], harmonics: int = 5, period: float = 10.0, margin: float = 0.9,
            span: float = 0.6, centre: np.ndarray | None = None, seed: int = 0, iterations: int = 10,
-           n_eval: int = 100, starts: int = 16) -> FourierDesign:
+           n_eval: int = 100, starts: int = 16, progress: Callable[[float], None] | None = None) -> FourierDesign:
     """Coefficients minimising the base regressor's condition number within the limits.
 
     Parameters
@@ -306,6 +306,7 @@ def design(model, limits: Sequence[AxisLimits], harmonics: int = 5, period: floa
     centre : (A,) rad, centre of the motion (default: middle of each range).
     seed : seed of the random starts.   iterations : L-BFGS-B iterations.   n_eval : states per period
     in the condition number.   starts : random starts; the best one is optimised.
+    progress : called with the fraction done (0..1, from the evaluations of the condition number).
     """
     from scipy.optimize import minimize
 
@@ -330,7 +331,13 @@ def design(model, limits: Sequence[AxisLimits], harmonics: int = 5, period: floa
         s, m = _fit_to_limits(*fourier_series(td, a, b, wf), limits, margin, spanv, cen)
         return a, b, s, m
 
+    # evaluations: the starts, then per L-BFGS-B iteration a gradient by differences (2 n L) and a step
+    expected, done = max(1, starts) + int(iterations) * (2 * n * L + 2), [0]
+
     def objective(x):
+        done[0] += 1
+        if progress is not None:
+            progress(min(1.0, done[0] / expected))
         a, b, s, m = scaled(x)
         d, qd, qdd = fourier_series(te, a, b, wf)
         c = cond(cen + s * (d - m), s * qd, s * qdd)
@@ -347,13 +354,16 @@ def design(model, limits: Sequence[AxisLimits], harmonics: int = 5, period: floa
         if res.fun < fx:
             x, fx = res.x, float(res.fun)
     a, b, s, m = scaled(x)
+    if progress is not None:
+        progress(1.0)
     return FourierDesign(a=a, b=b, wf=wf, scale=s, mid=m, centre=cen, cond=float(math.exp(fx)))
 
 
 def fourier(robot: str = "kr6-r700-sixx", harmonics: int = 5, period: float = 10.0, periods: int = 3,
             margin: float = 0.9, span: float = 0.6, centre: Sequence[float] | None = None,
             limits: Sequence[AxisLimits] | None = None, qdd_max: float | None = None, seed: int = 0,
-            iterations: int = 10, starts: int = 16, dt: float = IPO_DT, model: Any = None) -> RobotTrajectory:
+            iterations: int = 10, starts: int = 16, dt: float = IPO_DT, model: Any = None,
+            progress: Callable[[float], None] | None = None) -> RobotTrajectory:
     """An optimised Fourier excitation of every axis of ``robot`` (bundled name or URDF path).
 
     See :func:`design` for the parameters; ``periods`` repeats the period (averaging noise);
@@ -379,7 +389,7 @@ def fourier(robot: str = "kr6-r700-sixx", harmonics: int = 5, period: float = 10
     n_per = int(round(period / dt))
     period = n_per * dt  # a whole number of IPO cycles: the repeated periods join exactly
     des = design(model, lims, harmonics=harmonics, period=period, margin=margin, span=span, centre=cen, seed=seed,
-                 iterations=iterations, starts=starts)
+                 iterations=iterations, starts=starts, progress=progress)
     t = np.arange(n_per * periods + 1) * dt
     q, _, _ = des.evaluate(t % period)
     params = {"robot": str(robot), "harmonics": harmonics, "period": period, "periods": periods, "margin": margin,

@@ -39,6 +39,8 @@ def friction(speeds: Sequence[float] | None = None, v_min: float = 0.01, v_max: 
     Trajectory with ``params["plateaus"]``: [t_start, t_end, velocity] of every plateau (s, rad/s).
     """
     limits = limits or AxisLimits.kr6_r700_sixx(axis)
+    # the option a speed comes from: the list given, or the range v_min..v_max
+    source = "speeds" if speeds is not None else "v_max"
     if speeds is None:
         v_min = _num("v_min", v_min)
         v_max = _num("v_max", v_max)
@@ -76,8 +78,11 @@ def friction(speeds: Sequence[float] | None = None, v_min: float = 0.01, v_max: 
             for target in (hi, lo):
                 p = path.move(target, v, acc, ramp_min)
                 if p is None:
-                    raise TrajectoryError(f"option speeds: {v:g} rad/s cannot be reached within the position "
-                                          f"window ({d:.4g} rad) at acc = {acc:g} rad/s²; widen span or raise acc")
+                    what = (f"{v:g} rad/s" if source == "speeds" else
+                            f"{speeds[-1]:g} rad/s is too fast: its speed {v:g} rad/s (of {len(speeds)} from v_min)")
+                    raise TrajectoryError(f"option {source}: {what} cannot be reached within the position window "
+                                          f"({d:.4g} rad) at acc = {acc:g} rad/s²; lower it, widen option span or "
+                                          "raise option acc")
                 plateaus.append([round(p[0], 9), round(p[1], 9), p[2]])
                 path.hold(settle)
     params = {"speeds": speeds, "centre": c, "span": span, "plateau": plateau, "settle": settle, "acc": acc,

@@ -156,8 +156,9 @@ def check_not_held(log: Any, name: str | None = None) -> None:
         f"each controller sample once")
 
 
-def role_warnings(log: Any, role: str, name: str | None = None) -> list[str]:
-    """A warning when ``log`` records (attribute ``experiment``) an experiment other than ``role``.
+def role_warnings(log: Any, role: str, name: str | None = None, command: str = "fit") -> list[str]:
+    """A warning when ``log`` records (attribute ``experiment``) an experiment other than ``role``,
+    given to ``command`` ("fit" or "report").
 
     Logs without the attribute (imported from CSV, MAT, KUKA Trace) give none."""
     exp = log.attrs.get("experiment") if hasattr(log, "attrs") else None
@@ -166,7 +167,10 @@ def role_warnings(log: Any, role: str, name: str | None = None) -> list[str]:
     name = name or str(log.attrs.get("source_file", "log"))
     if exp in ROLES:
         fix = f"give it as --{exp}"
+    elif command == "report":
+        fix = f"give it as --log {name}, or the {role} experiment's log as --{role}"
     else:
         fix = f"give it as a general log (kukaid fit {name} ...), or the {role} experiment's log as --{role}"
-    return [f"{name} was given as --{role} but records the '{exp}' experiment (attribute 'experiment'): the "
-            f"parameters are fitted on the wrong data and worse than they should be; {fix}"]
+    harm = ("the parameters are fitted on the wrong data and worse than they should be" if command == "fit" else
+            f"the {role.replace('presliding', 'pre-sliding')} page is drawn from the wrong data")
+    return [f"{name} was given as --{role} but records the '{exp}' experiment (attribute 'experiment'): {harm}; {fix}"]

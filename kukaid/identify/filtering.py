@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Collection
 
 import numpy as np
 
@@ -75,15 +75,28 @@ def default_reversal_window(fs: float, cutoff: float) -> float:
     return 0.0 if rw * fs <= SMEAR_SAMPLES_KEPT else rw
 
 
-def settings_reason(settings: dict) -> str:
-    """One line saying why the pre-processing settings are what they are (for the fit's output)."""
+#: the settings a user can set, and the option of `kukaid fit` that sets each
+_OPTIONS = {"cutoff": "--cutoff", "order": "--order", "edge": "--edge", "reversal_window": "--reversal-window"}
+
+
+def settings_reason(settings: dict, given: Collection[str] = ()) -> str:
+    """One line saying why the pre-processing settings are what they are (for the fit's output);
+    ``given``: the settings the user set (``cutoff``, ``order``, ``edge``, ``reversal_window``),
+    said to be the user's rather than given the default's reason."""
     fs, fc = settings["fs"], settings["cutoff"]
     rate = "the paper's KR C4 recipe (up to 250 Hz)" if fs <= 250 else "fs/10 (the EMPS recipe above 250 Hz)"
     rw = settings["reversal_window"]
-    why = [f"cut-off from the {fs:.4g} Hz sample rate: {rate}",
-           f"edge = 5 periods of the cut-off",
-           f"reversal window {rw * 1e3:.3g} ms" + (" (the filter smears a friction jump over "
-                                                    f"{1.2 * fs / fc:.3g} samples: kept)" if rw == 0 else "")]
+    user = [f"{flag} {settings[k]:g}" for k, flag in _OPTIONS.items() if k in given]
+    why = [f"set by the user: {', '.join(user)}"] if user else []
+    if "cutoff" not in given:
+        why.append(f"cut-off{'' if 'order' in given else ' and order'} from the {fs:.4g} Hz sample rate: {rate}")
+    elif "order" not in given:
+        why.append(f"order from the {fs:.4g} Hz sample rate: {rate}")
+    if "edge" not in given:
+        why.append("edge = 5 periods of the cut-off")
+    if "reversal_window" not in given:
+        why.append(f"reversal window {rw * 1e3:.3g} ms" + (" (the filter smears a friction jump over "
+                                                           f"{1.2 * fs / fc:.3g} samples: kept)" if rw == 0 else ""))
     return "; ".join(why)
 
 

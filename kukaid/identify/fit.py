@@ -262,7 +262,8 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         "offset": bool(offset), "joint": all_preps[0].joint,
         "logs": {"general": [p.source for p in general], "friction": [p.source for p in fr],
                  "inertia": [p.source for p in ine], "presliding": psl.source if psl is not None else None},
-        "preprocess": jsonable({**all_preps[0].settings, "why": settings_reason(all_preps[0].settings)}),
+        "preprocess": jsonable({**all_preps[0].settings, "why": settings_reason(
+            all_preps[0].settings, [k for k in ("cutoff", "order", "edge", "reversal_window") if pre.get(k) is not None])}),
     }
     return out
 

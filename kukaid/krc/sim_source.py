@@ -105,6 +105,7 @@ class SimSource:
                 self.globals[f"KID_B{i}"] = '""'
             self._ring_cur: list[str] = []
         self._prime()
+        self._done = float(sim.t)  # simulated time requested so far (the simulator counts whole servo ticks of it)
 
     # -- lifecycle ----------------------------------------------------------------------------
     def _prime(self) -> None:
@@ -131,30 +132,37 @@ class SimSource:
 
     def _run(self) -> None:
         wall0 = time.monotonic()
-        sim0 = float(self.sim.t)
+        sim0 = self._done = float(self.sim.t)
         self._clock = (wall0, sim0)
-        ipo = float(self.sim.cfg.ipo_period)
-        done = sim0  # simulated time requested so far (the simulator counts whole servo ticks of it)
         try:
             while not self._stop.is_set():
-                target = sim0 + (time.monotonic() - wall0) * self.speed
-                blocks = []
-                with self._lock:
-                    # advance IPO tick by IPO tick: a written target is taken at the first tick after
-                    # it arrived, as the robot program reads it once per interpolation cycle
-                    while done < target:
-                        tick = (math.floor(done / ipo + 1e-6) + 1) * ipo
-                        end = min(target, tick)
-                        blocks.append(self.sim.advance(end - done))
-                        done = end
-                        if end == tick:
-                            self._ipo_tick(tick)
-                    self._follower_watch()
-                for blk in blocks:
-                    self._ingest(blk)
+                self._advance_to(sim0 + (time.monotonic() - wall0) * self.speed)
                 self._stop.wait(self.tick)
         except BaseException as e:  # surfaced by serve-sim
             self.error = e
+
+    def step(self, seconds: float) -> None:
+        """Advance the simulator ``seconds`` of its own time now, as the real-time thread does as
+        the wall clock goes on: a source that is not started, stepped by a test on events (one
+        12 ms sample per poll), serves the same samples at any speed of the machine."""
+        self._advance_to(self._done + float(seconds))
+
+    def _advance_to(self, target: float) -> None:
+        """Advance to simulated time ``target``, IPO tick by IPO tick: a written target is taken at
+        the first tick after it arrived, as the robot program reads it once per interpolation cycle."""
+        ipo = float(self.sim.cfg.ipo_period)
+        blocks = []
+        with self._lock:
+            while self._done < target:
+                tick = (math.floor(self._done / ipo + 1e-6) + 1) * ipo
+                end = min(target, tick)
+                blocks.append(self.sim.advance(end - self._done))
+                self._done = end
+                if end == tick:
+                    self._ipo_tick(tick)
+            self._follower_watch()
+        for blk in blocks:
+            self._ingest(blk)
 
     def _sim_now(self) -> float:
         """Simulated time corresponding to this moment of the wall clock, s."""

@@ -141,8 +141,8 @@ def check_mat_options(path: str | Path, tau_scale: Any = None, tau_scale_var: st
 def read_mat(path: str | Path, time: str | None = None, q: str | None = None, tau: str | None = None,
              q_cmd: str | None = None, temp: str | None = None, tau_scale: float | None = None,
              tau_scale_var: str | None = None, q_scale: float = 1.0, time_scale: float = 1.0,
-             joint: str = "revolute", axis: int | Iterable[int] = 1, sample_time: float | None = None,
-             **_ignored: Any):
+             joint: str | None = "revolute", axis: int | Iterable[int] = 1, sample_time: float | None = None,
+             hints: list[str] | None = None, **_ignored: Any):
     """Read a MAT file as an :class:`~kukaid.logs.core.AxisLog` of one or more axes (SI units).
 
     Parameters
@@ -157,14 +157,21 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
         to rad or m.  Every scale must be a finite non-zero number.
     time_scale : to seconds (positive).   sample_time : build the time base when the file has
         none (s, positive).
-    joint : "revolute" or "prismatic" (every axis).   axis : the axis number of the log, or a list
-        of them, one per column of the (samples, axes) arrays.
+    joint : "revolute" or "prismatic" (every axis); None: not said, read as revolute (and a hint
+        says so).   axis : the axis number of the log, or a list of them, one per column of the
+        (samples, axes) arrays.
+    hints : a list that gets one line per unit the file leaves open and the reading assumed (a MAT
+        file carries no units): the joint type when ``joint`` is None, and a torque read unscaled
+        while the file holds a scalar named like a torque or force gain (EMPS: ``gtau``), each
+        naming the option that says otherwise.
 
     Raises
     ------
     LogFormatError : one line naming the file and the variable or option that is wrong.
     """
     path = Path(path)
+    joint_said = joint is not None
+    joint = joint or "revolute"
     axes = tuple(int(a) for a in np.atleast_1d(axis))
     n_ax = len(axes)
     tau_scale, q_scale, time_scale, sample_time = check_mat_options(path, tau_scale, tau_scale_var, q_scale,
@@ -246,6 +253,8 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
         labels[("q", a)] = f"position variable '{qn}'{col(c)}"
         if q_cmd:
             labels[("q_cmd", a)] = f"commanded position variable '{q_cmd}'{col(c)}"
+    if hints is not None:
+        hints.extend(_unit_hints(path, v, qn, tn, joint_said, tau_scale is not None or tau_scale_var is not None))
     chans = {"q": qa, "tau": ta, **extra}
     joints = (joint,) * n_ax
     check_samples(t, chans, axes, str(path))
@@ -253,3 +262,26 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     attrs = {"source_file": str(path), "source": "mat", "mat_variables": {"time": tn_name, "q": qn, "tau": tn, **{
         k: n for k, n in (("q_cmd", q_cmd), ("temp", temp)) if n}}}
     return AxisLog(time=t, q=qa, tau=ta, axes=axes, joint=joints, attrs=attrs, **extra)
+
+
+#: names of scalars that hold a torque or force gain (EMPS: gtau, N/V)
+_GAIN_NAME = ("tau", "torque", "force", "gain", "kt")
+
+
+def _unit_hints(path: Path, v: dict[str, Any], qn: str, tn: str, joint_said: bool, tau_scaled: bool) -> list[str]:
+    """The units :func:`read_mat` assumed where the file says nothing, each with the option that
+    says otherwise (see its ``hints``)."""
+    out = []
+    if not joint_said:
+        out.append(f"{path}: a MAT file does not say its units: '{qn}' is read as rad and '{tn}' as N·m (a revolute "
+                   "axis); for a linear axis (m, N) pass --joint prismatic (--joint revolute confirms this reading)")
+    if not tau_scaled:
+        gains = sorted(k for k, x in v.items() if k != tn and any(g in k.rsplit(".", 1)[-1].lower() for g in _GAIN_NAME)
+                       and np.size(x) == 1 and _kind(np.asarray(x)) is None and np.isfinite(np.asarray(x, float)).all())
+        if gains:
+            g = gains[0]
+            out.append(f"{path}: '{tn}' is read as a torque unscaled, but the file holds {g} = "
+                       f"{float(np.asarray(v[g], float).squeeze()):.6g}, a scalar named like a torque or force gain: if "
+                       f"'{tn}' is a drive signal (a voltage, a current), pass --tau-scale-var {g}")
+    return out
+

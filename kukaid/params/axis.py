@@ -246,6 +246,34 @@ def save_params(path: str | Path, d: dict) -> None:
     write_text_atomic(path, json.dumps(d, indent=2, sort_keys=False) + "\n")
 
 
+#: the units of a joint type, as the messages about a model of another kind name them
+JOINT_UNITS = {"revolute": "rad, N·m", "prismatic": "positions in m, forces in N"}
+
+
+def check_model_of(d: dict, source: str, axis: int | None = None, joint: str | None = None, use: str = "",
+                   error: type[ParamFileError] | None = None) -> None:
+    """Refuse a one-axis parameter file used for another axis or another kind of joint: the one
+    message every command gives (report, validate, diagnose, run-admittance)::
+
+        params.json: the parameters are of axis A2, not A4
+        emps.json: the parameters are of a prismatic axis (A1, positions in m, forces in N), not of a revolute one
+
+    ``axis``: the axis the command works on (None: not checked; a file without ``axis`` fits
+    any); ``joint``: that axis's joint type (the log's, or the robot's); ``use``: what the model
+    was to do, appended after a colon; ``error``: the error class (an axis asked for by an option
+    is a usage error, :class:`~kukaid.errors.OptionError`; exit status 1 otherwise)."""
+    file_axis = d.get("axis")
+    file_joint = (d.get("provenance") or {}).get("joint") or "revolute"
+    tail = f": {use}" if use else ""
+    if joint is not None and file_joint != joint:
+        name = f"A{file_axis}, " if file_axis is not None else ""
+        units = JOINT_UNITS.get(file_joint, f"joint type {file_joint!r}")
+        raise ParamFileError(f"{source}: the parameters are of a {file_joint} axis ({name}{units}), not of a {joint} "
+                             f"one{tail}")
+    if axis is not None and file_axis is not None and int(file_axis) != int(axis):
+        raise (error or ParamFileError)(f"{source}: the parameters are of axis A{file_axis}, not A{axis}{tail}")
+
+
 def model_from_params(d: dict, joint: str = "revolute") -> JointTorqueModel:
     """The :class:`~kukaid.models.torque.JointTorqueModel` of a (validated) parameter dictionary.
 

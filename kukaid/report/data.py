@@ -33,6 +33,8 @@ class ReportData:
     params : validated parameter dictionary.   source : the parameter file's path (text).
     friction, inertia, general : lists of ``(log, prepared)``.   presliding : ``(log, prepared)``.
     truth : the simulator's truth (``log.attrs["truth"]``) when a log carries one, else None.
+    warnings : lines for the user (a log given in a role whose experiment it does not record,
+        as ``fit`` warns).
     """
 
     params: dict
@@ -43,6 +45,7 @@ class ReportData:
     presliding: Any = None
     truth: dict | None = None
     truth_source: str = ""
+    warnings: list = field(default_factory=list)
 
     @property
     def prismatic(self) -> bool:
@@ -118,7 +121,7 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
     ParamFileError : broken parameter file.   LogFormatError, ReportError : missing or broken log,
     log without the axis, log too short for the filter.
     """
-    from kukaid.params import load_params, validate_params
+    from kukaid.params import check_model_of, load_params, validate_params
 
     if isinstance(params, dict):
         par, source = validate_params(params), "parameters"
@@ -126,15 +129,23 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
         par, source = load_params(params), str(params)
     if axis is None:
         axis = int(par.get("axis") or 3)
-    elif par.get("axis") is not None and int(par["axis"]) != int(axis):
-        raise ReportError(f"{source}: the parameters are of axis A{par['axis']}, not A{axis}")
+    else:
+        check_model_of(par, source, axis=axis)
     data = ReportData(par, source)
     data.friction = [_load_one(x, axis, par) for x in friction]
     data.inertia = [_load_one(x, axis, par) for x in inertia]
     data.general = [_load_one(x, axis, par) for x in logs]
     if presliding is not None:
         data.presliding = _load_one(presliding, axis, par)
+    from kukaid.identify.adequacy import role_warnings
+
+    for role, given in (("friction", data.friction), ("inertia", data.inertia),
+                        ("presliding", [data.presliding] if data.presliding else [])):
+        for log, _ in given:
+            data.warnings.extend(role_warnings(log, role, command="report"))
     every = data.friction + data.inertia + data.general + ([data.presliding] if data.presliding else [])
+    for log, _ in every:
+        check_model_of(par, source, joint=log.joint[log.index(axis)])
     for log, _ in every:
         t = log.attrs.get("truth")
         if isinstance(t, dict) and isinstance(t.get("friction"), dict) and int(t.get("axis", axis)) == int(axis):

@@ -26,7 +26,7 @@ Units: SI inside; figures show N·m, rad/s, rad (mrad for pre-sliding displaceme
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from kukaid.report.correlation import page_correlation
 from kukaid.report.data import ReportData, load_report_data
@@ -57,11 +57,21 @@ def build_report(data: ReportData) -> list:
 
 def make_report(params: dict | str | Path, output: str | Path, friction: Sequence[Any] = (),
                 inertia: Sequence[Any] = (), presliding: Any = None, logs: Sequence[Any] = (),
-                axis: int | None = None) -> int:
+                axis: int | None = None, warnings: list[str] | None = None,
+                stage: Callable[[str], None] | None = None) -> int:
     """Load, build and write the report (see :func:`load_report_data`); returns the page count.
+    ``warnings`` (a list) gets the lines the user should read (:attr:`ReportData.warnings`);
+    ``stage(text)`` is told what is being done (progress).
 
     Every input is read and every page drawn before the output file is created, so bad input
     raises a :class:`~kukaid.errors.KukaidError` and leaves no PDF.
     """
+    stage = stage or (lambda text: None)
+    stage("reading the logs and pre-processing them as the fit did")
     data = load_report_data(params, friction, inertia, presliding, logs, axis)
-    return write_report(output, build_report(data))
+    if warnings is not None:
+        warnings.extend(data.warnings)
+    stage("drawing the pages")
+    figs = build_report(data)
+    stage(f"writing {len(figs)} pages")
+    return write_report(output, figs)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import textwrap
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from kukaid.report.layout import _add_table, _page, write_report
 
@@ -100,12 +100,19 @@ def page_prediction(params: dict, log: Any, source: str, robot: Any):
     return fig
 
 
-def make_robot_report(params: dict, output: str | Path, logs: Sequence[Any] = (), source: str = "") -> int:
-    """Draw every page (before any file is created) and write the PDF atomically; returns pages."""
+def make_robot_report(params: dict, output: str | Path, logs: Sequence[Any] = (), source: str = "",
+                      stage: Callable[[str], None] | None = None) -> int:
+    """Draw every page (before any file is created) and write the PDF atomically; returns pages.
+    ``stage(text)`` is told what is being done (progress)."""
     from kukaid.models.robot import RobotModel
 
+    stage = stage or (lambda text: None)
+    stage("drawing the parameter pages")
     figs = [page_base_parameters(params, source), page_friction_consistency(params, source)]
     if logs:
         robot = RobotModel(params["robot"]["urdf"])
-        figs += [page_prediction(params, log, source, robot) for log in logs]
+        for i, log in enumerate(logs):
+            stage(f"predicting every axis on log {i + 1} of {len(logs)}")
+            figs.append(page_prediction(params, log, source, robot))
+    stage(f"writing {len(figs)} pages")
     return write_report(output, figs, title="kukaid robot identification report")

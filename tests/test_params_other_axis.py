@@ -1,0 +1,52 @@
+"""A parameter file of another axis or another kind of joint is refused by every command that
+takes one, with the one line `report` gives (issue 25, 1): before, `validate --axis 4` scored a
+model of A2 on A4 and `diagnose --axis 4 -o` wrote a "refined" file still saying A2."""
+from __future__ import annotations
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from kukaid.logs import write_hdf5
+from kukaid_cli.main import cli
+from test_validate import sine_log
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("other_axis")
+    write_hdf5(sine_log(1, 0.25, axes=(2, 4)), d / "log.h5")
+    r = CliRunner().invoke(cli, ["fit", str(d / "log.h5"), "--axis", "2", "--friction-model", "coulomb-viscous",
+                                 "-o", str(d / "a2.json")])
+    assert r.exit_code == 0, r.output
+    p = json.loads((d / "a2.json").read_text())
+    p["provenance"]["joint"] = "prismatic"
+    (d / "slide.json").write_text(json.dumps(p))
+    return d
+
+
+def _commands(d, params, axis, out):
+    log = str(d / "log.h5")
+    return {"validate": ["validate", "--params", str(params), log, *axis],
+            "diagnose": ["diagnose", "--params", str(params), "--log", log, *axis, "-o", str(out / "out.json")],
+            "report": ["report", "--params", str(params), "--log", log, *axis, "-o", str(out / "out.pdf")]}
+
+
+@pytest.mark.parametrize("command", ["validate", "diagnose", "report"])
+@pytest.mark.parametrize("kind", ["axis", "joint"])
+def test_a_file_of_another_axis_or_kind_is_refused_alike(files, command, kind, tmp_path):
+    params = files / ("a2.json" if kind == "axis" else "slide.json")
+    axis = ["--axis", "4"] if kind == "axis" else ["--axis", "2"]
+    r = CliRunner().invoke(cli, _commands(files, params, axis, tmp_path)[command])
+    assert r.exit_code == 1, r.output
+    want = (f"kukaid: error: {params}: the parameters are of axis A2, not A4" if kind == "axis" else
+            f"kukaid: error: {params}: the parameters are of a prismatic axis (A2, positions in m, forces in N), "
+            "not of a revolute one")
+    assert r.stderr.strip().splitlines() == [want]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_files_own_axis_still_works(files):
+    r = CliRunner().invoke(cli, ["validate", "--params", str(files / "a2.json"), str(files / "log.h5"), "--axis", "2"])
+    assert r.exit_code == 0, r.output

@@ -1,0 +1,111 @@
+"""What a new user met (issue 25): units a file leaves open, in-sample validation, a log given in
+another role, text that names the wrong thing, a bare `kukaid`.  Each one line, naming the option
+that fixes it."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from kukaid.logs import write_hdf5
+from kukaid_cli.main import cli
+from shared_data import SHARED
+from test_validate import sine_log
+
+EMPS = SHARED / "datasets" / "emps" / "DATA_EMPS.mat"
+
+
+def _run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def _warnings(r) -> list[str]:
+    return [line for line in r.stderr.splitlines() if line.startswith("kukaid: warning: ")]
+
+
+# -- 2. units guessed without a word -----------------------------------------------------------
+def _emps_like(path):
+    """A drive recorded as EMPS is: metres, a voltage, and its gain (N/V) beside them."""
+    from scipy.io import savemat
+
+    t = np.arange(0, 4, 0.001)
+    savemat(path, {"t": t[:, None], "qm": (0.1 + 0.1 * np.sin(t))[:, None], "vir": np.cos(t)[:, None],
+                   "gtau": np.array([[35.15]])})
+
+
+def test_a_mat_file_read_with_assumed_units_says_which_option_fixes_them(tmp_path):
+    _emps_like(tmp_path / "d.mat")
+    r = _run("load", tmp_path / "d.mat", "--time", "t", "--q", "qm", "--tau", "vir", "-o", tmp_path / "a.h5")
+    assert r.exit_code == 0, r.output
+    w = _warnings(r)
+    assert len(w) == 2 and "--joint prismatic" in w[0] and "--tau-scale-var gtau" in w[1], w
+    r = _run("load", tmp_path / "d.mat", "--time", "t", "--q", "qm", "--tau", "vir", "--tau-scale-var", "gtau",
+             "--joint", "prismatic", "-o", tmp_path / "b.h5")
+    assert r.exit_code == 0 and _warnings(r) == [], r.output
+
+
+def test_the_emps_file_without_its_options_is_warned_about(tmp_path):
+    if not EMPS.exists():
+        pytest.skip("../shared/datasets/emps is not present")
+    r = _run("load", EMPS, "--time", "t", "--q", "qm", "--tau", "vir", "--q-cmd", "qg", "-o", tmp_path / "e.h5")
+    w = " ".join(_warnings(r))
+    assert r.exit_code == 0 and "--joint prismatic" in w and "--tau-scale-var gtau" in w, r.output
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    d = tmp_path_factory.mktemp("hints")
+    write_hdf5(sine_log(1, 0.25), d / "a.h5")
+    write_hdf5(sine_log(2, 0.18, amp=0.7), d / "b.h5")
+    r = _run("fit", d / "a.h5", "--friction-model", "coulomb-viscous", "-o", d / "p.json")
+    assert r.exit_code == 0, r.output
+    return d
+
+
+def test_validate_on_the_fitted_log_says_the_figures_are_in_sample(fitted):
+    r = _run("validate", "--params", fitted / "p.json", fitted / "a.h5", fitted / "b.h5")
+    assert r.exit_code == 0, r.output
+    assert _warnings(r) == [f"kukaid: warning: validate: {fitted / 'a.h5'}: the model of {fitted / 'p.json'} was "
+                            "fitted on this log (its provenance.logs): these figures are in-sample, not a validation; "
+                            "give a log it did not see"]
+    r = _run("validate", "--params", fitted / "p.json", fitted / "b.h5", "--json")
+    assert r.exit_code == 0 and _warnings(r) == [] and json.loads(r.stdout)["axes"]["A3"], r.output
+
+
+def test_report_warns_of_a_log_given_in_another_role_as_fit_does(fitted, tmp_path):
+    """The issue's case: a friction capture given as --presliding draws a hysteresis page from a
+    short quasi-static stretch; now with the role warning `fit` gives."""
+    assert _run("excite", "friction", "--n-speeds", "2", "-o", tmp_path / "f.json").exit_code == 0
+    assert _run("capture", tmp_path / "f.json", "-o", tmp_path / "f.h5").exit_code == 0
+    r = _run("report", "--params", fitted / "p.json", "--presliding", tmp_path / "f.h5", "-o", tmp_path / "r.pdf")
+    assert r.exit_code == 0, r.output
+    assert _warnings(r) == [f"kukaid: warning: report: {tmp_path / 'f.h5'} was given as --presliding but records the "
+                            "'friction' experiment (attribute 'experiment'): the pre-sliding page is drawn from the "
+                            "wrong data; give it as --friction"]
+
+
+# -- 3. misleading text ------------------------------------------------------------------------
+def test_the_preprocessing_note_says_which_values_the_user_set(fitted, tmp_path):
+    r = _run("fit", fitted / "a.h5", "--friction-model", "coulomb-viscous", "--cutoff", "3", "--edge", "10",
+             "-o", tmp_path / "u.json")
+    assert r.exit_code == 0, r.output
+    why = json.loads((tmp_path / "u.json").read_text())["provenance"]["preprocess"]["why"]
+    assert why.startswith("set by the user: --cutoff 3, --edge 10; order from the 250 Hz sample rate"), why
+    assert "cut-off from" not in why and "edge = 5 periods" not in why and why in r.stdout
+    default = json.loads((fitted / "p.json").read_text())["provenance"]["preprocess"]["why"]
+    assert default.startswith("cut-off and order from the 250 Hz sample rate") and "user" not in default
+
+
+@pytest.mark.parametrize("args, option", [(["--v-max", "10"], "--v-max"), (["--speeds", "0.1,10"], "--speeds")])
+def test_an_unreachable_speed_names_the_option_given(tmp_path, args, option):
+    r = _run("excite", "friction", *args, "-o", tmp_path / "f.json")
+    assert r.exit_code == 2 and r.stderr.startswith(f"kukaid: error: excite: option {option}: "), r.output
+    assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "f.json").exists()
+
+
+def test_bare_kukaid_prints_the_help():
+    r = _run()
+    assert r.exit_code == 0 and r.stdout == _run("--help").stdout and r.stderr == ""
+    assert r.stdout.startswith("Usage: ") and len(r.stdout.splitlines()) > 10
