@@ -156,3 +156,48 @@ def simulate_cmd(robots, days, outdir, axes, whole_arm, wear_share, wear_range, 
         bar.close()
     click.echo(f"{outdir}: {s.logs} logs of {s.axes} axes ({s.wearing} wearing) in {s.wall_s:.1f} s; "
                f"manifest.csv, truth.json", err=True)
+
+
+@command.command("wear")
+@click.argument("table", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The verdict per robot and axis (JSON, kukaid.fleet-wear/1).")
+@click.option("--report", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="PDF: axes ranked by evidence, the trend of each flagged axis with its temperature.")
+@click.option("--alpha", type=click.FloatRange(0.0001, 0.2), default=0.005, show_default=True,
+              help="Share of healthy axes allowed ever to be flagged over the table's days (sets the threshold).")
+@click.option("--baseline", type=click.IntRange(3, 10_000), default=None,
+              help="Logs in each axis's baseline [default: a quarter of its logs, 5 to 14].")
+@click.option("--json", "as_json", is_flag=True, help="Print the verdict as JSON on stdout (without the series).")
+def wear_cmd(table, output, report, alpha, baseline, as_json) -> None:
+    """Per robot and axis: friction (Fc, Fv) at a reference temperature (a temperature model fitted
+    across the fleet), its trend, and a flag when it leaves its own baseline and the fleet's
+    course by more than the scatter allows (one-sided CUSUM, threshold for at most --alpha of
+    healthy axes ever flagged).  Prints the axes ranked by evidence."""
+    import json
+
+    from kukaid.atomic import atomic_paths
+    from kukaid.fleet.table import read_table
+    from kukaid.fleet.wear import WearSettings, assess, lines
+    from kukaid_cli._util import check_outputs, check_suffix
+
+    check_suffix(output, ".json")
+    check_suffix(report, ".pdf")
+    check_outputs([output, report], [table])
+    rows, _ = read_table(table)
+    result = assess(rows, WearSettings(alpha=alpha, baseline=baseline))
+    result["table"] = str(table)
+    with atomic_paths(*[p for p in (output, report) if p is not None]) as tmps:
+        tmp = iter(tmps)
+        next(tmp).write_text(json.dumps(result, indent=1) + "\n")
+        if report is not None:
+            from kukaid.report.wear import write_wear_report
+
+            write_wear_report(next(tmp), result, str(table))
+    if as_json:
+        slim = {**result, "axes": [{k: v for k, v in a.items() if k != "series"} for a in result["axes"]]}
+        click.echo(json.dumps(slim, indent=1))
+    else:
+        for line in lines(result):
+            click.echo(line)
+    click.echo(f"{output}: wear verdict written" + (f"; {report}: report written" if report else ""), err=True)
