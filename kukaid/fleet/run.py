@@ -138,6 +138,10 @@ def plan(entries: Sequence[Entry], prior: list[dict], kind: str) -> tuple[list[J
     for e in entries:
         if not os.path.isfile(e.path):
             job = Job(e.robot, e.axis, e.date, e.path, e.name, "")
+            if (e.name, "") in done:  # still missing: its row stands
+                skipped += 1
+                continue
+            done.add((e.name, ""))
             direct.append(error_row(job, kind, f"{e.name}: no such file"))
             continue
         sha = content_hash(e.path)

@@ -151,7 +151,8 @@ def _temperature_model(axes: list[_Axis]) -> dict:
     """Fleet slope b (per column) and each axis's shrunk slope, from the baselines."""
     have_T = [a for a in axes if np.all(np.isfinite(a.T[:a.nb]))]
     if not have_T:
-        return {"T_ref": None, "b": [0.0, 0.0], "per_axis": {}, "spread": [0.0, 0.0], "note": "no temperature logged"}
+        return {"T_ref": None, "b": [0.0, 0.0], "per_axis": {}, "pred": {}, "spread": [0.0, 0.0],
+                "note": "no temperature logged"}
     T_ref = float(np.median(np.concatenate([a.T[:a.nb] for a in have_T])))
     sxx, sxy, res_var, b_ols, se2 = [], [], [], [], []
     for a in have_T:
@@ -173,12 +174,14 @@ def _temperature_model(axes: list[_Axis]) -> dict:
     b_ols, se2, res_var = np.array(b_ols), np.array(se2), np.array(res_var)
     ok = np.isfinite(se2).all(axis=1)
     tau2 = np.maximum(np.var(b_ols[ok], axis=0) - np.mean(se2[ok], axis=0), 0.0) if ok.sum() > 2 else np.zeros(2)
-    per = {}
+    per, pred = {}, {}
     for a, Sxx_i, Sxy_i, v in zip(have_T, sxx, sxy, res_var):
         lam = v / tau2 if np.all(tau2 > 0) else np.full(2, np.inf)
         bi = np.where(np.isfinite(lam), (Sxy_i + lam * b) / (Sxx_i + lam), b)
         per[(a.robot, a.axis)] = bi
-    return {"T_ref": T_ref, "b": b.tolist(), "per_axis": per, "spread": np.sqrt(tau2).tolist()}
+        # what the slope's error adds to a prediction at T: (T - mean T of the baseline)^2 / (Sxx + lam)
+        pred[(a.robot, a.axis)] = (float(a.T[:a.nb].mean()), Sxx_i + lam)
+    return {"T_ref": T_ref, "b": b.tolist(), "per_axis": per, "pred": pred, "spread": np.sqrt(tau2).tolist()}
 
 
 def assess(rows: Sequence[dict], settings: WearSettings | None = None) -> dict:
@@ -211,7 +214,7 @@ def assess(rows: Sequence[dict], settings: WearSettings | None = None) -> dict:
             byday.setdefault(d, []).append(r)
     common = {d: (np.median(np.array(v), axis=0) if len(v) >= settings.min_fleet else np.zeros(2))
               for d, v in byday.items()}
-    resid, scat = {}, []
+    resid, scat, infl, dof = {}, [], {}, {}
     for a in axes:
         key = (a.robot, a.axis)
         c = np.array([common[d] for d in a.dates])
@@ -219,7 +222,19 @@ def assess(rows: Sequence[dict], settings: WearSettings | None = None) -> dict:
         mu[key] = ys[:a.nb].mean(axis=0)
         r = ys - mu[key]
         resid[key] = r
-        scat.append((r[:a.nb] ** 2).sum(axis=0) / max(a.nb - 1, 1))
+        # a residual after the baseline is a prediction: its variance grows by the baseline mean's
+        # (1/n_b) and the slope's error at that temperature; the baseline residuals lost the
+        # degrees of freedom of the mean and of the (shrunk) slope
+        if key in tm["pred"]:
+            Tm, den = tm["pred"][key]
+            T = np.where(np.isfinite(a.T), a.T, Tm)
+            infl[key] = np.sqrt(1.0 + 1.0 / a.nb + np.outer((T - Tm) ** 2, 1.0 / den))
+            lost = 1.0 + np.minimum(float(((a.T[:a.nb] - Tm) ** 2).sum()) / den, 1.0)
+        else:
+            infl[key] = np.full((len(a.dates), 2), math.sqrt(1.0 + 1.0 / a.nb))
+            lost = np.ones(2)
+        dof[key] = np.maximum(a.nb - lost, 1.0)
+        scat.append((r[:a.nb] ** 2).sum(axis=0) / dof[key])
     pooled = np.sqrt(np.median(np.array(scat), axis=0)) if scat else np.ones(2)
     allb = np.concatenate([resid[(a.robot, a.axis)][:a.nb] for a in axes]) if axes else np.zeros((2, 2))
     rho = float(np.corrcoef(allb[:, 0], allb[:, 1])[0, 1]) if len(allb) > 2 else 0.0
@@ -230,10 +245,9 @@ def assess(rows: Sequence[dict], settings: WearSettings | None = None) -> dict:
     for a in axes:
         key = (a.robot, a.axis)
         r = resid[key]
-        s2 = (settings.prior_dof * pooled ** 2 + (a.nb - 1) * (r[:a.nb] ** 2).sum(axis=0) / max(a.nb - 1, 1)) \
-            / (settings.prior_dof + a.nb - 1)
+        s2 = (settings.prior_dof * pooled ** 2 + (r[:a.nb] ** 2).sum(axis=0)) / (settings.prior_dof + dof[key])
         s = np.sqrt(np.maximum(s2, 1e-18))
-        z2 = r / s
+        z2 = r / (s * infl[key])
         z = (z2[:, 0] + z2[:, 1]) / math.sqrt(2 + 2 * rho)
         h = threshold(a.nb, horizon, settings.k, settings.alpha, settings.clip, settings.prior_dof,
                       settings.mc_paths, settings.mc_seed)
