@@ -123,8 +123,12 @@ def test_separately_started_scheduler_and_worker(tmp_path, kukaid_cmd):
 
 def test_unreachable_scheduler_and_bad_options_are_one_line(tmp_path, kukaid_cmd):
     man = small_fleet(tmp_path / "f", robots=1, days=1, seed=41)
-    r = _run(kukaid_cmd, "fleet", "fit", man, "-o", tmp_path / "t.parquet", "--scheduler", "tcp://127.0.0.1:9")
-    assert r.returncode == 1 and r.stderr.count("\n") == 1 and "cannot reach the Dask scheduler" in r.stderr
+    from kukaid.errors import KukaidError
+    from kukaid.fleet.run import open_client
+
+    with pytest.raises(KukaidError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:9"):
+        with open_client(scheduler="tcp://127.0.0.1:9", connect_timeout=1.0):
+            pass
     r = _run(kukaid_cmd, "fleet", "fit", man, "-o", tmp_path / "t.csv")
     assert r.returncode == 2 and "name it so" in r.stderr and "Traceback" not in r.stderr
     r = _run(kukaid_cmd, "fleet", "fit", man, "-o", tmp_path / "t.parquet", "--workers", "0")

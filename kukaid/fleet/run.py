@@ -28,7 +28,8 @@ Progress = Callable[[int, int], None]
 class RunSummary:
     """What a run did.  ``fitted``: tasks run now; ``errors``: error rows among them (and duplicates);
     ``skipped``: logs already in the table; ``peak_worker_mb``: the largest peak resident memory a
-    worker process reported (MB); ``wall_s``: the run's wall time (s), cluster start included."""
+    worker process reported (MB); ``wall_s``: the run's wall time (s), cluster start included; ``tasks_s``: from the first task
+    submitted to the last row received (s)."""
 
     total: int = 0
     ran: int = 0
@@ -37,6 +38,7 @@ class RunSummary:
     duplicates: int = 0
     rows: int = 0
     wall_s: float = 0.0
+    tasks_s: float = 0.0
     workers: int = 0
     peak_worker_mb: float = 0.0
     per_worker_mb: dict = field(default_factory=dict)
@@ -161,7 +163,7 @@ def plan(entries: Sequence[Entry], prior: list[dict], kind: str) -> tuple[list[J
 
 def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, Any], list[dict]], options: Any,
               settings: dict, kind: str = "fit", workers: int | None = None, scheduler: str | None = None,
-              progress: Progress | None = None, checkpoint_s: float = 30.0) -> RunSummary:
+              progress: Progress | None = None, checkpoint_s: float = 30.0, client: Any = None) -> RunSummary:
     """Run ``task(job, options)`` for every log not yet in ``table``; write the table.
 
     Parameters
@@ -173,6 +175,7 @@ def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, 
     workers, scheduler : see :func:`open_client`.
     progress : called with (done, total) as rows arrive.
     checkpoint_s : s between atomic rewrites of the table while the run goes on.
+    client : a Dask client to use instead of opening one (``workers`` and ``scheduler`` then unused).
     """
     t_start = time.perf_counter()
     table = Path(table)
@@ -193,10 +196,14 @@ def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, 
         if progress is not None:
             progress(0, total)
         if jobs:
-            with open_client(workers, scheduler) as client:
+            with contextlib.ExitStack() as stack:
+                if client is None:
+                    client = stack.enter_context(open_client(workers, scheduler))
                 s.workers = len(client.nthreads())
+                t0 = time.perf_counter()
                 _stream(client, jobs, task, options, kind, rows, journal, s, table, settings, progress,
                         checkpoint_s)
+                s.tasks_s = time.perf_counter() - t0
         write_table(table, _sort(rows), settings)
         journal.remove()
     except BaseException:

@@ -267,7 +267,7 @@ class SimulateSummary:
 
 
 def simulate_fleet(cfg: FleetSimConfig, outdir: str | Path, workers: int | None = None,
-                   scheduler: str | None = None, progress=None) -> SimulateSummary:
+                   scheduler: str | None = None, progress=None, client: Any = None) -> SimulateSummary:
     """Simulate the fleet into ``outdir`` (one Dask task per robot); write manifest and truth last.
 
     Parameters
@@ -275,7 +275,9 @@ def simulate_fleet(cfg: FleetSimConfig, outdir: str | Path, workers: int | None 
     cfg : what to simulate.   outdir : the output folder (created).
     workers, scheduler : see :func:`kukaid.fleet.run.open_client`.
     progress : called with (robots done, robots).
+    client : a Dask client to use instead of opening one.
     """
+    import contextlib
     import time
 
     from dask.distributed import as_completed
@@ -289,7 +291,9 @@ def simulate_fleet(cfg: FleetSimConfig, outdir: str | Path, workers: int | None 
     truth = draw_fleet(cfg)
     traj = arm_trajectory() if cfg.whole_arm else None
     rows: list[dict] = []
-    with open_client(workers, scheduler) as client:
+    with contextlib.ExitStack() as stack:
+        if client is None:
+            client = stack.enter_context(open_client(workers, scheduler))
         futs = [client.submit(simulate_robot, r, truth, str(out), traj, pure=False) for r in cfg.robot_names()]
         if progress is not None:
             progress(0, len(futs))
