@@ -201,3 +201,64 @@ def wear_cmd(table, output, report, alpha, baseline, as_json) -> None:
         for line in lines(result):
             click.echo(line)
     click.echo(f"{output}: wear verdict written" + (f"; {report}: report written" if report else ""), err=True)
+
+
+def _check(kind: str, source, table, output, pattern, workers, scheduler) -> None:
+    from kukaid.fleet.manifest import read_input
+    from kukaid.fleet.run import run_tasks
+    from kukaid.fleet.tasks import CheckOptions, check_task
+
+    _check_workers(workers, scheduler)
+    _table_output(output, source)
+    from kukaid_cli._util import check_outputs
+
+    check_outputs([output], [table])
+    if kind == "validate":
+        from kukaid.diagnose.validate import validate as run
+    else:
+        from kukaid.diagnose.workflow import diagnose as run
+    from kukaid.fleet.tasks import _fits
+
+    _fits(str(table.resolve()), table.stat().st_mtime)  # a table that is not a fit table: one line, before any work
+    entries = read_input(source, pattern)
+    opts = CheckOptions(table=str(table.resolve()), kind=kind, run=run)
+    bar = _Progress(f"fleet {kind}")
+    try:
+        s = run_tasks(entries, output, check_task, opts, opts.settings(), kind=kind, workers=workers,
+                      scheduler=scheduler, progress=bar)
+    finally:
+        bar.close()
+    _report(s, output, "validated" if kind == "validate" else "diagnosed")
+
+
+_FIT_TABLE = click.option("--table", "table", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                          required=True, help="The fit table of the same fleet (kukaid fleet fit).")
+
+
+@command.command("validate")
+@_INPUT
+@_FIT_TABLE
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The validation table to write or complete (Parquet).")
+@_PATTERN
+@_WORKERS
+@_SCHEDULER
+def validate_cmd(source, table, output, pattern, workers, scheduler) -> None:
+    """Each log predicted by the latest fit of its robot and axis from an earlier day (kukaid
+    validate): RMSE, relative error, R² per log and axis; a model that stops predicting its
+    robot's next day shows as a rising relative error."""
+    _check("validate", source, table, output, pattern, workers, scheduler)
+
+
+@command.command("diagnose")
+@_INPUT
+@_FIT_TABLE
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The diagnosis table to write or complete (Parquet).")
+@_PATTERN
+@_WORKERS
+@_SCHEDULER
+def diagnose_cmd(source, table, output, pattern, workers, scheduler) -> None:
+    """Each one-axis log against its own fit (kukaid diagnose): which physical effects the model
+    misses (column effects), the RMSE after adding them, the whole diagnosis as JSON."""
+    _check("diagnose", source, table, output, pattern, workers, scheduler)

@@ -216,3 +216,21 @@ def test_wear_cli_writes_json_and_pdf(tmp_path, kukaid_cmd):
     assert (top["robot"], top["axis"], top["flagged"]) == ("R003", 3, True) and top["first_flagged"]
     assert {"robot", "axis", "flagged", "first_flagged", "evidence"} <= set(top)
     assert (tmp_path / "w.pdf").read_bytes()[:4] == b"%PDF"
+
+
+def test_validate_and_diagnose_over_the_fleet(tmp_path, kukaid_cmd):
+    man = small_fleet(tmp_path / "f", robots=1, days=3, seed=71)
+    fit, val, dia = tmp_path / "fit.parquet", tmp_path / "val.parquet", tmp_path / "dia.parquet"
+    assert _run(kukaid_cmd, "fleet", "fit", man, "-o", fit, "--workers", "1").returncode == 0
+    r = _run(kukaid_cmd, "fleet", "validate", man, "--table", fit, "-o", val, "--workers", "1")
+    assert r.returncode == 0, r.stderr
+    rows, settings = read_table(val)
+    assert settings["task"] == "validate" and [row["status"] for row in rows] == ["error", "ok", "ok"]
+    assert "no fit of R001 A3 from a day before" in rows[0]["error"]
+    assert rows[1]["model_date"] == rows[0]["date"] and 0 < rows[1]["rel_error"] < 0.2
+    r = _run(kukaid_cmd, "fleet", "diagnose", man, "--table", fit, "-o", dia, "--workers", "1")
+    assert r.returncode == 0, r.stderr
+    rows, _ = read_table(dia)
+    assert all(row["status"] == "ok" and row["rmse"] > 0 and row["effects"] is not None for row in rows)
+    r = _run(kukaid_cmd, "fleet", "validate", man, "--table", val, "-o", tmp_path / "x.parquet")
+    assert r.returncode == 1 and "not a table of fleet fit" in r.stderr and r.stderr.count("\n") == 1

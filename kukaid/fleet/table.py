@@ -46,6 +46,8 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "temp_mean": ("float64", "mean motor temperature in the log, °C (null: not logged)"),
     "temp_min": ("float64", "lowest motor temperature, °C"),
     "temp_max": ("float64", "highest motor temperature, °C"),
+    "model_date": ("string", "validate: the day of the fit whose model predicted this log"),
+    "effects": ("string", "diagnose: the effects found, comma-separated (empty: none)"),
     "result": ("string", "the full result as JSON (parameter file, validation or diagnosis)"),
     "task_s": ("float64", "wall time of the task on its worker, s"),
     "worker": ("string", "the worker that ran the task"),

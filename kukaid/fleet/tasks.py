@@ -181,3 +181,88 @@ def duplicate_row(job: Job, kind: str, first: str) -> dict:
     """The row of a log whose content is that of ``first`` (not fitted again)."""
     return _finish([error_row(job, kind, f"duplicate: the same content as {first} (not fitted twice)")],
                    time.perf_counter())[0]
+
+
+@dataclass(frozen=True)
+class CheckOptions:
+    """Options of ``fleet validate`` and ``fleet diagnose``: the models come from a fit table.
+
+    table : absolute path of the fleet table of ``fleet fit`` (read once per worker).
+    kind : "validate" (each log predicted by the latest earlier fit of its robot and axis) or
+        "diagnose" (each log against its own fit).
+    run : the stage's function, passed in by the caller (a strategy: ``validate(params, logs, axis)``
+        returning {axis: score}, or ``diagnose(params, logs, axis)`` returning a diagnosis with
+        ``to_json()``, ``rmse_after`` and ``steps``); sent to the workers by reference.
+    """
+
+    table: str
+    kind: str
+    run: Callable[..., Any]
+
+    def settings(self) -> dict:
+        return {"task": self.kind, "table": self.table}
+
+
+@functools.lru_cache(maxsize=2)
+def _fits(table: str, mtime: float) -> tuple[dict, dict]:
+    """{sha256: parameter dict JSON} and {(robot, axis): [(date, sha256)] sorted} of a fit table's ok rows."""
+    from kukaid.fleet.table import read_table
+
+    rows, settings = read_table(table)
+    if settings.get("task") != "fit":
+        raise KukaidError(f"{table}: not a table of fleet fit (its rows are {settings.get('task')})")
+    params, by_axis = {}, {}
+    for r in rows:
+        if r["status"] != "ok":
+            continue
+        if r.get("result"):
+            params[r["sha256"]] = r["result"]
+        by_axis.setdefault((r["robot"], r["axis"]), []).append((r["date"], r["sha256"]))
+    for v in by_axis.values():
+        v.sort()
+    return params, by_axis
+
+
+def _model_for(job: Job, opts: CheckOptions, axis: int | None) -> tuple[dict, str]:
+    params, by_axis = _fits(opts.table, os.path.getmtime(opts.table))
+    if opts.kind == "diagnose":
+        if job.sha256 not in params:
+            raise KukaidError(f"{job.name}: no fit of this log in {os.path.basename(opts.table)}")
+        return json.loads(params[job.sha256]), job.date
+    earlier = [(d, sha) for d, sha in by_axis.get((job.robot, axis), []) if d < job.date and sha in params]
+    if not earlier:
+        what = f"{job.robot} A{axis}" if axis is not None else job.robot
+        raise KukaidError(f"{job.name}: no fit of {what} from a day before {job.date} in "
+                          f"{os.path.basename(opts.table)} to validate")
+    d, sha = earlier[-1]
+    return json.loads(params[sha]), d
+
+
+def _check_body(job: Job, opts: CheckOptions) -> list[dict]:
+    log = read_job_log(job)
+    axis = job.axis if job.axis is not None else (log.axes[0] if len(log.axes) == 1 else None)
+    first = axis if axis is not None else log.axes[0]
+    params, model_date = _model_for(job, opts, first)
+    if opts.kind == "validate":
+        scores = opts.run(params, [log], axis)
+        rows = []
+        for ax, sc in scores.items():
+            r = _base(job, "validate")
+            r.update(status="ok", axis=int(ax), rmse=sc.rmse, rel_error=sc.rel_error, n_samples=log.n_samples,
+                     log_duration=log.duration, model_date=model_date,
+                     result=json.dumps({"axis": int(ax), **sc.to_json(), "model_date": model_date}), **_temp(log, ax))
+            rows.append(r)
+        return rows
+    if params.get("schema") != "kukaid.params/1":
+        raise KukaidError(f"{job.name}: fleet diagnose takes one-axis fits (kukaid.params/1), not {params.get('schema')}")
+    d = opts.run(params, [log], axis=axis)
+    r = _base(job, "diagnose")
+    r.update(status="ok", axis=int(params["axis"]), rmse=float(d.rmse_after), n_samples=log.n_samples,
+             log_duration=log.duration, effects=",".join(s.name for s in d.steps), result=json.dumps(d.to_json()),
+             **_temp(log, int(params["axis"])))
+    return [r]
+
+
+def check_task(job: Job, options: CheckOptions) -> list[dict]:
+    """``fleet validate`` / ``fleet diagnose`` of one log: its rows (an error row when it fails)."""
+    return guarded(options.kind, _check_body, job, options)
