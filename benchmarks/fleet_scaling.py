@@ -83,7 +83,7 @@ def main() -> int:
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     if a.quick:
-        a.sizes, a.arm, a.workers = [4], 1, [2]
+        a.sizes, a.arm, a.workers = [4], 0, [2]
 
     from kukaid.fleet.manifest import read_manifest
     from kukaid.fleet.simulate import FleetSimConfig, simulate_fleet

@@ -136,10 +136,12 @@ def test_unreachable_scheduler_and_bad_options_are_one_line(tmp_path, kukaid_cmd
 
 
 def test_table_made_with_other_settings_is_not_mixed(tmp_path, kukaid_cmd):
+    from kukaid.fleet.table import write_table
+    from kukaid.fleet.tasks import FitOptions
+
     man = small_fleet(tmp_path / "f", robots=1, days=2, seed=51)
     table = tmp_path / "t.parquet"
-    assert _run(kukaid_cmd, "fleet", "fit", man, "-o", table, "--workers", "1",
-                "--friction-model", "coulomb-viscous").returncode == 0
+    write_table(table, [], FitOptions(friction_model="coulomb-viscous").settings())
     r = _run(kukaid_cmd, "fleet", "fit", man, "-o", table, "--workers", "1")
     assert r.returncode == 1 and "other settings" in r.stderr and r.stderr.count("\n") == 1
 
