@@ -192,9 +192,8 @@ def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, 
         journal.append(direct)
         rows += direct
         s.errors += len(direct)
-        done, total = 0, len(jobs)
         if progress is not None:
-            progress(0, total)
+            progress(0, len(jobs))
         if jobs:
             with contextlib.ExitStack() as stack:
                 if client is None:
