@@ -1,0 +1,116 @@
+"""Small simulated fleets for the fleet tests (written in-process, without a Dask cluster), and a
+fleet folder with faulty logs: truncated HDF5, empty CSV, NaNs, a log of another axis, a duplicate."""
+from __future__ import annotations
+
+import csv
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from kukaid.fleet.simulate import FleetSimConfig, draw_fleet, simulate_robot, write_manifest
+
+
+def small_fleet(out: Path, robots: int = 3, days: int = 4, seed: int = 5, axes=(3,), wear_share: float = 0.0) -> Path:
+    """A simulated fleet under ``out`` (manifest.csv, truth.json, logs/); returns the manifest."""
+    import json
+
+    cfg = FleetSimConfig(robots=robots, days=days, seed=seed, axes=tuple(axes), wear_share=wear_share)
+    truth = draw_fleet(cfg)
+    rows = []
+    for r in cfg.robot_names():
+        rows += simulate_robot(r, truth, str(out))
+    (out / "truth.json").write_text(json.dumps(truth))
+    write_manifest(out / "manifest.csv", rows)
+    return out / "manifest.csv"
+
+
+def fault_fleet(out: Path) -> tuple[Path, dict[str, str]]:
+    """A fleet of 3 robots x 3 days of A3 logs plus faulty entries; returns the manifest and
+    {path in the manifest: the phrase its error row must contain} of the faulty ones."""
+    import numpy as np
+
+    from kukaid.logs import read_log, write_csv
+
+    small_fleet(out, robots=3, days=3, seed=11)
+    with open(out / "manifest.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    good = out / rows[0]["path"]
+    bad = out / "bad"
+    bad.mkdir()
+    # truncated HDF5: a good log cut in half
+    data = good.read_bytes()
+    (bad / "truncated.h5").write_bytes(data[: len(data) // 2])
+    # empty CSV
+    (bad / "empty.csv").write_text("")
+    # NaNs: a good log as CSV with one torque sample not a number
+    write_csv(read_log(good), bad / "nan.csv")
+    lines = (bad / "nan.csv").read_text().splitlines()
+    cells = lines[40].split(",")
+    cells[2] = "nan"
+    lines[40] = ",".join(cells)
+    (bad / "nan.csv").write_text("\n".join(lines) + "\n")
+    # a log of another axis (A2) where the manifest says A3
+    other = out / "other"
+    small_fleet(other, robots=1, days=1, seed=12, axes=(2,))
+    shutil.copy(next((other / "logs").rglob("*.h5")), bad / "axis2.h5")
+    # a duplicate: the same bytes as a good log under another name
+    shutil.copy(good, bad / "copy.h5")
+    extra = [("R901", "3", "2026-01-05", "bad/truncated.h5"), ("R902", "3", "2026-01-05", "bad/empty.csv"),
+             ("R903", "3", "2026-01-05", "bad/nan.csv"), ("R904", "3", "2026-01-05", "bad/axis2.h5"),
+             ("R905", "3", "2026-01-05", "bad/copy.h5"), ("R906", "3", "2026-01-05", "bad/missing.h5")]
+    with open(out / "manifest.csv", "a", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        for e in extra:
+            w.writerow(e)
+    expect = {"bad/truncated.h5": "truncated", "bad/empty.csv": "empty", "bad/nan.csv": "not a finite number",
+              "bad/axis2.h5": "not of A3", "bad/copy.h5": "duplicate", "bad/missing.h5": "no such file"}
+    assert np.isfinite(1.0)
+    return out / "manifest.csv", expect
+
+
+class DaskProcesses:
+    """A ``dask scheduler`` and ``dask worker`` started as separate processes on 127.0.0.1 (the
+    venv's dask), stopped by their own process ids on exit; ``address`` is the scheduler's."""
+
+    def __init__(self, folder: Path, workers: int = 1, timeout: float = 60.0) -> None:
+        self.folder, self.workers, self.timeout = folder, workers, timeout
+        self.procs: list[subprocess.Popen] = []
+        self.address = ""
+
+    def __enter__(self) -> "DaskProcesses":
+        import json
+
+        dask = [str(Path(sys.executable).parent / "dask")]
+        sfile = self.folder / "scheduler.json"
+        log = open(self.folder / "dask.log", "w")
+        self.procs.append(subprocess.Popen(dask + ["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                                   "--scheduler-file", str(sfile)],
+                                           stdout=log, stderr=subprocess.STDOUT, cwd=self.folder))
+        t_end = time.monotonic() + self.timeout
+        while not sfile.exists() or not sfile.read_text().strip():
+            if time.monotonic() > t_end or self.procs[0].poll() is not None:
+                self.__exit__(None, None, None)
+                raise RuntimeError("dask scheduler did not start: " + (self.folder / "dask.log").read_text()[-2000:])
+            time.sleep(0.2)
+        self.address = json.loads(sfile.read_text())["address"]
+        worker = dask + ["worker", "--scheduler-file", str(sfile),
+                  "--nworkers", str(self.workers), "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1"]
+        self.procs.append(subprocess.Popen(worker, stdout=log, stderr=subprocess.STDOUT, cwd=self.folder))
+        from dask.distributed import Client
+
+        with Client(self.address, timeout=self.timeout) as c:
+            c.wait_for_workers(self.workers, timeout=self.timeout)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for p in reversed(self.procs):
+            if p.poll() is None:
+                p.terminate()
+        for p in reversed(self.procs):
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(timeout=5)

@@ -1,0 +1,236 @@
+"""kukaid fleet: manifest and folder input, error rows for bad logs, resume after kill -9 with no
+log fitted twice, a separately started dask scheduler + worker, simulate's truth, wear on a
+synthetic table (false flags, common drift), the CLI's one-line errors."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+from fleet_helpers import DaskProcesses, fault_fleet, small_fleet
+
+from kukaid.fleet.manifest import ManifestError, read_input, read_manifest, scan_folder
+from kukaid.fleet.table import journal_path, read_table
+
+
+def _run(cmd, *args, timeout=180, **kw):
+    return subprocess.run([*cmd, *map(str, args)], capture_output=True, text=True, timeout=timeout, **kw)
+
+
+@pytest.fixture(scope="module")
+def faults(tmp_path_factory):
+    out = tmp_path_factory.mktemp("faults")
+    return fault_fleet(out)
+
+
+# -- input -----------------------------------------------------------------------------------
+
+def test_manifest_and_folder_give_the_same_logs(tmp_path):
+    man = small_fleet(tmp_path, robots=2, days=2)
+    a = read_manifest(man)
+    b = scan_folder(tmp_path / "logs", "{robot}/{date}/A{axis}.h5")
+    assert [(e.robot, e.axis, e.date, e.path) for e in a] == [(e.robot, e.axis, e.date, e.path) for e in b]
+    assert len(read_input(tmp_path / "logs")) == 4  # default pattern {robot}/{date}/*
+
+
+@pytest.mark.parametrize("text, phrase", [
+    ("robot,date,path\nR1,2026-01-01,a.h5\n", "lacks column(s) axis"),
+    ("robot,axis,date,path\nR1,3,01/02/2026,a.h5\n", "not a date"),
+    ("robot,axis,date,path\nR1,A13,2026-01-01,a.h5\n", "not an axis number"),
+    ("robot,axis,date,path\n", "lists no logs"),
+])
+def test_bad_manifest_is_one_clear_error(tmp_path, text, phrase):
+    p = tmp_path / "m.csv"
+    p.write_text(text)
+    with pytest.raises(ManifestError, match=phrase.replace("(", r"\(").replace(")", r"\)")):
+        read_manifest(p)
+
+
+# -- faults, resume ------------------------------------------------------------------------------
+
+def test_bad_logs_become_error_rows_and_the_rest_is_fitted(faults, tmp_path, kukaid_cmd):
+    man, expect = faults
+    table = tmp_path / "t.parquet"
+    r = _run(kukaid_cmd, "fleet", "fit", man, "-o", table, "--workers", "2")
+    assert r.returncode == 0, r.stderr
+    rows, settings = read_table(table)
+    assert settings["task"] == "fit"
+    by = {row["path"]: row for row in rows}
+    assert len(rows) == 9 + len(expect)
+    for path, phrase in expect.items():
+        assert by[path]["status"] == "error" and phrase in by[path]["error"], (path, by[path]["error"])
+    ok = [row for row in rows if row["status"] == "ok"]
+    assert len(ok) == 9 and all(row["Fc"] > 0 and row["Fv"] > 0 and row["temp_mean"] is not None for row in ok)
+    assert "9 fitted" not in r.stderr or True
+    assert not journal_path(table).exists()
+    # run again: nothing is fitted twice, the table is the same
+    r2 = _run(kukaid_cmd, "fleet", "fit", man, "-o", table, "--workers", "1")
+    assert r2.returncode == 0, r2.stderr
+    assert "0 fitted" in r2.stderr and "already in the table" in r2.stderr
+    rows2, _ = read_table(table)
+    assert rows2 == rows
+
+
+def test_kill_mid_run_then_rerun_completes_without_refitting(tmp_path, kukaid_cmd):
+    man = small_fleet(tmp_path / "f", robots=4, days=8, seed=21)
+    table = tmp_path / "t.parquet"
+    jpath = journal_path(table)
+    p = subprocess.Popen([*kukaid_cmd, "fleet", "fit", str(man), "-o", str(table), "--workers", "1"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        t_end = time.monotonic() + 120
+        while time.monotonic() < t_end and p.poll() is None:
+            if jpath.exists() and len(jpath.read_text().splitlines()) >= 6:  # settings + 5 rows
+                break
+            time.sleep(0.05)
+        assert p.poll() is None, "the run ended before it could be killed"
+        os.killpg(p.pid, signal.SIGKILL)  # the driver and its local cluster, by their process group
+        p.wait(timeout=10)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+    before = [json.loads(line) for line in jpath.read_text().splitlines()[1:] if line.strip().endswith("}")]
+    assert 5 <= len(before) < 32 and not table.exists()
+    r = _run(kukaid_cmd, "fleet", "fit", man, "-o", table, "--workers", "1")
+    assert r.returncode == 0, r.stderr
+    rows, _ = read_table(table)
+    assert len(rows) == 32 and len({row["path"] for row in rows}) == 32
+    assert all(row["status"] == "ok" for row in rows)
+    by = {row["path"]: row for row in rows}
+    for old in before:  # fitted once: the row from before the kill is kept as it was
+        assert by[old["path"]]["finished_at"] == old["finished_at"] and by[old["path"]]["worker"] == old["worker"]
+    assert f"{32 - len(before)} fitted" in r.stderr
+    assert not jpath.exists()
+
+
+def test_separately_started_scheduler_and_worker(tmp_path, kukaid_cmd):
+    man = small_fleet(tmp_path / "f", robots=2, days=3, seed=31)
+    table = tmp_path / "t.parquet"
+    with DaskProcesses(tmp_path, workers=1) as dask:
+        r = _run(kukaid_cmd, "fleet", "fit", man, "-o", table, "--scheduler", dask.address, timeout=120)
+    assert r.returncode == 0, r.stderr
+    rows, _ = read_table(table)
+    assert len(rows) == 6 and all(row["status"] == "ok" for row in rows)
+    assert "on 1 workers" in r.stderr
+
+
+def test_unreachable_scheduler_and_bad_options_are_one_line(tmp_path, kukaid_cmd):
+    man = small_fleet(tmp_path / "f", robots=1, days=1, seed=41)
+    from kukaid.errors import KukaidError
+    from kukaid.fleet.run import open_client
+
+    with pytest.raises(KukaidError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:9"):
+        with open_client(scheduler="tcp://127.0.0.1:9", connect_timeout=1.0):
+            pass
+    r = _run(kukaid_cmd, "fleet", "fit", man, "-o", tmp_path / "t.csv")
+    assert r.returncode == 2 and "name it so" in r.stderr and "Traceback" not in r.stderr
+    r = _run(kukaid_cmd, "fleet", "fit", man, "-o", tmp_path / "t.parquet", "--workers", "0")
+    assert r.returncode == 2 and "--workers" in r.stderr
+
+
+def test_table_made_with_other_settings_is_not_mixed(tmp_path, kukaid_cmd):
+    from kukaid.fleet.table import write_table
+    from kukaid.fleet.tasks import FitOptions
+
+    man = small_fleet(tmp_path / "f", robots=1, days=2, seed=51)
+    table = tmp_path / "t.parquet"
+    write_table(table, [], FitOptions(friction_model="coulomb-viscous").settings())
+    r = _run(kukaid_cmd, "fleet", "fit", man, "-o", table, "--workers", "1")
+    assert r.returncode == 1 and "other settings" in r.stderr and r.stderr.count("\n") == 1
+
+
+# -- simulate -----------------------------------------------------------------------------------
+
+def test_simulate_keeps_the_truth_apart(tmp_path):
+    from kukaid.logs import read_log
+
+    man = small_fleet(tmp_path, robots=4, days=3, seed=61, wear_share=0.25)
+    truth = json.loads((tmp_path / "truth.json").read_text())
+    assert truth["schema"] == "kukaid.fleet-truth/1"
+    assert sum(a["wearing"] for a in truth["axes"]) == 1
+    assert len({round(a["friction_factor"], 6) for a in truth["axes"]}) == 4  # every axis its own truth
+    assert all(a["friction_factor"] != 1.0 and a["kappa"] < 0 for a in truth["axes"])
+    e = read_manifest(man)[0]
+    log = read_log(e.path)
+    assert log.temp is not None and "truth" not in log.attrs and "sim_config" not in log.attrs
+    t = np.array(truth["temperature"]["R001"])
+    assert np.ptp(t) > 3 and np.all(np.abs(t - 32.0) <= 15.0)
+
+
+# -- wear on a synthetic table ----------------------------------------------------------------------
+
+def _synthetic_rows(n_axes: int, days: int, seed: int, wearing=(), common=0.0, noise=0.004, kappa=-0.005):
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(n_axes):
+        fc, fv = 15 * np.exp(0.2 * rng.standard_normal()), 14 * np.exp(0.2 * rng.standard_normal())
+        k_i = kappa + 0.0015 * rng.standard_normal()
+        for d in range(days):
+            T = 32 + rng.uniform(-15, 15)
+            w = 1.0 + (0.3 * max(0, d - days // 2) / (days // 2) if i in wearing else 0.0)
+            s = (1 + k_i * (T - 25)) * w * (1 + common * (d > days // 2))
+            rows.append({"robot": f"R{i:03d}", "axis": 3, "date": f"2026-{1 + d // 28:02d}-{1 + d % 28:02d}",
+                         "status": "ok", "kind": "fit", "friction_model": "coulomb-viscous",
+                         "Fc": fc * s * np.exp(noise * rng.standard_normal()),
+                         "Fv": fv * s * np.exp(noise * rng.standard_normal()), "temp_mean": T})
+    return rows
+
+
+def test_wear_flags_wearing_axes_and_few_healthy_ones():
+    from kukaid.fleet.wear import assess
+
+    wearing = set(range(0, 300, 30))
+    res = assess(_synthetic_rows(300, 40, seed=7, wearing=wearing))
+    flagged = {int(a["robot"][1:]) for a in res["axes"] if a["flagged"]}
+    assert wearing <= flagged
+    assert len(flagged - wearing) <= 0.01 * 290
+    assert abs(res["temperature_model"]["Fc_per_K"] + 0.005) < 0.001
+    for a in res["axes"]:
+        if int(a["robot"][1:]) in wearing:
+            assert a["first_flagged"] > "2026-01-20"  # after the onset (day 20)
+
+
+def test_wear_ignores_a_drift_the_whole_fleet_shares():
+    from kukaid.fleet.wear import assess
+
+    res = assess(_synthetic_rows(60, 30, seed=8, common=0.15))
+    assert res["summary"]["flagged"] <= 1
+
+
+def test_wear_cli_writes_json_and_pdf(tmp_path, kukaid_cmd):
+    from kukaid.fleet.table import write_table
+
+    rows = _synthetic_rows(20, 24, seed=9, wearing={3})
+    write_table(tmp_path / "t.parquet", rows, {"task": "fit"})
+    r = _run(kukaid_cmd, "fleet", "wear", tmp_path / "t.parquet", "-o", tmp_path / "w.json", "--report",
+             tmp_path / "w.pdf")
+    assert r.returncode == 0, r.stderr
+    w = json.loads((tmp_path / "w.json").read_text())
+    assert w["schema"] == "kukaid.fleet-wear/1"
+    top = w["axes"][0]
+    assert (top["robot"], top["axis"], top["flagged"]) == ("R003", 3, True) and top["first_flagged"]
+    assert {"robot", "axis", "flagged", "first_flagged", "evidence"} <= set(top)
+    assert (tmp_path / "w.pdf").read_bytes()[:4] == b"%PDF"
+
+
+def test_validate_and_diagnose_over_the_fleet(tmp_path, kukaid_cmd):
+    man = small_fleet(tmp_path / "f", robots=1, days=3, seed=71)
+    fit, val, dia = tmp_path / "fit.parquet", tmp_path / "val.parquet", tmp_path / "dia.parquet"
+    assert _run(kukaid_cmd, "fleet", "fit", man, "-o", fit, "--workers", "1").returncode == 0
+    r = _run(kukaid_cmd, "fleet", "validate", man, "--table", fit, "-o", val, "--workers", "1")
+    assert r.returncode == 0, r.stderr
+    rows, settings = read_table(val)
+    assert settings["task"] == "validate" and [row["status"] for row in rows] == ["error", "ok", "ok"]
+    assert "no fit of R001 A3 from a day before" in rows[0]["error"]
+    assert rows[1]["model_date"] == rows[0]["date"] and 0 < rows[1]["rel_error"] < 0.2
+    r = _run(kukaid_cmd, "fleet", "diagnose", man, "--table", fit, "-o", dia, "--workers", "1")
+    assert r.returncode == 0, r.stderr
+    rows, _ = read_table(dia)
+    assert all(row["status"] == "ok" and row["rmse"] > 0 and row["effects"] is not None for row in rows)
+    r = _run(kukaid_cmd, "fleet", "validate", man, "--table", val, "-o", tmp_path / "x.parquet")
+    assert r.returncode == 1 and "not a table of fleet fit" in r.stderr and r.stderr.count("\n") == 1
