@@ -140,12 +140,12 @@ def test_nobody_touching_the_axis_never_moves(name):
 
 @pytest.mark.parametrize("name", FAMILY)
 def test_after_a_guided_move_ends_the_axis_stays(name):
-    """A push moves the axis some degrees and lets go; from when the reference has coasted to a stop
+    """A 25 N·m push moves the axis some degrees and lets go; from when the reference has coasted to a stop
     on, for about 30 s, the axis stands (< 0.05 degree) and nothing is detected."""
     p = plant(name, seed=12)
     for damping, cycle in DAMPINGS:
         for move in (1.0, -1.0):
-            op = PushOperator(amplitude=15.0 * move, t_start=2.0, duration=2.0, ramp=0.3)
+            op = PushOperator(amplitude=25.0 * move, t_start=2.0, duration=2.0, ramp=0.3)
             run = _quiet_run(p, damping, cycle, move, 35.0, op)
             moved = run.data["q"][-1] - run.data["q"][0]
             drift, n_det = _drift_and_detections(run, t_from=-op.t_end)
