@@ -216,6 +216,7 @@ class TorqueResidual:
         # mean square of Γr at rest out of contact, N²m², from the level where the start threshold
         # is ``threshold``
         self._rest_ms = (self.threshold / self.floor_k) ** 2 if self.floor_k > 0 else 0.0
+        self._dyn_ms, self._dyn_n = 0.0, 0  # mean square of Γr moving out of contact, N²m²
         self.rest_threshold_max = self.threshold
         self._bump = 0.0  # Γp jump of the last mode switch, fading
         self._since_switch = math.inf  # s since the axis last started or stopped
@@ -230,6 +231,15 @@ class TorqueResidual:
     @property
     def detected(self) -> bool:
         return self._detected if self._started else False
+
+    @property
+    def release_now(self) -> float:
+        """|Γr| below which a detection ends, N·m: ``release``, or 1.5 x the RMS of Γr while the axis
+        moved with nobody in contact (the initiation move, coasting after a release) when that is
+        larger, at most 0.8 x ``threshold``: a model off by a few N·m while moving (friction that
+        changes with position, a gravity error) would otherwise hold a released detection on and
+        keep moving the axis by its own error."""
+        return min(max(self.release, 1.5 * math.sqrt(self._dyn_ms)), max(self.release, 0.8 * self.threshold))
 
     @property
     def rest_threshold(self) -> float:
@@ -348,8 +358,11 @@ class TorqueResidual:
         gamma_p = pred_f + new_u + self._bump
         gamma_r = gamma_p - tau_f
         a = abs(gamma_r)
+        if not quasi and not self._detected and self._since_switch >= self.switch_quiet / 4:
+            self._dyn_n += 1  # moving out of contact (the initiation move, coasting): the model's own error
+            self._dyn_ms += max(h / self.floor_tau, 1.0 / self._dyn_n) * (gamma_r * gamma_r - self._dyn_ms)
         if self._detected:
-            self._detected = a >= self.release
+            self._detected = a >= self.release_now
             if not self._detected and quasi:  # a contact ended at rest: the friction held may differ now
                 self._new_rest()
         else:
