@@ -333,6 +333,16 @@ def print_table(res: dict, n_ops: int) -> None:
                   f" {p['dgamma2_ratio']:5.2f} (max {p['dgamma2_ratio_max']:4.2f}) | {p['oscillating']:3d} {p['torque_stop']:4d}"
                   f" {p['false_after_release']:5d} | {100 * p['end_error_median']:6.1f}% / {100 * p['end_error_max']:5.1f}%"
                   f" ({100 * p['end_error_soft_max']:5.1f}%) | {p['stab_events']:7d} {p['damp_time_max']:6.2f}")
+        runs = r["runs"]
+        if "adaptive" in runs and "D50" in runs and len({x["plant"] for x in runs["adaptive"]}) > 1:
+            print("per plant (adaptive vs D 50 on ξ true: wins; oscillating runs; cycles detected after a release):")
+            for pl in sorted({x["plant"] for x in runs["adaptive"]}):
+                ad = [x for x in runs["adaptive"] if x["plant"] == pl]
+                d50 = [x for x in runs["D50"] if x["plant"] == pl]
+                wins = sum(a["xi_true"] < b["xi_true"] for a, b in zip(ad, d50))
+                print(f"  {pl:>14}: wins {wins:2d}/{len(ad):2d} | osc adaptive {sum(a['oscillating'] for a in ad)} "
+                      f"D50 {sum(b['oscillating'] for b in d50)} | after release adaptive "
+                      f"{sum(a['false_after_release'] for a in ad)} D50 {sum(b['false_after_release'] for b in d50)}")
         if r["paired"]:
             print("adaptive - constant (paired; negative = adaptive costs the person less):")
             print(f"{'vs':>4} {'measure':>12} | {'mean diff':>9} {'95% CI':>21} {'rel':>7} | {'wins':>6} "

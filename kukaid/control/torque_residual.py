@@ -14,9 +14,10 @@ Online, causal version (what a controller can do):
 * torque, position and the velocity and acceleration obtained by differencing positions all pass
   through the same causal 3rd-order Butterworth low-pass (5 Hz), so they stay aligned in time;
 * Γu, the unmodelled quasi-static torque, is taken anew at the start of every rest (the paper's
-  eq. 13; a rest begins when the axis stops, or when a contact ends with the axis standing): the
-  mean raw residual over its first ``u_window`` s, then, while the axis settles (``switch_quiet``
-  s), a close follower (time constant ``u_window``), then, only while nobody is in contact
+  eq. 13; a rest begins when the axis stops with no detection): the mean raw residual over its
+  first ``u_window`` s, then, while the axis settles (``switch_quiet`` s) and if |Γr| had been
+  below the release level for ``QUIET_BEFORE_REST`` s before the stop (no hand braking the
+  axis), a close follower (time constant ``u_window``), then, only while nobody is in contact
   (quasi-static, no detection, the innovation below half the start threshold at rest, so a push
   building up is not learnt), recursive least squares with forgetting ``u_tau`` of an offset and
   a gain ``beta`` on the model's pre-sliding torque since the rest began: a plant whose
@@ -36,7 +37,7 @@ Online, causal version (what a controller can do):
 * detection: Γr is "detected" when |Γr| >= the start threshold and stays so until |Γr| <
   ``release`` (hysteresis), so a residual hovering at the threshold does not chatter; within
   ``switch_quiet`` s of the axis starting or stopping (a change of mode, or the differenced speed
-  crossing ``qd_thr``) or of a rest beginning the start threshold is ``switch_share`` x
+  crossing ``qd_thr``) the start threshold is ``switch_share`` x
   ``threshold``: starts and stops leave short spikes in Γr (the paper's backlash spikes, the
   friction settling, the servo's overshoot) that must not move the axis.
 
@@ -62,6 +63,9 @@ QUASI_STATIC = "quasi-static"
 BLEND = (1.0, 3.0)
 #: default holding threshold (end of a detection) as a share of the start threshold
 RELEASE_SHARE = 0.3
+#: Γu follows a stop's settling closely only after this long (s) with |Γr| below the release level:
+#: a hand that braked the coasting axis (not detected) is still on it when it stops
+QUIET_BEFORE_REST = 0.3
 #: Γu's least squares at rest: prior covariance (offset N²m², -, gain²) and the largest gain correction
 GAIN_P0 = (25.0, 0.0, 0.25)
 GAIN_MAX = 1.0
@@ -208,11 +212,11 @@ class TorqueResidual:
         self._u_n = 0
         self._u_need = max(1, int(round(self.u_window / self.sample_time)))
         self._gamma_u = 0.0  # Γu at the rest's anchor, N·m
+        self._settle = False  # this rest's first switch_quiet s: Γu follows the settling closely
         self._beta = 0.0  # Γu's gain on the model's pre-sliding torque since the anchor (plant / model - 1)
         self._fp_anchor = fp0
         self._fp_f = fp0
         self._P = list(GAIN_P0)
-        self._since_rest = math.inf  # s since the present rest began (a stop, or a contact ended at rest)
         # mean square of Γr at rest out of contact, N²m², from the level where the start threshold
         # is ``threshold``
         self._rest_ms = (self.threshold / self.floor_k) ** 2 if self.floor_k > 0 else 0.0
@@ -220,6 +224,7 @@ class TorqueResidual:
         self.rest_threshold_max = self.threshold
         self._bump = 0.0  # Γp jump of the last mode switch, fading
         self._since_switch = math.inf  # s since the axis last started or stopped
+        self._quiet = math.inf  # s since |Γr| was last at the release level (or detected)
         self._moving = False
         self._detected = False
         self._started = True
@@ -255,14 +260,15 @@ class TorqueResidual:
         since then (the plant's pre-sliding friction may be stiffer or softer than the model's)."""
         return self._gamma_u + self._beta * (self._fp_f - self._fp_anchor)
 
-    def _new_rest(self) -> None:
-        """A rest begins (the axis stopped, or a contact ended at rest): Γu anew (the paper: eq. 13),
-        re-anchored where the pre-sliding torque is now; ``beta`` is kept (a property of the axis)."""
+    def _new_rest(self, settle: bool = True) -> None:
+        """A rest begins (the axis stopped, nothing detected): Γu anew (the paper: eq. 13), re-anchored
+        where the pre-sliding torque is now (``beta`` is kept: a property of the axis); ``settle``:
+        Γu may follow the settling closely (no hand braked the axis before the stop)."""
         self._gamma_u = self._at_rest()
         self._fp_anchor = self._fp_f
         self._P = list(GAIN_P0)
         self._u_n = 0
-        self._since_rest = 0.0
+        self._settle = settle
 
     def _learn_rest(self, raw: float, h: float) -> None:
         """Out of contact at rest: Γu is the mean of the raw residual over the first ``u_window`` s of
@@ -274,7 +280,7 @@ class TorqueResidual:
         if self._u_n < self._u_need:
             self._u_n += 1
             self._gamma_u += e / self._u_n
-        elif self._since_rest < self.switch_quiet:
+        elif self._settle and self._since_switch < self.switch_quiet:
             self._gamma_u += min(h / max(self.u_window, h), 1.0) * e
         elif abs(e) < 0.5 * self.rest_threshold:
             x = self._fp_f - self._fp_anchor
@@ -339,7 +345,8 @@ class TorqueResidual:
                 self._zeta = q - self._last_sign * (self._W / self._k)
         quasi = self._mode == QUASI_STATIC
         if quasi and old_mode == DYNAMIC and not self._detected:
-            self._new_rest()
+            # stopped, nothing detected; followed closely while it settles only if no hand braked it
+            self._new_rest(settle=self._quiet >= QUIET_BEFORE_REST)
         raw = tau_f - pred_f  # what Γu must add for Γr = 0
         self._fp_f = fp_f
         learning = quasi and not self._detected
@@ -361,21 +368,20 @@ class TorqueResidual:
         if not quasi and not self._detected and self._since_switch >= self.switch_quiet / 4:
             self._dyn_n += 1  # moving out of contact (the initiation move, coasting): the model's own error
             self._dyn_ms += max(h / self.floor_tau, 1.0 / self._dyn_n) * (gamma_r * gamma_r - self._dyn_ms)
+        self._quiet = 0.0 if (self._detected or a >= self.release_now) else self._quiet + h
         if self._detected:
             self._detected = a >= self.release_now
-            if not self._detected and quasi:  # a contact ended at rest: the friction held may differ now
-                self._new_rest()
         else:
             start = self.threshold
             if quasi:
-                if learning and self._u_n >= self._u_need and self._since_rest >= self.switch_quiet:
+                if (learning and self._u_n >= self._u_need and self._since_switch >= self.switch_quiet
+                        and a < self.rest_threshold):  # what is not taken for a push
                     self._rest_ms += min(h / self.floor_tau, 1.0) * (gamma_r * gamma_r - self._rest_ms)
                 start = self.rest_threshold
                 self.rest_threshold_max = max(self.rest_threshold_max, start)
-            if min(self._since_switch, self._since_rest) < self.switch_quiet:  # starts, stops: spikes
+            if self._since_switch < self.switch_quiet:  # starts, stops: spikes
                 start = max(start, self.switch_share * self.threshold)
             self._detected = a >= start
-            self._since_rest += h
         return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, new_u)
 
 
