@@ -14,10 +14,10 @@ Online, causal version (what a controller can do):
 * torque, position and the velocity and acceleration obtained by differencing positions all pass
   through the same causal 3rd-order Butterworth low-pass (5 Hz), so they stay aligned in time;
 * Γu, the unmodelled quasi-static torque, is taken anew at the start of every rest (the paper's
-  eq. 13; a rest begins when the axis stops with no detection): the mean raw residual over its
-  first ``u_window`` s, then, while the axis settles (``switch_quiet`` s) and if |Γr| had been
-  below the release level for ``QUIET_BEFORE_REST`` s before the stop (no hand braking the
-  axis), a close follower (time constant ``u_window``), then, only while nobody is in contact
+  eq. 13; a rest begins when the axis stops with nobody in contact: no detection and |Γr| below
+  the release level for the last ``QUIET_BEFORE_REST`` s, so not a hand braking the axis): the
+  mean raw residual over its first ``u_window`` s, then, while the axis settles (``switch_quiet``
+  s), a close follower (time constant ``u_window``), then, only while nobody is in contact
   (quasi-static, no detection, the innovation below half the start threshold at rest, so a push
   building up is not learnt), recursive least squares with forgetting ``u_tau`` of an offset and
   a gain ``beta`` on the model's pre-sliding torque since the rest began: a plant whose
@@ -63,7 +63,7 @@ QUASI_STATIC = "quasi-static"
 BLEND = (1.0, 3.0)
 #: default holding threshold (end of a detection) as a share of the start threshold
 RELEASE_SHARE = 0.3
-#: Γu follows a stop's settling closely only after this long (s) with |Γr| below the release level:
+#: a stop begins a new rest (Γu anew) only after this long (s) with |Γr| below the release level:
 #: a hand that braked the coasting axis (not detected) is still on it when it stops
 QUIET_BEFORE_REST = 0.3
 #: Γu's least squares at rest: prior covariance (offset N²m², -, gain²) and the largest gain correction
@@ -212,7 +212,6 @@ class TorqueResidual:
         self._u_n = 0
         self._u_need = max(1, int(round(self.u_window / self.sample_time)))
         self._gamma_u = 0.0  # Γu at the rest's anchor, N·m
-        self._settle = False  # this rest's first switch_quiet s: Γu follows the settling closely
         self._beta = 0.0  # Γu's gain on the model's pre-sliding torque since the anchor (plant / model - 1)
         self._fp_anchor = fp0
         self._fp_f = fp0
@@ -260,15 +259,13 @@ class TorqueResidual:
         since then (the plant's pre-sliding friction may be stiffer or softer than the model's)."""
         return self._gamma_u + self._beta * (self._fp_f - self._fp_anchor)
 
-    def _new_rest(self, settle: bool = True) -> None:
-        """A rest begins (the axis stopped, nothing detected): Γu anew (the paper: eq. 13), re-anchored
-        where the pre-sliding torque is now (``beta`` is kept: a property of the axis); ``settle``:
-        Γu may follow the settling closely (no hand braked the axis before the stop)."""
+    def _new_rest(self) -> None:
+        """A rest begins (the axis stopped, nobody in contact): Γu anew (the paper: eq. 13), re-anchored
+        where the pre-sliding torque is now (``beta`` is kept: a property of the axis)."""
         self._gamma_u = self._at_rest()
         self._fp_anchor = self._fp_f
         self._P = list(GAIN_P0)
         self._u_n = 0
-        self._settle = settle
 
     def _learn_rest(self, raw: float, h: float) -> None:
         """Out of contact at rest: Γu is the mean of the raw residual over the first ``u_window`` s of
@@ -280,7 +277,7 @@ class TorqueResidual:
         if self._u_n < self._u_need:
             self._u_n += 1
             self._gamma_u += e / self._u_n
-        elif self._settle and self._since_switch < self.switch_quiet:
+        elif self._since_switch < self.switch_quiet:
             self._gamma_u += min(h / max(self.u_window, h), 1.0) * e
         elif abs(e) < 0.5 * self.rest_threshold:
             x = self._fp_f - self._fp_anchor
@@ -344,9 +341,8 @@ class TorqueResidual:
             if self._k.size:
                 self._zeta = q - self._last_sign * (self._W / self._k)
         quasi = self._mode == QUASI_STATIC
-        if quasi and old_mode == DYNAMIC and not self._detected:
-            # stopped, nothing detected; followed closely while it settles only if no hand braked it
-            self._new_rest(settle=self._quiet >= QUIET_BEFORE_REST)
+        if quasi and old_mode == DYNAMIC and not self._detected and self._quiet >= QUIET_BEFORE_REST:
+            self._new_rest()  # stopped with nobody in contact (no detection, nor a braking hand)
         raw = tau_f - pred_f  # what Γu must add for Γr = 0
         self._fp_f = fp_f
         learning = quasi and not self._detected
