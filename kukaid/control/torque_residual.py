@@ -15,14 +15,11 @@ Online, causal version (what a controller can do):
   through the same causal 3rd-order Butterworth low-pass (5 Hz), so they stay aligned in time;
 * Γu, the unmodelled quasi-static torque, is taken anew at the start of every rest (the paper's
   eq. 13; a rest begins when the axis stops with nobody in contact: no detection and |Γr| below
-  the release level for the last ``QUIET_BEFORE_REST`` s, so not a hand braking the axis): the
+  the threshold for the last ``QUIET_BEFORE_REST`` s, so not a hand braking the axis): the
   mean raw residual over its first ``u_window`` s, then, while the axis settles (``switch_quiet``
   s), a close follower (time constant ``u_window``), then, only while nobody is in contact
   (quasi-static, no detection, the innovation below half the start threshold at rest, so a push
-  building up is not learnt), recursive least squares with forgetting ``u_tau`` of an offset and
-  a gain ``beta`` on the model's pre-sliding torque since the rest began: a plant whose
-  pre-sliding friction is stiffer or softer than the model's (another friction law) is followed.
-  In contact Γu is frozen, so a push that is still there when the axis stops is never absorbed;
+  building up is not learnt), a slow observer (time constant ``u_tau``).  In contact Γu is frozen, so a push that is still there when the axis stops is never absorbed;
 * at rest, out of contact, the RMS of Γr is tracked (forgetting ``floor_tau``): the start threshold
   at rest is at least ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model
   whose friction at rest does not match the axis needs a firmer push instead of moving the axis
@@ -63,12 +60,9 @@ QUASI_STATIC = "quasi-static"
 BLEND = (1.0, 3.0)
 #: default holding threshold (end of a detection) as a share of the start threshold
 RELEASE_SHARE = 0.3
-#: a stop begins a new rest (Γu anew) only after this long (s) with |Γr| below the release level:
-#: a hand that braked the coasting axis (not detected) is still on it when it stops
+#: a stop begins a new rest (Γu anew) only after this long (s) with |Γr| below the threshold: a
+#: hand that braked the coasting axis (applied, not detected) is still on it when it stops
 QUIET_BEFORE_REST = 0.3
-#: Γu's least squares at rest: prior covariance (offset N²m², -, gain²) and the largest gain correction
-GAIN_P0 = (25.0, 0.0, 0.25)
-GAIN_MAX = 1.0
 #: effects of a parameter file that the online residual evaluates
 SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
 
@@ -147,7 +141,7 @@ class TorqueResidual:
         self.cutoff, self.order = float(cutoff), int(order)
         fs = 1.0 / self.sample_time
         # q, qd, qdd, tau, predicted torque
-        self._filters = [CausalButterworth(cutoff, fs, order) for _ in range(6)]  # + Fp, for Γu's gain
+        self._filters = [CausalButterworth(cutoff, fs, order) for _ in range(5)]
         ms = model.maxwell_slip
         self._k = np.asarray(ms.k, dtype=float) if ms is not None else np.zeros(0)
         self._W = np.asarray(ms.W, dtype=float) if ms is not None else np.zeros(0)
@@ -205,17 +199,13 @@ class TorqueResidual:
         self._qd_prev = 0.0
         self._zeta = [q + float(v) for v in self._zeta0]
         fp0 = self._maxwell_slip(q)  # elements beyond their saturation slip back to it
-        for f, x0 in zip(self._filters, (q, 0.0, 0.0, tau, self.static_torque(q) + fp0, fp0)):
+        for f, x0 in zip(self._filters, (q, 0.0, 0.0, tau, self.static_torque(q) + fp0)):
             f.reset(x0)
         self._mode = QUASI_STATIC
         self._last_sign = 0.0
         self._u_n = 0
         self._u_need = max(1, int(round(self.u_window / self.sample_time)))
         self._gamma_u = 0.0  # Γu at the rest's anchor, N·m
-        self._beta = 0.0  # Γu's gain on the model's pre-sliding torque since the anchor (plant / model - 1)
-        self._fp_anchor = fp0
-        self._fp_f = fp0
-        self._P = list(GAIN_P0)
         # mean square of Γr at rest out of contact, N²m², from the level where the start threshold
         # is ``threshold``
         self._rest_ms = (self.threshold / self.floor_k) ** 2 if self.floor_k > 0 else 0.0
@@ -223,7 +213,8 @@ class TorqueResidual:
         self.rest_threshold_max = self.threshold
         self._bump = 0.0  # Γp jump of the last mode switch, fading
         self._since_switch = math.inf  # s since the axis last started or stopped
-        self._quiet = math.inf  # s since |Γr| was last at the release level (or detected)
+        self._quiet = math.inf  # s since |Γr| was last at the threshold (or detected)
+        self._rest_age = math.inf  # s of close following since the present rest began
         self._moving = False
         self._detected = False
         self._started = True
@@ -254,43 +245,27 @@ class TorqueResidual:
         return min(max(self.threshold, self.floor_k * math.sqrt(self._rest_ms)), self.floor_cap * self.threshold)
 
     # -- Γu, the quasi-static model's offset at rest ---------------------------------------------
-    def _at_rest(self) -> float:
-        """Γu, N·m: the offset at the rest's anchor plus ``beta`` times the model's pre-sliding torque
-        since then (the plant's pre-sliding friction may be stiffer or softer than the model's)."""
-        return self._gamma_u + self._beta * (self._fp_f - self._fp_anchor)
-
     def _new_rest(self) -> None:
-        """A rest begins (the axis stopped, nobody in contact): Γu anew (the paper: eq. 13), re-anchored
-        where the pre-sliding torque is now (``beta`` is kept: a property of the axis)."""
-        self._gamma_u = self._at_rest()
-        self._fp_anchor = self._fp_f
-        self._P = list(GAIN_P0)
+        """A rest begins (the axis stopped, nobody in contact): Γu anew (the paper: eq. 13)."""
         self._u_n = 0
+        self._rest_age = 0.0
 
     def _learn_rest(self, raw: float, h: float) -> None:
         """Out of contact at rest: Γu is the mean of the raw residual over the first ``u_window`` s of
         a rest (eq. 13), then follows it: closely (time constant ``u_window``) while the axis settles
-        (``switch_quiet`` s from the stop, when a push needs ``switch_share`` x the threshold), then by
-        recursive least squares of the offset and ``beta`` (forgetting ``u_tau``) while the innovation
-        stays below half the start threshold at rest (a push building up is not learnt)."""
-        e = raw - self._at_rest()
+        (``switch_quiet`` s from the stop, when a push needs ``switch_share`` x the threshold), then with
+        the time constant ``u_tau`` while the difference stays below half the start threshold at rest
+        (a push building up is not learnt).  No gain on the model's pre-sliding torque: fitted at rest
+        it takes up a push (the push deflects the axis, the pre-sliding torque follows)."""
+        e = raw - self._gamma_u
         if self._u_n < self._u_need:
             self._u_n += 1
             self._gamma_u += e / self._u_n
-        elif self._since_switch < self.switch_quiet:
+        elif self._rest_age < self.switch_quiet:  # the stop settling (not a push's deflection)
+            self._rest_age += h
             self._gamma_u += min(h / max(self.u_window, h), 1.0) * e
         elif abs(e) < 0.5 * self.rest_threshold:
-            x = self._fp_f - self._fp_anchor
-            lam = math.exp(-h / self.u_tau)
-            p00, p01, p11 = self._P
-            g0, g1 = p00 + p01 * x, p01 + p11 * x
-            den = lam + g0 + g1 * x
-            k0, k1 = g0 / den, g1 / den
-            self._gamma_u += k0 * e
-            self._beta = min(max(self._beta + k1 * e, -GAIN_MAX), GAIN_MAX)
-            p00, p01, p11 = (p00 - k0 * g0) / lam, (p01 - k0 * g1) / lam, (p11 - k1 * g1) / lam
-            f = min(1.0, GAIN_P0[0] / p00 if p00 > 0 else 1.0, GAIN_P0[2] / p11 if p11 > 0 else 1.0)
-            self._P = [f * p00, f * p01, f * p11]  # no wind-up while the axis stands still
+            self._gamma_u += min(h / self.u_tau, 1.0) * e
 
     def update(self, q: float, tau: float, dt: float | None = None) -> ResidualSample:
         """Feed one measurement (position rad, motor torque N·m); return the new residual.
@@ -308,7 +283,7 @@ class TorqueResidual:
         qd_raw = (q - self._q_prev) / h
         qdd_raw = (qd_raw - self._qd_prev) / h
         self._q_prev, self._qd_prev = q, qd_raw
-        fq, fqd, fqdd, ftau, fpred, ffp = self._filters
+        fq, fqd, fqdd, ftau, fpred = self._filters
         # The prediction is evaluated sample by sample on the raw (differenced) signals, switching
         # friction model on the raw speed, and then low-passed by the same filter as the torque:
         # the filter is linear, so predicted and measured torque pass through identical dynamics
@@ -327,9 +302,8 @@ class TorqueResidual:
         pred_raw = self._rigid.Izz * qdd_raw + self.static_torque(q) + fric_raw
         q_f, qd_f, qdd_f, tau_f = fq.step(q), fqd.step(qd_raw), fqdd.step(qdd_raw), ftau.step(tau)
         pred_f = fpred.step(pred_raw)
-        fp_f = ffp.step(fp_raw)
 
-        old_mode, old_u = self._mode, (self._at_rest() if self._mode == QUASI_STATIC else 0.0)
+        old_mode, old_u = self._mode, (self._gamma_u if self._mode == QUASI_STATIC else 0.0)
         if abs(qd_f) >= self.qd_thr:
             self._mode = DYNAMIC
             self._last_sign = math.copysign(1.0, qd_f)
@@ -344,11 +318,10 @@ class TorqueResidual:
         if quasi and old_mode == DYNAMIC and not self._detected and self._quiet >= QUIET_BEFORE_REST:
             self._new_rest()  # stopped with nobody in contact (no detection, nor a braking hand)
         raw = tau_f - pred_f  # what Γu must add for Γr = 0
-        self._fp_f = fp_f
         learning = quasi and not self._detected
         if learning:
             self._learn_rest(raw, h)
-        new_u = self._at_rest() if quasi else 0.0
+        new_u = self._gamma_u if quasi else 0.0
         if self._mode != old_mode:  # bumpless: the prediction does not jump at a switch
             self._bump += old_u - new_u
         moving = v > thr  # the axis starting or stopping (on the differenced speed)
@@ -364,7 +337,7 @@ class TorqueResidual:
         if not quasi and not self._detected and self._since_switch >= self.switch_quiet / 4:
             self._dyn_n += 1  # moving out of contact (the initiation move, coasting): the model's own error
             self._dyn_ms += max(h / self.floor_tau, 1.0 / self._dyn_n) * (gamma_r * gamma_r - self._dyn_ms)
-        self._quiet = 0.0 if (self._detected or a >= self.release_now) else self._quiet + h
+        self._quiet = 0.0 if (self._detected or a >= self.threshold) else self._quiet + h
         if self._detected:
             self._detected = a >= self.release_now
         else:
