@@ -169,7 +169,7 @@ def _cutoff(settings: RobotFitSettings, fs: float) -> float:
     return min(fc, 0.1 * fs) if settings.cutoff is None else fc
 
 
-def sample_grid(time: np.ndarray, q: np.ndarray) -> np.ndarray:
+def sample_grid(time: np.ndarray, q: np.ndarray, cols: Sequence[int] | None = None) -> np.ndarray:
     """The time base to differentiate on: the log's time stamps, or an even grid over the same span.
 
     The low-pass filter treats the samples as evenly spaced. A controller samples its axes at a
@@ -178,22 +178,30 @@ def sample_grid(time: np.ndarray, q: np.ndarray) -> np.ndarray:
     smooth). Differentiating on such stamps turns the jitter into velocity and acceleration spikes
     (tens of rad/s² and, through the inertia, tens of N·m of torque that no joint felt). The even
     grid is used when it makes the positions smoother (smaller second differences) than the
-    stamps do; a log with truly uneven samples keeps its stamps.
+    stamps do; a log with truly uneven samples keeps its stamps. ``cols``: the columns of ``q``
+    to judge by (default all); one column at a time, so a long log needs no (N, n) temporaries.
     """
     time = np.asarray(time, float)
     grid = np.linspace(time[0], time[-1], time.size)
     if time.size < 3 or np.allclose(np.diff(time), grid[1] - grid[0], rtol=1e-3, atol=0.0):
         return time
+    q = np.asarray(q, float).reshape(time.size, -1)
+    cols = range(q.shape[1]) if cols is None else cols
 
     def rough(t: np.ndarray) -> float:
-        return float(np.sum(np.gradient(np.gradient(q, t, axis=0), t, axis=0) ** 2))
+        return float(sum(np.sum(np.gradient(np.gradient(q[:, c], t), t) ** 2) for c in cols))
 
     return grid if rough(grid) < rough(time) else time
 
 
 def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel | None = None,
-           filter_tau: bool = True) -> Motion:
-    """Filtered positions, their derivatives and the (filtered) joint torques of axes A1..An."""
+           filter_tau: bool = True, rows: slice = slice(None), reversal_window: float | None = None) -> Motion:
+    """Filtered positions, their derivatives and the (filtered) joint torques of axes A1..An.
+
+    ``rows``: the samples to return (after filtering and differentiating the whole log);
+    ``reversal_window`` (s): also mark the samples away from the joint's velocity reversals
+    (:func:`away_from_reversals`) in ``keep``. The log is processed one joint at a time, so the
+    memory beyond the returned rows is a few single-column arrays whatever the log's length."""
     from scipy.signal import butter, sosfiltfilt
 
     cols = _joint_columns(log, n)
@@ -207,16 +215,27 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
     need = 3 * (2 * sos.shape[0] + 1)
     if log.n_samples <= need:
         raise FitError(f"{where}: {log.n_samples} samples are too few to filter (need more than {need})")
-    q = sosfiltfilt(sos, log.q[:, cols], axis=0)
-    t = sample_grid(log.time, log.q[:, cols])
-    qd = np.gradient(q, t, axis=0)
-    qdd = np.gradient(qd, t, axis=0)
-    tau = log.tau[:, cols]
-    if settings.torque_side == "motor" and drive is not None:
-        tau = drive.joint_torque(tau)
-    if filter_tau:
-        tau = sosfiltfilt(sos, tau, axis=0)
-    return Motion(q, qd, qdd, tau)
+    t = sample_grid(log.time, log.q, cols)
+    idx = np.arange(log.n_samples)[rows]
+    out = {k: np.empty((idx.size, n)) for k in ("q", "qd", "qdd", "tau")}
+    keep = np.ones((idx.size, n), bool) if reversal_window is not None else None
+    G = drive.G if settings.torque_side == "motor" and drive is not None else None
+    for j, c in enumerate(cols):
+        qj = sosfiltfilt(sos, log.q[:, c])
+        qdj = np.gradient(qj, t)
+        out["q"][:, j] = qj[rows]
+        out["qd"][:, j] = qdj[rows]
+        out["qdd"][:, j] = np.gradient(qdj, t)[rows]
+        if keep is not None:
+            keep[:, j] = away_from_reversals(qdj[:, None], log.time, reversal_window)[rows, 0]
+        del qj, qdj
+        if G is None:
+            tj = log.tau[:, c]
+        else:  # joint torque = G^T motor torques
+            tj = sum(log.tau[:, ck] * G[k, j] for k, ck in enumerate(cols) if G[k, j] != 0.0)
+            tj = tj if isinstance(tj, np.ndarray) else np.zeros(log.n_samples)
+        out["tau"][:, j] = (sosfiltfilt(sos, tj) if filter_tau else tj)[rows]
+    return Motion(out["q"], out["qd"], out["qdd"], out["tau"], keep)
 
 
 def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive: DriveModel) -> Motion:
@@ -224,13 +243,14 @@ def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive:
     for log in logs:
         fs = 1.0 / log.sample_time
         fc = _cutoff(settings, fs)
-        m = motion(log, n, settings, drive)
-        keep = away_from_reversals(m.qd, log.time, settings.reversal_window * 1.0 / fc)
         edge = int(math.ceil(2.0 * fs / fc))                     # two cut-off periods at each end
         step = settings.decimate or max(1, int(round(fs / (10.0 * fc))))
-        rows = slice(edge, log.n_samples - edge, step)
-        parts.append(Motion(m.q[rows], m.qd[rows], m.qdd[rows], m.tau[rows], keep[rows]))
-    out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau", "keep")))
+        rows = slice(edge, max(log.n_samples - edge, edge), step)
+        parts.append(motion(log, n, settings, drive, rows=rows, reversal_window=settings.reversal_window * 1.0 / fc))
+    if len(parts) == 1:
+        out = parts[0]
+    else:
+        out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau", "keep")))
     if out.q.shape[0] < 10:
         raise FitError(f"too few samples left after trimming and decimation ({out.q.shape[0]})")
     return out
@@ -271,14 +291,16 @@ def ripple_regressor(q: np.ndarray, harmonics: int) -> np.ndarray:
     return out
 
 
-def _covered_harmonics_only(F: np.ndarray, q: np.ndarray, settings: RobotFitSettings) -> None:
+def _covered_harmonics_only(F: np.ndarray, q: np.ndarray, settings: RobotFitSettings,
+                            span: np.ndarray | None = None) -> None:
     """Zero (in place) the ripple columns of harmonics whose period the joint's fitted range does not
     cover once: over a shorter arc ``cos(k q)`` and ``sin(k q)`` look like a polynomial of q, which
-    the fit can use to bend the torque within the range and which then runs away outside it."""
+    the fit can use to bend the torque within the range and which then runs away outside it.
+    ``span``: each joint's range over all fitted samples (default: over ``q``'s rows)."""
     K = settings.ripple
     n = q.shape[1]
     start = F.shape[2] - 2 * n * K - (n if settings.rotor else 0)     # the rotor columns come last
-    span = np.ptp(q, axis=0)
+    span = np.ptp(q, axis=0) if span is None else span
     for j in range(n):
         for i, k in enumerate(list(range(1, K + 1)) * 2):
             if k * span[j] < 2 * np.pi:
@@ -407,6 +429,72 @@ def _solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
     return d * x
 
 
+#: samples per block of the regressor: (BLOCK, n, p) doubles stay a few MB whatever the log's length
+BLOCK = 2048
+
+
+def _blocks(m: Motion, block: int = BLOCK):
+    for a in range(0, m.q.shape[0], block):
+        rows = slice(a, min(a + block, m.q.shape[0]))
+        yield rows, Motion(m.q[rows], m.qd[rows], m.qdd[rows], m.tau[rows],
+                           None if m.keep is None else m.keep[rows])
+
+
+def _block_columns(robot: RobotModel, mb: Motion, settings: RobotFitSettings, drive: DriveModel,
+                   span: np.ndarray) -> np.ndarray:
+    """(B, n, 10 n + k): the rigid-body and extra columns of one block of samples."""
+    Y, F = design(robot, mb, settings, drive)
+    if settings.ripple:
+        _covered_harmonics_only(F, mb.q, settings, span)
+    return np.concatenate([Y, F], axis=2)
+
+
+def normal_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
+                     block: int = BLOCK) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-joint normal equations of all columns over the samples ``m.keep`` marks:
+    ``G[j] = sum_s C_sj^T C_sj``, ``g[j] = sum_s C_sj^T tau_sj`` (C: the standard-parameter and extra
+    columns), accumulated block by block; joint j's equation only touches its nonzero columns (the
+    links from j out, its own friction), so each block costs a fraction of the full products.
+
+    Returns G (n, p, p), g (n, p) and which extra columns are nonzero anywhere (k,)."""
+    n = robot.n
+    span = np.ptp(m.q, axis=0)
+    G = g = used = None
+    with _one_blas_thread():
+        for rows, mb in _blocks(m, block):
+            C = _block_columns(robot, mb, settings, drive, span)
+            if G is None:
+                p = C.shape[2]
+                G, g, used = np.zeros((n, p, p)), np.zeros((n, p)), np.zeros(p, bool)
+            nz = np.any(C != 0, axis=0)                                        # (n, p)
+            used |= nz.any(axis=0)
+            kw = mb.keep.astype(float)
+            for j in range(n):
+                a = np.flatnonzero(nz[j])
+                Cj = C[:, j, a]
+                G[j][np.ix_(a, a)] += (Cj * kw[:, j, None]).T @ Cj
+                g[j, a] += Cj.T @ (mb.tau[:, j] * kw[:, j])
+    return G, g, used[robot.n_std:]
+
+
+def predictions(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
+                independent: np.ndarray, coefs: Sequence[np.ndarray], block: int = BLOCK) -> list[np.ndarray]:
+    """(N, n) torques of each coefficient vector (base parameters, then the extras) on every sample
+    of ``m``, block by block."""
+    span = np.ptp(m.q, axis=0)
+    out = [np.empty_like(m.tau) for _ in coefs]
+    cols = None
+    with _one_blas_thread():
+        for rows, mb in _blocks(m, block):
+            C = _block_columns(robot, mb, settings, drive, span)
+            if cols is None:
+                cols = np.concatenate([independent, np.arange(robot.n_std, C.shape[2])])
+            Cb = C[:, :, cols]
+            for o, x in zip(out, coefs):
+                o[rows] = Cb @ x
+    return out
+
+
 def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings | None = None,
               coupling: np.ndarray | None = None) -> dict:
     """Identify base parameters, a physically consistent estimate and per-joint friction.
@@ -432,25 +520,20 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     n = robot.n
     drive = _drive(robot, settings, coupling)
     m = _samples(logs, n, settings, drive)
-    Y, F = design(robot, m, settings, drive)
-    if settings.ripple:
-        _covered_harmonics_only(F, m.q, settings)
     base = robot.base_parameters()
-    N = Y.shape[0]
+    N = m.q.shape[0]
     kw = m.keep.astype(float)
     if np.any(kw.sum(axis=0) < 10):
         raise FitError("too few samples away from velocity reversals; lower the reversal window")
-    # per-joint normal equations of all columns (standard parameters + extras): everything below
-    # works on these small matrices, whatever the number of samples
-    C = np.concatenate([Y, F], axis=2)
+    # per-joint normal equations of all columns (standard parameters + extras), accumulated over
+    # blocks of samples (never the (N, n, p) regressor): everything below works on these small
+    # matrices, whatever the number of samples
+    G, gb, used = normal_equations(robot, m, settings, drive)
     tk = m.tau * kw
-    Cj = np.ascontiguousarray(np.moveaxis(C, 1, 0))                             # (n, N, p)
-    with _one_blas_thread():
-        G = np.stack([(Cj[j] * kw[:, j, None]).T @ Cj[j] for j in range(n)])    # (n, p, p)
-        gb = np.stack([Cj[j].T @ tk[:, j] for j in range(n)])                   # (n, p)
     cc = np.sum(tk * m.tau, axis=0)                                             # (n,)
     nb = base.size
-    ib = np.concatenate([base.independent, robot.n_std + np.arange(F.shape[2])])
+    n_extra = used.size
+    ib = np.concatenate([base.independent, robot.n_std + np.arange(n_extra)])
     Gb, gbb = G[:, ib][:, :, ib], gb[:, ib]
     # ordinary least squares on the base columns, then per-joint weights 1/sigma_j
     beta0 = _solve(Gb.sum(0), gbb.sum(0))
@@ -479,9 +562,6 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     ev, V = np.linalg.eigh(Gs)
     null = V[:, ev < 1e-10 * ev.max()]
     sd[np.any(np.abs(null) > 1e-6, axis=1)] = np.nan
-    resid = (m.tau - C[:, :, ib] @ beta) / sig[None, :]
-    with _one_blas_thread():
-        cfac = [correlation_factor(resid[m.keep[:, j], j], 20) for j in range(n)]
     extra_n = extra_names(robot, settings)
 
     pi_c = None
@@ -497,10 +577,14 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
         nonneg = np.array(_nonneg(extra_n))
         pi_c, extra, solver_info = consistent_fit(R, z, float(c - z @ z), robot, len(extra_n), nonneg,
                                                   settings.prior_weight, robot.pi_nominal, beta[nb:].copy(),
-                                                  fixed=~np.any(F != 0, axis=(0, 1)))
+                                                  fixed=~used)
     beta_out = base.of(pi_c) if pi_c is not None else beta[:nb]
-    # metrics on the fitted (filtered) samples
-    pred = Y[:, :, base.independent] @ beta_out + F @ extra
+    # metrics on the fitted (filtered) samples: a second pass over the blocks
+    fit_ls, pred = predictions(robot, m, settings, drive, base.independent,
+                               [beta, np.concatenate([beta_out, extra])])
+    resid = (m.tau - fit_ls) / sig[None, :]
+    with _one_blas_thread():
+        cfac = [correlation_factor(resid[m.keep[:, j], j], 20) for j in range(n)]
     rel = np.linalg.norm(m.tau - pred, axis=0) / np.maximum(np.linalg.norm(m.tau, axis=0), 1e-12)
     at_bound = [nm for nm, v, nn in zip(extra_n, extra, _nonneg(extra_n)) if nn and abs(v) < 1e-7]
     checks = consistency(pi_c) if pi_c is not None else None
