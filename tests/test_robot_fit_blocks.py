@@ -20,7 +20,7 @@ from robot_sim_helpers import simulated_log
 HERE = Path(__file__).resolve().parent
 REFERENCE = json.loads((HERE / "data" / "robot_fit_reference.json").read_text())
 #: the settings the reference was written with (the defaults then: sign friction, no mass bounds)
-OLD = dict(v_smooth=0.0, mass_bounds=None, total_mass_bounds=None)
+OLD = dict(v_smooth=0.0, deadband=0.0, mass_bounds=None, total_mass_bounds=None, choose=False)
 CASES = {"default": RobotFitSettings(**OLD),
          "ls_torque": RobotFitSettings(consistent=False, weighting="torque", ripple=2, **OLD),
          "rotor": RobotFitSettings(rotor=True, **OLD)}

@@ -50,17 +50,24 @@ PRIOR_WEIGHT = 1e-3
 CUTOFF = 10.0
 #: default harmonics of the position ripple per joint (see ``RobotFitSettings.ripple``): the LWR4+'s
 #: blocked cross-validation within the fit recording falls from 19.9 % (none) to 19.3, 14.5, 12.0 %
-#: (2, 3, 4) and then flattens (11.7 % at 6, 11.6 % at 8): the smallest where it flattens
+#: (2, 3, 4) and then flattens (11.7 % at 6, 11.6 % at 8): the smallest where it flattens. The most
+#: harmonics tried: with ``choose`` each joint gets 0, 2 or 4 by its own held-out error
 RIPPLE = 4
 #: candidate transition velocities of the Coulomb term ``Fc tanh(qd / v)``, rad/s (0: the sign),
 #: chosen per joint by held-out error: a real joint's friction does not step at zero velocity (the
 #: LWR4+'s A5 rises over about 0.1 rad/s), and a joint at rest must not flip by ±Fc
 SMOOTH_GRID = (0.0, 0.01, 0.03, 0.1)
-#: the transition velocity is at least this many standard deviations of the joint's velocity noise
-NOISE_DEADBAND = 3.0
+#: the Coulomb term's dead-band: this many standard deviations of the joint's velocity noise (the filtered
+#: noise is correlated: at 3 its excursions still flip the sign a few times a second at rest)
+NOISE_DEADBAND = 5.0
 #: contiguous blocks of a single recording for the held-out choices (with several recordings,
 #: each recording is left out in turn)
 FOLDS = 5
+#: a more complex choice (more ripple harmonics, a larger transition velocity) must lower the joint's
+#: held-out error by more than this factor over the simplest within it: blocks of one recording
+#: share its motion, so small gains there do not carry to other recordings (on the heavy-robot
+#: check a margin of 1 % let ripple terms the robot does not have in and cost A6 2.6 points)
+SIMPLER_WITHIN = 1.05
 #: default bounds of each link's mass, multiples of its URDF mass: a CAD model is rarely off by more
 #: than a factor 2 (cables, hoses, a motor not drawn); wider, the consistent set lets a link that the
 #: data see only in combinations take several times its mass (a heavy robot: 5x and 11x)
@@ -94,9 +101,12 @@ class RobotFitSettings:
         of a first least-squares fit) or "torque" (1 / the joint's RMS torque: every joint's
         relative error counts alike) or "none".
     v_smooth : Coulomb friction as ``Fc tanh(qd / v_smooth)``, rad/s (0: ``Fc sign(qd)``), one number
-        or one per joint; None: chosen per joint by held-out error among :data:`SMOOTH_GRID`, never
-        below :data:`NOISE_DEADBAND` times the joint's velocity noise (so a joint at rest is not
-        given ``±Fc`` by the sign of its noise); the file holds the values chosen.
+        or one per joint; None: chosen per joint by held-out error among :data:`SMOOTH_GRID` (the
+        file holds the values chosen).
+    deadband : the Coulomb term is 0 at speeds below it, rad/s (one number or one per joint; see
+        :func:`kukaid.models.robot.smooth_sign`); None: :data:`NOISE_DEADBAND` times the joint's
+        velocity noise, estimated from the positions, so a joint at rest is not given ``±Fc`` by
+        the sign of its noise (the file holds the values used).
     reversal_window : a joint's equations closer than this many cut-off periods to a reversal of
         its velocity are not fitted (0: all are).
     mass_bounds : (low, high) every link's mass within these multiples of its URDF mass (None: no
@@ -104,6 +114,11 @@ class RobotFitSettings:
         see only combinations (a 339 kg link fitted at 1.7 to 3.8 t on a heavy robot).
     total_mass_bounds : (low, high) the moving links' total mass within these multiples of the
         URDF's total (None: no bound).
+    choose : choose per joint, by held-out error on the user's own recordings (each recording left
+        out in turn, or :data:`FOLDS` blocks of one): the Coulomb transition velocity (when
+        ``v_smooth`` is None; else the given one) and the ripple harmonics (0, ``ripple // 2`` or
+        ``ripple``; those not chosen are held at 0). False: ``ripple`` as given, ``v_smooth`` None =
+        the velocity noise's dead-band.
     viscous_beyond : "hold" (the viscous term's velocity held within the velocities the fit saw,
         per joint and direction: the fit knows the friction curve only there; on the LWR4+ the
         friction flattens at higher speeds, where a straight line over-predicts it by up to 2x) or
@@ -122,21 +137,29 @@ class RobotFitSettings:
     rotor: bool = False
     reversal_window: float = 2.0
     v_smooth: float | tuple[float, ...] | None = None
+    deadband: float | tuple[float, ...] | None = None
     weighting: str = "noise"
     spring: bool = True
     ripple: int = RIPPLE
     mass_bounds: tuple[float, float] | None = MASS_BOUNDS
     total_mass_bounds: tuple[float, float] | None = TOTAL_MASS_BOUNDS
     viscous_beyond: str = "hold"
+    choose: bool = True
 
     def __post_init__(self) -> None:
         if self.viscous_beyond not in ("hold", "linear"):
             raise FitError(f"viscous_beyond '{self.viscous_beyond}': expected hold or linear")
-        if self.v_smooth is not None:
-            vv = np.atleast_1d(np.asarray(self.v_smooth, float)) if not isinstance(self.v_smooth, str) else np.array([np.nan])
+        for name in ("v_smooth", "deadband"):
+            val = getattr(self, name)
+            if val is None:
+                continue
+            try:
+                vv = np.atleast_1d(np.asarray(val, float))
+            except (TypeError, ValueError):
+                vv = np.array([np.nan])
             if vv.ndim != 1 or not np.all(np.isfinite(vv)) or np.any(vv < 0):
-                raise FitError(f"v_smooth must be a number >= 0 or one per joint, got {self.v_smooth!r}")
-            object.__setattr__(self, "v_smooth", float(vv[0]) if np.ndim(self.v_smooth) == 0 else tuple(vv.tolist()))
+                raise FitError(f"{name} must be a number >= 0 or one per joint, got {val!r}")
+            object.__setattr__(self, name, float(vv[0]) if np.ndim(val) == 0 else tuple(vv.tolist()))
         for name in ("mass_bounds", "total_mass_bounds"):
             v = getattr(self, name)
             if v is None:
@@ -349,7 +372,7 @@ def extras(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: Driv
     of the settings'; ``qd_range`` (n, 2): the viscous term's velocity held within it)."""
     v = settings.v_smooth if v_smooth is None else v_smooth
     F = friction_regressor(m.qd, settings.friction, settings.offset, settings.vs, v_smooth=0.0 if v is None else v,
-                           qd_range=qd_range)
+                           qd_range=qd_range, deadband=settings.deadband or 0.0)
     n = robot.n
     if settings.spring:
         P = np.zeros((m.q.shape[0], n, n))
@@ -486,7 +509,7 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
     if total_mass_bounds is not None and m0.sum() > 0:
         nlp["g"] = sum(ca.exp(2 * th[10 * k]) for k in range(n)) / float(m0.sum())
         lbg, ubg = [total_mass_bounds[0]], [total_mass_bounds[1]]
-    solver = ca.nlpsol("robot_fit", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": 0,
+    solver = ca.nlpsol("robot_fit", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": 0, "show_eval_warnings": False,
                                                    "ipopt.max_iter": 3000, "ipopt.tol": 1e-9})
     # continuation: a strong prior first (near the nominal links, quick), then down to the weight
     # asked for, each solve starting at the last; the problem is convex in the pseudo-inertias, so
@@ -672,6 +695,64 @@ def normal_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, d
     return G, g, fe.used
 
 
+def _solve_quick(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``A x = b`` for a symmetric positive semi-definite ``A`` (columns scaled, a tiny ridge, Cholesky);
+    a zero column's value is 0. For the many small solves of the held-out choices."""
+    from scipy.linalg import cho_factor, cho_solve
+
+    dg = np.diag(A)
+    live = dg > 0
+    x = np.zeros(b.size)
+    if not live.any():
+        return x
+    d = 1.0 / np.sqrt(dg[live])
+    As = d[:, None] * A[np.ix_(live, live)] * d[None, :]
+    try:
+        x[live] = d * cho_solve(cho_factor(As + 1e-10 * np.eye(As.shape[0])), d * b[live])
+    except np.linalg.LinAlgError:
+        x[live] = d * np.linalg.lstsq(As, d * b[live], rcond=1e-12)[0]
+    return x
+
+
+def choose_terms(fe: "FoldEquations", ib: np.ndarray, p: int, w: np.ndarray, harmonic: np.ndarray,
+                 K_grid: Sequence[int], rw_grid: Sequence[bool]) -> tuple[list, np.ndarray]:
+    """Held-out relative error of each joint (pooled over the folds; every sample of the held-out
+    fold) of the weighted least-squares fit on the other folds, for each combination (all joints
+    alike) of transition velocity (``fe``'s candidates), ripple harmonics up to K and reversal
+    window (True: the equations near reversals left out of the fit). Returns the combinations,
+    simplest first, and the errors (C, n)."""
+    V, Kf = fe.train[0].shape[:2]
+    n = len(fe.act)
+    combos = [(v, Kh, rw) for Kh in K_grid for rw in rw_grid for v in range(V)]
+    err = np.zeros((len(combos), n))
+    den = fe.tc.sum(0) + fe.rc.sum(0)
+    for v in range(V):
+        At, Ar, bt, br = [], [], [], []
+        for f in range(Kf):
+            Gt, gt, _ = fe.full(p, [v] * n, [f])
+            Ge, ge, _ = fe.full(p, [v] * n, [f], evaluate=True)
+            At.append(np.einsum("j,jkl->kl", w, Gt)), bt.append(w @ gt)
+            Ar.append(np.einsum("j,jkl->kl", w, Ge - Gt)), br.append(w @ (ge - gt))
+        sAt, sAr, sbt, sbr = sum(At), sum(Ar), sum(bt), sum(br)
+        for Kh in K_grid:
+            cols = ib[harmonic[ib] <= Kh]
+            for rw in rw_grid:
+                num = np.zeros(n)
+                for f in range(Kf):
+                    A, b = sAt - At[f], sbt - bt[f]
+                    if not rw:
+                        A, b = A + sAr - Ar[f], b + sbr - br[f]
+                    x = np.zeros(p)
+                    x[cols] = _solve_quick(A[np.ix_(cols, cols)], b[cols])
+                    for j, a in enumerate(fe.act):
+                        xa = x[a]
+                        E = fe.train[j][v, f] + fe.rest[j][v, f]
+                        e = fe.tg[j][v, f] + fe.rg[j][v, f]
+                        num[j] += max(fe.tc[f, j] + fe.rc[f, j] - 2 * e @ xa + xa @ E @ xa, 0.0)
+                err[combos.index((v, Kh, rw))] = np.sqrt(num / np.maximum(den, 1e-300))
+    return combos, err
+
+
 def _folds(m: Motion, logs: Sequence[AxisLog]) -> tuple[np.ndarray, int, str]:
     """Fold of each sample: each recording when there are several, else :data:`FOLDS` contiguous
     blocks of the one recording; the number of folds and how they were made."""
@@ -696,29 +777,6 @@ def _weights(G: np.ndarray, g: np.ndarray, cc: np.ndarray, ib: np.ndarray, count
     elif settings.weighting == "none":
         sig = np.ones(n)
     return np.maximum(sig, 1e-6 * max(sig.max(), 1e-12))
-
-
-def heldout_errors(fe: FoldEquations, ib: np.ndarray, p: int, w: np.ndarray) -> np.ndarray:
-    """(V, n) held-out relative error of each joint (all its samples, pooled over the folds) of the
-    weighted least-squares fit on the other folds, for each candidate (all joints at that candidate)."""
-    V, K = fe.train[0].shape[:2]
-    n = len(fe.act)
-    err = np.zeros((V, n))
-    for v in range(V):
-        Gs = [fe.full(p, [v] * n, [f]) for f in range(K)]
-        Ge = [fe.full(p, [v] * n, [f], evaluate=True) for f in range(K)]
-        Gw = [np.einsum("j,jkl->kl", w, G)[np.ix_(ib, ib)] for G, _, _ in Gs]
-        gw = [(w @ g)[ib] for _, g, _ in Gs]
-        num, den = np.zeros(n), np.zeros(n)
-        for f in range(K):
-            beta = _solve(sum(Gw) - Gw[f], sum(gw) - gw[f])
-            x = np.zeros(p)
-            x[ib] = beta
-            G, g, c = Ge[f]
-            num += np.maximum(c - 2 * g @ x + np.einsum("k,jkl,l->j", x, G, x), 0.0)
-            den += c
-        err[v] = np.sqrt(num / np.maximum(den, 1e-300))
-    return err
 
 
 def predictions(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
@@ -782,36 +840,74 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     # blocks of samples (never the (N, n, p) regressor), per candidate Coulomb transition velocity
     # and per fold when one is to be chosen: everything below works on these small matrices,
     # whatever the number of samples
-    deadband = NOISE_DEADBAND * m.qd_noise
-    if settings.v_smooth is None:
-        grid = np.maximum(np.asarray(SMOOTH_GRID, float)[:, None], deadband[None, :])     # (V, n)
-        folds, K, how = _folds(m, logs)
+    if settings.deadband is None:
+        settings = replace(settings, deadband=tuple(float(x) for x in NOISE_DEADBAND * m.qd_noise))
+    deadband = np.broadcast_to(np.asarray(settings.deadband, float), (n,))
+    if settings.v_smooth is None and settings.choose:
+        grid = np.broadcast_to(np.asarray(SMOOTH_GRID, float)[:, None], (len(SMOOTH_GRID), n))     # (V, n)
+    elif settings.v_smooth is None:
+        grid = np.zeros((1, n))
     else:
         grid = np.broadcast_to(np.asarray(settings.v_smooth, float), (n,))[None, :]
-        folds, K, how = np.zeros(N, int), 1, None
+    K_grid = sorted({0, settings.ripple // 2, settings.ripple}) if settings.choose else [settings.ripple]
+    # fitting the equations near reversals too (a window of 0) can be chosen the same way
+    # (choose_terms), but blocks of one recording favour it and it loses on other recordings (the
+    # LWR4+'s A6: 12.9 -> 21.8 % on lwr4_3): the window stays as set
+    rw_grid = [True]
+    choose = len(grid) * len(K_grid) * len(rw_grid) > 1
+    folds, K, how = _folds(m, logs) if choose else (np.zeros(N, int), 1, None)
     fe = fold_equations(robot, m, settings, drive, grid, folds, K)
-    used = fe.used
     nb = base.size
-    n_extra = used.size
+    n_extra = fe.used.size
     p = robot.n_std + n_extra
     ib = np.concatenate([base.independent, robot.n_std + np.arange(n_extra)])
+    harmonic = np.zeros(p, int)           # the ripple harmonic of each column (0: not a ripple column)
+    if settings.ripple:
+        for k, nm in enumerate(extra_names(robot, settings)):
+            if ".ripple_" in nm:
+                harmonic[robot.n_std + k] = int(nm.rsplit("_", 1)[1][3:])
+    pick = [(0, settings.ripple, True)] * n
     choices: dict = {}
-    pick = [0] * n
-    if grid.shape[0] > 1:
+    if choose:
         G0, g0, c0 = fe.full(p)
-        err = heldout_errors(fe, ib, p, 1.0 / _weights(G0, g0, c0, ib, counts, settings) ** 2)
-        # per joint the smallest transition velocity within 1 % of the best held-out error
-        pick = [int(np.flatnonzero(err[:, j] <= 1.01 * err[:, j].min())[0]) for j in range(n)]
-        settings = replace(settings, v_smooth=tuple(float(grid[pick[j], j]) for j in range(n)))
-        choices["v_smooth"] = {
-            "chosen": list(settings.v_smooth), "candidates": [float(x) for x in SMOOTH_GRID],
-            "velocity_noise": m.qd_noise.tolist(), "deadband": deadband.tolist(),
-            "heldout_relative_error": err.T.tolist(), "folds": how,
-            "rule": f"per joint the smallest candidate (at least {NOISE_DEADBAND:g} x the velocity noise) within 1 % "
-                    "of the lowest held-out error"}
-    else:
-        choices["v_smooth"] = {"chosen": list(grid[0]), "given": True, "velocity_noise": m.qd_noise.tolist()}
-    G, gb, cc = fe.full(p, pick)
+        combos, err = choose_terms(fe, ib, p, 1.0 / _weights(G0, g0, c0, ib, counts, settings) ** 2, harmonic,
+                                   K_grid, rw_grid)
+        # per joint the simplest combination (fewer harmonics, the smaller transition velocity) within
+        # SIMPLER_WITHIN of its lowest held-out error
+        best = [int(np.flatnonzero(err[:, j] <= SIMPLER_WITHIN * err[:, j].min())[0]) for j in range(n)]
+        pick = [combos[i] for i in best]
+        pick = [(v, Kh, rw) for v, Kh, rw in pick]
+        choices["held_out"] = {
+            "folds": how, "rule": f"per joint the simplest combination within {100 * (SIMPLER_WITHIN - 1):.0f} % of its "
+                                  "lowest held-out relative error",
+            "combinations": [{"v_smooth": [float(x) for x in grid[v]], "ripple": Kh,
+                              "reversal_window": settings.reversal_window if rw else 0.0} for v, Kh, rw in combos],
+            "relative_error": err.T.tolist(),
+            "chosen": best}
+    settings = replace(settings, v_smooth=tuple(float(grid[v, j]) for j, (v, _, _) in enumerate(pick)))
+    choices["v_smooth"] = {"chosen": list(settings.v_smooth), "candidates": [float(x) for x in SMOOTH_GRID]
+                           if len(grid) > 1 else None, "velocity_noise": m.qd_noise.tolist(),
+                           "deadband": deadband.tolist()}
+    choices["ripple"] = {"chosen": [Kh for _, Kh, _ in pick], "candidates": K_grid}
+    choices["reversal_window"] = {"chosen": [settings.reversal_window if rw else 0.0 for _, _, rw in pick]}
+    # the chosen equations: joint j at its transition velocity, its ripple harmonics, its samples
+    G, gb, cc = np.zeros((n, p, p)), np.zeros((n, p)), np.zeros(n)
+    keep = m.keep.copy()
+    used = fe.used.copy()
+    for j, (v, Kh, rw) in enumerate(pick):
+        a = fe.act[j]
+        Gj, gj = fe.train[j][v].sum(0), fe.tg[j][v].sum(0)
+        cj = fe.tc[:, j].sum()
+        if not rw:
+            Gj, gj, cj = Gj + fe.rest[j][v].sum(0), gj + fe.rg[j][v].sum(0), cj + fe.rc[:, j].sum()
+            keep[:, j] = True
+        drop = harmonic[a] > Kh
+        Gj[drop, :], Gj[:, drop], gj[drop] = 0.0, 0.0, 0.0
+        G[j][np.ix_(a, a)], gb[j, a], cc[j] = Gj, gj, cj
+        used[a[drop] - robot.n_std] = False
+    m = replace(m, keep=keep)
+    kw = keep.astype(float)
+    counts = kw.sum(axis=0)
     sig = _weights(G, gb, cc, ib, counts, settings)
     w = 1.0 / sig ** 2
     Gw, gw, cw = np.einsum("j,jkl->kl", w, G), w @ gb, float(w @ cc)

@@ -126,15 +126,16 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
             if not r[0] <= 0 <= r[1]:
                 _fail(where, f"'friction.qd_range[{i}]' must be [low, high] with low <= 0 <= high, got {r}")
     st = _object(where, "settings", d["settings"])
-    vsm = st.get("v_smooth")
-    if isinstance(vsm, list):  # one per joint
-        if len(vsm) != n or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
-                                or v < 0 for v in vsm):
-            _fail(where, f"'settings.v_smooth' must be a number >= 0 or one per axis ({n}), got {json.dumps(vsm)[:60]}")
+    for key in ("v_smooth", "deadband"):
+        vsm = st.get(key)
+        if isinstance(vsm, list):  # one per joint
+            if len(vsm) != n or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                                    or v < 0 for v in vsm):
+                _fail(where, f"'settings.{key}' must be a number >= 0 or one per axis ({n}), got {json.dumps(vsm)[:60]}")
     for key, lo in (("cutoff", 0.0), ("vs", 0.0), ("prior_weight", None), ("reversal_window", None),
-                    ("v_smooth", None)):
+                    ("v_smooth", None), ("deadband", None)):
         v = st.get(key)
-        if key == "v_smooth" and isinstance(v, list):
+        if key in ("v_smooth", "deadband") and isinstance(v, list):
             continue
         if v is None and key in ("cutoff", "vs"):
             continue
