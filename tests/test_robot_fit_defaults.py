@@ -141,3 +141,31 @@ def test_heavy_robot_check_quick_runs():
     assert set(out["models"]) == {"defaults", "nominal+friction", "naive"}
     assert all(len(m["per_joint"]) == 6 for m in out["models"].values())
     assert 0.4 - 1e-6 <= out["mass_ratio"]["min"] and out["mass_ratio"]["max"] <= 2.5 + 1e-6
+
+
+def test_robot_table_is_short_and_has_no_nan_or_tiny_numbers(rest_fit, tmp_path):
+    """The fit's table (and `kukaid show` of the file): at most 40 lines, per-joint friction, the
+    best-determined base parameters, one line on what is not identifiable, no 'nan', no -6.3e-09."""
+    import re
+
+    from click.testing import CliRunner
+
+    from kukaid.identify.robot_fit import format_robot_table
+    from kukaid.params import save_robot_params
+    from kukaid_cli.main import cli
+
+    _, _, p = rest_fit
+    text = format_robot_table(p)
+    lines = text.splitlines()
+    assert len(lines) <= 40, text
+    assert "nan" not in text.lower(), text
+    rows = [ln.split() for ln in lines if re.match(r"A\d\s", ln)]
+    assert len(rows) == 6
+    for r in rows:    # Fc, Fv, offset, k: a value on its bound prints as 0, not -6.3e-09
+        assert not any(re.search(r"e-(0[5-9]|1\d)", x) for x in r[1:5]), r
+    assert "not identifiable from these data" in text
+    assert "base parameters, best determined first" in text and "link masses / URDF" in text
+    f = tmp_path / "robot.json"
+    save_robot_params(f, p)
+    r = CliRunner().invoke(cli, ["show", str(f)])
+    assert r.exit_code == 0 and r.stdout.strip() == text.strip(), r.output

@@ -1097,29 +1097,122 @@ def validate_robot(params: dict, logs: Sequence[AxisLog], robot: RobotModel | No
             "logs": [str(lg.attrs.get("source_file", "")) for lg in logs]}
 
 
+#: a base parameter is shown as determined by the data when its corrected standard deviation is
+#: under this share of its value (the table; :data:`WELL_EXCITED` is the stricter rule for "well")
+DETERMINED = 0.1
+#: at most this many base parameters are listed (the best determined); the file holds them all
+TABLE_BASE_ROWS = 14
+
+
+def _g(x: float | None, digits: int = 4, zero: float = 1e-7) -> str:
+    """A number for the table: '-' for none, 0 for a value that is zero up to the solver's tolerance
+    (a parameter on its bound: not -6.3e-09)."""
+    if x is None or not math.isfinite(float(x)):
+        return "-"
+    x = float(x)
+    return "0" if abs(x) < zero else f"{x:.{digits}g}"
+
+
+def _short(name: str, width: int) -> str:
+    """A base parameter's name within ``width``: its leading terms, then how many more."""
+    if len(name) <= width:
+        return name
+    terms = name.replace(" - ", " + -").split(" + ")
+    out = terms[0]
+    for k, t in enumerate(terms[1:], 1):
+        more = f" (+{len(terms) - k - 1} terms)" if k < len(terms) - 1 else ""
+        cand = f"{out} + {t}".replace("+ -", "- ")
+        if len(cand) + len(more) > width:
+            rest = len(terms) - k
+            return (out + f" (+{rest} terms)")[:width]
+        out = cand
+    return out[:width]
+
+
+def _pct(r: float) -> str:
+    p = 100 * r
+    return f"{p:.2g}%" if p < 100 else f"{p:.0f}%"
+
+
 def format_robot_table(params: dict) -> str:
-    """Plain-text table of a robot fit: base parameters (estimate, least squares, σ), friction,
-    condition number and the consistency check."""
-    bp = params["base_parameters"]
-    lines = [f"{'base parameter':<58} {'estimate':>11} {'least sq.':>11} {'sigma':>10}"]
-    for name, v, ls, sd in zip(bp["names"], bp["values"], bp.get("least_squares", bp["values"]),
-                               bp.get("sigma", [float("nan")] * len(bp["values"]))):
-        short = name if len(name) <= 58 else name[:55] + "..."
-        lines.append(f"{short:<58} {v:>11.4g} {ls:>11.4g} {sd if sd is not None else float('nan'):>10.3g}")
-    fr = params["friction"]
-    lines.append(f"{'friction (' + fr['model'] + ')':<58} {'estimate':>11} {'least sq.':>11} {'sigma':>10}")
-    for k, v in fr["values"].items():
-        sd = (fr.get("sigma") or {}).get(k)
-        ls = (fr.get("least_squares") or {}).get(k, v)
-        lines.append(f"{k:<58} {v:>11.4g} {ls:>11.4g} {sd if sd is not None else float('nan'):>10.3g}")
+    """Plain-text summary of a robot fit (at most 40 lines): per-joint friction and the choices made
+    for it, link masses against the URDF, the base parameters the data determine (corrected
+    relative sigma under :data:`DETERMINED`; the best :data:`TABLE_BASE_ROWS`), one line on what
+    the data leave undetermined, and the fit's checks. Everything is in the file as well."""
     mt = params.get("metrics") or {}
-    lines.append(f"sigma: least squares, white residuals; multiply by the residual correlation factor "
-                 f"{mt.get('residual_correlation_factor', float('nan')):.2f} for a less optimistic figure")
-    lines.append(f"condition number {mt.get('condition_number', float('nan')):.4g}; "
-                 f"physically consistent: {'yes' if mt.get('physically_consistent') else 'no'}; "
-                 f"at a bound: {', '.join(mt.get('at_bound') or []) or 'none'}")
-    rel = mt.get("relative_error_fit")
-    if rel:
-        lines.append("relative error on the fitted samples: " +
-                     " ".join(f"A{i + 1} {100 * r:.1f}%" for i, r in enumerate(rel)))
+    st = params.get("settings") or {}
+    fr = params["friction"]
+    vals = fr["values"]
+    axes = params.get("axes") or []
+    n = len(axes)
+    rob = params.get("robot") or {}
+    cf = float(mt.get("residual_correlation_factor") or 1.0)
+    lines = [f"robot {rob.get('name', '?')}: {n} axes, {mt.get('samples', '?')} samples fitted",
+             "relative error on them: " + " ".join(f"A{a} {100 * r:.1f}%" for a, r in zip(axes, mt.get("relative_error_fit")
+                                                                                      or []))]
+    # per-joint friction
+    v = st.get("v_smooth")
+    d = st.get("deadband")
+    per = lambda x: list(x) if isinstance(x, list) else [x] * n  # noqa: E731
+    v, d = per(v if v is not None else 0.0), per(d if d is not None else 0.0)
+    K = ((mt.get("choices") or {}).get("ripple") or {}).get("chosen") or [st.get("ripple", 0)] * n
+    rng = fr.get("qd_range")
+    head = f"{'joint':<6}{'Fc N·m':>9}{'Fv N·m·s/rad':>13}{'offset N·m':>11}{'k N·m/rad':>10}{'v rad/s':>9}" \
+           f"{'dead-band':>10}{'ripple':>7}{'Fv held beyond':>16}"
+    lines += ["friction per joint: Fc tanh(x/v), x the speed beyond the dead-band; Fv qd (held beyond the fitted",
+              "speeds); offset; spring k q; position ripple harmonics", head]
+    for j, a in enumerate(axes):
+        held = "-" if not rng else f"{rng[j][0]:+.2g}/{rng[j][1]:+.2g}"
+        lines.append(f"A{a:<5}{_g(vals.get(f'A{a}.Fc')):>9}{_g(vals.get(f'A{a}.Fv')):>13}"
+                     f"{_g(vals.get(f'A{a}.offset')):>11}{_g(vals.get(f'A{a}.k')):>10}{_g(v[j], 2):>9}"
+                     f"{_g(d[j], 2, 1e-12):>10}{K[j]:>7}{held:>16}")
+    if fr.get("model") == "stribeck":
+        lines.append("Stribeck excess Fs-Fc: " + " ".join(f"A{a} {_g(vals.get(f'A{a}.Fs-Fc'))}" for a in axes)
+                     + f" (vs {fr.get('vs')} rad/s)")
+    rot = [(k, x) for k, x in vals.items() if k.endswith(".rotor_inertia")]
+    if rot:
+        lines.append("rotor inertia kg·m²: " + " ".join(f"{k.split('.')[0]} {_g(x)}" for k, x in rot))
+    # choices and their evidence
+    ch = mt.get("choices") or {}
+    ho = ch.get("held_out")
+    if ho:
+        lines.append(f"v and ripple chosen per joint by held-out error ({ho.get('folds')}): the simplest within "
+                     f"{100 * (SIMPLER_WITHIN - 1):.0f} % of the best")
+    vn = (ch.get("v_smooth") or {}).get("velocity_noise")
+    if vn:
+        lines.append(f"dead-band {NOISE_DEADBAND:g} x the velocity noise of the positions ({min(vn):.2g} to "
+                     f"{max(vn):.2g} rad/s): no Coulomb torque from noise at rest")
+    # link masses
+    std = params.get("standard_parameters")
+    mb = st.get("mass_bounds")
+    if std and rob.get("urdf"):
+        try:
+            nominal = RobotModel(rob["urdf"]).pi_nominal[0::10]
+            ratio = [std[lk]["m"] / m0 if m0 > 0 else float("nan") for lk, m0 in zip(rob.get("links", std), nominal)]
+            flag = lambda r: "*" if mb and (r <= mb[0] * 1.001 or r >= mb[1] * 0.999) else ""  # noqa: E731
+            lines.append("link masses / URDF: " + " ".join(f"{r:.2f}{flag(r)}" for r in ratio)
+                         + (f" (bounds {mb[0]:g}-{mb[1]:g}x, * on a bound)" if mb else " (no bounds)"))
+        except Exception:  # noqa: BLE001 (the URDF moved: the masses alone)
+            lines.append("link masses kg: " + " ".join(_g(std[lk]["m"]) for lk in std))
+    # base parameters the data determine
+    bp = params["base_parameters"]
+    val = np.asarray(bp["values"], float)
+    sd = np.array([np.nan if x is None else x for x in bp.get("sigma", [None] * val.size)], float)
+    relsd = np.where(np.abs(val) > 1e-12, cf * sd / np.maximum(np.abs(val), 1e-300), np.inf)
+    has = np.flatnonzero(np.isfinite(relsd))
+    order = has[np.argsort(relsd[has])]
+    ndet = int(np.sum(relsd[has] < DETERMINED))
+    lines.append(f"base parameters, best determined first ({ndet} of {val.size} with sigma < {100 * DETERMINED:g} %):")
+    lines.append(f"  {'parameter':<52}{'estimate':>11}{'sigma %':>9}")
+    for i in order[:TABLE_BASE_ROWS]:
+        lines.append(f"  {_short(bp['names'][i], 52):<52}{_g(val[i]):>11}{_pct(relsd[i]):>9}")
+    undet = val.size - ndet
+    if undet:
+        nosd = int(val.size - has.size)
+        lines.append(f"not identifiable from these data: {undet} of {val.size} base parameters (sigma >= "
+                     f"{100 * DETERMINED:g} %{f' or none: {nosd}' if nosd else ''}); they lean on the URDF's links")
+    at = mt.get("at_bound") or []
+    lines.append(f"sigma: least squares x the residual correlation factor {cf:.2f}; condition number "
+                 f"{_g(mt.get('condition_number'))}; physically consistent: {'yes' if mt.get('physically_consistent') else 'no'}")
+    lines.append(f"on a bound: {', '.join(at) or 'none'}")
     return "\n".join(lines)
