@@ -462,7 +462,8 @@ def _pi_of_theta(th):
 def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_extra: int,
                    nonneg: np.ndarray, prior_weight: float, pi0: np.ndarray, x0_extra: np.ndarray,
                    fixed: np.ndarray | None = None, mass_bounds: tuple[float, float] | None = None,
-                   total_mass_bounds: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+                   total_mass_bounds: tuple[float, float] | None = None,
+                   start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Minimise ``|R p - z|^2 + c + prior_weight * sum D(J_k || J_k,nominal)`` over
     physically consistent links (log-Cholesky) and the extra parameters (``nonneg`` ones >= 0);
     each link's mass ``exp(2 a_k)`` within ``mass_bounds`` times its nominal mass (a bound on
@@ -488,7 +489,8 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
         logdetJ = 2 * (4 * th[10 * k] + th[10 * k + 1] + th[10 * k + 2] + th[10 * k + 3])
         prior += ca.trace(ca.mtimes(ca.DM(J0inv), J)) - logdetJ + float(np.linalg.slogdet(J0)[1]) - 4
     p = ca.vertcat(*pis, ex)
-    x0 = np.concatenate([np.concatenate([_theta_of(pi0[10 * k: 10 * k + 10]) for k in range(n)]), x0_extra])
+    pis0 = pi0 if start is None else start
+    x0 = np.concatenate([np.concatenate([_theta_of(pis0[10 * k: 10 * k + 10]) for k in range(n)]), x0_extra])
     r = ca.mtimes(ca.DM(R), p) - ca.DM(z)
     wp = ca.MX.sym("w")
     f = ca.dot(r, r) + c + wp * prior
@@ -515,7 +517,7 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
     # asked for, each solve starting at the last; the problem is convex in the pseudo-inertias, so
     # the end point is the same minimum, reached in fewer iterations
     iters = 0
-    for w in [x for x in (1e-1, 1e-2) if x > prior_weight] + [prior_weight]:
+    for w in ([x for x in (1e-1, 1e-2) if x > prior_weight] if start is None else []) + [prior_weight]:
         sol = solver(x0=x0, lbx=lbx, ubx=ubx, p=w, **({"lbg": lbg, "ubg": ubg} if lbg else {}))
         iters += int(solver.stats().get("iter_count") or 0)
         x0 = np.asarray(sol["x"]).ravel()
@@ -590,6 +592,7 @@ class FoldEquations:
     rest[j], rg[j] : the same over the samples not fitted (train + rest: all samples, to evaluate)
     tc, rc : (K, n) sums of the squared torques, fitted and not fitted.
     used : (k,) the extra columns that are nonzero somewhere.
+    tn, rn : (K, n) numbers of samples fitted and not fitted.
     """
 
     act: list
@@ -600,6 +603,8 @@ class FoldEquations:
     tc: np.ndarray
     rc: np.ndarray
     used: np.ndarray
+    tn: np.ndarray
+    rn: np.ndarray
 
     def full(self, p: int, v: Sequence[int] | None = None, folds: Sequence[int] | None = None,
              evaluate: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -636,6 +641,7 @@ def fold_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, dri
     tg = [np.zeros((V, K, a.size)) for a in act]
     rg = [np.zeros((V, K, a.size)) for a in act]
     tc, rc = np.zeros((K, n)), np.zeros((K, n))
+    tn, rn = np.zeros((K, n)), np.zeros((K, n))
     used = None
     # blocks that do not straddle a fold boundary
     edges = np.flatnonzero(np.diff(folds)) + 1
@@ -657,6 +663,8 @@ def fold_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, dri
                     used = u if used is None else used | u
                     Fs.append(F)
                 kw = mb.keep.astype(float)
+                tn[f] += kw.sum(axis=0)
+                rn[f] += (1.0 - kw).sum(axis=0)
                 for j in range(n):
                     t = mb.tau[:, j]
                     for wt, G, g, c in ((kw[:, j], train, tg, tc), (1.0 - kw[:, j], rest, rg, rc)):
@@ -677,7 +685,7 @@ def fold_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, dri
                             Gv[ny:, ny:] += (Fj * wt[:, None]).T @ Fj
                             g[j][v, f, :ny] += Yt
                             g[j][v, f, ny:] += Fj.T @ (t * wt)
-    return FoldEquations(act, train, tg, rest, rg, tc, rc, used)
+    return FoldEquations(act, train, tg, rest, rg, tc, rc, used, tn, rn)
 
 
 def normal_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
@@ -751,6 +759,81 @@ def choose_terms(fe: "FoldEquations", ib: np.ndarray, p: int, w: np.ndarray, har
                         num[j] += max(fe.tc[f, j] + fe.rc[f, j] - 2 * e @ xa + xa @ E @ xa, 0.0)
                 err[combos.index((v, Kh, rw))] = np.sqrt(num / np.maximum(den, 1e-300))
     return combos, err
+
+
+def _chosen(fe: "FoldEquations", pick: Sequence[tuple], harmonic: np.ndarray, p: int,
+            folds: Sequence[int] | None = None, evaluate: bool = False):
+    """Per-joint normal equations at each joint's chosen combination (transition velocity, ripple
+    harmonics, reversal window), over ``folds`` (default all); ``evaluate``: every sample.
+    Returns G (n, p, p), g (n, p), c (n,) and which extras stay (p - n_std,)."""
+    n = len(fe.act)
+    n_std = p - fe.used.size
+    f = slice(None) if folds is None else list(folds)
+    G, g, c = np.zeros((n, p, p)), np.zeros((n, p)), np.zeros(n)
+    used = np.ones(fe.used.size, bool)
+    for j, (v, Kh, rw) in enumerate(pick):
+        a = fe.act[j]
+        Gj, gj, cj = fe.train[j][v][f].sum(0), fe.tg[j][v][f].sum(0), fe.tc[f, j].sum()
+        if not rw or evaluate:
+            Gj, gj, cj = Gj + fe.rest[j][v][f].sum(0), gj + fe.rg[j][v][f].sum(0), cj + fe.rc[f, j].sum()
+        drop = harmonic[a] > Kh
+        Gj[drop, :], Gj[:, drop], gj[drop] = 0.0, 0.0, 0.0
+        G[j][np.ix_(a, a)], g[j, a], c[j] = Gj, gj, cj
+        used[a[drop] - n_std] = False
+    return G, g, c, used
+
+
+def _consistent(Gw, gw, cw, M, robot, extra_n, nonneg, settings, x0_extra, fixed, bounded: bool, x0=None):
+    """The physically consistent fit of weighted normal equations (``bounded``: the settings' mass
+    bounds; ``x0``: a start, standard parameters then extras, solved at the final prior weight only)."""
+    # chi2 / M = p^T H p - 2 g^T p + c = |R p - z|^2 + c' with H = R^T R (eigenvectors of H)
+    H, g, c = Gw / M, gw / M, cw / M
+    ev, V = np.linalg.eigh(H)
+    pos = ev > 1e-12 * ev.max()
+    R = np.sqrt(ev[pos])[:, None] * V[:, pos].T
+    z = (V[:, pos].T @ g) / np.sqrt(ev[pos])
+    n_std = robot.n_std
+    return consistent_fit(R, z, float(c - z @ z), robot, len(extra_n), nonneg, settings.prior_weight,
+                          robot.pi_nominal, x0_extra if x0 is None else x0[n_std:], fixed=fixed,
+                          mass_bounds=settings.mass_bounds if bounded else None,
+                          total_mass_bounds=settings.total_mass_bounds if bounded else None,
+                          start=None if x0 is None else x0[:n_std])
+
+
+def _masses_on_bound(robot: RobotModel, pi: np.ndarray, bounds) -> list[str]:
+    if bounds is None:
+        return []
+    m0 = robot.pi_nominal[0::10]
+    r = pi[0::10] / np.where(m0 > 0, m0, np.inf)
+    return [name for name, x, has in zip(robot.link_names, r, m0 > 0)
+            if has and (x < bounds[0] * 1.001 or x > bounds[1] * 0.999)]
+
+
+def _mass_bound_check(fe, pick, harmonic, p, w, robot, solve, pi_c, extra, K) -> dict:
+    """Held-out relative error (per joint, pooled over the folds) of the consistent fit with the
+    mass bounds and without them, each fitted on the other folds (started at the full fit)."""
+    n = len(fe.act)
+    num = {True: np.zeros(n), False: np.zeros(n)}
+    den = np.zeros(n)
+    x0 = np.concatenate([pi_c, extra])
+    for f in range(K):
+        Gt, gt, ct, used = _chosen(fe, pick, harmonic, p, [k for k in range(K) if k != f])
+        Ge, ge, ce, _ = _chosen(fe, pick, harmonic, p, [f], evaluate=True)
+        tr = [k for k in range(K) if k != f]
+        Mt = max(float(sum(fe.tn[tr, j].sum() + (0.0 if rw else fe.rn[tr, j].sum())
+                           for j, (_, _, rw) in enumerate(pick))), 1.0)
+        Gw, gw, cw = np.einsum("j,jkl->kl", w, Gt), w @ gt, float(w @ ct)
+        den += ce
+        for bounded in (True, False):
+            pi_f, ex_f, _ = solve(Gw, gw, cw, Mt, bounded, x0)
+            x = np.concatenate([pi_f, ex_f])
+            num[bounded] += np.maximum(ce - 2 * ge @ x + np.einsum("k,jkl,l->j", x, Ge, x), 0.0)
+    err = {b: np.sqrt(num[b] / np.maximum(den, 1e-300)) for b in (True, False)}
+    released = bool(np.mean(err[False]) < np.mean(err[True]) / SIMPLER_WITHIN)
+    return {"heldout_relative_error_bounded": err[True].tolist(), "heldout_relative_error_free": err[False].tolist(),
+            "released": released,
+            "why": (f"held-out error {100 * np.mean(err[False]):.1f} % free against {100 * np.mean(err[True]):.1f} % "
+                    f"bounded (mean over joints): " + ("the bounds are released" if released else "the bounds stay"))}
 
 
 def _folds(m: Motion, logs: Sequence[AxisLog]) -> tuple[np.ndarray, int, str]:
@@ -891,20 +974,12 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     choices["ripple"] = {"chosen": [Kh for _, Kh, _ in pick], "candidates": K_grid}
     choices["reversal_window"] = {"chosen": [settings.reversal_window if rw else 0.0 for _, _, rw in pick]}
     # the chosen equations: joint j at its transition velocity, its ripple harmonics, its samples
-    G, gb, cc = np.zeros((n, p, p)), np.zeros((n, p)), np.zeros(n)
+    G, gb, cc, used = _chosen(fe, pick, harmonic, p)
+    used &= fe.used
     keep = m.keep.copy()
-    used = fe.used.copy()
-    for j, (v, Kh, rw) in enumerate(pick):
-        a = fe.act[j]
-        Gj, gj = fe.train[j][v].sum(0), fe.tg[j][v].sum(0)
-        cj = fe.tc[:, j].sum()
+    for j, (_, _, rw) in enumerate(pick):
         if not rw:
-            Gj, gj, cj = Gj + fe.rest[j][v].sum(0), gj + fe.rg[j][v].sum(0), cj + fe.rc[:, j].sum()
             keep[:, j] = True
-        drop = harmonic[a] > Kh
-        Gj[drop, :], Gj[:, drop], gj[drop] = 0.0, 0.0, 0.0
-        G[j][np.ix_(a, a)], gb[j, a], cc[j] = Gj, gj, cj
-        used[a[drop] - robot.n_std] = False
     m = replace(m, keep=keep)
     kw = keep.astype(float)
     counts = kw.sum(axis=0)
@@ -932,17 +1007,22 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     solver_info = None
     extra = beta[nb:]
     if settings.consistent:
-        # chi2 / M = p^T H p - 2 g^T p + c = |R p - z|^2 + c' with H = R^T R (eigenvectors of H)
-        H, g, c = Gw / M, gw / M, cw / M
-        ev, V = np.linalg.eigh(H)
-        pos = ev > 1e-12 * ev.max()
-        R = np.sqrt(ev[pos])[:, None] * V[:, pos].T
-        z = (V[:, pos].T @ g) / np.sqrt(ev[pos])
         nonneg = np.array(_nonneg(extra_n))
-        pi_c, extra, solver_info = consistent_fit(R, z, float(c - z @ z), robot, len(extra_n), nonneg,
-                                                  settings.prior_weight, robot.pi_nominal, beta[nb:].copy(),
-                                                  fixed=~used, mass_bounds=settings.mass_bounds,
-                                                  total_mass_bounds=settings.total_mass_bounds)
+        solve = lambda Gw_, gw_, cw_, M_, bounds, x0=None: _consistent(  # noqa: E731
+            Gw_, gw_, cw_, M_, robot, extra_n, nonneg, settings, beta[nb:].copy(), ~used, bounds, x0)
+        pi_c, extra, solver_info = solve(Gw, gw, cw, M, True)
+        on_bound = _masses_on_bound(robot, pi_c, settings.mass_bounds)
+        if on_bound and K > 1:
+            # a mass on its bound: does held-out error demand more? the same folds, bounded and free
+            check = _mass_bound_check(fe, pick, harmonic, p, w, robot, solve, pi_c, extra, K)
+            check["links_on_bound"] = on_bound
+            choices["mass_bounds"] = check
+            if check["released"]:
+                pi_c, extra, solver_info = solve(Gw, gw, cw, M, False, np.concatenate([pi_c, extra]))
+                settings = replace(settings, mass_bounds=None, total_mass_bounds=None)
+        elif on_bound:
+            choices["mass_bounds"] = {"links_on_bound": on_bound, "released": False,
+                                      "why": "one recording without held-out folds: the bounds stay"}
     beta_out = base.of(pi_c) if pi_c is not None else beta[:nb]
     # metrics on the fitted (filtered) samples: a second pass over the blocks
     fit_ls, pred = predictions(robot, m, settings, drive, base.independent,
@@ -1194,6 +1274,9 @@ def format_robot_table(params: dict) -> str:
                          + (f" (bounds {mb[0]:g}-{mb[1]:g}x, * on a bound)" if mb else " (no bounds)"))
         except Exception:  # noqa: BLE001 (the URDF moved: the masses alone)
             lines.append("link masses kg: " + " ".join(_g(std[lk]["m"]) for lk in std))
+    mcheck = ch.get("mass_bounds")
+    if mcheck and mcheck.get("why"):
+        lines.append(f"masses on a bound ({', '.join(mcheck.get('links_on_bound') or [])}): {mcheck['why']}")
     # base parameters the data determine
     bp = params["base_parameters"]
     val = np.asarray(bp["values"], float)
