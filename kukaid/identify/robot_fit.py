@@ -1123,14 +1123,16 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     settings = RobotFitSettings(**{"ripple": 0, **{k: s[k] for k in RobotFitSettings.__dataclass_fields__ if k in s}})
     n = robot.n
     m = motion(log, n, settings, filter_tau=False)
-    Y = robot.regressor(m.q, m.qd, m.qdd)
-    F = extras(robot, m, settings, DriveModel.direct(n) if not settings.rotor else
-               DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n)),
-               qd_range=params["friction"].get("qd_range"))
+    drive = DriveModel.direct(n) if not settings.rotor else DriveModel(
+        np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
     bp = params["base_parameters"]
+    ind = np.asarray(bp["independent"], int)
     beta = np.asarray(bp["values"], float)
     extra = np.array([params["friction"]["values"][k] for k in extra_names(robot, settings)])
-    tau = Y[:, :, np.asarray(bp["independent"], int)] @ beta + F @ extra
+    tau = np.empty_like(m.q)
+    for rows, mb in _blocks(m):      # block by block: an hour's log never holds its (N, n, p) regressor
+        F = extras(robot, mb, settings, drive, qd_range=params["friction"].get("qd_range"))
+        tau[rows] = robot.regressor(mb.q, mb.qd, mb.qdd)[:, :, ind] @ beta + F @ extra
     if settings.torque_side == "motor":
         drive = DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
         tau = drive.motor_torque(tau)
