@@ -38,7 +38,7 @@ from kukaid.params.robot import SCHEMA as ROBOT_SCHEMA
 from kukaid.params.robot import validate_robot_params
 from kukaid.models.urdf import BUNDLED
 from kukaid.models.robot import (FRICTION_MODELS, LINK_PARAMS, DriveModel, RobotModel, consistency,
-                                 friction_names, friction_regressor, pseudo_inertia)
+                                 friction_names, friction_regressor, pseudo_inertia, smooth_sign)
 
 PRIOR_WEIGHT = 1e-3
 #: default low-pass cut-off, Hz. Parallel filtering (the same filter on positions and torques) is
@@ -654,14 +654,13 @@ def fold_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, dri
                 rows = slice(a0, min(a0 + block, s1))
                 mb = Motion(m.q[rows], m.qd[rows], m.qdd[rows], m.tau[rows], m.keep[rows])
                 Y = robot.regressor(mb.q, mb.qd, mb.qdd)
-                Fs = []
-                for v in range(V):
-                    F = extras(robot, mb, settings, drive, v_smooth=smooth[v])
-                    if settings.ripple:
-                        _covered_harmonics_only(F, mb.q, settings, span)
+                F0 = extras(robot, mb, settings, drive, v_smooth=smooth[0])
+                if settings.ripple:
+                    _covered_harmonics_only(F0, mb.q, settings, span)
+                Fs = [F0] + [_with_coulomb(F0, mb.qd, settings, smooth[v]) for v in range(1, V)]
+                for F in Fs:
                     u = np.any(F != 0, axis=(0, 1))
                     used = u if used is None else used | u
-                    Fs.append(F)
                 kw = mb.keep.astype(float)
                 tn[f] += kw.sum(axis=0)
                 rn[f] += (1.0 - kw).sum(axis=0)
@@ -686,6 +685,21 @@ def fold_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, dri
                             g[j][v, f, :ny] += Yt
                             g[j][v, f, ny:] += Fj.T @ (t * wt)
     return FoldEquations(act, train, tg, rest, rg, tc, rc, used, tn, rn)
+
+
+def _with_coulomb(F: np.ndarray, qd: np.ndarray, settings: RobotFitSettings, v_smooth) -> np.ndarray:
+    """A copy of the extra columns ``F`` with the Coulomb (and Stribeck) columns at another transition
+    velocity: the only columns that depend on it (the friction block comes first, ``nf`` per joint)."""
+    n = qd.shape[1]
+    out = F.copy()
+    sgn = smooth_sign(qd, v_smooth, settings.deadband or 0.0)
+    nf = 2 + (settings.friction == "stribeck") + bool(settings.offset)
+    for j in range(n):
+        out[:, j, j * nf] = sgn[:, j]
+        if settings.friction == "stribeck":
+            vs = np.broadcast_to(np.asarray(settings.vs, float), (n,))
+            out[:, j, j * nf + 2] = sgn[:, j] * np.exp(-np.abs(qd[:, j] / vs[j]) ** 2.0)
+    return out
 
 
 def normal_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
