@@ -116,9 +116,9 @@ class RobotFitSettings:
         URDF's total (None: no bound).
     choose : choose per joint, by held-out error on the user's own recordings (each recording left
         out in turn, or :data:`FOLDS` blocks of one): the Coulomb transition velocity (when
-        ``v_smooth`` is None; else the given one) and the ripple harmonics (0, ``ripple // 2`` or
-        ``ripple``; those not chosen are held at 0). False: ``ripple`` as given, ``v_smooth`` None =
-        the velocity noise's dead-band.
+        ``v_smooth`` is None; else the given one), the ripple harmonics (0, ``ripple // 2`` or
+        ``ripple``) and whether the spring term is in (when ``spring``); those left out are held
+        at 0. False: ``ripple`` and ``spring`` as given, ``v_smooth`` None = the dead-band only.
     viscous_beyond : "hold" (the viscous term's velocity held within the velocities the fit saw,
         per joint and direction: the fit knows the friction curve only there; on the LWR4+ the
         friction flattens at higher speeds, where a straight line over-predicts it by up to 2x) or
@@ -737,7 +737,8 @@ def _solve_quick(A: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def choose_terms(fe: "FoldEquations", ib: np.ndarray, p: int, w: np.ndarray, harmonic: np.ndarray,
-                 K_grid: Sequence[int], rw_grid: Sequence[bool]) -> tuple[list, np.ndarray]:
+                 K_grid: Sequence[int], rw_grid: Sequence[bool], spring_col: np.ndarray | None = None,
+                 sp_grid: Sequence[bool] = (True,)) -> tuple[list, np.ndarray]:
     """Held-out relative error of each joint (pooled over the folds; every sample of the held-out
     fold) of the weighted least-squares fit on the other folds, for each combination (all joints
     alike) of transition velocity (``fe``'s candidates), ripple harmonics up to K and reversal
@@ -745,7 +746,8 @@ def choose_terms(fe: "FoldEquations", ib: np.ndarray, p: int, w: np.ndarray, har
     simplest first, and the errors (C, n)."""
     V, Kf = fe.train[0].shape[:2]
     n = len(fe.act)
-    combos = [(v, Kh, rw) for Kh in K_grid for rw in rw_grid for v in range(V)]
+    spring_col = np.zeros(p, bool) if spring_col is None else spring_col
+    combos = [(v, Kh, rw, sp) for sp in sp_grid for Kh in K_grid for rw in rw_grid for v in range(V)]
     err = np.zeros((len(combos), n))
     den = fe.tc.sum(0) + fe.rc.sum(0)
     for v in range(V):
@@ -756,8 +758,8 @@ def choose_terms(fe: "FoldEquations", ib: np.ndarray, p: int, w: np.ndarray, har
             At.append(np.einsum("j,jkl->kl", w, Gt)), bt.append(w @ gt)
             Ar.append(np.einsum("j,jkl->kl", w, Ge - Gt)), br.append(w @ (ge - gt))
         sAt, sAr, sbt, sbr = sum(At), sum(Ar), sum(bt), sum(br)
-        for Kh in K_grid:
-            cols = ib[harmonic[ib] <= Kh]
+        for Kh, sp in ((Kh, sp) for Kh in K_grid for sp in sp_grid):
+            cols = ib[(harmonic[ib] <= Kh) & (sp | ~spring_col[ib])]
             for rw in rw_grid:
                 num = np.zeros(n)
                 for f in range(Kf):
@@ -771,12 +773,12 @@ def choose_terms(fe: "FoldEquations", ib: np.ndarray, p: int, w: np.ndarray, har
                         E = fe.train[j][v, f] + fe.rest[j][v, f]
                         e = fe.tg[j][v, f] + fe.rg[j][v, f]
                         num[j] += max(fe.tc[f, j] + fe.rc[f, j] - 2 * e @ xa + xa @ E @ xa, 0.0)
-                err[combos.index((v, Kh, rw))] = np.sqrt(num / np.maximum(den, 1e-300))
+                err[combos.index((v, Kh, rw, sp))] = np.sqrt(num / np.maximum(den, 1e-300))
     return combos, err
 
 
 def _chosen(fe: "FoldEquations", pick: Sequence[tuple], harmonic: np.ndarray, p: int,
-            folds: Sequence[int] | None = None, evaluate: bool = False):
+            folds: Sequence[int] | None = None, evaluate: bool = False, spring_col: np.ndarray | None = None):
     """Per-joint normal equations at each joint's chosen combination (transition velocity, ripple
     harmonics, reversal window), over ``folds`` (default all); ``evaluate``: every sample.
     Returns G (n, p, p), g (n, p), c (n,) and which extras stay (p - n_std,)."""
@@ -785,12 +787,13 @@ def _chosen(fe: "FoldEquations", pick: Sequence[tuple], harmonic: np.ndarray, p:
     f = slice(None) if folds is None else list(folds)
     G, g, c = np.zeros((n, p, p)), np.zeros((n, p)), np.zeros(n)
     used = np.ones(fe.used.size, bool)
-    for j, (v, Kh, rw) in enumerate(pick):
+    spring_col = np.zeros(p, bool) if spring_col is None else spring_col
+    for j, (v, Kh, rw, sp) in enumerate(pick):
         a = fe.act[j]
         Gj, gj, cj = fe.train[j][v][f].sum(0), fe.tg[j][v][f].sum(0), fe.tc[f, j].sum()
         if not rw or evaluate:
             Gj, gj, cj = Gj + fe.rest[j][v][f].sum(0), gj + fe.rg[j][v][f].sum(0), cj + fe.rc[f, j].sum()
-        drop = harmonic[a] > Kh
+        drop = (harmonic[a] > Kh) | (spring_col[a] & (not sp))
         Gj[drop, :], Gj[:, drop], gj[drop] = 0.0, 0.0, 0.0
         G[j][np.ix_(a, a)], g[j, a], c[j] = Gj, gj, cj
         used[a[drop] - n_std] = False
@@ -823,7 +826,7 @@ def _masses_on_bound(robot: RobotModel, pi: np.ndarray, bounds) -> list[str]:
             if has and (x < bounds[0] * 1.001 or x > bounds[1] * 0.999)]
 
 
-def _mass_bound_check(fe, pick, harmonic, p, w, robot, solve, pi_c, extra, K) -> dict:
+def _mass_bound_check(fe, pick, harmonic, p, w, robot, solve, pi_c, extra, K, spring_col=None) -> dict:
     """Held-out relative error (per joint, pooled over the folds) of the consistent fit with the
     mass bounds and without them, each fitted on the other folds (started at the full fit)."""
     n = len(fe.act)
@@ -831,11 +834,11 @@ def _mass_bound_check(fe, pick, harmonic, p, w, robot, solve, pi_c, extra, K) ->
     den = np.zeros(n)
     x0 = np.concatenate([pi_c, extra])
     for f in range(K):
-        Gt, gt, ct, used = _chosen(fe, pick, harmonic, p, [k for k in range(K) if k != f])
-        Ge, ge, ce, _ = _chosen(fe, pick, harmonic, p, [f], evaluate=True)
+        Gt, gt, ct, used = _chosen(fe, pick, harmonic, p, [k for k in range(K) if k != f], spring_col=spring_col)
+        Ge, ge, ce, _ = _chosen(fe, pick, harmonic, p, [f], evaluate=True, spring_col=spring_col)
         tr = [k for k in range(K) if k != f]
         Mt = max(float(sum(fe.tn[tr, j].sum() + (0.0 if rw else fe.rn[tr, j].sum())
-                           for j, (_, _, rw) in enumerate(pick))), 1.0)
+                           for j, (_, _, rw, _) in enumerate(pick))), 1.0)
         Gw, gw, cw = np.einsum("j,jkl->kl", w, Gt), w @ gt, float(w @ ct)
         den += ce
         for bounded in (True, False):
@@ -951,7 +954,8 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     # (choose_terms), but blocks of one recording favour it and it loses on other recordings (the
     # LWR4+'s A6: 12.9 -> 21.8 % on lwr4_3): the window stays as set
     rw_grid = [True]
-    choose = len(grid) * len(K_grid) * len(rw_grid) > 1
+    sp_grid = [False, True] if settings.choose and settings.spring else [settings.spring]
+    choose = len(grid) * len(K_grid) * len(rw_grid) * len(sp_grid) > 1
     folds, K, how = _folds(m, logs) if choose else (np.zeros(N, int), 1, None)
     fe = fold_equations(robot, m, settings, drive, grid, folds, K)
     nb = base.size
@@ -963,35 +967,40 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
         for k, nm in enumerate(extra_names(robot, settings)):
             if ".ripple_" in nm:
                 harmonic[robot.n_std + k] = int(nm.rsplit("_", 1)[1][3:])
-    pick = [(0, settings.ripple, True)] * n
+    spring_col = np.zeros(p, bool)
+    if settings.spring:
+        for k, nm in enumerate(extra_names(robot, settings)):
+            spring_col[robot.n_std + k] = nm.endswith(".k")
+    pick = [(0, settings.ripple, True, settings.spring)] * n
     choices: dict = {}
     if choose:
         G0, g0, c0 = fe.full(p)
         combos, err = choose_terms(fe, ib, p, 1.0 / _weights(G0, g0, c0, ib, counts, settings) ** 2, harmonic,
-                                   K_grid, rw_grid)
-        # per joint the simplest combination (fewer harmonics, the smaller transition velocity) within
-        # SIMPLER_WITHIN of its lowest held-out error
+                                   K_grid, rw_grid, spring_col, sp_grid)
+        # per joint the simplest combination (no spring, fewer harmonics, the smaller transition velocity)
+        # within SIMPLER_WITHIN of its lowest held-out error
         best = [int(np.flatnonzero(err[:, j] <= SIMPLER_WITHIN * err[:, j].min())[0]) for j in range(n)]
         pick = [combos[i] for i in best]
-        pick = [(v, Kh, rw) for v, Kh, rw in pick]
         choices["held_out"] = {
             "folds": how, "rule": f"per joint the simplest combination within {100 * (SIMPLER_WITHIN - 1):.0f} % of its "
                                   "lowest held-out relative error",
             "combinations": [{"v_smooth": [float(x) for x in grid[v]], "ripple": Kh,
-                              "reversal_window": settings.reversal_window if rw else 0.0} for v, Kh, rw in combos],
+                              "reversal_window": settings.reversal_window if rw else 0.0, "spring": sp}
+                             for v, Kh, rw, sp in combos],
             "relative_error": err.T.tolist(),
             "chosen": best}
-    settings = replace(settings, v_smooth=tuple(float(grid[v, j]) for j, (v, _, _) in enumerate(pick)))
+    settings = replace(settings, v_smooth=tuple(float(grid[v, j]) for j, (v, _, _, _) in enumerate(pick)))
     choices["v_smooth"] = {"chosen": list(settings.v_smooth), "candidates": [float(x) for x in SMOOTH_GRID]
                            if len(grid) > 1 else None, "velocity_noise": m.qd_noise.tolist(),
                            "deadband": deadband.tolist()}
-    choices["ripple"] = {"chosen": [Kh for _, Kh, _ in pick], "candidates": K_grid}
-    choices["reversal_window"] = {"chosen": [settings.reversal_window if rw else 0.0 for _, _, rw in pick]}
+    choices["ripple"] = {"chosen": [Kh for _, Kh, _, _ in pick], "candidates": K_grid}
+    choices["spring"] = {"chosen": [bool(sp) for _, _, _, sp in pick], "candidates": sp_grid}
+    choices["reversal_window"] = {"chosen": [settings.reversal_window if rw else 0.0 for _, _, rw, _ in pick]}
     # the chosen equations: joint j at its transition velocity, its ripple harmonics, its samples
-    G, gb, cc, used = _chosen(fe, pick, harmonic, p)
+    G, gb, cc, used = _chosen(fe, pick, harmonic, p, spring_col=spring_col)
     used &= fe.used
     keep = m.keep.copy()
-    for j, (_, _, rw) in enumerate(pick):
+    for j, (_, _, rw, _) in enumerate(pick):
         if not rw:
             keep[:, j] = True
     m = replace(m, keep=keep)
@@ -1028,7 +1037,7 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
         on_bound = _masses_on_bound(robot, pi_c, settings.mass_bounds)
         if on_bound and K > 1:
             # a mass on its bound: does held-out error demand more? the same folds, bounded and free
-            check = _mass_bound_check(fe, pick, harmonic, p, w, robot, solve, pi_c, extra, K)
+            check = _mass_bound_check(fe, pick, harmonic, p, w, robot, solve, pi_c, extra, K, spring_col)
             check["links_on_bound"] = on_bound
             choices["mass_bounds"] = check
             if check["released"]:
@@ -1272,7 +1281,7 @@ def format_robot_table(params: dict) -> str:
     ch = mt.get("choices") or {}
     ho = ch.get("held_out")
     if ho:
-        lines.append(f"v and ripple chosen per joint by held-out error ({ho.get('folds')}): the simplest within "
+        lines.append(f"v, ripple and spring chosen per joint by held-out error ({ho.get('folds')}): the simplest within "
                      f"{100 * (SIMPLER_WITHIN - 1):.0f} % of the best")
     vn = (ch.get("v_smooth") or {}).get("velocity_noise")
     if vn:
