@@ -8,7 +8,8 @@ import click
 
 @click.command("diagnose")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Parameter file (kukaid.params/1) whose model is compared with the logs.")
+              help="Parameter file whose model is compared with the logs: one axis (kukaid.params/1) or a robot "
+                   "(kukaid.robot_params/1, fit --robot).")
 @click.option("--log", "logs", type=click.Path(dir_okay=False, path_type=Path), multiple=True, required=True,
               help="Axis log (HDF5 or CSV); repeat for several experiments.")
 @click.option("--axis", type=int, default=None, help="KUKA axis number (default: the parameter file's).")
@@ -33,6 +34,11 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     (leave one log out from three logs, else held-out blocks).  Prints per step the effect, its
     parameters, RMSE before -> after and the evidence (in-sample and held out); says why
     candidates were not named, and when two are ambiguous.
+
+    With a robot parameter file (fit --robot): candidates an A2-style counterbalance (a gas spring,
+    one per joint that carries gravity) and a payload at the flange; each joint's own terms are
+    refitted with the candidate on the other logs (or blocks) and judged on the held-out one.
+    --json and --max-steps apply; -o, --report, --axis, --cutoff and --alpha do not yet.
     """
     import json
 
@@ -41,7 +47,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     from kukaid.logs import read_log
     from kukaid_cli._util import (check_outputs, check_suffix, option_in_data_error, refuse_other_kind,
                                   require_positive, stages)
-    from kukaid.params import load_params, save_params, validate_params
+    from kukaid.params import is_robot_params, load_any_params, save_params, validate_params
     from kukaid.params.axis import SCHEMA
     from kukaid.diagnose.workflow import diagnose
 
@@ -54,8 +60,11 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     check_suffix(report, ".pdf")
     check_outputs([output, report], [params_path, *logs])
     refuse_other_kind(output, force, SCHEMA)
+    params = load_any_params(params_path)
+    if is_robot_params(params):
+        _robot(click.get_current_context(), params, logs, as_json, max_steps)
+        return
     stage = stages("diagnose")
-    params = load_params(params_path)
     stage("reading the logs")
     data = [read_log(p) for p in logs]
     if axis is not None:
@@ -84,3 +93,26 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     for path, what in ((output, "refined parameters"), (report, "report")):
         if path is not None:
             click.echo(f"{path}: {what} written", err=True)
+
+
+def _robot(ctx: click.Context, params: dict, logs, as_json: bool, max_steps: int) -> None:
+    """``kukaid diagnose --params robot.json``: the robot's candidates (kukaid.diagnose.robot)."""
+    import json
+
+    from click.core import ParameterSource
+
+    from kukaid.diagnose.robot import diagnose_robot
+    from kukaid.jsonfile import jsonable
+    from kukaid.logs import read_log
+
+    for name, flag in (("axis", "--axis"), ("report", "--report"), ("output", "-o/--output"), ("cutoff", "--cutoff"),
+                       ("alpha", "--alpha"), ("force", "--force")):
+        if ctx.get_parameter_source(name) not in (None, ParameterSource.DEFAULT, ParameterSource.DEFAULT_MAP):
+            raise click.UsageError(f"option {flag} does not apply to a robot parameter file (yet): the robot "
+                                   "diagnosis prints its findings (--json for a machine)")
+    result = diagnose_robot(params, [read_log(p) for p in logs], max_steps=max_steps)
+    if as_json:
+        click.echo(json.dumps(jsonable(result.to_json()), indent=2))
+    else:
+        for line in result.lines():
+            click.echo(line)

@@ -56,12 +56,18 @@ import click
 @click.option("--stribeck-vs", type=float, default=0.05, show_default=True,
               help="With --robot and --friction-model stribeck: the (fixed) Stribeck velocity, rad/s.")
 @click.option("--rotor-inertia", is_flag=True, help="With --robot: fit one rotor inertia per motor.")
+@click.option("--mass-bounds", default=None, metavar="LO:HI|none",
+              help="With --robot: every link's mass within LO-HI times its URDF mass, the total within 0.67-1.5x "
+                   "[default: 0.4:2.5]; none: no bounds.")
+@click.option("--viscous-beyond", type=click.Choice(["hold", "linear"]), default=None,
+              help="With --robot: beyond the fitted speeds the viscous friction is held (hold) or extrapolated "
+                   "(linear) [default: hold].")
 @click.option("--coupling", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="With --robot --torque-side motor: n x n JSON matrix, motor angles = ratio (I + C) q "
                    "(the coupled wrist drives).")
 def command(logs, friction, inertia, presliding, axis, output, force, as_json, method, friction_model, gravity, offset, elements,
             cutoff, order, qd_thr, edge, decimate, reversal_window, diff, bound, robot, prior_weight, torque_side,
-            stribeck_vs, rotor_inertia, coupling) -> None:
+            stribeck_vs, rotor_inertia, mass_bounds, viscous_beyond, coupling) -> None:
     """Fit Stribeck friction, Izz/Mx and Maxwell-slip elements from axis logs (HDF5 or CSV);
     with --robot, all axes of a robot jointly from logs of the whole arm moving.
 
@@ -76,7 +82,7 @@ def command(logs, friction, inertia, presliding, axis, output, force, as_json, m
     require_positive(("--cutoff", cutoff))
     if robot is not None:
         _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decimate, prior_weight, torque_side,
-                   stribeck_vs, rotor_inertia, coupling, as_json)
+                   stribeck_vs, rotor_inertia, coupling, as_json, mass_bounds, viscous_beyond)
         return
     friction_model = friction_model or "auto"
     decimate = decimate or 1
@@ -126,7 +132,8 @@ def command(logs, friction, inertia, presliding, axis, output, force, as_json, m
 #: (-o, --friction-model, --cutoff, --order, --decimate) apply to both
 _AXIS_ONLY = ("friction", "inertia", "presliding", "axis", "method", "gravity", "offset", "elements", "qd_thr",
               "edge", "reversal_window", "diff", "bound")
-_ROBOT_ONLY = ("prior_weight", "torque_side", "stribeck_vs", "rotor_inertia", "coupling")
+_ROBOT_ONLY = ("prior_weight", "torque_side", "stribeck_vs", "rotor_inertia", "coupling", "mass_bounds",
+               "viscous_beyond")
 
 
 def _check_applicable(ctx: click.Context, with_robot: bool, with_presliding: bool) -> None:
@@ -164,8 +171,25 @@ def _flag(param: click.Parameter) -> str:
     return "/".join([flag, *getattr(param, "secondary_opts", [])])
 
 
+def _mass_bounds(text: str | None):
+    """``LO:HI`` or ``none`` -> ((lo, hi), total bounds) for RobotFitSettings; None: the defaults."""
+    from kukaid.identify.robot_fit import MASS_BOUNDS, TOTAL_MASS_BOUNDS
+
+    if text is None:
+        return MASS_BOUNDS, TOTAL_MASS_BOUNDS
+    if text.strip().lower() == "none":
+        return None, None
+    try:
+        lo, hi = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise click.BadParameter(f"'{text}': expected LO:HI (e.g. 0.4:2.5) or none", param_hint="--mass-bounds") from None
+    if not (0 < lo < 1 < hi < float("inf")):
+        raise click.BadParameter(f"'{text}': need 0 < LO < 1 < HI", param_hint="--mass-bounds")
+    return (lo, hi), TOTAL_MASS_BOUNDS
+
+
 def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decimate, prior_weight, torque_side,
-               stribeck_vs, rotor_inertia, coupling, as_json) -> None:
+               stribeck_vs, rotor_inertia, coupling, as_json=False, mass_bounds=None, viscous_beyond=None) -> None:
     """``kukaid fit LOG... --robot``: the whole robot, written as kukaid.robot_params/1."""
     from kukaid.identify.robot_fit import PRIOR_WEIGHT, RobotFitSettings, fit_robot, format_robot_table
     from kukaid.logs import read_log
@@ -179,10 +203,12 @@ def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decima
     check_suffix(output, ".json")
     check_outputs([output], list(logs))
     refuse_other_kind(output, force, SCHEMA)
+    mb, tb = _mass_bounds(mass_bounds)
     settings = RobotFitSettings(cutoff=cutoff, order=order or 4, decimate=decimate,
                                 friction=friction_model or "coulomb-viscous", vs=stribeck_vs,
                                 prior_weight=PRIOR_WEIGHT if prior_weight is None else prior_weight,
-                                torque_side=torque_side, rotor=rotor_inertia)
+                                torque_side=torque_side, rotor=rotor_inertia, mass_bounds=mb, total_mass_bounds=tb,
+                                viscous_beyond=viscous_beyond or "hold")
     model = RobotModel(robot)
     cpl = None
     if coupling is not None:

@@ -69,7 +69,10 @@ def simulated_log(robot: RobotModel, duration: float = 60.0, fs: float = 250.0, 
     pi = true_parameters(robot, seed + 1)
     fr = true_friction(robot.n, seed + 2)
     t, q, qd, qdd = multisine(robot, duration, fs, seed + 3)
-    tau = np.einsum("sjk,k->sj", robot.regressor(q, qd, qdd), pi)
+    tau = np.empty_like(q)
+    for a in range(0, t.size, 20000):   # blocks: an hour's (N, n, 10 n) regressor would not fit in memory
+        b = slice(a, a + 20000)
+        tau[b] = np.einsum("sjk,k->sj", robot.regressor(q[b], qd[b], qdd[b]), pi)
     tau += fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
     rng = np.random.default_rng(seed + 4)
     tau += noise * rng.standard_normal(tau.shape)

@@ -179,3 +179,17 @@ def test_table_units_of_a_prismatic_axis():
     assert "k = 1000 N/m" in text and "W = 2 N" in text and "N·m" not in text
     text = format_table(_table_params("revolute", maxwell=True))
     assert "MSE 5.155 N²m²" in text and "k = 1000 N·m/rad" in text and "W = 2 N·m" in text
+
+
+def test_show_prints_the_table_fit_printed(logs):
+    """`kukaid show FILE`: an axis parameter file's table, as fit printed it (issue 23)."""
+    d, p = logs
+    out = d / "show.json"
+    r = CliRunner().invoke(cli, ["fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    s = CliRunner().invoke(cli, ["show", str(out)])
+    assert s.exit_code == 0, s.output
+    assert s.stdout.strip() == r.stdout.strip()
+    (d / "other.json").write_text('{"schema": "something/1"}')
+    s = CliRunner().invoke(cli, ["show", str(d / "other.json")])
+    assert s.exit_code == 1 and "not a kukaid parameter file" in s.output and len(s.output.strip().splitlines()) == 1

@@ -105,8 +105,15 @@ def test_fit_generalises_to_another_simulated_trajectory(kr6, sim_fit):
     tau = np.einsum("sjk,k->sj", kr6.regressor(q, qd, qdd), pi) + fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
     from kukaid.logs import AxisLog
     log = AxisLog(time=t, q=q, tau=tau, axes=tuple(range(1, 7)))
-    res = validate_robot(params, [log], kr6)
+    # this trajectory is faster than the fitted one: by default the viscous term is held at the
+    # fitted speeds (the safe side for friction compensation), which under-predicts this simulated
+    # robot's linear viscous friction there; extrapolated linearly it matches
+    held = validate_robot(params, [log], kr6)
+    assert held["mean_relative_error"] < 0.2, held
+    linear = {**params, "friction": {**params["friction"], "qd_range": None}}
+    res = validate_robot(linear, [log], kr6)
     assert res["mean_relative_error"] < 0.05, res
+    assert res["mean_relative_error"] < held["mean_relative_error"]
 
 
 def test_robot_params_file_round_trip_and_errors(tmp_path, sim_fit):
@@ -241,14 +248,16 @@ def test_torque_residual_model_predicts_what_validate_predicts(kr6, sim_fit):
     """One model: the online residual's Γp (control) and the validation's prediction (identify)
     agree at any state, spring, friction, offset and rotor terms included."""
     from kukaid.control.robot_residual import RobotTorqueModel
-    from kukaid.identify.robot_fit import Motion, design, extra_names
+    from kukaid.identify.robot_fit import Motion, extra_names, extras
 
     params, _ = sim_fit
     s = params["settings"]
     settings = RobotFitSettings(**{k: s[k] for k in RobotFitSettings.__dataclass_fields__ if k in s})
     rng = np.random.default_rng(5)
     q, qd, qdd = (rng.uniform(-1, 1, (20, kr6.n)) for _ in range(3))
-    Y, F = design(kr6, Motion(q=q, qd=qd, qdd=qdd, tau=np.zeros_like(q)), settings, DriveModel.direct(kr6.n))
+    mo = Motion(q=q, qd=qd, qdd=qdd, tau=np.zeros_like(q))
+    Y = kr6.regressor(q, qd, qdd)
+    F = extras(kr6, mo, settings, DriveModel.direct(kr6.n), qd_range=params["friction"]["qd_range"])
     bp = params["base_parameters"]
     extra = np.array([params["friction"]["values"][k] for k in extra_names(kr6, settings)])
     want = Y[:, :, np.asarray(bp["independent"], int)] @ np.asarray(bp["values"]) + F @ extra

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from kukaid.errors import KukaidError, ParamFileError
+from kukaid.models.robot import smooth_sign
 
 
 class RobotTorqueModel:
@@ -39,6 +40,9 @@ class RobotTorqueModel:
         standard parameter set with those base parameters (the URDF's values for the dependent
         ones; the torques are the same for every such set, and RNEA is faster), else the regressor.
     Fc, Fv, offset : (n,) Coulomb N·m, viscous N·m·s/rad, offset N·m.
+    v_smooth, deadband : (n,) the Coulomb term's transition velocity and dead-band, rad/s
+        (:func:`kukaid.models.robot.smooth_sign`).
+    qd_range : (n, 2) the velocities the viscous term is held within (a fit's velocity range), rad/s.
     k : (n,) spring N·m/rad; ripple : (n, 2, K) N·m, per joint the cos and sin coefficients of the
         harmonics 1..K of its own angle (:class:`kukaid.identify.robot_fit.RobotFitSettings`).
     dFs, vs : (n,) Stribeck excess ``Fs - Fc`` N·m and velocity rad/s (optional).
@@ -48,7 +52,8 @@ class RobotTorqueModel:
     def __init__(self, model, *, pi: np.ndarray | None = None, base: tuple[np.ndarray, np.ndarray] | None = None,
                  Fc: Any = 0.0, Fv: Any = 0.0, offset: Any = 0.0, dFs: Any = 0.0, vs: Any = 0.05,
                  rotor: np.ndarray | None = None, dependent: tuple[np.ndarray, np.ndarray] | None = None,
-                 k: Any = 0.0, v_smooth: float = 0.0, ripple: np.ndarray | None = None) -> None:
+                 k: Any = 0.0, v_smooth: Any = 0.0, ripple: np.ndarray | None = None,
+                 qd_range: np.ndarray | None = None, deadband: Any = 0.0) -> None:
         import pinocchio as pin
 
         self._pin = pin
@@ -77,7 +82,9 @@ class RobotTorqueModel:
         self.data = self.model.createData()
         vec = lambda x: np.broadcast_to(np.asarray(x, dtype=float), (n,)).copy()  # noqa: E731
         self.Fc, self.Fv, self.offset, self.dFs, self.vs = vec(Fc), vec(Fv), vec(offset), vec(dFs), vec(vs)
-        self.k, self.v_smooth = vec(k), float(v_smooth)
+        self.k, self.v_smooth, self.deadband = vec(k), vec(v_smooth), vec(deadband)
+        rg = None if qd_range is None else np.asarray(qd_range, dtype=float).reshape(n, 2)
+        self._vlo, self._vhi = (None, None) if rg is None else (rg[:, 0].copy(), rg[:, 1].copy())
         # (n, 2, K): per joint, the cos and sin coefficients of harmonics 1..K of its own angle
         self.ripple = None if ripple is None or np.size(ripple) == 0 else np.asarray(ripple, float).reshape(n, 2, -1)
         self._harm = None if self.ripple is None else np.arange(1, self.ripple.shape[2] + 1)
@@ -96,8 +103,8 @@ class RobotTorqueModel:
 
     def friction(self, qd: np.ndarray, q: np.ndarray | None = None) -> np.ndarray:
         """Friction, offset and the joint's own spring ``k q`` (when ``q`` is given) per joint (n,), N·m."""
-        s = np.tanh(qd / self.v_smooth) if self.v_smooth > 0 else np.sign(qd)
-        f = self.Fc * s + self.Fv * qd + self.offset
+        s = smooth_sign(qd, self.v_smooth, self.deadband)
+        f = self.Fc * s + self.Fv * (qd if self._vlo is None else np.clip(qd, self._vlo, self._vhi)) + self.offset
         if q is not None:
             f = f + self.k * q
             if self.ripple is not None:
@@ -145,7 +152,8 @@ class RobotTorqueModel:
             return cls(model, base=(np.asarray(bp["independent"], int), np.asarray(bp["values"], float)),
                        dependent=dep, Fc=get("Fc"), Fv=get("Fv"), offset=get("offset"), dFs=get("Fs-Fc"),
                        vs=float(fr.get("vs") or st.get("vs") or 0.05), rotor=rotor, k=get("k"),
-                       v_smooth=float(st.get("v_smooth") or 0.0), ripple=ripple)
+                       v_smooth=st.get("v_smooth") or 0.0, ripple=ripple, qd_range=fr.get("qd_range"),
+                       deadband=st.get("deadband") or 0.0)
         except (KeyError, TypeError, ValueError) as e:
             raise ParamFileError(f"{where}: not a usable kukaid.robot_params/1 file ({type(e).__name__}: {e})") from None
 

@@ -343,3 +343,22 @@ def format_table(params: dict) -> str:
     tail += [f"  warning: {w}" for w in m.get("warnings", [])]
     return "\n".join([f"axis A{params['axis']}, friction model {params['friction']['model']}", *rows,
                       "  " + "; ".join(extra), *tail])
+
+
+def format_params(params: dict) -> str:
+    """The text table of any parameter file: one axis (:func:`format_table`, with the effects
+    diagnose added) or a robot (:func:`kukaid.identify.robot_fit.format_robot_table`)."""
+    from kukaid.params import is_robot_params
+
+    if is_robot_params(params):
+        from kukaid.identify.robot_fit import format_robot_table
+
+        return format_robot_table(params)
+    text = format_table(params)
+    eff = params.get("effects") or {}
+    if eff:
+        text += "\n  effects added by diagnose: " + "; ".join(
+            f"{name} " + ", ".join(f"{k} {v:.4g}" if isinstance(v, (int, float)) else f"{k} {v}"
+                                   for k, v in (p.items() if isinstance(p, dict) else []))
+            for name, p in eff.items())
+    return text

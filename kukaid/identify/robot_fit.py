@@ -25,7 +25,7 @@ Steps (:func:`fit_robot`):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Sequence
 
@@ -38,7 +38,7 @@ from kukaid.params.robot import SCHEMA as ROBOT_SCHEMA
 from kukaid.params.robot import validate_robot_params
 from kukaid.models.urdf import BUNDLED
 from kukaid.models.robot import (FRICTION_MODELS, LINK_PARAMS, DriveModel, RobotModel, consistency,
-                                 friction_names, friction_regressor, pseudo_inertia)
+                                 friction_names, friction_regressor, pseudo_inertia, smooth_sign)
 
 PRIOR_WEIGHT = 1e-3
 #: default low-pass cut-off, Hz. Parallel filtering (the same filter on positions and torques) is
@@ -50,8 +50,30 @@ PRIOR_WEIGHT = 1e-3
 CUTOFF = 10.0
 #: default harmonics of the position ripple per joint (see ``RobotFitSettings.ripple``): the LWR4+'s
 #: blocked cross-validation within the fit recording falls from 19.9 % (none) to 19.3, 14.5, 12.0 %
-#: (2, 3, 4) and then flattens (11.7 % at 6, 11.6 % at 8): the smallest where it flattens
+#: (2, 3, 4) and then flattens (11.7 % at 6, 11.6 % at 8): the smallest where it flattens. The most
+#: harmonics tried: with ``choose`` each joint gets 0, 2 or 4 by its own held-out error
 RIPPLE = 4
+#: candidate transition velocities of the Coulomb term ``Fc tanh(qd / v)``, rad/s (0: the sign),
+#: chosen per joint by held-out error: a real joint's friction does not step at zero velocity (the
+#: LWR4+'s A5 rises over about 0.1 rad/s), and a joint at rest must not flip by ±Fc
+SMOOTH_GRID = (0.0, 0.01, 0.03, 0.1)
+#: the Coulomb term's dead-band: this many standard deviations of the joint's velocity noise (the filtered
+#: noise is correlated: at 3 its excursions still flip the sign a few times a second at rest)
+NOISE_DEADBAND = 5.0
+#: contiguous blocks of a single recording for the held-out choices (with several recordings,
+#: each recording is left out in turn)
+FOLDS = 5
+#: a more complex choice (more ripple harmonics, a larger transition velocity) must lower the joint's
+#: held-out error by more than this factor over the simplest within it: blocks of one recording
+#: share its motion, so small gains there do not carry to other recordings (on the heavy-robot
+#: check a margin of 1 % let ripple terms the robot does not have in and cost A6 2.6 points)
+SIMPLER_WITHIN = 1.05
+#: default bounds of each link's mass, multiples of its URDF mass: a CAD model is rarely off by more
+#: than a factor 2 (cables, hoses, a motor not drawn); wider, the consistent set lets a link that the
+#: data see only in combinations take several times its mass (a heavy robot: 5x and 11x)
+MASS_BOUNDS = (0.4, 2.5)
+#: default bounds of the moving links' total mass, multiples of the URDF's total
+TOTAL_MASS_BOUNDS = (0.67, 1.5)
 
 
 @dataclass(frozen=True)
@@ -78,9 +100,29 @@ class RobotFitSettings:
     weighting : per-joint weights of the equations: "noise" (1 / the residual standard deviation
         of a first least-squares fit) or "torque" (1 / the joint's RMS torque: every joint's
         relative error counts alike) or "none".
-    v_smooth : Coulomb friction as ``Fc tanh(qd / v_smooth)``, rad/s (0: ``Fc sign(qd)``).
+    v_smooth : Coulomb friction as ``Fc tanh(qd / v_smooth)``, rad/s (0: ``Fc sign(qd)``), one number
+        or one per joint; None: chosen per joint by held-out error among :data:`SMOOTH_GRID` (the
+        file holds the values chosen).
+    deadband : the Coulomb term is 0 at speeds below it, rad/s (one number or one per joint; see
+        :func:`kukaid.models.robot.smooth_sign`); None: :data:`NOISE_DEADBAND` times the joint's
+        velocity noise, estimated from the positions, so a joint at rest is not given ``±Fc`` by
+        the sign of its noise (the file holds the values used).
     reversal_window : a joint's equations closer than this many cut-off periods to a reversal of
         its velocity are not fitted (0: all are).
+    mass_bounds : (low, high) every link's mass within these multiples of its URDF mass (None: no
+        bound). The consistent set alone lets a link take several times its mass where the data
+        see only combinations (a 339 kg link fitted at 1.7 to 3.8 t on a heavy robot).
+    total_mass_bounds : (low, high) the moving links' total mass within these multiples of the
+        URDF's total (None: no bound).
+    choose : choose per joint, by held-out error on the user's own recordings (each recording left
+        out in turn, or :data:`FOLDS` blocks of one): the Coulomb transition velocity (when
+        ``v_smooth`` is None; else the given one), the ripple harmonics (0, ``ripple // 2`` or
+        ``ripple``) and whether the spring term is in (when ``spring``); those left out are held
+        at 0. False: ``ripple`` and ``spring`` as given, ``v_smooth`` None = the dead-band only.
+    viscous_beyond : "hold" (the viscous term's velocity held within the velocities the fit saw,
+        per joint and direction: the fit knows the friction curve only there; on the LWR4+ the
+        friction flattens at higher speeds, where a straight line over-predicts it by up to 2x) or
+        "linear" (extrapolated).
     """
 
     cutoff: float | None = None
@@ -94,12 +136,41 @@ class RobotFitSettings:
     torque_side: str = "joint"
     rotor: bool = False
     reversal_window: float = 2.0
-    v_smooth: float = 0.0
+    v_smooth: float | tuple[float, ...] | None = None
+    deadband: float | tuple[float, ...] | None = None
     weighting: str = "noise"
     spring: bool = True
     ripple: int = RIPPLE
+    mass_bounds: tuple[float, float] | None = MASS_BOUNDS
+    total_mass_bounds: tuple[float, float] | None = TOTAL_MASS_BOUNDS
+    viscous_beyond: str = "hold"
+    choose: bool = True
 
     def __post_init__(self) -> None:
+        if self.viscous_beyond not in ("hold", "linear"):
+            raise FitError(f"viscous_beyond '{self.viscous_beyond}': expected hold or linear")
+        for name in ("v_smooth", "deadband"):
+            val = getattr(self, name)
+            if val is None:
+                continue
+            try:
+                vv = np.atleast_1d(np.asarray(val, float))
+            except (TypeError, ValueError):
+                vv = np.array([np.nan])
+            if vv.ndim != 1 or not np.all(np.isfinite(vv)) or np.any(vv < 0):
+                raise FitError(f"{name} must be a number >= 0 or one per joint, got {val!r}")
+            object.__setattr__(self, name, float(vv[0]) if np.ndim(val) == 0 else tuple(vv.tolist()))
+        for name in ("mass_bounds", "total_mass_bounds"):
+            v = getattr(self, name)
+            if v is None:
+                continue
+            try:
+                lo, hi = (float(x) for x in v)
+            except (TypeError, ValueError):
+                raise FitError(f"{name} must be two numbers (low, high) or None, got {v!r}") from None
+            if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < 1 < hi):
+                raise FitError(f"{name} must be (low, high) with 0 < low < 1 < high, got {v!r}")
+            object.__setattr__(self, name, (lo, hi))
         if self.friction not in FRICTION_MODELS:
             raise FitError(f"friction model '{self.friction}': expected one of {', '.join(FRICTION_MODELS)}")
         for name, v in (("cutoff", self.cutoff), ("vs", self.vs)):
@@ -125,6 +196,8 @@ class Motion:
     qdd: np.ndarray
     tau: np.ndarray
     keep: np.ndarray | None = None      # (N, n) bool: the joint's equation is fitted at that sample
+    log_rows: tuple[int, ...] | None = None    # rows of each log, in order
+    qd_noise: np.ndarray | None = None  # (n,) standard deviation of the velocity's noise, rad/s
 
 
 def away_from_reversals(qd: np.ndarray, time: np.ndarray, window: float) -> np.ndarray:
@@ -169,7 +242,7 @@ def _cutoff(settings: RobotFitSettings, fs: float) -> float:
     return min(fc, 0.1 * fs) if settings.cutoff is None else fc
 
 
-def sample_grid(time: np.ndarray, q: np.ndarray) -> np.ndarray:
+def sample_grid(time: np.ndarray, q: np.ndarray, cols: Sequence[int] | None = None) -> np.ndarray:
     """The time base to differentiate on: the log's time stamps, or an even grid over the same span.
 
     The low-pass filter treats the samples as evenly spaced. A controller samples its axes at a
@@ -178,22 +251,30 @@ def sample_grid(time: np.ndarray, q: np.ndarray) -> np.ndarray:
     smooth). Differentiating on such stamps turns the jitter into velocity and acceleration spikes
     (tens of rad/s² and, through the inertia, tens of N·m of torque that no joint felt). The even
     grid is used when it makes the positions smoother (smaller second differences) than the
-    stamps do; a log with truly uneven samples keeps its stamps.
+    stamps do; a log with truly uneven samples keeps its stamps. ``cols``: the columns of ``q``
+    to judge by (default all); one column at a time, so a long log needs no (N, n) temporaries.
     """
     time = np.asarray(time, float)
     grid = np.linspace(time[0], time[-1], time.size)
     if time.size < 3 or np.allclose(np.diff(time), grid[1] - grid[0], rtol=1e-3, atol=0.0):
         return time
+    q = np.asarray(q, float).reshape(time.size, -1)
+    cols = range(q.shape[1]) if cols is None else cols
 
     def rough(t: np.ndarray) -> float:
-        return float(np.sum(np.gradient(np.gradient(q, t, axis=0), t, axis=0) ** 2))
+        return float(sum(np.sum(np.gradient(np.gradient(q[:, c], t), t) ** 2) for c in cols))
 
     return grid if rough(grid) < rough(time) else time
 
 
 def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel | None = None,
-           filter_tau: bool = True) -> Motion:
-    """Filtered positions, their derivatives and the (filtered) joint torques of axes A1..An."""
+           filter_tau: bool = True, rows: slice = slice(None), reversal_window: float | None = None) -> Motion:
+    """Filtered positions, their derivatives and the (filtered) joint torques of axes A1..An.
+
+    ``rows``: the samples to return (after filtering and differentiating the whole log);
+    ``reversal_window`` (s): also mark the samples away from the joint's velocity reversals
+    (:func:`away_from_reversals`) in ``keep``. The log is processed one joint at a time, so the
+    memory beyond the returned rows is a few single-column arrays whatever the log's length."""
     from scipy.signal import butter, sosfiltfilt
 
     cols = _joint_columns(log, n)
@@ -207,16 +288,51 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
     need = 3 * (2 * sos.shape[0] + 1)
     if log.n_samples <= need:
         raise FitError(f"{where}: {log.n_samples} samples are too few to filter (need more than {need})")
-    q = sosfiltfilt(sos, log.q[:, cols], axis=0)
-    t = sample_grid(log.time, log.q[:, cols])
-    qd = np.gradient(q, t, axis=0)
-    qdd = np.gradient(qd, t, axis=0)
-    tau = log.tau[:, cols]
-    if settings.torque_side == "motor" and drive is not None:
-        tau = drive.joint_torque(tau)
-    if filter_tau:
-        tau = sosfiltfilt(sos, tau, axis=0)
-    return Motion(q, qd, qdd, tau)
+    t = sample_grid(log.time, log.q, cols)
+    idx = np.arange(log.n_samples)[rows]
+    out = {k: np.empty((idx.size, n)) for k in ("q", "qd", "qdd", "tau")}
+    keep = np.ones((idx.size, n), bool) if reversal_window is not None else None
+    G = drive.G if settings.torque_side == "motor" and drive is not None else None
+    gain = _velocity_noise_gain(sos, float(np.median(np.diff(t))), log.n_samples)
+    qd_noise = np.zeros(n)
+    for j, c in enumerate(cols):
+        qd_noise[j] = gain * position_noise(log.q[:, c])
+        qj = sosfiltfilt(sos, log.q[:, c])
+        qdj = np.gradient(qj, t)
+        out["q"][:, j] = qj[rows]
+        out["qd"][:, j] = qdj[rows]
+        out["qdd"][:, j] = np.gradient(qdj, t)[rows]
+        if keep is not None:
+            keep[:, j] = away_from_reversals(qdj[:, None], log.time, reversal_window)[rows, 0]
+        del qj, qdj
+        if G is None:
+            tj = log.tau[:, c]
+        else:  # joint torque = G^T motor torques
+            tj = sum(log.tau[:, ck] * G[k, j] for k, ck in enumerate(cols) if G[k, j] != 0.0)
+            tj = tj if isinstance(tj, np.ndarray) else np.zeros(log.n_samples)
+        out["tau"][:, j] = (sosfiltfilt(sos, tj) if filter_tau else tj)[rows]
+    return Motion(out["q"], out["qd"], out["qdd"], out["tau"], keep, (idx.size,), qd_noise)
+
+
+def position_noise(q: np.ndarray) -> float:
+    """Standard deviation of the white noise on a position signal, from its fourth differences
+    (robust: 1.4826 x their median absolute deviation / sqrt(70)); a smooth motion's fourth
+    differences are orders of magnitude smaller, so what is left is the encoder's noise and
+    quantisation."""
+    d4 = np.diff(np.asarray(q, float), 4)
+    if d4.size < 5:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d4 - np.median(d4))) / math.sqrt(70.0))
+
+
+def _velocity_noise_gain(sos: np.ndarray, dt: float, n: int) -> float:
+    """Standard deviation of the filtered, differentiated velocity per unit white position noise."""
+    from scipy.signal import sosfiltfilt
+
+    w = np.random.default_rng(0).standard_normal(min(max(n, 64), 4096))
+    v = np.gradient(sosfiltfilt(sos, w), dt)
+    k = v.size // 8
+    return float(np.std(v[k: v.size - k]))
 
 
 def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive: DriveModel) -> Motion:
@@ -224,13 +340,15 @@ def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive:
     for log in logs:
         fs = 1.0 / log.sample_time
         fc = _cutoff(settings, fs)
-        m = motion(log, n, settings, drive)
-        keep = away_from_reversals(m.qd, log.time, settings.reversal_window * 1.0 / fc)
         edge = int(math.ceil(2.0 * fs / fc))                     # two cut-off periods at each end
         step = settings.decimate or max(1, int(round(fs / (10.0 * fc))))
-        rows = slice(edge, log.n_samples - edge, step)
-        parts.append(Motion(m.q[rows], m.qd[rows], m.qdd[rows], m.tau[rows], keep[rows]))
-    out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau", "keep")))
+        rows = slice(edge, max(log.n_samples - edge, edge), step)
+        parts.append(motion(log, n, settings, drive, rows=rows, reversal_window=settings.reversal_window * 1.0 / fc))
+    if len(parts) == 1:
+        out = parts[0]
+    else:
+        out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau", "keep")),
+                     tuple(p.q.shape[0] for p in parts), np.max([p.qd_noise for p in parts], axis=0))
     if out.q.shape[0] < 10:
         raise FitError(f"too few samples left after trimming and decimation ({out.q.shape[0]})")
     return out
@@ -245,8 +363,16 @@ def _drive(robot: RobotModel, settings: RobotFitSettings, coupling: np.ndarray |
 
 def design(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel) -> tuple[np.ndarray, np.ndarray]:
     """Rigid-body regressor (N, n, 10 n) and the extra columns (N, n, k): friction, offset, rotors."""
-    Y = robot.regressor(m.q, m.qd, m.qdd)
-    F = friction_regressor(m.qd, settings.friction, settings.offset, settings.vs, v_smooth=settings.v_smooth)
+    return robot.regressor(m.q, m.qd, m.qdd), extras(robot, m, settings, drive)
+
+
+def extras(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
+           v_smooth=None, qd_range: np.ndarray | None = None) -> np.ndarray:
+    """The extra columns (N, n, k): friction, offset, spring, ripple, rotors (``v_smooth``: instead
+    of the settings'; ``qd_range`` (n, 2): the viscous term's velocity held within it)."""
+    v = settings.v_smooth if v_smooth is None else v_smooth
+    F = friction_regressor(m.qd, settings.friction, settings.offset, settings.vs, v_smooth=0.0 if v is None else v,
+                           qd_range=qd_range, deadband=settings.deadband or 0.0)
     n = robot.n
     if settings.spring:
         P = np.zeros((m.q.shape[0], n, n))
@@ -256,7 +382,7 @@ def design(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: Driv
         F = np.concatenate([F, ripple_regressor(m.q, settings.ripple)], axis=2)
     if settings.rotor:
         F = np.concatenate([F, drive.rotor_regressor(m.qdd)], axis=2)
-    return Y, F
+    return F
 
 
 def ripple_regressor(q: np.ndarray, harmonics: int) -> np.ndarray:
@@ -271,14 +397,16 @@ def ripple_regressor(q: np.ndarray, harmonics: int) -> np.ndarray:
     return out
 
 
-def _covered_harmonics_only(F: np.ndarray, q: np.ndarray, settings: RobotFitSettings) -> None:
+def _covered_harmonics_only(F: np.ndarray, q: np.ndarray, settings: RobotFitSettings,
+                            span: np.ndarray | None = None) -> None:
     """Zero (in place) the ripple columns of harmonics whose period the joint's fitted range does not
     cover once: over a shorter arc ``cos(k q)`` and ``sin(k q)`` look like a polynomial of q, which
-    the fit can use to bend the torque within the range and which then runs away outside it."""
+    the fit can use to bend the torque within the range and which then runs away outside it.
+    ``span``: each joint's range over all fitted samples (default: over ``q``'s rows)."""
     K = settings.ripple
     n = q.shape[1]
     start = F.shape[2] - 2 * n * K - (n if settings.rotor else 0)     # the rotor columns come last
-    span = np.ptp(q, axis=0)
+    span = np.ptp(q, axis=0) if span is None else span
     for j in range(n):
         for i, k in enumerate(list(range(1, K + 1)) * 2):
             if k * span[j] < 2 * np.pi:
@@ -333,9 +461,13 @@ def _pi_of_theta(th):
 
 def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_extra: int,
                    nonneg: np.ndarray, prior_weight: float, pi0: np.ndarray, x0_extra: np.ndarray,
-                   fixed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+                   fixed: np.ndarray | None = None, mass_bounds: tuple[float, float] | None = None,
+                   total_mass_bounds: tuple[float, float] | None = None,
+                   start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """Minimise ``|R p - z|^2 + c + prior_weight * sum D(J_k || J_k,nominal)`` over
-    physically consistent links (log-Cholesky) and the extra parameters (``nonneg`` ones >= 0).
+    physically consistent links (log-Cholesky) and the extra parameters (``nonneg`` ones >= 0);
+    each link's mass ``exp(2 a_k)`` within ``mass_bounds`` times its nominal mass (a bound on
+    ``a_k``), their sum within ``total_mass_bounds`` times the nominal total (a constraint).
 
     Returns the standard parameters (10 n,), the extra parameters and solver statistics."""
     import casadi as ca
@@ -357,7 +489,8 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
         logdetJ = 2 * (4 * th[10 * k] + th[10 * k + 1] + th[10 * k + 2] + th[10 * k + 3])
         prior += ca.trace(ca.mtimes(ca.DM(J0inv), J)) - logdetJ + float(np.linalg.slogdet(J0)[1]) - 4
     p = ca.vertcat(*pis, ex)
-    x0 = np.concatenate([np.concatenate([_theta_of(pi0[10 * k: 10 * k + 10]) for k in range(n)]), x0_extra])
+    pis0 = pi0 if start is None else start
+    x0 = np.concatenate([np.concatenate([_theta_of(pis0[10 * k: 10 * k + 10]) for k in range(n)]), x0_extra])
     r = ca.mtimes(ca.DM(R), p) - ca.DM(z)
     wp = ca.MX.sym("w")
     f = ca.dot(r, r) + c + wp * prior
@@ -367,15 +500,25 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
     if fixed is not None:  # extras the data cannot see: held at zero
         lbx[10 * n:][fixed] = ubx[10 * n:][fixed] = 0.0
     x0[10 * n:] = np.clip(x0[10 * n:], lbx[10 * n:], ubx[10 * n:])
+    m0 = pi0[0::10]
+    if mass_bounds is not None:   # a massless link (nominal 0) stays unbounded
+        has = m0 > 0
+        lbx[10 * np.flatnonzero(has)] = 0.5 * np.log(mass_bounds[0] * m0[has])
+        ubx[10 * np.flatnonzero(has)] = 0.5 * np.log(mass_bounds[1] * m0[has])
+        x0[:10 * n] = np.clip(x0[:10 * n], lbx[:10 * n], ubx[:10 * n])
     nlp = {"x": ca.vertcat(th, ex), "f": f, "p": wp}
-    solver = ca.nlpsol("robot_fit", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": 0,
+    lbg, ubg = [], []
+    if total_mass_bounds is not None and m0.sum() > 0:
+        nlp["g"] = sum(ca.exp(2 * th[10 * k]) for k in range(n)) / float(m0.sum())
+        lbg, ubg = [total_mass_bounds[0]], [total_mass_bounds[1]]
+    solver = ca.nlpsol("robot_fit", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": 0, "show_eval_warnings": False,
                                                    "ipopt.max_iter": 3000, "ipopt.tol": 1e-9})
     # continuation: a strong prior first (near the nominal links, quick), then down to the weight
     # asked for, each solve starting at the last; the problem is convex in the pseudo-inertias, so
     # the end point is the same minimum, reached in fewer iterations
     iters = 0
-    for w in [x for x in (1e-1, 1e-2) if x > prior_weight] + [prior_weight]:
-        sol = solver(x0=x0, lbx=lbx, ubx=ubx, p=w)
+    for w in ([x for x in (1e-1, 1e-2) if x > prior_weight] if start is None else []) + [prior_weight]:
+        sol = solver(x0=x0, lbx=lbx, ubx=ubx, p=w, **({"lbg": lbg, "ubg": ubg} if lbg else {}))
         iters += int(solver.stats().get("iter_count") or 0)
         x0 = np.asarray(sol["x"]).ravel()
     stats = solver.stats()
@@ -407,6 +550,353 @@ def _solve(G: np.ndarray, g: np.ndarray) -> np.ndarray:
     return d * x
 
 
+#: samples per block of the regressor: (BLOCK, n, p) doubles stay a few MB whatever the log's length
+BLOCK = 2048
+
+
+def _blocks(m: Motion, block: int = BLOCK):
+    for a in range(0, m.q.shape[0], block):
+        rows = slice(a, min(a + block, m.q.shape[0]))
+        yield rows, Motion(m.q[rows], m.qd[rows], m.qdd[rows], m.tau[rows],
+                           None if m.keep is None else m.keep[rows])
+
+
+def _block_columns(robot: RobotModel, mb: Motion, settings: RobotFitSettings, drive: DriveModel,
+                   span: np.ndarray) -> np.ndarray:
+    """(B, n, 10 n + k): the rigid-body and extra columns of one block of samples."""
+    Y, F = design(robot, mb, settings, drive)
+    if settings.ripple:
+        _covered_harmonics_only(F, mb.q, settings, span)
+    return np.concatenate([Y, F], axis=2)
+
+
+def _active_columns(robot: RobotModel, settings: RobotFitSettings, drive: DriveModel) -> list[np.ndarray]:
+    """Per joint, the columns (standard parameters, then extras) its equation can touch: the links
+    from the joint out, its own friction, spring and ripple, the rotors coupled to it (structural:
+    from the regressor at a few random states)."""
+    n = robot.n
+    rng = np.random.default_rng(0)
+    x = [rng.uniform(-1.0, 1.0, (6, n)) for _ in range(3)]
+    mb = Motion(x[0], x[1], x[2], np.zeros((6, n)))
+    Y, F = robot.regressor(mb.q, mb.qd, mb.qdd), extras(robot, mb, settings, drive, v_smooth=1.0)
+    nz = np.any(np.concatenate([Y, F], axis=2) != 0, axis=0)
+    return [np.flatnonzero(nz[j]) for j in range(n)]
+
+
+@dataclass
+class FoldEquations:
+    """Per-joint normal equations per candidate transition velocity and per fold, compact: joint j
+    over its active columns ``act[j]`` only.
+
+    train[j] : (V, K, a_j, a_j) over the samples fitted (away from reversals); tg[j] : (V, K, a_j)
+    rest[j], rg[j] : the same over the samples not fitted (train + rest: all samples, to evaluate)
+    tc, rc : (K, n) sums of the squared torques, fitted and not fitted.
+    used : (k,) the extra columns that are nonzero somewhere.
+    tn, rn : (K, n) numbers of samples fitted and not fitted.
+    """
+
+    act: list
+    train: list
+    tg: list
+    rest: list
+    rg: list
+    tc: np.ndarray
+    rc: np.ndarray
+    used: np.ndarray
+    tn: np.ndarray
+    rn: np.ndarray
+
+    def full(self, p: int, v: Sequence[int] | None = None, folds: Sequence[int] | None = None,
+             evaluate: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """G (n, p, p), g (n, p), c (n,): joint j's equations at candidate ``v[j]`` (default 0),
+        summed over ``folds`` (default all); ``evaluate``: all samples, not only those fitted."""
+        n = len(self.act)
+        v = [0] * n if v is None else list(v)
+        f = slice(None) if folds is None else list(folds)
+        G, g = np.zeros((n, p, p)), np.zeros((n, p))
+        for j, a in enumerate(self.act):
+            Gj, gj = self.train[j][v[j]][f].sum(0), self.tg[j][v[j]][f].sum(0)
+            if evaluate:
+                Gj, gj = Gj + self.rest[j][v[j]][f].sum(0), gj + self.rg[j][v[j]][f].sum(0)
+            G[j][np.ix_(a, a)] = Gj
+            g[j, a] = gj
+        c = self.tc[f].sum(0) + (self.rc[f].sum(0) if evaluate else 0.0)
+        return G, g, c
+
+
+def fold_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
+                   smooth: np.ndarray, folds: np.ndarray, n_folds: int, block: int = BLOCK) -> FoldEquations:
+    """Normal equations accumulated block by block (never the (N, n, p) regressor), for each row of
+    ``smooth`` (V, n) (Coulomb transition velocities per joint) and each fold (``folds``: (N,) fold
+    of each sample). The rigid-body block of each joint's equations is computed once for all
+    candidates; only the extra columns change with the transition velocity."""
+    n = robot.n
+    span = np.ptp(m.q, axis=0)
+    act = _active_columns(robot, settings, drive)
+    V, K = smooth.shape[0], n_folds
+    ay = [a[a < robot.n_std] for a in act]
+    af = [a[a >= robot.n_std] - robot.n_std for a in act]
+    train = [np.zeros((V, K, a.size, a.size)) for a in act]
+    rest = [np.zeros((V, K, a.size, a.size)) for a in act]
+    tg = [np.zeros((V, K, a.size)) for a in act]
+    rg = [np.zeros((V, K, a.size)) for a in act]
+    tc, rc = np.zeros((K, n)), np.zeros((K, n))
+    tn, rn = np.zeros((K, n)), np.zeros((K, n))
+    used = None
+    # blocks that do not straddle a fold boundary
+    edges = np.flatnonzero(np.diff(folds)) + 1
+    starts = np.concatenate([[0], edges]).astype(int)
+    stops = np.concatenate([edges, [folds.size]]).astype(int)
+    with _one_blas_thread():
+        for s0, s1 in zip(starts, stops):
+            f = int(folds[s0])
+            for a0 in range(s0, s1, block):
+                rows = slice(a0, min(a0 + block, s1))
+                mb = Motion(m.q[rows], m.qd[rows], m.qdd[rows], m.tau[rows], m.keep[rows])
+                Y = robot.regressor(mb.q, mb.qd, mb.qdd)
+                F0 = extras(robot, mb, settings, drive, v_smooth=smooth[0])
+                if settings.ripple:
+                    _covered_harmonics_only(F0, mb.q, settings, span)
+                Fs = [F0] + [_with_coulomb(F0, mb.qd, settings, smooth[v]) for v in range(1, V)]
+                for F in Fs:
+                    u = np.any(F != 0, axis=(0, 1))
+                    used = u if used is None else used | u
+                kw = mb.keep.astype(float)
+                tn[f] += kw.sum(axis=0)
+                rn[f] += (1.0 - kw).sum(axis=0)
+                for j in range(n):
+                    t = mb.tau[:, j]
+                    for wt, G, g, c in ((kw[:, j], train, tg, tc), (1.0 - kw[:, j], rest, rg, rc)):
+                        if not np.any(wt):
+                            continue
+                        Yj = Y[:, j, ay[j]]
+                        Yw = Yj * wt[:, None]
+                        YY, Yt = Yw.T @ Yj, Yw.T @ t
+                        c[f, j] += float((t * wt) @ t)
+                        ny = ay[j].size
+                        for v in range(V):
+                            Fj = Fs[v][:, j, af[j]]
+                            Gv = G[j][v, f]
+                            Gv[:ny, :ny] += YY
+                            YF = Yw.T @ Fj
+                            Gv[:ny, ny:] += YF
+                            Gv[ny:, :ny] += YF.T
+                            Gv[ny:, ny:] += (Fj * wt[:, None]).T @ Fj
+                            g[j][v, f, :ny] += Yt
+                            g[j][v, f, ny:] += Fj.T @ (t * wt)
+    return FoldEquations(act, train, tg, rest, rg, tc, rc, used, tn, rn)
+
+
+def _with_coulomb(F: np.ndarray, qd: np.ndarray, settings: RobotFitSettings, v_smooth) -> np.ndarray:
+    """A copy of the extra columns ``F`` with the Coulomb (and Stribeck) columns at another transition
+    velocity: the only columns that depend on it (the friction block comes first, ``nf`` per joint)."""
+    n = qd.shape[1]
+    out = F.copy()
+    sgn = smooth_sign(qd, v_smooth, settings.deadband or 0.0)
+    nf = 2 + (settings.friction == "stribeck") + bool(settings.offset)
+    for j in range(n):
+        out[:, j, j * nf] = sgn[:, j]
+        if settings.friction == "stribeck":
+            vs = np.broadcast_to(np.asarray(settings.vs, float), (n,))
+            out[:, j, j * nf + 2] = sgn[:, j] * np.exp(-np.abs(qd[:, j] / vs[j]) ** 2.0)
+    return out
+
+
+def normal_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
+                     block: int = BLOCK) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-joint normal equations of all columns over the samples ``m.keep`` marks:
+    ``G[j] = sum_s C_sj^T C_sj``, ``g[j] = sum_s C_sj^T tau_sj`` (C: the standard-parameter and extra
+    columns, the settings' ``v_smooth``), accumulated block by block; joint j's equation only
+    touches its nonzero columns (the links from j out, its own friction), so each block costs a
+    fraction of the full products.
+
+    Returns G (n, p, p), g (n, p) and which extra columns are nonzero anywhere (k,)."""
+    v = np.broadcast_to(np.asarray(settings.v_smooth or 0.0, float), (robot.n,))[None, :]
+    fe = fold_equations(robot, m, settings, drive, v, np.zeros(m.q.shape[0], int), 1, block)
+    G, g, _ = fe.full(robot.n_std + fe.used.size)
+    return G, g, fe.used
+
+
+def _solve_quick(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``A x = b`` for a symmetric positive semi-definite ``A`` (columns scaled, a tiny ridge, Cholesky);
+    a zero column's value is 0. For the many small solves of the held-out choices."""
+    from scipy.linalg import cho_factor, cho_solve
+
+    dg = np.diag(A)
+    live = dg > 0
+    x = np.zeros(b.size)
+    if not live.any():
+        return x
+    d = 1.0 / np.sqrt(dg[live])
+    As = d[:, None] * A[np.ix_(live, live)] * d[None, :]
+    try:
+        x[live] = d * cho_solve(cho_factor(As + 1e-10 * np.eye(As.shape[0])), d * b[live])
+    except np.linalg.LinAlgError:
+        x[live] = d * np.linalg.lstsq(As, d * b[live], rcond=1e-12)[0]
+    return x
+
+
+def choose_terms(fe: "FoldEquations", ib: np.ndarray, p: int, w: np.ndarray, harmonic: np.ndarray,
+                 K_grid: Sequence[int], rw_grid: Sequence[bool], spring_col: np.ndarray | None = None,
+                 sp_grid: Sequence[bool] = (True,)) -> tuple[list, np.ndarray]:
+    """Held-out relative error of each joint (pooled over the folds; every sample of the held-out
+    fold) of the weighted least-squares fit on the other folds, for each combination (all joints
+    alike) of transition velocity (``fe``'s candidates), ripple harmonics up to K and reversal
+    window (True: the equations near reversals left out of the fit). Returns the combinations,
+    simplest first, and the errors (C, n)."""
+    V, Kf = fe.train[0].shape[:2]
+    n = len(fe.act)
+    spring_col = np.zeros(p, bool) if spring_col is None else spring_col
+    combos = [(v, Kh, rw, sp) for sp in sp_grid for Kh in K_grid for rw in rw_grid for v in range(V)]
+    err = np.zeros((len(combos), n))
+    den = fe.tc.sum(0) + fe.rc.sum(0)
+    for v in range(V):
+        At, Ar, bt, br = [], [], [], []
+        for f in range(Kf):
+            Gt, gt, _ = fe.full(p, [v] * n, [f])
+            Ge, ge, _ = fe.full(p, [v] * n, [f], evaluate=True)
+            At.append(np.einsum("j,jkl->kl", w, Gt)), bt.append(w @ gt)
+            Ar.append(np.einsum("j,jkl->kl", w, Ge - Gt)), br.append(w @ (ge - gt))
+        sAt, sAr, sbt, sbr = sum(At), sum(Ar), sum(bt), sum(br)
+        for Kh, sp in ((Kh, sp) for Kh in K_grid for sp in sp_grid):
+            cols = ib[(harmonic[ib] <= Kh) & (sp | ~spring_col[ib])]
+            for rw in rw_grid:
+                num = np.zeros(n)
+                for f in range(Kf):
+                    A, b = sAt - At[f], sbt - bt[f]
+                    if not rw:
+                        A, b = A + sAr - Ar[f], b + sbr - br[f]
+                    x = np.zeros(p)
+                    x[cols] = _solve_quick(A[np.ix_(cols, cols)], b[cols])
+                    for j, a in enumerate(fe.act):
+                        xa = x[a]
+                        E = fe.train[j][v, f] + fe.rest[j][v, f]
+                        e = fe.tg[j][v, f] + fe.rg[j][v, f]
+                        num[j] += max(fe.tc[f, j] + fe.rc[f, j] - 2 * e @ xa + xa @ E @ xa, 0.0)
+                err[combos.index((v, Kh, rw, sp))] = np.sqrt(num / np.maximum(den, 1e-300))
+    return combos, err
+
+
+def _chosen(fe: "FoldEquations", pick: Sequence[tuple], harmonic: np.ndarray, p: int,
+            folds: Sequence[int] | None = None, evaluate: bool = False, spring_col: np.ndarray | None = None):
+    """Per-joint normal equations at each joint's chosen combination (transition velocity, ripple
+    harmonics, reversal window), over ``folds`` (default all); ``evaluate``: every sample.
+    Returns G (n, p, p), g (n, p), c (n,) and which extras stay (p - n_std,)."""
+    n = len(fe.act)
+    n_std = p - fe.used.size
+    f = slice(None) if folds is None else list(folds)
+    G, g, c = np.zeros((n, p, p)), np.zeros((n, p)), np.zeros(n)
+    used = np.ones(fe.used.size, bool)
+    spring_col = np.zeros(p, bool) if spring_col is None else spring_col
+    for j, (v, Kh, rw, sp) in enumerate(pick):
+        a = fe.act[j]
+        Gj, gj, cj = fe.train[j][v][f].sum(0), fe.tg[j][v][f].sum(0), fe.tc[f, j].sum()
+        if not rw or evaluate:
+            Gj, gj, cj = Gj + fe.rest[j][v][f].sum(0), gj + fe.rg[j][v][f].sum(0), cj + fe.rc[f, j].sum()
+        drop = (harmonic[a] > Kh) | (spring_col[a] & (not sp))
+        Gj[drop, :], Gj[:, drop], gj[drop] = 0.0, 0.0, 0.0
+        G[j][np.ix_(a, a)], g[j, a], c[j] = Gj, gj, cj
+        used[a[drop] - n_std] = False
+    return G, g, c, used
+
+
+def _consistent(Gw, gw, cw, M, robot, extra_n, nonneg, settings, x0_extra, fixed, bounded: bool, x0=None):
+    """The physically consistent fit of weighted normal equations (``bounded``: the settings' mass
+    bounds; ``x0``: a start, standard parameters then extras, solved at the final prior weight only)."""
+    # chi2 / M = p^T H p - 2 g^T p + c = |R p - z|^2 + c' with H = R^T R (eigenvectors of H)
+    H, g, c = Gw / M, gw / M, cw / M
+    ev, V = np.linalg.eigh(H)
+    pos = ev > 1e-12 * ev.max()
+    R = np.sqrt(ev[pos])[:, None] * V[:, pos].T
+    z = (V[:, pos].T @ g) / np.sqrt(ev[pos])
+    n_std = robot.n_std
+    return consistent_fit(R, z, float(c - z @ z), robot, len(extra_n), nonneg, settings.prior_weight,
+                          robot.pi_nominal, x0_extra if x0 is None else x0[n_std:], fixed=fixed,
+                          mass_bounds=settings.mass_bounds if bounded else None,
+                          total_mass_bounds=settings.total_mass_bounds if bounded else None,
+                          start=None if x0 is None else x0[:n_std])
+
+
+def _masses_on_bound(robot: RobotModel, pi: np.ndarray, bounds) -> list[str]:
+    if bounds is None:
+        return []
+    m0 = robot.pi_nominal[0::10]
+    r = pi[0::10] / np.where(m0 > 0, m0, np.inf)
+    return [name for name, x, has in zip(robot.link_names, r, m0 > 0)
+            if has and (x < bounds[0] * 1.001 or x > bounds[1] * 0.999)]
+
+
+def _mass_bound_check(fe, pick, harmonic, p, w, robot, solve, pi_c, extra, K, spring_col=None) -> dict:
+    """Held-out relative error (per joint, pooled over the folds) of the consistent fit with the
+    mass bounds and without them, each fitted on the other folds (started at the full fit)."""
+    n = len(fe.act)
+    num = {True: np.zeros(n), False: np.zeros(n)}
+    den = np.zeros(n)
+    x0 = np.concatenate([pi_c, extra])
+    for f in range(K):
+        Gt, gt, ct, used = _chosen(fe, pick, harmonic, p, [k for k in range(K) if k != f], spring_col=spring_col)
+        Ge, ge, ce, _ = _chosen(fe, pick, harmonic, p, [f], evaluate=True, spring_col=spring_col)
+        tr = [k for k in range(K) if k != f]
+        Mt = max(float(sum(fe.tn[tr, j].sum() + (0.0 if rw else fe.rn[tr, j].sum())
+                           for j, (_, _, rw, _) in enumerate(pick))), 1.0)
+        Gw, gw, cw = np.einsum("j,jkl->kl", w, Gt), w @ gt, float(w @ ct)
+        den += ce
+        for bounded in (True, False):
+            pi_f, ex_f, _ = solve(Gw, gw, cw, Mt, bounded, x0)
+            x = np.concatenate([pi_f, ex_f])
+            num[bounded] += np.maximum(ce - 2 * ge @ x + np.einsum("k,jkl,l->j", x, Ge, x), 0.0)
+    err = {b: np.sqrt(num[b] / np.maximum(den, 1e-300)) for b in (True, False)}
+    released = bool(np.mean(err[False]) < np.mean(err[True]) / SIMPLER_WITHIN)
+    return {"heldout_relative_error_bounded": err[True].tolist(), "heldout_relative_error_free": err[False].tolist(),
+            "released": released,
+            "why": (f"held-out error {100 * np.mean(err[False]):.1f} % free against {100 * np.mean(err[True]):.1f} % "
+                    f"bounded (mean over joints): " + ("the bounds are released" if released else "the bounds stay"))}
+
+
+def _folds(m: Motion, logs: Sequence[AxisLog]) -> tuple[np.ndarray, int, str]:
+    """Fold of each sample: each recording when there are several, else :data:`FOLDS` contiguous
+    blocks of the one recording; the number of folds and how they were made."""
+    rows = m.log_rows or (m.q.shape[0],)
+    if len(rows) > 1:
+        return np.repeat(np.arange(len(rows)), rows), len(rows), "each recording left out in turn"
+    N = m.q.shape[0]
+    return np.minimum(np.arange(N) * FOLDS // N, FOLDS - 1), FOLDS, f"{FOLDS} contiguous blocks of the recording"
+
+
+def _weights(G: np.ndarray, g: np.ndarray, cc: np.ndarray, ib: np.ndarray, counts: np.ndarray,
+             settings: RobotFitSettings) -> np.ndarray:
+    """Per-joint standard deviations of the equations (see ``RobotFitSettings.weighting``)."""
+    n = cc.size
+    Gb, gbb = G[:, ib][:, :, ib], g[:, ib]
+    beta0 = _solve(Gb.sum(0), gbb.sum(0))
+    rss = cc - 2 * gbb @ beta0 + np.einsum("k,jkl,l->j", beta0, Gb, beta0)
+    dof = np.maximum(counts - ib.size / n, 1.0)
+    sig = np.sqrt(np.maximum(rss, 0.0) / dof)
+    if settings.weighting == "torque":
+        sig = np.sqrt(cc / np.maximum(counts, 1.0))
+    elif settings.weighting == "none":
+        sig = np.ones(n)
+    return np.maximum(sig, 1e-6 * max(sig.max(), 1e-12))
+
+
+def predictions(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive: DriveModel,
+                independent: np.ndarray, coefs: Sequence[np.ndarray], block: int = BLOCK) -> list[np.ndarray]:
+    """(N, n) torques of each coefficient vector (base parameters, then the extras) on every sample
+    of ``m``, block by block."""
+    span = np.ptp(m.q, axis=0)
+    out = [np.empty_like(m.tau) for _ in coefs]
+    cols = None
+    with _one_blas_thread():
+        for rows, mb in _blocks(m, block):
+            C = _block_columns(robot, mb, settings, drive, span)
+            if cols is None:
+                cols = np.concatenate([independent, np.arange(robot.n_std, C.shape[2])])
+            Cb = C[:, :, cols]
+            for o, x in zip(out, coefs):
+                o[rows] = Cb @ x
+    return out
+
+
 def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings | None = None,
               coupling: np.ndarray | None = None) -> dict:
     """Identify base parameters, a physically consistent estimate and per-joint friction.
@@ -422,6 +912,14 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     -------
     The content of a ``kukaid.robot_params/1`` file (see :mod:`kukaid.params.robot`).
     """
+    # every product and factorisation here is of narrow matrices (a hundred columns or so): BLAS
+    # threads gain nothing and, on a busy machine, make each call wait for cores
+    with _one_blas_thread():
+        return _fit_robot(logs, robot, settings, coupling)
+
+
+def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings | None,
+               coupling: np.ndarray | None) -> dict:
     settings = settings or RobotFitSettings()
     if not logs:
         raise FitError("no logs to fit")
@@ -432,36 +930,83 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     n = robot.n
     drive = _drive(robot, settings, coupling)
     m = _samples(logs, n, settings, drive)
-    Y, F = design(robot, m, settings, drive)
-    if settings.ripple:
-        _covered_harmonics_only(F, m.q, settings)
     base = robot.base_parameters()
-    N = Y.shape[0]
+    N = m.q.shape[0]
     kw = m.keep.astype(float)
     if np.any(kw.sum(axis=0) < 10):
         raise FitError("too few samples away from velocity reversals; lower the reversal window")
-    # per-joint normal equations of all columns (standard parameters + extras): everything below
-    # works on these small matrices, whatever the number of samples
-    C = np.concatenate([Y, F], axis=2)
-    tk = m.tau * kw
-    Cj = np.ascontiguousarray(np.moveaxis(C, 1, 0))                             # (n, N, p)
-    with _one_blas_thread():
-        G = np.stack([(Cj[j] * kw[:, j, None]).T @ Cj[j] for j in range(n)])    # (n, p, p)
-        gb = np.stack([Cj[j].T @ tk[:, j] for j in range(n)])                   # (n, p)
-    cc = np.sum(tk * m.tau, axis=0)                                             # (n,)
+    counts = kw.sum(axis=0)
+    # per-joint normal equations of all columns (standard parameters + extras), accumulated over
+    # blocks of samples (never the (N, n, p) regressor), per candidate Coulomb transition velocity
+    # and per fold when one is to be chosen: everything below works on these small matrices,
+    # whatever the number of samples
+    if settings.deadband is None:
+        settings = replace(settings, deadband=tuple(float(x) for x in NOISE_DEADBAND * m.qd_noise))
+    deadband = np.broadcast_to(np.asarray(settings.deadband, float), (n,))
+    if settings.v_smooth is None and settings.choose:
+        grid = np.broadcast_to(np.asarray(SMOOTH_GRID, float)[:, None], (len(SMOOTH_GRID), n))     # (V, n)
+    elif settings.v_smooth is None:
+        grid = np.zeros((1, n))
+    else:
+        grid = np.broadcast_to(np.asarray(settings.v_smooth, float), (n,))[None, :]
+    K_grid = sorted({0, settings.ripple // 2, settings.ripple}) if settings.choose else [settings.ripple]
+    # fitting the equations near reversals too (a window of 0) can be chosen the same way
+    # (choose_terms), but blocks of one recording favour it and it loses on other recordings (the
+    # LWR4+'s A6: 12.9 -> 21.8 % on lwr4_3): the window stays as set
+    rw_grid = [True]
+    sp_grid = [False, True] if settings.choose and settings.spring else [settings.spring]
+    choose = len(grid) * len(K_grid) * len(rw_grid) * len(sp_grid) > 1
+    folds, K, how = _folds(m, logs) if choose else (np.zeros(N, int), 1, None)
+    fe = fold_equations(robot, m, settings, drive, grid, folds, K)
     nb = base.size
-    ib = np.concatenate([base.independent, robot.n_std + np.arange(F.shape[2])])
-    Gb, gbb = G[:, ib][:, :, ib], gb[:, ib]
-    # ordinary least squares on the base columns, then per-joint weights 1/sigma_j
-    beta0 = _solve(Gb.sum(0), gbb.sum(0))
-    rss = cc - 2 * gbb @ beta0 + np.einsum("k,jkl,l->j", beta0, Gb, beta0)
-    dof = np.maximum(kw.sum(axis=0) - ib.size / n, 1.0)
-    sig = np.sqrt(np.maximum(rss, 0.0) / dof)
-    if settings.weighting == "torque":
-        sig = np.sqrt(cc / np.maximum(kw.sum(axis=0), 1.0))
-    elif settings.weighting == "none":
-        sig = np.ones(n)
-    sig = np.maximum(sig, 1e-6 * max(sig.max(), 1e-12))
+    n_extra = fe.used.size
+    p = robot.n_std + n_extra
+    ib = np.concatenate([base.independent, robot.n_std + np.arange(n_extra)])
+    harmonic = np.zeros(p, int)           # the ripple harmonic of each column (0: not a ripple column)
+    if settings.ripple:
+        for k, nm in enumerate(extra_names(robot, settings)):
+            if ".ripple_" in nm:
+                harmonic[robot.n_std + k] = int(nm.rsplit("_", 1)[1][3:])
+    spring_col = np.zeros(p, bool)
+    if settings.spring:
+        for k, nm in enumerate(extra_names(robot, settings)):
+            spring_col[robot.n_std + k] = nm.endswith(".k")
+    pick = [(0, settings.ripple, True, settings.spring)] * n
+    choices: dict = {}
+    if choose:
+        G0, g0, c0 = fe.full(p)
+        combos, err = choose_terms(fe, ib, p, 1.0 / _weights(G0, g0, c0, ib, counts, settings) ** 2, harmonic,
+                                   K_grid, rw_grid, spring_col, sp_grid)
+        # per joint the simplest combination (no spring, fewer harmonics, the smaller transition velocity)
+        # within SIMPLER_WITHIN of its lowest held-out error
+        best = [int(np.flatnonzero(err[:, j] <= SIMPLER_WITHIN * err[:, j].min())[0]) for j in range(n)]
+        pick = [combos[i] for i in best]
+        choices["held_out"] = {
+            "folds": how, "rule": f"per joint the simplest combination within {100 * (SIMPLER_WITHIN - 1):.0f} % of its "
+                                  "lowest held-out relative error",
+            "combinations": [{"v_smooth": [float(x) for x in grid[v]], "ripple": Kh,
+                              "reversal_window": settings.reversal_window if rw else 0.0, "spring": sp}
+                             for v, Kh, rw, sp in combos],
+            "relative_error": err.T.tolist(),
+            "chosen": best}
+    settings = replace(settings, v_smooth=tuple(float(grid[v, j]) for j, (v, _, _, _) in enumerate(pick)))
+    choices["v_smooth"] = {"chosen": list(settings.v_smooth), "candidates": [float(x) for x in SMOOTH_GRID]
+                           if len(grid) > 1 else None, "velocity_noise": m.qd_noise.tolist(),
+                           "deadband": deadband.tolist()}
+    choices["ripple"] = {"chosen": [Kh for _, Kh, _, _ in pick], "candidates": K_grid}
+    choices["spring"] = {"chosen": [bool(sp) for _, _, _, sp in pick], "candidates": sp_grid}
+    choices["reversal_window"] = {"chosen": [settings.reversal_window if rw else 0.0 for _, _, rw, _ in pick]}
+    # the chosen equations: joint j at its transition velocity, its ripple harmonics, its samples
+    G, gb, cc, used = _chosen(fe, pick, harmonic, p, spring_col=spring_col)
+    used &= fe.used
+    keep = m.keep.copy()
+    for j, (_, _, rw, _) in enumerate(pick):
+        if not rw:
+            keep[:, j] = True
+    m = replace(m, keep=keep)
+    kw = keep.astype(float)
+    counts = kw.sum(axis=0)
+    sig = _weights(G, gb, cc, ib, counts, settings)
     w = 1.0 / sig ** 2
     Gw, gw, cw = np.einsum("j,jkl->kl", w, G), w @ gb, float(w @ cc)
     Gwb, gwb = Gw[np.ix_(ib, ib)], gw[ib]
@@ -479,32 +1024,44 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
     ev, V = np.linalg.eigh(Gs)
     null = V[:, ev < 1e-10 * ev.max()]
     sd[np.any(np.abs(null) > 1e-6, axis=1)] = np.nan
-    resid = (m.tau - C[:, :, ib] @ beta) / sig[None, :]
-    with _one_blas_thread():
-        cfac = [correlation_factor(resid[m.keep[:, j], j], 20) for j in range(n)]
     extra_n = extra_names(robot, settings)
 
     pi_c = None
     solver_info = None
     extra = beta[nb:]
     if settings.consistent:
-        # chi2 / M = p^T H p - 2 g^T p + c = |R p - z|^2 + c' with H = R^T R (eigenvectors of H)
-        H, g, c = Gw / M, gw / M, cw / M
-        ev, V = np.linalg.eigh(H)
-        pos = ev > 1e-12 * ev.max()
-        R = np.sqrt(ev[pos])[:, None] * V[:, pos].T
-        z = (V[:, pos].T @ g) / np.sqrt(ev[pos])
         nonneg = np.array(_nonneg(extra_n))
-        pi_c, extra, solver_info = consistent_fit(R, z, float(c - z @ z), robot, len(extra_n), nonneg,
-                                                  settings.prior_weight, robot.pi_nominal, beta[nb:].copy(),
-                                                  fixed=~np.any(F != 0, axis=(0, 1)))
+        solve = lambda Gw_, gw_, cw_, M_, bounds, x0=None: _consistent(  # noqa: E731
+            Gw_, gw_, cw_, M_, robot, extra_n, nonneg, settings, beta[nb:].copy(), ~used, bounds, x0)
+        pi_c, extra, solver_info = solve(Gw, gw, cw, M, True)
+        on_bound = _masses_on_bound(robot, pi_c, settings.mass_bounds)
+        if on_bound and K > 1:
+            # a mass on its bound: does held-out error demand more? the same folds, bounded and free
+            check = _mass_bound_check(fe, pick, harmonic, p, w, robot, solve, pi_c, extra, K, spring_col)
+            check["links_on_bound"] = on_bound
+            choices["mass_bounds"] = check
+            if check["released"]:
+                pi_c, extra, solver_info = solve(Gw, gw, cw, M, False, np.concatenate([pi_c, extra]))
+                settings = replace(settings, mass_bounds=None, total_mass_bounds=None)
+        elif on_bound:
+            choices["mass_bounds"] = {"links_on_bound": on_bound, "released": False,
+                                      "why": "one recording without held-out folds: the bounds stay"}
     beta_out = base.of(pi_c) if pi_c is not None else beta[:nb]
-    # metrics on the fitted (filtered) samples
-    pred = Y[:, :, base.independent] @ beta_out + F @ extra
+    # metrics on the fitted (filtered) samples: a second pass over the blocks
+    fit_ls, pred = predictions(robot, m, settings, drive, base.independent,
+                               [beta, np.concatenate([beta_out, extra])])
+    resid = (m.tau - fit_ls) / sig[None, :]
+    with _one_blas_thread():
+        cfac = [correlation_factor(resid[m.keep[:, j], j], 20) for j in range(n)]
     rel = np.linalg.norm(m.tau - pred, axis=0) / np.maximum(np.linalg.norm(m.tau, axis=0), 1e-12)
     at_bound = [nm for nm, v, nn in zip(extra_n, extra, _nonneg(extra_n)) if nn and abs(v) < 1e-7]
     checks = consistency(pi_c) if pi_c is not None else None
     # a link on the boundary of the consistent set: its pseudo-inertia (nearly) singular
+    if pi_c is not None and settings.mass_bounds is not None:
+        m0 = robot.pi_nominal[0::10]
+        r = pi_c[0::10] / np.where(m0 > 0, m0, np.inf)
+        at_bound += [f"{name}.m" for name, x, has in zip(robot.link_names, r, m0 > 0)
+                     if has and (x < settings.mass_bounds[0] * 1.001 or x > settings.mass_bounds[1] * 0.999)]
     at_bound += [name for name, chk in zip(robot.link_names, checks or [])
                  if chk["pseudo_inertia_min_eig"] < 1e-8 * max(chk["mass"], 1e-9)]
     bundled = robot.source in BUNDLED
@@ -523,13 +1080,15 @@ def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSett
             for k, link in enumerate(robot.link_names)},
         "friction": {"model": settings.friction, "vs": settings.vs if settings.friction == "stribeck" else None,
                      "offset": settings.offset,
+                     "qd_range": None if settings.viscous_beyond != "hold" else [
+                         [min(float(lo), 0.0), max(float(hi), 0.0)] for lo, hi in zip(m.qd.min(0), m.qd.max(0))],
                      "values": dict(zip(extra_n, np.asarray(extra).tolist())),
                      "least_squares": dict(zip(extra_n, beta[nb:].tolist())),
                      "sigma": dict(zip(extra_n, _nulls(sd[nb:])))},
         "drive": None if not (settings.torque_side == "motor" or settings.rotor) else {
             "ratio": drive.ratio.tolist(), "coupling": np.asarray(drive.coupling).tolist()},
-        "settings": asdict(settings),
-        "metrics": {"samples": int(N), "condition_number": cond, "noise_sigma": sig.tolist(),
+        "settings": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(settings).items()},
+        "metrics": {"samples": int(N), "choices": choices, "condition_number": cond, "noise_sigma": sig.tolist(),
                     "residual_correlation_factor": float(max(cfac)),
                     "relative_error_fit": rel.tolist(),
                     "consistency": checks,
@@ -587,12 +1146,16 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     settings = RobotFitSettings(**{"ripple": 0, **{k: s[k] for k in RobotFitSettings.__dataclass_fields__ if k in s}})
     n = robot.n
     m = motion(log, n, settings, filter_tau=False)
-    Y, F = design(robot, m, settings, DriveModel.direct(n) if not settings.rotor else
-                  DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n)))
+    drive = DriveModel.direct(n) if not settings.rotor else DriveModel(
+        np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
     bp = params["base_parameters"]
+    ind = np.asarray(bp["independent"], int)
     beta = np.asarray(bp["values"], float)
     extra = np.array([params["friction"]["values"][k] for k in extra_names(robot, settings)])
-    tau = Y[:, :, np.asarray(bp["independent"], int)] @ beta + F @ extra
+    tau = np.empty_like(m.q)
+    for rows, mb in _blocks(m):      # block by block: an hour's log never holds its (N, n, p) regressor
+        F = extras(robot, mb, settings, drive, qd_range=params["friction"].get("qd_range"))
+        tau[rows] = robot.regressor(mb.q, mb.qd, mb.qdd)[:, :, ind] @ beta + F @ extra
     if settings.torque_side == "motor":
         drive = DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
         tau = drive.motor_torque(tau)
@@ -639,29 +1202,125 @@ def validate_robot(params: dict, logs: Sequence[AxisLog], robot: RobotModel | No
             "logs": [str(lg.attrs.get("source_file", "")) for lg in logs]}
 
 
+#: a base parameter is shown as determined by the data when its corrected standard deviation is
+#: under this share of its value (the table; :data:`WELL_EXCITED` is the stricter rule for "well")
+DETERMINED = 0.1
+#: at most this many base parameters are listed (the best determined); the file holds them all
+TABLE_BASE_ROWS = 14
+
+
+def _g(x: float | None, digits: int = 4, zero: float = 1e-7) -> str:
+    """A number for the table: '-' for none, 0 for a value that is zero up to the solver's tolerance
+    (a parameter on its bound: not -6.3e-09)."""
+    if x is None or not math.isfinite(float(x)):
+        return "-"
+    x = float(x)
+    return "0" if abs(x) < zero else f"{x:.{digits}g}"
+
+
+def _short(name: str, width: int) -> str:
+    """A base parameter's name within ``width``: its leading terms, then how many more."""
+    if len(name) <= width:
+        return name
+    terms = name.replace(" - ", " + -").split(" + ")
+    out = terms[0]
+    for k, t in enumerate(terms[1:], 1):
+        more = f" (+{len(terms) - k - 1} terms)" if k < len(terms) - 1 else ""
+        cand = f"{out} + {t}".replace("+ -", "- ")
+        if len(cand) + len(more) > width:
+            rest = len(terms) - k
+            return (out + f" (+{rest} terms)")[:width]
+        out = cand
+    return out[:width]
+
+
+def _pct(r: float) -> str:
+    p = 100 * r
+    return f"{p:.2g}%" if p < 100 else f"{p:.0f}%"
+
+
 def format_robot_table(params: dict) -> str:
-    """Plain-text table of a robot fit: base parameters (estimate, least squares, σ), friction,
-    condition number and the consistency check."""
-    bp = params["base_parameters"]
-    lines = [f"{'base parameter':<58} {'estimate':>11} {'least sq.':>11} {'sigma':>10}"]
-    for name, v, ls, sd in zip(bp["names"], bp["values"], bp.get("least_squares", bp["values"]),
-                               bp.get("sigma", [float("nan")] * len(bp["values"]))):
-        short = name if len(name) <= 58 else name[:55] + "..."
-        lines.append(f"{short:<58} {v:>11.4g} {ls:>11.4g} {sd if sd is not None else float('nan'):>10.3g}")
-    fr = params["friction"]
-    lines.append(f"{'friction (' + fr['model'] + ')':<58} {'estimate':>11} {'least sq.':>11} {'sigma':>10}")
-    for k, v in fr["values"].items():
-        sd = (fr.get("sigma") or {}).get(k)
-        ls = (fr.get("least_squares") or {}).get(k, v)
-        lines.append(f"{k:<58} {v:>11.4g} {ls:>11.4g} {sd if sd is not None else float('nan'):>10.3g}")
+    """Plain-text summary of a robot fit (at most 40 lines): per-joint friction and the choices made
+    for it, link masses against the URDF, the base parameters the data determine (corrected
+    relative sigma under :data:`DETERMINED`; the best :data:`TABLE_BASE_ROWS`), one line on what
+    the data leave undetermined, and the fit's checks. Everything is in the file as well."""
     mt = params.get("metrics") or {}
-    lines.append(f"sigma: least squares, white residuals; multiply by the residual correlation factor "
-                 f"{mt.get('residual_correlation_factor', float('nan')):.2f} for a less optimistic figure")
-    lines.append(f"condition number {mt.get('condition_number', float('nan')):.4g}; "
-                 f"physically consistent: {'yes' if mt.get('physically_consistent') else 'no'}; "
-                 f"at a bound: {', '.join(mt.get('at_bound') or []) or 'none'}")
-    rel = mt.get("relative_error_fit")
-    if rel:
-        lines.append("relative error on the fitted samples: " +
-                     " ".join(f"A{i + 1} {100 * r:.1f}%" for i, r in enumerate(rel)))
+    st = params.get("settings") or {}
+    fr = params["friction"]
+    vals = fr["values"]
+    axes = params.get("axes") or []
+    n = len(axes)
+    rob = params.get("robot") or {}
+    cf = float(mt.get("residual_correlation_factor") or 1.0)
+    lines = [f"robot {rob.get('name', '?')}: {n} axes, {mt.get('samples', '?')} samples fitted",
+             "relative error on them: " + " ".join(f"A{a} {100 * r:.1f}%" for a, r in zip(axes, mt.get("relative_error_fit")
+                                                                                      or []))]
+    # per-joint friction
+    v = st.get("v_smooth")
+    d = st.get("deadband")
+    per = lambda x: list(x) if isinstance(x, list) else [x] * n  # noqa: E731
+    v, d = per(v if v is not None else 0.0), per(d if d is not None else 0.0)
+    K = ((mt.get("choices") or {}).get("ripple") or {}).get("chosen") or [st.get("ripple", 0)] * n
+    rng = fr.get("qd_range")
+    head = f"{'joint':<6}{'Fc N·m':>9}{'Fv N·m·s/rad':>13}{'offset N·m':>11}{'k N·m/rad':>10}{'v rad/s':>9}" \
+           f"{'dead-band':>10}{'ripple':>7}{'Fv held beyond':>16}"
+    lines += ["friction per joint: Fc tanh(x/v), x the speed beyond the dead-band; Fv qd (held beyond the fitted",
+              "speeds); offset; spring k q; position ripple harmonics", head]
+    for j, a in enumerate(axes):
+        held = "-" if not rng else f"{rng[j][0]:+.2g}/{rng[j][1]:+.2g}"
+        lines.append(f"A{a:<5}{_g(vals.get(f'A{a}.Fc')):>9}{_g(vals.get(f'A{a}.Fv')):>13}"
+                     f"{_g(vals.get(f'A{a}.offset')):>11}{_g(vals.get(f'A{a}.k')):>10}{_g(v[j], 2):>9}"
+                     f"{_g(d[j], 2, 1e-12):>10}{K[j]:>7}{held:>16}")
+    if fr.get("model") == "stribeck":
+        lines.append("Stribeck excess Fs-Fc: " + " ".join(f"A{a} {_g(vals.get(f'A{a}.Fs-Fc'))}" for a in axes)
+                     + f" (vs {fr.get('vs')} rad/s)")
+    rot = [(k, x) for k, x in vals.items() if k.endswith(".rotor_inertia")]
+    if rot:
+        lines.append("rotor inertia kg·m²: " + " ".join(f"{k.split('.')[0]} {_g(x)}" for k, x in rot))
+    # choices and their evidence
+    ch = mt.get("choices") or {}
+    ho = ch.get("held_out")
+    if ho:
+        lines.append(f"v, ripple and spring chosen per joint by held-out error ({ho.get('folds')}): the simplest within "
+                     f"{100 * (SIMPLER_WITHIN - 1):.0f} % of the best")
+    vn = (ch.get("v_smooth") or {}).get("velocity_noise")
+    if vn:
+        lines.append(f"dead-band {NOISE_DEADBAND:g} x the velocity noise of the positions ({min(vn):.2g} to "
+                     f"{max(vn):.2g} rad/s): no Coulomb torque from noise at rest")
+    # link masses
+    std = params.get("standard_parameters")
+    mb = st.get("mass_bounds")
+    if std and rob.get("urdf"):
+        try:
+            nominal = RobotModel(rob["urdf"]).pi_nominal[0::10]
+            ratio = [std[lk]["m"] / m0 if m0 > 0 else float("nan") for lk, m0 in zip(rob.get("links", std), nominal)]
+            flag = lambda r: "*" if mb and (r <= mb[0] * 1.001 or r >= mb[1] * 0.999) else ""  # noqa: E731
+            lines.append("link masses / URDF: " + " ".join(f"{r:.2f}{flag(r)}" for r in ratio)
+                         + (f" (bounds {mb[0]:g}-{mb[1]:g}x, * on a bound)" if mb else " (no bounds)"))
+        except Exception:  # noqa: BLE001 (the URDF moved: the masses alone)
+            lines.append("link masses kg: " + " ".join(_g(std[lk]["m"]) for lk in std))
+    mcheck = ch.get("mass_bounds")
+    if mcheck and mcheck.get("why"):
+        lines.append(f"masses on a bound ({', '.join(mcheck.get('links_on_bound') or [])}): {mcheck['why']}")
+    # base parameters the data determine
+    bp = params["base_parameters"]
+    val = np.asarray(bp["values"], float)
+    sd = np.array([np.nan if x is None else x for x in bp.get("sigma", [None] * val.size)], float)
+    relsd = np.where(np.abs(val) > 1e-12, cf * sd / np.maximum(np.abs(val), 1e-300), np.inf)
+    has = np.flatnonzero(np.isfinite(relsd))
+    order = has[np.argsort(relsd[has])]
+    ndet = int(np.sum(relsd[has] < DETERMINED))
+    lines.append(f"base parameters, best determined first ({ndet} of {val.size} with sigma < {100 * DETERMINED:g} %):")
+    lines.append(f"  {'parameter':<52}{'estimate':>11}{'sigma %':>9}")
+    for i in order[:TABLE_BASE_ROWS]:
+        lines.append(f"  {_short(bp['names'][i], 52):<52}{_g(val[i]):>11}{_pct(relsd[i]):>9}")
+    undet = val.size - ndet
+    if undet:
+        nosd = int(val.size - has.size)
+        lines.append(f"not identifiable from these data: {undet} of {val.size} base parameters (sigma >= "
+                     f"{100 * DETERMINED:g} %{f' or none: {nosd}' if nosd else ''}); they lean on the URDF's links")
+    at = mt.get("at_bound") or []
+    lines.append(f"sigma: least squares x the residual correlation factor {cf:.2f}; condition number "
+                 f"{_g(mt.get('condition_number'))}; physically consistent: {'yes' if mt.get('physically_consistent') else 'no'}")
+    lines.append(f"on a bound: {', '.join(at) or 'none'}")
     return "\n".join(lines)

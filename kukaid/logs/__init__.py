@@ -26,15 +26,52 @@ READERS: dict[str, Callable[..., AxisLog]] = {
 }
 
 
+#: compressed logs, read transparently: the suffix before the compression's names the format
+COMPRESSIONS = {".gz": "gzip", ".bz2": "bzip2", ".xz": "xz"}
+_MODULES = {"gzip": "gzip", "bzip2": "bz2", "xz": "lzma"}
+
+
 def read_log(path: str | Path, **options: Any) -> AxisLog:
-    """Read an axis log, choosing the reader by file suffix (.h5/.hdf5, .csv, .mat, .dat/.r64)."""
+    """Read an axis log, choosing the reader by file suffix (.h5/.hdf5, .csv, .mat, .dat/.r64);
+    a log compressed with gzip, bzip2 or xz (``log.csv.gz``, ``.bz2``, ``.xz``) is decompressed
+    on the fly (into a temporary file the reader opens, removed after)."""
     path = Path(path)
-    reader = READERS.get(path.suffix.lower())
+    comp = COMPRESSIONS.get(path.suffix.lower())
+    inner = Path(path.stem) if comp else path
+    reader = READERS.get(inner.suffix.lower())
     if reader is None:
-        raise LogFormatError(f"{path}: unknown log format '{path.suffix.lower()}' "
-                             f"(expected {', '.join(READERS)})")
-    return reader(path, **options)
+        expected = ", ".join(READERS)
+        raise LogFormatError(f"{path}: unknown log format '{''.join(path.suffixes[-2:]).lower() or path.suffix}' "
+                             f"(expected {expected}, optionally compressed: {', '.join(COMPRESSIONS)})")
+    if comp is None:
+        return reader(path, **options)
+    return _read_compressed(path, comp, inner.name, reader, options)
 
 
-__all__ = ["AxisLog", "AxisLogWriter", "READERS", "check_samples", "check_units", "read_csv", "read_hdf5",
+def _read_compressed(path: Path, comp: str, name: str, reader: Callable[..., AxisLog], options: dict) -> AxisLog:
+    import importlib
+    import shutil
+    import tempfile
+
+    if not path.exists():
+        raise LogFormatError(f"{path}: no such file")
+    mod = importlib.import_module(_MODULES[comp])
+    with tempfile.TemporaryDirectory(prefix="kukaid_log_") as tmp:
+        plain = Path(tmp) / name
+        try:
+            with mod.open(path, "rb") as src, open(plain, "wb") as dst:
+                shutil.copyfileobj(src, dst, 1 << 20)
+        except (OSError, EOFError, ValueError) as e:
+            if isinstance(e, OSError) and e.errno is not None:      # a disk error, not a bad stream
+                raise
+            raise LogFormatError(f"{path}: not a valid {comp} file or truncated ({e})") from None
+        try:
+            log = reader(plain, **options)
+        except LogFormatError as e:
+            raise LogFormatError(str(e).replace(str(plain), str(path))) from None
+    log.attrs["source_file"] = str(path)
+    return log
+
+
+__all__ = ["AxisLog", "AxisLogWriter", "COMPRESSIONS", "READERS", "check_samples", "check_units", "read_csv", "read_hdf5",
            "read_log", "read_mat", "read_trace", "write_csv", "write_hdf5"]

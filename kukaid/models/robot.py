@@ -220,17 +220,21 @@ class RobotModel:
 
 
 def friction_regressor(qd: np.ndarray, model: str = "coulomb-viscous", offset: bool = True,
-                       vs: np.ndarray | None = None, delta: float = 2.0, v_smooth: float = 0.0) -> np.ndarray:
+                       vs: np.ndarray | None = None, delta: float = 2.0, v_smooth=0.0,
+                       qd_range: np.ndarray | None = None, deadband=0.0) -> np.ndarray:
     """Per-joint friction and offset columns, (N, n, n f): joint j's torque has its own columns.
 
-    Coulomb-viscous: ``sign(qd)`` (``tanh(qd / v_smooth)`` when ``v_smooth > 0``), ``qd``; Stribeck
+    Coulomb-viscous: ``sign(qd)`` (``tanh(qd / v_smooth)`` where ``v_smooth > 0``; a number or one
+    per joint, rad/s), ``qd``; Stribeck
     adds ``sign(qd) exp(-|qd/vs|^delta)`` (the static-minus-Coulomb part, ``vs`` per joint fixed);
-    the offset is a constant column. Order per joint: Fc, Fv, [Fs-Fc], [offset].
+    the offset is a constant column. Order per joint: Fc, Fv, [Fs-Fc], [offset]. ``qd_range``
+    (n, 2): the viscous column's velocity held within [low, high] per joint (the velocities a fit saw).
+    ``deadband`` (rad/s, a number or one per joint): the Coulomb column is 0 for speeds below it.
     """
     qd = np.atleast_2d(np.asarray(qd, float))
     N, n = qd.shape
-    sgn = np.tanh(qd / v_smooth) if v_smooth > 0 else np.sign(qd)
-    cols = [sgn, qd]
+    sgn = smooth_sign(qd, v_smooth, deadband)
+    cols = [sgn, qd if qd_range is None else np.clip(qd, np.asarray(qd_range, float)[:, 0], np.asarray(qd_range, float)[:, 1])]
     if model == "stribeck":
         vs = np.broadcast_to(np.asarray(vs if vs is not None else 0.05, float), (n,))
         cols.append(sgn * np.exp(-np.abs(qd / vs) ** delta))
@@ -242,6 +246,21 @@ def friction_regressor(qd: np.ndarray, model: str = "coulomb-viscous", offset: b
         for c, col in enumerate(cols):
             F[:, j, j * nf + c] = col[:, j]
     return F
+
+
+def smooth_sign(qd: np.ndarray, v_smooth=0.0, deadband=0.0) -> np.ndarray:
+    """``tanh(x / v_smooth)`` per joint (``sign(x)`` where ``v_smooth`` is 0) of the velocity with a
+    dead-band, ``x = sign(qd) max(|qd| - deadband, 0)``: 0 at speeds within the dead-band (a joint at
+    rest, its velocity noise). ``v_smooth``, ``deadband``: numbers or one per joint (the last axis of
+    ``qd``), rad/s."""
+    qd = np.asarray(qd, float)
+    d = np.broadcast_to(np.asarray(0.0 if deadband is None else deadband, float), qd.shape[-1:])
+    if np.any(d > 0):
+        qd = np.sign(qd) * np.maximum(np.abs(qd) - d, 0.0)
+    v = np.broadcast_to(np.asarray(0.0 if v_smooth is None else v_smooth, float), qd.shape[-1:])
+    if not np.any(v > 0):
+        return np.sign(qd)
+    return np.where(v > 0, np.tanh(qd / np.where(v > 0, v, 1.0)), np.sign(qd))
 
 
 def friction_names(n: int, model: str = "coulomb-viscous", offset: bool = True) -> list[str]:

@@ -117,10 +117,26 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
         vs = fr.get("vs")
         if isinstance(vs, bool) or not isinstance(vs, (int, float)) or not vs > 0:
             _fail(where, f"'friction.vs' must be a number > 0 for Stribeck friction, got {json.dumps(vs)}")
+    rng = fr.get("qd_range")
+    if rng is not None:
+        if not isinstance(rng, list) or len(rng) != n:
+            _fail(where, f"'friction.qd_range' must be one [low, high] per axis ({n})")
+        for i, r in enumerate(rng):
+            _numbers(where, f"friction.qd_range[{i}]", r, 2)
+            if not r[0] <= 0 <= r[1]:
+                _fail(where, f"'friction.qd_range[{i}]' must be [low, high] with low <= 0 <= high, got {r}")
     st = _object(where, "settings", d["settings"])
+    for key in ("v_smooth", "deadband"):
+        vsm = st.get(key)
+        if isinstance(vsm, list):  # one per joint
+            if len(vsm) != n or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                                    or v < 0 for v in vsm):
+                _fail(where, f"'settings.{key}' must be a number >= 0 or one per axis ({n}), got {json.dumps(vsm)[:60]}")
     for key, lo in (("cutoff", 0.0), ("vs", 0.0), ("prior_weight", None), ("reversal_window", None),
-                    ("v_smooth", None)):
+                    ("v_smooth", None), ("deadband", None)):
         v = st.get(key)
+        if key in ("v_smooth", "deadband") and isinstance(v, list):
+            continue
         if v is None and key in ("cutoff", "vs"):
             continue
         if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)

@@ -1,0 +1,17 @@
+"""kukaid show: the table of a parameter file (one axis or a whole robot), as fit printed it."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command("show")
+@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+def command(file: Path) -> None:
+    """Print the parameters of FILE, a parameter file of `kukaid fit` (kukaid.params/1, one axis)
+    or `kukaid fit --robot` (kukaid.robot_params/1): the same table fit prints, checked as it is read."""
+    from kukaid.identify import format_params
+    from kukaid.params import load_any_params
+
+    click.echo(format_params(load_any_params(file)))

@@ -1,0 +1,93 @@
+"""`kukaid diagnose --params robot.json`: the robot's candidates (an A2 gas counterbalance, a payload
+at the flange) named on held-out recordings when the logs show them, nothing on clean logs."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from kukaid.diagnose.robot import diagnose_robot, gas_spring
+from kukaid.identify.robot_fit import fit_robot
+from kukaid.logs import AxisLog, write_hdf5
+from kukaid.models.robot import RobotModel
+
+from robot_sim_helpers import multisine, true_friction, true_parameters
+
+
+@pytest.fixture(scope="module")
+def kr6() -> RobotModel:
+    return RobotModel("kr6-r700-sixx")
+
+
+def _logs(kr6, effect=None, shifts=(-0.7, 0.0, 0.7), duration=12.0):
+    """Three recordings, A2 moving about a different angle in each (so a leave-one-out fit must
+    carry its terms to angles it did not see); the truth has ``effect`` or not."""
+    pi = true_parameters(kr6, 1)
+    fr = true_friction(6, 2)
+    if effect == "payload":
+        pi = pi.copy()
+        pi[50] += 2.0          # 2 kg on the last link, 5 cm out along its x axis
+        pi[51] += 0.1
+    out = []
+    mid = 0.5 * (kr6.lower[1] + kr6.upper[1])
+    for k, sh in enumerate(shifts):
+        t, q, qd, qdd = multisine(kr6, duration, 250.0, seed=20 + k)
+        q[:, 1] = mid + sh + 0.35 * (q[:, 1] - mid)
+        qd[:, 1] *= 0.35
+        qdd[:, 1] *= 0.35
+        tau = np.einsum("sjk,k->sj", kr6.regressor(q, qd, qdd), pi) + fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
+        if effect == "counterbalance":
+            tau[:, 1] -= 6.0 * gas_spring(q[:, 1], -1.2, 0.5)       # about 5 N·m, a tenth of the gravity torque
+        rng = np.random.default_rng(k)
+        tau += 0.05 * rng.standard_normal(tau.shape)
+        out.append(AxisLog(time=t, q=q + 1e-5 * rng.standard_normal(q.shape), tau=tau, axes=tuple(range(1, 7)),
+                           attrs={"source_file": f"rec{k}.h5"}))
+    return out
+
+
+@pytest.fixture(scope="module")
+def clean_fit(kr6):
+    return fit_robot(_logs(kr6)[1:2], kr6)
+
+
+def test_clean_logs_name_nothing(kr6, clean_fit):
+    d = diagnose_robot(clean_fit, _logs(kr6), kr6)
+    assert d.steps == [] and d.folds == "each recording left out in turn"
+    assert {r["name"] for r in d.rejected} >= {"payload", "counterbalance@A2"}
+
+
+def test_a_counterbalance_on_a2_is_named_and_closes_the_gap(kr6):
+    logs = _logs(kr6, "counterbalance")
+    d = diagnose_robot(fit_robot(logs[1:2], kr6), logs, kr6)
+    assert [s["name"] for s in d.steps][:1] == ["counterbalance@A2"], d.lines()
+    st = d.steps[0]
+    assert st["joints"] == ["A2"] and st["mean_after"] < 0.7 * st["mean_before"]
+
+
+def test_a_payload_at_the_flange_is_named_with_its_mass(kr6, clean_fit):
+    d = diagnose_robot(clean_fit, _logs(kr6, "payload"), kr6)
+    assert [s["name"] for s in d.steps][:1] == ["payload"], d.lines()
+    assert d.steps[0]["params"]["mass_kg"] == pytest.approx(2.0, rel=0.1)
+    assert np.mean(d.after) < 0.5 * np.mean(d.before)
+
+
+def test_cli_accepts_a_robot_parameter_file(kr6, clean_fit, tmp_path):
+    from kukaid.params import save_robot_params
+    from kukaid_cli.main import cli
+
+    pf = tmp_path / "robot.json"
+    save_robot_params(pf, clean_fit)
+    paths = []
+    for k, lg in enumerate(_logs(kr6, "payload")):
+        paths += ["--log", str(tmp_path / f"rec{k}.h5")]
+        write_hdf5(lg, tmp_path / f"rec{k}.h5")
+    r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths])
+    assert r.exit_code == 0, r.output
+    assert "step 1: payload" in r.stdout and "held out: each recording left out in turn" in r.stdout
+    r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths, "--json"])
+    assert r.exit_code == 0 and json.loads(r.stdout)["steps"][0]["name"] == "payload"
+    r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths, "-o", str(tmp_path / "out.json")])
+    assert r.exit_code == 2 and "does not apply to a robot parameter file" in r.output
+    assert len(r.output.strip().splitlines()) == 1 and not (tmp_path / "out.json").exists()
