@@ -1,5 +1,5 @@
-"""benchmarks/admittance_paper.py at its --quick size: it runs on the plant family and reports issue
-22's acceptance lines (the figures themselves come from the full run, docs/admittance.md)."""
+"""The admittance benchmarks at their --quick size: they run on the plant family and report issue
+22's acceptance lines (the figures themselves come from the full runs, docs/admittance.md)."""
 from __future__ import annotations
 
 import json
@@ -23,3 +23,12 @@ def test_admittance_benchmark_quick_runs_on_the_plant_family():
     lines = [a["line"] for a in doc["acceptance"]]
     assert any("lightest stable constant D" in line for line in lines)
     assert any("detections after any release" in line for line in lines)
+
+
+def test_rest_benchmark_quick_reports_every_run():
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "admittance_rest.py"), "--quick", "--json",
+                          "--jobs", "1"], capture_output=True, text=True, check=True, timeout=600)
+    doc = json.loads(out.stdout)
+    assert len(doc["runs"]) == 16 and len(doc["summary"]) == 4
+    assert {r["plant"] for r in doc["runs"]} == {"gms", "lugre"}
+    assert all(r["passes"] for r in doc["runs"]), [r for r in doc["runs"] if not r["passes"]]

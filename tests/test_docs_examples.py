@@ -8,7 +8,8 @@ The convention of the pages' fenced blocks:
   to the real datasets' folder (``../shared`` beside the repository unless set); a block that
   names ``KUKAID_SHARED`` or ``../shared`` is skipped when the datasets are absent;
 * ```` ```sh-robot ```` needs a real controller (or its recordings), ```` ```sh-cluster ```` a
-  running Dask cluster, ```` ```sh-make ```` is the project's own ``make demo`` / ``make test``:
+  running Dask cluster, ```` ```sh-make ```` is the project's own ``make demo`` / ``make test``,
+  ```` ```sh-bench ```` a benchmark that takes minutes (its ``--quick`` size is run by a test):
   shown, not run;
 * ```` ```text ````, ```` ```json ````, ```` ```python ```` ...: not shell; a block without a label
   is refused, so no shell example escapes the test by accident.
@@ -32,7 +33,7 @@ from shared_data import SHARED
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 FENCE = re.compile(r"^```([^\n`]*)\n(.*?)^```[ \t]*$", re.M | re.S)
-NOT_RUN = {"sh-robot", "sh-cluster", "sh-make"}
+NOT_RUN = {"sh-robot", "sh-cluster", "sh-make", "sh-bench"}
 NOT_SHELL = {"text", "json", "python", "krl", "csv", "toml", "yaml", "ini"}
 
 
