@@ -4,8 +4,10 @@ local Dask cluster of 1 and 2 worker processes and, with ``--scheduler``, on a s
 ``dask scheduler`` + ``dask worker`` (processes, 127.0.0.1).
 
 Per run: logs, workers, the time from the first task submitted to the last row received (the
-cluster is started and warmed up on two logs first, outside the time), logs per second, and the
-largest peak resident memory of a worker process.  Then the acceptance figures: the throughput
+cluster is started and warmed up on two logs first, outside the time), logs per second, the
+workers' CPU time per log and how many cores they kept busy on average (CPU time / wall time: on a
+machine shared with other work this shows what the workers were given), and the largest peak
+resident memory of a worker process.  Then the acceptance figures: the throughput
 of 2 workers over 1, and the time of the largest size over the smallest (per log count ratio).
 
 Run: python benchmarks/fleet_scaling.py [--sizes 100 400] [--arm 20] [--workers 1 2] [--scheduler]
@@ -44,8 +46,14 @@ def _run(client, entries, opts, tmp: Path, label: str) -> dict:
         table.unlink()
     load0 = os.getloadavg()[0]
     s = run_tasks(entries, table, fit_task, opts, opts.settings(), client=client)
+    from kukaid.fleet.table import read_table
+
+    rows, _ = read_table(table)
+    cpu = sum(r["task_cpu_s"] or 0.0 for r in {r["sha256"]: r for r in rows}.values())
     return {"logs": len(entries), "workers": s.workers, "tasks_s": round(s.tasks_s, 3),
-            "logs_per_s": round(len(entries) / s.tasks_s, 3), "errors": s.errors,
+            "worker_cpu_s_per_log": round(cpu / len(entries), 4),
+            "worker_cores_used": round(cpu / s.tasks_s, 3) if s.tasks_s > 0 else None,
+            "logs_per_s": round(len(entries) / s.tasks_s, 3) if s.tasks_s > 0 else None, "errors": s.errors,
             "peak_worker_mb": round(s.peak_worker_mb, 1), "load_start": round(load0, 2),
             "load_end": round(os.getloadavg()[0], 2)}
 
@@ -113,6 +121,8 @@ def main() -> int:
             if a.quick:  # the same cluster fits (the test suite's size: it shows the code runs, not the speed)
                 for kind, entries, opts in (("one-axis", one, FitOptions()),
                                             ("six-axis", arm, FitOptions(robot="kr6-r700-sixx"))):
+                    if not entries:
+                        continue
                     rows.append({"cluster": "local cluster", "kind": kind, **_run(sim_client, entries, opts, tmp, kind)})
                     _print(rows[-1], a.json)
                 a.workers = []
@@ -156,7 +166,8 @@ def main() -> int:
 def _print(r: dict, quiet: bool) -> None:
     if not quiet:
         print(f"{r['cluster']:<24} {r['kind']:<9} {r['logs']:5d} logs {r['workers']} workers: {r['tasks_s']:7.2f} s "
-              f"({r['logs_per_s']:6.2f} logs/s), peak worker {r['peak_worker_mb']:.0f} MB, errors {r['errors']}, "
+              f"({r['logs_per_s']:6.2f} logs/s, worker CPU {r['worker_cpu_s_per_log']:.3f} s/log, "
+              f"{r['worker_cores_used']:.2f} cores busy), peak worker {r['peak_worker_mb']:.0f} MB, errors {r['errors']}, "
               f"load {r['load_start']:.1f} -> {r['load_end']:.1f}", flush=True)
 
 

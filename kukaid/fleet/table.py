@@ -50,6 +50,7 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "effects": ("string", "diagnose: the effects found, comma-separated (empty: none)"),
     "result": ("string", "the full result as JSON (parameter file, validation or diagnosis)"),
     "task_s": ("float64", "wall time of the task on its worker, s"),
+    "task_cpu_s": ("float64", "CPU time of the task on its worker, s"),
     "worker": ("string", "the worker that ran the task"),
     "worker_peak_mb": ("float64", "peak resident memory of that worker process so far, MB"),
     "kukaid_version": ("string", "version that produced the row"),

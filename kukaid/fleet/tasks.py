@@ -64,11 +64,11 @@ def _base(job: Job, kind: str) -> dict:
     return r
 
 
-def _finish(rows: list[dict], t0: float) -> list[dict]:
+def _finish(rows: list[dict], t0: float, c0: float | None = None) -> list[dict]:
     now = datetime.now(timezone.utc).isoformat(timespec="seconds")
     for r in rows:
-        r.update(task_s=time.perf_counter() - t0, worker=f"{platform.node()}:{os.getpid()}",
-                 worker_peak_mb=peak_rss_mb(), finished_at=now)
+        r.update(task_s=time.perf_counter() - t0, task_cpu_s=time.process_time() - c0 if c0 is not None else None,
+                 worker=f"{platform.node()}:{os.getpid()}", worker_peak_mb=peak_rss_mb(), finished_at=now)
     return rows
 
 
@@ -82,7 +82,7 @@ def error_row(job: Job, kind: str, reason: str) -> dict:
 def guarded(kind: str, body: Callable[[Job, Any], list[dict]], job: Job, options: Any) -> list[dict]:
     """Run ``body(job, options)``; any failure becomes one error row (a data problem with its
     message, anything else as an internal error naming the exception)."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         rows = body(job, options)
     except KukaidError as e:
@@ -91,7 +91,7 @@ def guarded(kind: str, body: Callable[[Job, Any], list[dict]], job: Job, options
         rows = [error_row(job, kind, "out of memory on the worker")]
     except Exception as e:  # a bug or a library failure: the batch goes on, the row says what
         rows = [error_row(job, kind, f"internal error ({type(e).__name__}: {e})")]
-    return _finish(rows, t0)
+    return _finish(rows, t0, c0)
 
 
 def read_job_log(job: Job):

@@ -48,7 +48,7 @@ def ranking_pages(result: dict, source: str = "") -> list:
         h = min(0.86, 0.021 * (len(cells) + 1))
         ax = fig.add_axes([0.06, 0.92 - h, 0.88, h])
         tab = _add_table(ax, cells, ["robot", "axis", "flagged", "first flagged", "evidence", "ΔFc", "ΔFv",
-                                     "Fc trend/30 d", "vs fleet (z)", "logs"], fontsize=7)
+                                     "Fc per 30 d", "fleet z", "logs"], fontsize=7)
         for (r, _), cell in tab.get_celld().items():
             if r > 0 and r <= len(chunk) and chunk[r - 1]["flagged"]:
                 cell.set_facecolor("#f6d5d0")
