@@ -55,8 +55,10 @@ CUTOFF = 10.0
 RIPPLE = 4
 #: candidate transition velocities of the Coulomb term ``Fc tanh(qd / v)``, rad/s (0: the sign),
 #: chosen per joint by held-out error: a real joint's friction does not step at zero velocity (the
-#: LWR4+'s A5 rises over about 0.1 rad/s), and a joint at rest must not flip by ±Fc
-SMOOTH_GRID = (0.0, 0.01, 0.03, 0.1)
+#: LWR4+'s A5 rises over several hundredths of a rad/s). 0.1 rad/s was a candidate too: blocks of
+#: lwr4_3 chose it for A5, which then lost on lwr4_1 and lwr4_2 (27 -> 35 %): as wide as a slow
+#: joint's whole motion, it is no longer a friction transition
+SMOOTH_GRID = (0.0, 0.01, 0.03)
 #: the Coulomb term's dead-band: this many standard deviations of the joint's velocity noise (the filtered
 #: noise is correlated: at 3 its excursions still flip the sign a few times a second at rest)
 NOISE_DEADBAND = 5.0
