@@ -184,12 +184,6 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             _check_axis_kind(params, params_path, axis, f"A{axis} of the KR C4 (--axis {axis})",
                              f"; pass --axis {params.get('axis')} for that axis", error=OptionError)
         model = model_from_params(params)
-        from kukaid.control.loop import check_guidable
-
-        try:
-            check_guidable(model)
-        except KukaidError as e:
-            raise ParamFileError(f"{params_path}: {str(e).removeprefix('run-admittance: ')}") from None
     rbf = None
     if damping == "adaptive":
         dmin = 0.3 * D if D_min is None else D_min
@@ -220,6 +214,12 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                          sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf,
                          cutoff=cutoff, limits=limits)
 
+    from kukaid.control.loop import check_guidable
+
+    try:  # after the options (their errors are usage errors), before anything moves
+        check_guidable(model)
+    except KukaidError as e:
+        raise ParamFileError(f"{params_path}: {str(e).removeprefix('run-admittance: ')}") from None
     attrs = {"params_file": str(params_path), "backend": backend}
     if backend == "sim":
         from kukaid.robot import SimRobot

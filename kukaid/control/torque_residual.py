@@ -19,7 +19,8 @@ Online, causal version (what a controller can do):
   mean raw residual over its first ``u_window`` s, then, while the axis settles (``switch_quiet``
   s), a close follower (time constant ``u_window``), then, only while nobody is in contact
   (quasi-static, no detection, the innovation below half the start threshold at rest, so a push
-  building up is not learnt), a slow observer (time constant ``u_tau``).  In contact Γu is frozen, so a push that is still there when the axis stops is never absorbed;
+  building up is not learnt), a slow observer (time constant ``u_tau``).  In contact Γu is
+  frozen, so a push that is still there when the axis stops is never absorbed;
 * at rest, out of contact, the RMS of Γr is tracked (forgetting ``floor_tau``): the start threshold
   at rest is at least ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model
   whose friction at rest does not match the axis needs a firmer push instead of moving the axis
@@ -107,8 +108,8 @@ class TorqueResidual:
     u_window : length of the initial Γu averaging (at rest, after a reset), s.
     u_tau : time constant of the Γu observer out of contact, s.
     switch_tau : time constant with which the jump of Γp at a mode switch fades, s.
-    switch_quiet, switch_share : within ``switch_quiet`` s of the axis starting or stopping, or of a
-        rest beginning, a detection needs ``switch_share`` x ``threshold``.
+    switch_quiet, switch_share : within ``switch_quiet`` s of the axis starting or stopping a
+        detection needs ``switch_share`` x ``threshold`` (and Γu follows a stop's settling closely).
     floor_tau, floor_k, floor_cap : at rest the start threshold is at least ``floor_k`` x the RMS of
         Γr at rest out of contact (forgetting ``floor_tau`` s), at most ``floor_cap`` x ``threshold``.
     zeta0 : Maxwell-slip element positions relative to the start position, rad (parameter file's
