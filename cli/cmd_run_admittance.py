@@ -108,7 +108,7 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
                    "Stribeck sliding; lugre: LuGre (stiction, bristles), a law the estimator was not built on].")
 @click.option("--strict", is_flag=True,
               help="Exit with status 4 when the run completed with warnings (did not settle, a detection with "
-                   "nobody touching, the threshold at rest had to rise).")
+                   "nobody touching, the threshold at rest had to rise by over 20 %).")
 @click.option("--program", type=click.Path(dir_okay=False, path_type=Path),
               help="sim with a robot parameter file: a robot trajectory (`kukaid excite fourier --robot`) the "
                    "other axes follow meanwhile [they stand at mid range].")
@@ -214,12 +214,14 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                          sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf,
                          cutoff=cutoff, limits=limits)
 
-    from kukaid.control.loop import check_guidable
+    def guidable() -> None:  # after the options and the file's axis and kind, before anything moves
+        from kukaid.control.loop import check_guidable
 
-    try:  # after the options (their errors are usage errors), before anything moves
-        check_guidable(model)
-    except KukaidError as e:
-        raise ParamFileError(f"{params_path}: {str(e).removeprefix('run-admittance: ')}") from None
+        try:
+            check_guidable(model)
+        except KukaidError as e:
+            raise ParamFileError(f"{params_path}: {str(e).removeprefix('run-admittance: ')}") from None
+
     attrs = {"params_file": str(params_path), "backend": backend}
     if backend == "sim":
         from kukaid.robot import SimRobot
@@ -268,6 +270,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                                          "\"axis\" sets another)", param_hint="--axis")
             _check_axis_kind(params, params_path, scfg.axis, f"the virtual KR C4's A{scfg.axis}",
                              f" (a --sim-config with \"axis\": {params.get('axis')} simulates that axis)")
+            guidable()
 
         def sim_backend(cfg_):  # the same person and the same noise for every controller (paired)
             op_ = None if operator == "none" else make_operator(operator, seed, q0r + cfg_.init_move,
@@ -288,6 +291,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         from kukaid.robot import KvpRobot
         from kukaid.krc.kvp import KvpClient
 
+        guidable()
         client = KvpClient(host=host, port=port, timeout=max(max_age, 2 * cycle))
         client.connect()
         be = KvpRobot(client, axis=axis, n_axes=model.n if robot_file else 0)

@@ -187,7 +187,8 @@ def test_a_persons_arm_guides_a3_of_the_six_axis_robot(damping):
     assert op.p.grip == "firm" and op.p.I_hand > 1.5 and op.p.distance > 0.3   # the person of the report
     run = run_admittance(SimRobot(sim, q0, op, axis=AXIS), RobotTorqueModel.from_truth(sim.truth.to_dict()), cfg)
     d, m = run.data, run.metrics
-    assert run.status == "completed" and m["warnings"] == []
+    # a 3 s run ends with the person still guiding: it did not settle, and that is all it says
+    assert run.status == "completed" and [w for w in m["warnings"] if "did not settle" not in w] == []
     held = (d["phase"] == PHASE_ADMITTANCE) & (d["time"] > op.p.t_grasp - sim.cfg.sample_time + 0.5)
     te = d["tau_ext_true"][held]
     assert np.max(np.abs(te)) < 0.6 * op.p.max_torque        # no limit cycle at the hand's torque limit

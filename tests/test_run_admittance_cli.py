@@ -369,7 +369,7 @@ def test_cycle_threshold_and_release_reach_the_controller(files, tmp_path):
               "--seed", "3", "--duration", "4", "--cycle", "0.024", "--threshold", "8", "--release", "3", "-o", out5])
     assert r.exit_code == 0, r.output
     _, control5, _ = read_run(out5)
-    first = lambda c: int(np.flatnonzero(c["detected"].astype(bool) & (c["phase"] == 2))[0])  # noqa: E731
+    first = lambda c: int(np.flatnonzero((np.abs(c["gamma_r"]) >= 8.0) & (c["phase"] == 2))[0])  # noqa: E731
     assert first(control5) > first(control)
 
 
