@@ -199,11 +199,16 @@ def _summary(rows: list[dict], sizes) -> list[dict]:
                  "load_avg_range": [min(r["load_start"] for r in raw), max(r["load_end"] for r in raw)]}
             if 1 in by_w and 2 in by_w:
                 s["speedup_2_over_1"] = round(by_w[2]["logs_per_s"] / by_w[1]["logs_per_s"], 3)
+                # the fastest repeat of each (as timeit takes the minimum): the run least slowed by other work
+                best = {w: min(r["tasks_s"] for r in raw if r["logs"] == big and r["workers"] == w) for w in (1, 2)}
+                s["speedup_2_over_1_best"] = round(best[1] / best[2], 3)
             small = min(r["logs"] for r in rs)
             if small != big:
                 w = max(r["workers"] for r in rs)
                 t = {r["logs"]: r["tasks_s"] for r in rs if r["workers"] == w}
                 s[f"time_{big}_over_{small}"] = round(t[big] / t[small], 3)
+                tb = {n: min(r["tasks_s"] for r in raw if r["logs"] == n and r["workers"] == w) for n in (big, small)}
+                s[f"time_{big}_over_{small}_best"] = round(tb[big] / tb[small], 3)
                 s["logs_per_s"] = {f"{r['logs']} logs, {r['workers']} workers": round(r["logs_per_s"], 3) for r in rs}
                 s["at_workers"] = w
             out.append(s)
