@@ -213,13 +213,13 @@ def _job(args):
 
 
 def benchmark(n_ops: int, cycles: tuple[float, ...], model, rbf=None, controllers=CONTROLLERS,
-              arm: str = "human", seed_offset: int = 0, coupling=None, cutoff: float = 5.0,
-              seed_offsets: tuple[int, ...] | None = None, plants: str = "paper", firm_refs=(), jobs: int = 1) -> dict:
+              arm: str = "human", coupling=None, cutoff: float = 5.0, seed_offsets: tuple[int, ...] = (0,),
+              plants: str = "paper", firm_refs=(), jobs: int = 1) -> dict:
     """Operator i of each seed set has seed ``offset + i`` and grip ``GRIPS[i % 3]`` (the same for every
     controller); ``firm_refs`` controllers meet the firm grips only.  ``jobs`` worker processes."""
     from concurrent.futures import ProcessPoolExecutor
 
-    ops = _operators(n_ops, seed_offsets or (seed_offset,), plants)
+    ops = _operators(n_ops, seed_offsets, plants)
     out: dict = {}
     for cyc in cycles:
         plan = [(name, k, (model, seed, damping, D, cyc, rbf if damping == "adaptive" else None, grip, arm,

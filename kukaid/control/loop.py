@@ -270,7 +270,7 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
                 sigma = rest.step(sigma, last.q, moving=r.mode == DYNAMIC, contact=r.detected)
                 adm.reset(sigma, 0.0)
             else:
-                rest.step(sigma, last.q, moving=True, contact=r.detected)
+                rest.restart()
             q_cmd, clipped = limiter.apply(sigma)
             if clipped:  # no wind-up: the admittance continues from what was sent
                 adm.reset(q_cmd, limiter.v)
@@ -334,10 +334,14 @@ class RestHold:
         self.count = 0
         self.done = False
 
+    def restart(self) -> None:
+        """The reference moves (or a push is on): the next rest is counted from its start."""
+        self.count, self.done = 0, False
+
     def step(self, q_ref: float, q_meas: float, moving: bool, contact: bool) -> float:
         """The reference to hold this cycle (``q_ref`` standing; ``moving``/``contact``: start over)."""
         if moving or contact:
-            self.count, self.done = 0, False
+            self.restart()
             return q_ref
         self.count += 1
         if self.done or self.count < self.need:

@@ -333,7 +333,7 @@ class TorqueResidual:
             self._since_switch += h
         # a stop: to quasi-static mode, or the raw speed falling below qd_thr while still dynamic (a
         # push's own deflection of a standing axis is not one)
-        stopped = (quasi and old_mode == DYNAMIC) or (self._moving and not moving and old_mode == DYNAMIC)
+        stopped = old_mode == DYNAMIC and (quasi or (self._moving and not moving))
         self._since_stop = 0.0 if stopped else self._since_stop + h
         self._moving = moving
         self._bump *= math.exp(-h / self.switch_tau)
@@ -351,7 +351,7 @@ class TorqueResidual:
             if quasi:
                 if (learning and self._u_n >= self._u_need and self._since_switch >= self.switch_quiet
                         and a < self.rest_threshold):  # what is not taken for a push (gated at half of
-                    # it, as Γu, the floor stayed low on LuGre plants: 177/192 runs held)
+                    # it, as Γu, the floor stayed low on LuGre plants: 179/192 no-person runs held)
                     self._rest_ms += min(h / self.floor_tau, 1.0) * (gamma_r * gamma_r - self._rest_ms)
                 start = self.rest_threshold
                 self.rest_threshold_max = max(self.rest_threshold_max, start)
