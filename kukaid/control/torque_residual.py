@@ -28,10 +28,11 @@ Online, causal version (what a controller can do):
 * friction is continuous across the mode switch: up to ``qd_thr`` the Maxwell-slip torque, from
   ``3 qd_thr`` on the Stribeck curve, linearly blended in between (on the differenced speed,
   ``BLEND``); and every change of mode
-  (Γu added or removed, the Maxwell-slip elements re-initialised, eq. 12) is bumpless: the jump of
-  Γp at the switch is carried as an offset that fades with the time constant ``switch_tau``;
-* at every dynamic -> quasi-static transition the Maxwell-slip elements are re-initialised
-  saturated in the direction of the last motion, relative to the stop position (eq. 12);
+  (Γu added or removed) is bumpless: the jump of Γp at the switch is carried as an offset that
+  fades with the time constant ``switch_tau``;
+* the Maxwell-slip elements follow the raw position in both modes, so at a stop they stand
+  saturated in the direction the axis last moved (the paper's eq. 12, which re-initialises them
+  at the switch, without the sign of a low-passed speed that rings past zero after a hard stop);
 * detection: Γr is "detected" when |Γr| >= the start threshold and stays so until |Γr| <
   ``release`` (hysteresis), so a residual hovering at the threshold does not chatter; within
   ``switch_quiet`` s of the axis stopping (a change to quasi-static mode, or the differenced
@@ -203,7 +204,6 @@ class TorqueResidual:
         for f, x0 in zip(self._filters, (q, 0.0, 0.0, tau, self.static_torque(q) + fp0)):
             f.reset(x0)
         self._mode = QUASI_STATIC
-        self._last_sign = 0.0
         self._u_n = 0
         self._u_need = max(1, int(round(self.u_window / self.sample_time)))
         self._gamma_u = 0.0  # Γu at the rest's anchor, N·m
@@ -308,14 +308,13 @@ class TorqueResidual:
         old_mode, old_u = self._mode, (self._gamma_u if self._mode == QUASI_STATIC else 0.0)
         if abs(qd_f) >= self.qd_thr:
             self._mode = DYNAMIC
-            self._last_sign = math.copysign(1.0, qd_f)
         elif self._mode == DYNAMIC:
-            # eq. (12): elements saturated in the direction of the last motion, relative to the
-            # stop position (a no-op when the motion was long enough to saturate them all); they
-            # enter the prediction from the next sample, through the filter
+            # eq. (12) holds without re-initialising the elements: they follow the raw position
+            # in both modes, so at a stop they stand saturated in the direction the axis actually
+            # last moved (and partly unloaded by a servo overshoot back), not in the sign of the
+            # low-passed speed, which rings past zero after a hard stop and once set them the
+            # wrong way (a 36 N·m jump of Γp, a self-sustained cycle on a LuGre plant)
             self._mode = QUASI_STATIC
-            if self._k.size:
-                self._zeta = q - self._last_sign * (self._W / self._k)
         quasi = self._mode == QUASI_STATIC
         if quasi and old_mode == DYNAMIC and not self._detected and self._quiet >= QUIET_BEFORE_REST:
             self._new_rest()  # stopped with nobody in contact (no detection, nor a braking hand)
