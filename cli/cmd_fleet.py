@@ -213,15 +213,23 @@ def _check(kind: str, source, table, output, pattern, workers, scheduler) -> Non
     from kukaid_cli._util import check_outputs
 
     check_outputs([output], [table])
+    run_robot = None
     if kind == "validate":
         from kukaid.diagnose.validate import validate as run
     else:
+        import functools
+
+        from kukaid.diagnose.robot import diagnose_robot
         from kukaid.diagnose.workflow import diagnose as run
+
+        # whole-arm fits: what kukaid diagnose runs on a robot parameter file, at its default --max-steps 4
+        # (the one-axis diagnose's default too)
+        run_robot = functools.partial(diagnose_robot, max_steps=4)
     from kukaid.fleet.tasks import _fits
 
     _fits(str(table.resolve()), table.stat().st_mtime)  # a table that is not a fit table: one line, before any work
     entries = read_input(source, pattern)
-    opts = CheckOptions(table=str(table.resolve()), kind=kind, run=run)
+    opts = CheckOptions(table=str(table.resolve()), kind=kind, run=run, run_robot=run_robot)
     bar = _Progress(f"fleet {kind}")
     try:
         s = run_tasks(entries, output, check_task, opts, opts.settings(), kind=kind, workers=workers,
@@ -259,6 +267,8 @@ def validate_cmd(source, table, output, pattern, workers, scheduler) -> None:
 @_WORKERS
 @_SCHEDULER
 def diagnose_cmd(source, table, output, pattern, workers, scheduler) -> None:
-    """Each one-axis log against its own fit (kukaid diagnose): which physical effects the model
-    misses (column effects), the RMSE after adding them, the whole diagnosis as JSON."""
+    """Each log against its own fit (kukaid diagnose): which physical effects the model misses
+    (column effects), the RMSE after adding them, the whole diagnosis as JSON. A whole-arm log
+    (fleet fit --robot) is diagnosed as kukaid diagnose does a robot parameter file: one row per
+    joint, its held-out relative error after the effects (rel_error) and the effects acting on it."""
     _check("diagnose", source, table, output, pattern, workers, scheduler)

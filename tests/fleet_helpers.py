@@ -9,18 +9,22 @@ import sys
 import time
 from pathlib import Path
 
-from kukaid.fleet.simulate import FleetSimConfig, draw_fleet, simulate_robot, write_manifest
+from kukaid.fleet.simulate import FleetSimConfig, arm_trajectory, draw_fleet, simulate_robot, write_manifest
 
 
-def small_fleet(out: Path, robots: int = 3, days: int = 4, seed: int = 5, axes=(3,), wear_share: float = 0.0) -> Path:
-    """A simulated fleet under ``out`` (manifest.csv, truth.json, logs/); returns the manifest."""
+def small_fleet(out: Path, robots: int = 3, days: int = 4, seed: int = 5, axes=(3,), wear_share: float = 0.0,
+                whole_arm: bool = False) -> Path:
+    """A simulated fleet under ``out`` (manifest.csv, truth.json, logs/); returns the manifest.
+    ``whole_arm``: one six-axis log of the KR 6 R700 sixx per robot and day (``axis`` empty)."""
     import json
 
-    cfg = FleetSimConfig(robots=robots, days=days, seed=seed, axes=tuple(axes), wear_share=wear_share)
+    cfg = FleetSimConfig(robots=robots, days=days, seed=seed, axes=tuple(axes), wear_share=wear_share,
+                         whole_arm=whole_arm)
     truth = draw_fleet(cfg)
+    traj = arm_trajectory() if whole_arm else None
     rows = []
     for r in cfg.robot_names():
-        rows += simulate_robot(r, truth, str(out))
+        rows += simulate_robot(r, truth, str(out), traj)
     (out / "truth.json").write_text(json.dumps(truth))
     write_manifest(out / "manifest.csv", rows)
     return out / "manifest.csv"
@@ -68,6 +72,35 @@ def fault_fleet(out: Path) -> tuple[Path, dict[str, str]]:
               "bad/axis2.h5": "not of A3", "bad/copy.h5": "duplicate", "bad/missing.h5": "no such file"}
     assert np.isfinite(1.0)
     return out / "manifest.csv", expect
+
+
+def counterbalanced_arm_log(path: Path, seed: int = 20) -> Path:
+    """A 12 s six-axis log of the KR 6 R700 sixx (250 Hz, a seeded multi-sine, A2 about mid-range)
+    whose A2 carries a gas counterbalance the URDF does not know (about 5 N·m, a tenth of its
+    gravity torque), as tests/test_diagnose_robot.py builds it: ``kukaid diagnose`` of its own
+    whole-arm fit names ``counterbalance@A2``."""
+    import numpy as np
+
+    from kukaid.diagnose.robot import gas_spring
+    from kukaid.logs import AxisLog, write_hdf5
+    from kukaid.models.robot import RobotModel
+    from robot_sim_helpers import multisine, true_friction, true_parameters
+
+    kr6 = RobotModel("kr6-r700-sixx")
+    pi, fr = true_parameters(kr6, 1), true_friction(6, 2)
+    t, q, qd, qdd = multisine(kr6, 12.0, 250.0, seed=seed)
+    mid = 0.5 * (kr6.lower[1] + kr6.upper[1])
+    q[:, 1] = mid + 0.35 * (q[:, 1] - mid)
+    qd[:, 1] *= 0.35
+    qdd[:, 1] *= 0.35
+    tau = np.einsum("sjk,k->sj", kr6.regressor(q, qd, qdd), pi) + fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
+    tau[:, 1] -= 6.0 * gas_spring(q[:, 1], -1.2, 0.5)
+    rng = np.random.default_rng(0)
+    tau += 0.05 * rng.standard_normal(tau.shape)
+    log = AxisLog(time=t, q=q + 1e-5 * rng.standard_normal(q.shape), tau=tau, axes=tuple(range(1, 7)), attrs={})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_hdf5(log, path)
+    return path
 
 
 class DaskProcesses:

@@ -39,16 +39,20 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "Fv_std": ("float64", "standard deviation of Fv, N·m·s/rad"),
     "Izz_std": ("float64", "standard deviation of Izz, kg·m²"),
     "Mx_std": ("float64", "standard deviation of Mx, N·m"),
-    "rmse": ("float64", "torque prediction RMS error of the fit (or of the validation), N·m"),
-    "rel_error": ("float64", "validation: RMS error over RMS torque"),
+    "rmse": ("float64", "torque prediction RMS error of the fit (or of the validation, or after a one-axis "
+                        "diagnosis), N·m"),
+    "rel_error": ("float64", "validation: RMS error over RMS torque; whole-arm diagnose: the joint's held-out "
+                             "RMS error over RMS torque after the effects found"),
     "n_samples": ("int64", "samples in the log"),
     "log_duration": ("float64", "log duration, s"),
     "temp_mean": ("float64", "mean motor temperature in the log, °C (null: not logged)"),
     "temp_min": ("float64", "lowest motor temperature, °C"),
     "temp_max": ("float64", "highest motor temperature, °C"),
     "model_date": ("string", "validate: the day of the fit whose model predicted this log"),
-    "effects": ("string", "diagnose: the effects found, comma-separated (empty: none)"),
-    "result": ("string", "the full result as JSON (parameter file, validation or diagnosis)"),
+    "effects": ("string", "diagnose: the effects found, comma-separated (empty: none); whole-arm log: those "
+                          "acting on the row's joint"),
+    "result": ("string", "the full result as JSON (parameter file, validation or diagnosis; of a whole-arm log: "
+                         "on its first row)"),
     "task_s": ("float64", "wall time of the task on its worker, s"),
     "task_cpu_s": ("float64", "CPU time of the task on its worker, s"),
     "worker": ("string", "the worker that ran the task"),

@@ -1,0 +1,118 @@
+"""kukaid fleet diagnose over whole-arm logs (fleet fit --robot): each log diagnosed as
+``kukaid diagnose --params robot.json`` does (the same function), one row per log and joint; a
+log that fails, whether unreadable or in its diagnosis, is an error row and the others complete."""
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+
+import pytest
+
+from fleet_helpers import counterbalanced_arm_log, small_fleet
+
+from kukaid.fleet.table import read_table, write_table
+
+CB_LOG = "arm/R002/2026-01-05.h5"      # a gas counterbalance on A2 the URDF does not know
+BAD_LOG = "arm/R003/2026-01-05.h5"     # a simulated arm log cut in half
+
+
+def _run(cmd, *args, timeout=300):
+    return subprocess.run([*cmd, *map(str, args)], capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def arms(tmp_path_factory, kukaid_cmd):
+    """Three simulated whole-arm logs (R001, three days), one with a counterbalance, one truncated;
+    fitted with fleet fit --robot and diagnosed with fleet diagnose (one local worker)."""
+    out = tmp_path_factory.mktemp("arms")
+    man = small_fleet(out, robots=1, days=3, seed=23, whole_arm=True)
+    with open(man, newline="") as f:
+        first = next(csv.DictReader(f))["path"]
+    counterbalanced_arm_log(out / CB_LOG)
+    data = (out / first).read_bytes()
+    (out / BAD_LOG).parent.mkdir(parents=True)
+    (out / BAD_LOG).write_bytes(data[: len(data) // 2])
+    with open(man, "a", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(("R002", "", "2026-01-05", CB_LOG))
+        w.writerow(("R003", "", "2026-01-05", BAD_LOG))
+    fit, dia = out / "fit.parquet", out / "diagnose.parquet"
+    r = _run(kukaid_cmd, "fleet", "fit", man, "--robot", "kr6-r700-sixx", "-o", fit, "--workers", "1")
+    assert r.returncode == 0, r.stderr
+    r = _run(kukaid_cmd, "fleet", "diagnose", man, "--table", fit, "-o", dia, "--workers", "1")
+    assert r.returncode == 0, r.stderr
+    return out, man, fit, dia
+
+
+def test_whole_arm_logs_are_diagnosed_per_joint_and_a_corrupt_one_is_an_error_row(arms):
+    out, _, _, dia = arms
+    rows, settings = read_table(dia)
+    assert settings["task"] == "diagnose"
+    by_log: dict[str, list[dict]] = {}
+    for r in rows:
+        by_log.setdefault(r["path"], []).append(r)
+    assert len(by_log) == 5                                 # three simulated, the counterbalanced, the corrupt
+    bad = by_log.pop(BAD_LOG)
+    assert len(bad) == 1 and bad[0]["status"] == "error" and "truncated" in bad[0]["error"]
+    for path, rs in by_log.items():
+        assert [r["status"] for r in rs] == ["ok"] * 6, (path, [r["error"] for r in rs])
+        assert [r["axis"] for r in rs] == [1, 2, 3, 4, 5, 6] and all(r["kind"] == "diagnose" for r in rs)
+        assert all(0 < r["rel_error"] < 0.5 and r["effects"] is not None for r in rs)
+        results = [json.loads(r["result"]) for r in rs if r["result"]]
+        assert len(results) == 1 and results[0]["schema"] == "kukaid.robot_diagnosis/1"
+        assert [r["rel_error"] for r in rs] == pytest.approx(results[0]["heldout_relative_error_after"])
+        named = [s["name"] for s in results[0]["steps"]]
+        if path == CB_LOG:
+            assert named == ["counterbalance@A2"]
+            assert [r["effects"] for r in rs] == ["", "counterbalance@A2", "", "", "", ""]
+        else:                                               # simulated logs: the fit's model is the truth's
+            assert named == [] and all(r["effects"] == "" for r in rs)
+            assert rs[0]["temp_mean"] is not None
+
+
+def test_fleet_row_is_what_kukaid_diagnose_says_of_the_log(arms, kukaid_cmd, tmp_path):
+    out, _, fit, dia = arms
+    params = next(r["result"] for r in read_table(fit)[0] if r["path"] == CB_LOG and r["result"])
+    (tmp_path / "arm.json").write_text(params)
+    r = _run(kukaid_cmd, "diagnose", "--params", tmp_path / "arm.json", "--log", out / CB_LOG, "--json")
+    assert r.returncode == 0, r.stderr
+    single = json.loads(r.stdout)
+    fleet = json.loads(next(x["result"] for x in read_table(dia)[0] if x["path"] == CB_LOG and x["result"]))
+    assert [s["name"] for s in fleet["steps"]] == [s["name"] for s in single["steps"]] == ["counterbalance@A2"]
+    for key in ("relative_error_given", "heldout_relative_error_before", "heldout_relative_error_after"):
+        assert fleet[key] == pytest.approx(single[key], rel=1e-9)
+
+
+def test_a_whole_arm_log_whose_diagnosis_fails_is_an_error_row(arms, tmp_path):
+    """In-process (no cluster): the fit of one log names a URDF other than the robot's, so its
+    diagnosis raises; that log is one error row, the others are diagnosed."""
+    import functools
+
+    from kukaid.diagnose.robot import diagnose_robot
+    from kukaid.diagnose.workflow import diagnose
+    from kukaid.fleet.manifest import read_input
+    from kukaid.fleet.run import plan
+    from kukaid.fleet.tasks import CheckOptions, check_task
+
+    out, man, fit, _ = arms
+    rows, settings = read_table(fit)
+    for r in rows:
+        if r["path"] == CB_LOG and r["result"]:
+            p = json.loads(r["result"])
+            p["robot"]["sha256"] = "0" * 64
+            r["result"] = json.dumps(p)
+    table = tmp_path / "fit.parquet"
+    write_table(table, rows, settings)
+    jobs, _, _ = plan(read_input(man), [], "diagnose")
+    opts = CheckOptions(table=str(table), kind="diagnose", run=diagnose,
+                        run_robot=functools.partial(diagnose_robot, max_steps=4))
+    got = {j.name: check_task(j, opts) for j in jobs}
+    cb = got.pop(CB_LOG)
+    assert [r["status"] for r in cb] == ["error"] and "not the one the parameters were fitted with" in cb[0]["error"]
+    assert [r["status"] for r in got.pop(BAD_LOG)] == ["error"]
+    assert len(got) == 3 and all([r["status"] for r in rs] == ["ok"] * 6 for rs in got.values())
+    # a caller that gives no robot diagnosis gets an error row, not a crash
+    no_robot = CheckOptions(table=str(table), kind="diagnose", run=diagnose)
+    r = check_task(next(j for j in jobs if j.name not in (CB_LOG, BAD_LOG)), no_robot)
+    assert [x["status"] for x in r] == ["error"] and "no robot diagnosis" in r[0]["error"]
