@@ -180,6 +180,76 @@ def test_gamma_u_is_taken_anew_at_every_rest():
     assert abs(r.gamma_r) < 1.0
 
 
+def test_a_hard_stop_leaves_the_friction_state_of_the_move_not_of_the_filter_ringing():
+    """After a fast move down and a hard stop the low-passed speed rings past zero (upwards); the
+    Maxwell-slip state at rest is still the one of the move down.  (Re-set at the stop in the sign
+    of that ringing speed it was the move up's: Γp jumped by 2 sum W, and on a LuGre plant the axis
+    then cycled by itself after a release.)"""
+    cfg = SimConfig(vibration=False, noise_sigma=0.0)
+    sim = VirtualKRC4(cfg, seed=1)
+    sim.reset(Q0)
+    est = TorqueResidual(model_from_params(cfg.truth_params()), sample_time=0.012)
+    rows = []
+    while sim.t < 3.5:
+        t = sim.t
+        u = min(max(t - 1.8, 0.0), 0.3)  # 0.45 rad/s down from 1 s, braked to a stop in 0.3 s from 1.8 s
+        sim.command(Q0 - 0.45 * min(max(t - 1.0, 0.0), 0.8) - 0.45 * (u - u * u / 0.6))
+        b = sim.advance(0.012)
+        for tt, q, tau in zip(b["time"], b["q"], b["tau"]):
+            r = est.update(q, tau)
+            rows.append((tt, r.qd, r.gamma_r, r.detected))
+    a = np.array(rows)
+    after = a[:, 0] > 1.8
+    assert a[after, 1].max() > est.qd_thr  # the filter rang past zero: the case this is about
+    assert not a[after, 3].any()
+    assert np.abs(a[a[:, 0] > 2.3, 2]).max() < 1.0  # (was 24 N·m)
+
+
+def test_a_residual_standing_at_rest_when_the_threshold_falls_is_not_a_push():
+    """A stop soon after a hand braked the axis keeps the old Γu (the hand may still hold it); there
+    the residual can stand at 8 N·m, a hand or the model's friction at rest.  When the stop's doubled
+    threshold ends it is not a push; a push is what both readings see (8 N·m more), it ends when it
+    is gone, and 6 N·m the other way (one reading) is not one."""
+    m = _model(vibration=False)
+    est = TorqueResidual(m, sample_time=0.012, threshold=5.0)
+    W = float(np.sum(m.maxwell_slip.W))
+    out = []
+    for k in range(900):
+        x = min(max((k - 100) / 100.0, 0.0), 1.0)  # a 0.06 rad move up from sample 100 to 200
+        q = Q0 + 0.06 * x ** 3 * (10 - 15 * x + 6 * x * x)
+        v = 0.06 * 30 * x * x * (1 - x) ** 2 / 1.2
+        brake = -7.0 if 175 <= k < 185 else 0.0  # a hand brakes the axis briefly, 0.2 s before it stops
+        push = 8.0 if 600 <= k < 700 else (-6.0 if k >= 800 else 0.0)
+        # at rest after the move the axis holds 8 N·m less friction than the model's saturated elements
+        fric = float(m.friction(v)) if 100 <= k < 200 else (0.0 if k < 100 else W - 8.0)
+        r = est.update(q, m.rigid.Mx * math.cos(q) + fric - brake - push)  # Γr = Γp - τ
+        out.append(r.detected)
+    det = np.array(out)
+    assert not det[200:600].any()  # the stop, its doubled threshold and its end: nothing
+    assert det[615:700].all()  # 8 N·m more: a push
+    assert not det[720:].any()  # gone again: ended; 6 N·m the other way: one reading only
+    assert est.standing_max == pytest.approx(8.0, abs=0.5)  # and the run can say so
+
+
+def test_a_residual_under_the_threshold_does_not_creep_a_heavily_damped_axis_on():
+    """At D 500 (what the oscillation monitor raises the damping to) a push of 20 N·m that falls to
+    4 N·m, under the start threshold and above the release: what remains would move the axis at
+    0.008 rad/s, slower than the Stribeck velocity, where a model's friction is least certain (a
+    person gone, 4-5 N·m of model error, crept a LuGre axis 5 degrees in 7 s).  The detection ends
+    and the axis stops."""
+    cfg = SimConfig(vibration=False)
+    p1 = PushOperator(amplitude=16.0, t_start=2.0, duration=2.3, ramp=0.3)
+    p2 = PushOperator(amplitude=4.0, t_start=2.0, duration=10.0, ramp=0.3)
+    be = SimRobot(VirtualKRC4(cfg, seed=3), Q0, lambda t, q, qd: p1(t) + p2(t))
+    run = run_admittance(be, model_from_params(cfg.truth_params()),
+                         LoopConfig(damping="constant", D=500.0, duration=10.8))
+    d = run.data
+    late = (d["time"] > 6.0) & (d["time"] < 11.5)  # 4 N·m on, 1.7 s after the 20 N·m ended
+    assert d["detected"][(d["time"] > 2.5) & (d["time"] < 4.0)].all()  # the push was followed
+    assert not d["detected"][late].any()
+    assert math.degrees(np.ptp(d["q"][late])) < 0.05
+
+
 def test_threshold_at_rest_rises_with_a_wandering_residual_and_no_push_is_seen():
     """A model whose friction at rest is off wanders at rest (here ±4 N·m at 1 Hz): the start
     threshold at rest rises to floor_k x its RMS (capped), and none of it is detected; a 20 N·m push

@@ -9,7 +9,9 @@ Per control cycle (12 ms = the KRC sample time; the paper's ~24 ms as an option)
    decelerates with the time constant I/D and stops), except a torque against the reference's
    motion (a person braking the coasting axis), which is applied until the reference stands;
    the damping is at least the floor of the oscillation monitor
-   (:mod:`kukaid.control.stability`);
+   (:mod:`kukaid.control.stability`); under the start threshold a detection holds only while
+   Γr / D is faster than the model's Stribeck velocity (slower, the model's friction is least
+   certain, and its error alone would creep a heavily damped axis on);
 4. the reference is clipped by :class:`~kukaid.control.safety.ReferenceLimiter` and sent.
 
 Before the admittance is enabled the axis makes the paper's initiation move (section 3.4: move
@@ -182,6 +184,13 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
             f"threshold at rest rose from {cfg.threshold:g} to {rest_thr:.3g} N·m (a push there needs that much): "
             "the parameter file's friction at rest does not match the axis; refit its Maxwell-slip elements "
             "(kukaid fit --presliding)")
+    standing = float(getattr(est, "standing_max", 0.0))
+    metrics["standing_max"] = standing
+    if standing > 0.0:  # not a push, but the run should say it happened
+        metrics.setdefault("warnings", []).append(
+            f"at rest Γr stood at up to {standing:.3g} N·m when the start threshold fell below it (a hand still on "
+            "the axis after braking it, or the parameter file's friction at rest off by that much): it was not "
+            "taken for a push, and a push there needed that much more")
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
 
 
@@ -233,6 +242,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
     q_hold = q_start + cfg.init_move
     log: dict[str, list] = {k: [] for k in _KEYS}
     D_now = cfg.D
+    m = getattr(est, "model", None)  # a one-axis model with Stribeck friction: its Stribeck velocity
+    v_hold = float(m.vs) if getattr(m, "friction_kind", None) == "stribeck" else 0.0
     n_cycles = int(math.ceil((t_adm + cfg.duration) / cfg.cycle - 1e-9))
     for k in range(n_cycles):
         tr = (k + 1) * cfg.cycle  # time since start at the end of this cycle
@@ -252,6 +263,13 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             # a detected push drives the admittance; below the detection only a torque against
             # the reference's motion is applied (a person braking the coasting axis), and never
             # so far that it reverses it: it can only take energy out
+            if (r.detected and v_hold > 0.0 and abs(r.gamma_r) < cfg.threshold
+                    and abs(r.gamma_r) < D_now * v_hold):
+                # below the start threshold a detection holds only while what it commands is faster than
+                # the Stribeck velocity: slower, the model's friction is at its least certain, and a
+                # residual of a few N·m from it (a person gone, a damping raised to 500) crept the axis on
+                est.end_detection()
+                r = dataclasses.replace(r, detected=False)
             braking = not r.detected and sd0 * r.gamma_r < 0.0
             gamma = r.gamma_r if (r.detected or braking) else 0.0
             floor = mon.step(r.gamma_r, D_now, contact=r.detected)

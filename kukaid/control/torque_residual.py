@@ -38,7 +38,14 @@ Online, causal version (what a controller can do):
   ``switch_quiet`` s of the axis stopping (a change to quasi-static mode, or the differenced
   speed falling below ``qd_thr``) the start threshold is ``switch_share`` x ``threshold``: a
   stop leaves spikes in Γr (the paper's backlash spikes, the friction settling, the servo's
-  overshoot) that must not move the axis (a start is not guarded: a push at rest starts the axis).
+  overshoot) that must not move the axis (a start is not guarded: a push at rest starts the axis);
+* a residual standing at rest: when the start threshold falls under |Γr| (the doubled threshold
+  of a stop ends, the threshold at rest comes down) rather than |Γr| rising through it, that
+  Γr is no push; it is a hand still on the axis after braking it (the stop kept the old Γu) or
+  the model's friction at rest off by that much, and one cannot tell which.  Until the axis
+  moves again the residual is read both ways (Γr, and Γr minus the standing value): a push is
+  what both readings see, the smaller of the two; so a release (Γr towards 0) is none, and
+  nothing is left to move the axis when a push ends (:attr:`standing_max` reports it).
 
 Effects a diagnosis added to the parameter file are included when they depend on position only
 (``gravity_sine``, ``torque_offset``, ``position_ripple``); others are listed in
@@ -212,11 +219,14 @@ class TorqueResidual:
         self._rest_ms = (self.threshold / self.floor_k) ** 2 if self.floor_k > 0 else 0.0
         self._dyn_ms, self._dyn_n = 0.0, 0  # mean square of Γr moving out of contact, N²m²
         self.rest_threshold_max = self.threshold
+        self.standing_max = 0.0  # the largest |Γr| found standing at rest when the threshold fell, N·m
         self._bump = 0.0  # Γp jump of the last mode switch, fading
         self._since_switch = math.inf  # s since the axis last started or stopped
         self._since_stop = math.inf  # s since the axis last stopped
         self._quiet = math.inf  # s since |Γr| was last at the threshold (or detected)
         self._rest_age = math.inf  # s of close following since the present rest began
+        self._standing = None  # Γr standing at rest when the start threshold fell under it, N·m
+        self._start_prev = math.inf  # the start threshold at the previous sample, N·m
         self._moving = False
         self._detected = False
         self._started = True
@@ -246,11 +256,17 @@ class TorqueResidual:
         ``threshold``."""
         return min(max(self.threshold, self.floor_k * math.sqrt(self._rest_ms)), self.floor_cap * self.threshold)
 
+    def end_detection(self) -> None:
+        """End the present detection now (the loop's judgement: see :func:`kukaid.control.loop.run_admittance`);
+        a new one needs the start threshold again."""
+        self._detected = False
+
     # -- Γu, the quasi-static model's offset at rest ---------------------------------------------
     def _new_rest(self) -> None:
         """A rest begins (the axis stopped, nobody in contact): Γu anew (the paper: eq. 13)."""
         self._u_n = 0
         self._rest_age = 0.0
+        self._standing = None
 
     def _learn_rest(self, raw: float, h: float) -> None:
         """Out of contact at rest: Γu is the mean of the raw residual over the first ``u_window`` s of
@@ -337,25 +353,39 @@ class TorqueResidual:
         self._moving = moving
         self._bump *= math.exp(-h / self.switch_tau)
         gamma_p = pred_f + new_u + self._bump
-        gamma_r = gamma_p - tau_f
+        gamma_r = r1 = gamma_p - tau_f
+        if not quasi:
+            self._standing = None  # moving: the dynamic model reads the hand again
+        elif self._standing is not None:  # a push only if both readings see it, the smaller of the two
+            g2 = r1 - self._standing
+            gamma_r = 0.0 if r1 * g2 <= 0.0 else (r1 if abs(r1) < abs(g2) else g2)
         a = abs(gamma_r)
         if not quasi and not self._detected and self._since_switch >= self.switch_quiet / 4:
             self._dyn_n += 1  # moving out of contact (the initiation move, coasting): the model's own error
             self._dyn_ms += max(h / self.floor_tau, 1.0 / self._dyn_n) * (gamma_r * gamma_r - self._dyn_ms)
-        self._quiet = 0.0 if (self._detected or a >= self.threshold) else self._quiet + h
+        self._quiet = 0.0 if (self._detected or abs(r1) >= self.threshold) else self._quiet + h
         if self._detected:
             self._detected = a >= self.release_now
+            self._start_prev = math.inf
         else:
             start = self.threshold
             if quasi:
                 if (learning and self._u_n >= self._u_need and self._since_switch >= self.switch_quiet
-                        and a < self.rest_threshold):  # what is not taken for a push (gated at half of
-                    # it, as Γu, the floor stayed low on LuGre plants: 179/192 no-person runs held)
-                    self._rest_ms += min(h / self.floor_tau, 1.0) * (gamma_r * gamma_r - self._rest_ms)
+                        and abs(r1) < self.rest_threshold):  # what is not taken for a push (gated at half
+                    # of it, as Γu, the floor stayed low on LuGre plants: 179/192 no-person runs held)
+                    self._rest_ms += min(h / self.floor_tau, 1.0) * (r1 * r1 - self._rest_ms)
                 start = self.rest_threshold
                 self.rest_threshold_max = max(self.rest_threshold_max, start)
             if self._since_stop < self.switch_quiet:  # a stop: friction settles, the servo overshoots
                 start = max(start, self.switch_share * self.threshold)
+            if quasi and self._standing is None and start <= a < self._start_prev:
+                # the start threshold fell under a residual standing at rest (a stop's 2 x ended, the
+                # floor came down): not a push, rather a model off at this rest, or a hand that stayed
+                # on after braking the axis; from here a push must show in both readings
+                self._standing = r1
+                self.standing_max = max(self.standing_max, abs(r1))
+                gamma_r = a = 0.0
+            self._start_prev = start
             self._detected = a >= start
         return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, new_u)
 
