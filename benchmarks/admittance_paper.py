@@ -23,7 +23,7 @@ computes the paper's mean cost xi = mean(1/2 dG^2 + 1/2 lambda G^2) and mean squ
 on the estimated residual Gr and on the true hand torque; then, per pair (adaptive vs constant),
 the mean paired difference with its 95 % confidence interval (t), paired wins and the Wilcoxon
 signed-rank p-value; and per controller oscillations (runs of at least 4 successive half-cycles
-of the hand torque's content above 0.6 Hz beyond 10 N·m peak to peak, kukaid.control.metrics;
+of the hand torque, each 10 N·m peak to peak or more and shorter than 0.8 s, kukaid.control.metrics;
 counted when one lasts more than 1.5 s after the stability monitor first acted on it, or more
 than 2 s if it never acted), the longest such time (damp time), torque-stop trips, false detections after the release, end error (relative to the
 person's move) and the estimated/true mean squared dG ratio.

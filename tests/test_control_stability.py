@@ -108,6 +108,17 @@ def test_oscillation_runs_find_alternations_not_moves():
     assert len(runs) == 1 and runs[0][0] == pytest.approx(4.0, abs=0.6) and runs[0][1] == pytest.approx(7.0, abs=0.6)
 
 
+@pytest.mark.parametrize("ramp", [0.1, 0.15, 0.2])
+def test_a_large_smooth_push_is_not_an_oscillation(ramp):
+    """A firm grip's 80 N·m push with quick raised-cosine ramps, no ringing in it: no oscillation
+    (lobes of a zero-phase high-pass counted 3 s of it: the filter rings before and after an edge)."""
+    t = np.arange(0.0, 8.0, 0.012)
+    r = lambda x: 0.5 - 0.5 * np.cos(np.pi * np.clip(x, 0.0, 1.0))  # noqa: E731
+    push = 80.0 * np.minimum(r((t - 2.5) / ramp), r((4.5 - t) / ramp))
+    assert oscillation_runs(t, push) == []
+    assert oscillation_runs(t, push - 24.0 * np.sin(np.pi * np.clip((t - 4.6) / 0.5, 0.0, 1.0))) == []  # a pull-back
+
+
 # --- the adaptive law's grip-stiffness floor (CouplingFloor) ---------------------------------------
 
 from kukaid.control.stability import CouplingConfig, CouplingFloor, critical_damping, probe_time  # noqa: E402

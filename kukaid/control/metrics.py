@@ -46,36 +46,47 @@ def oscillation_ptp(time: np.ndarray, torque: np.ndarray, f_lo: float = 1.5, spa
     return w.max(axis=1) - w.min(axis=1)
 
 
-def oscillation_runs(time: np.ndarray, torque: np.ndarray, limit: float = 10.0, f_lo: float = 0.6,
-                     max_half_period: float = 0.8, min_lobes: int = 4) -> list[tuple[float, float]]:
-    """Oscillations of a torque record: [(start s, end s), ...] of its content above ``f_lo`` Hz
-    (zero-phase high-pass).
+def oscillation_runs(time: np.ndarray, torque: np.ndarray, limit: float = 10.0, max_half_period: float = 0.8,
+                     min_lobes: int = 4) -> list[tuple[float, float]]:
+    """Oscillations of a torque record: [(start s, end s), ...].
 
-    An oscillation is a run of at least ``min_lobes`` successive half-cycles, each shorter than
-    ``max_half_period`` s and peaking beyond ``limit``/2 (so ``limit`` N·m peak to peak), from the
-    first to the last of them.  A guiding move (speeding up, then braking) or a quick push gives
-    two or three such lobes, not a run.
+    The record's turning points are found with a hysteresis of ``limit`` N·m (a maximum counts once
+    the torque has come down ``limit`` from it, a minimum once it has come back up ``limit``: noise
+    and tremor make none).  An oscillation is a run of at least ``min_lobes`` successive
+    half-cycles (turning point to turning point, each ``limit`` N·m peak to peak at least) each
+    shorter than ``max_half_period`` s, from its first turning point to its last.  A guiding move or
+    a push, however large, rises and falls once: one or two half-cycles.  (Lobes of a zero-phase
+    high-pass, the earlier definition, counted a smooth 80 N·m push as 3 s of oscillation: the
+    filter rings before and after each edge.)
     """
-    from scipy.signal import butter, sosfiltfilt
-
     t = np.asarray(time, dtype=float)
+    x = np.asarray(torque, dtype=float)
     if t.size < 16:
         return []
-    fs = 1.0 / float(np.median(np.diff(t)))
-    hp = sosfiltfilt(butter(2, f_lo, btype="highpass", fs=fs, output="sos"), np.asarray(torque, dtype=float))
-    edges = np.flatnonzero(np.diff(np.sign(hp)) != 0) + 1
-    bounds = np.concatenate([[0], edges, [hp.size]])
+    turns: list[int] = []
+    hi = lo = 0
+    seeking = 0  # +1 a maximum (after a minimum), -1 a minimum, 0 either (at the start)
+    for i in range(1, x.size):
+        if x[i] > x[hi]:
+            hi = i
+        if x[i] < x[lo]:
+            lo = i
+        if seeking >= 0 and x[hi] - x[i] >= limit:
+            turns.append(hi)
+            seeking, lo = -1, i
+        elif seeking <= 0 and x[i] - x[lo] >= limit:
+            turns.append(lo)
+            seeking, hi = 1, i
     runs: list[tuple[float, float]] = []
-    start, n = 0.0, 0
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        if b > a and np.max(np.abs(hp[a:b])) > limit / 2 and (b - a) / fs <= max_half_period:
-            if n == 0:
-                start = float(t[a])
+    n, start = 0, 0
+    for a, b in zip(turns[:-1], turns[1:]):
+        if t[b] - t[a] <= max_half_period:
+            start = a if n == 0 else start
             n += 1
             if n == min_lobes:
-                runs.append((start, float(t[b - 1])))
+                runs.append((float(t[start]), float(t[b])))
             elif n > min_lobes:
-                runs[-1] = (start, float(t[b - 1]))
+                runs[-1] = (float(t[start]), float(t[b]))
         else:
             n = 0
     return runs
