@@ -45,7 +45,8 @@ Online, causal version (what a controller can do):
   the model's friction at rest off by that much, and one cannot tell which.  Until the axis
   moves again the residual is read both ways (Γr, and Γr minus the standing value): a push is
   what both readings see, the smaller of the two; so a release (Γr towards 0) is none, and
-  nothing is left to move the axis when a push ends (:attr:`standing_max` reports it).
+  nothing is left to move the axis when a push ends (:attr:`standing_max` reports it); the
+  standing value follows a slow drift as Γu does (``u_tau``, below half the start threshold).
 
 Effects a diagnosis added to the parameter file are included when they depend on position only
 (``gravity_sine``, ``torque_offset``, ``position_ripple``); others are listed in
@@ -282,7 +283,7 @@ class TorqueResidual:
         elif self._rest_age < self.switch_quiet:  # the stop settling (not a push's deflection)
             self._rest_age += h
             self._gamma_u += min(h / max(self.u_window, h), 1.0) * e
-        elif abs(e) < 0.5 * self.rest_threshold:
+        elif self._standing is None and abs(e) < 0.5 * self.rest_threshold:  # (else the standing value follows)
             self._gamma_u += min(h / self.u_tau, 1.0) * e
 
     def update(self, q: float, tau: float, dt: float | None = None) -> ResidualSample:
@@ -385,6 +386,9 @@ class TorqueResidual:
                 self._standing = r1
                 self.standing_max = max(self.standing_max, abs(r1))
                 gamma_r = a = 0.0
+            elif self._standing is not None and abs(r1 - self._standing) < 0.5 * start:
+                # like Γu, the standing value follows a slow drift while nobody pushes (u_tau)
+                self._standing += min(h / self.u_tau, 1.0) * (r1 - self._standing)
             self._start_prev = start
             self._detected = a >= start
         return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, new_u)
