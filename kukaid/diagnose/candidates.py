@@ -314,11 +314,9 @@ class Backlash(Candidate, E.Backlash):
             since[i:bounds[k + 1]] = sig.time[i:bounds[k + 1]] - sig.time[i]
         return since, "time since the last reversal (s)"
 
-    def rule(self, model, sigs, nl, coefs):
-        if not separable_backlash(sigs):
-            return ("one position sensor: backlash and pre-sliding friction give the same transient at a "
-                    "reversal (a load-side encoder would tell them apart)")
-        return ""
+    # no rule of its own: with one position sensor backlash and pre-sliding friction give the same
+    # transient; the workflow then models it with the one that predicts better on held-out data and
+    # says the mechanism is undetermined (kukaid.diagnose.ambiguity)
 
 
 def separable_backlash(sigs: Sequence["LogSignals"]) -> bool:
@@ -383,7 +381,16 @@ class PreSliding(Candidate, E.PreSliding):
             since[i:bounds[k + 1]] = np.abs(sig.q[i:bounds[k + 1]] - sig.q[i])
         return since, "displacement since the last reversal"
 
+    #: the largest plausible pre-sliding displacement x0: rad on a revolute axis, m on a prismatic one
+    #: (pre-sliding ends within a few degrees; a longer "transient" is a trend after each reversal)
+    MAX_X0 = {"revolute": 0.05, "prismatic": 0.01}
+
     def rule(self, model, sigs, nl, coefs):
+        lim = self.MAX_X0.get(sigs[0].joint if sigs else "revolute", 0.05)
+        if nl["x0"] > lim:
+            unit = "m" if sigs and sigs[0].joint == "prismatic" else "rad"
+            return (f"x0 = {nl['x0']:.3g} {unit} is above {lim:g} {unit}: pre-sliding ends within a small "
+                    "displacement, not over a long stretch of the motion")
         if coefs["A"] >= 0:
             return f"A = {coefs['A']:.3g}: pre-sliding friction lags the Coulomb step (A < 0)"
         lim = 2.5 * max(model.lin.get("Fs", 0.0), model.lin.get("Fc", 0.0))

@@ -32,6 +32,9 @@ class CandidateTest:
     significant: bool = False
     reason: str = ""
     held_out: "heldout.HeldOut | None" = None
+    #: when it stands for a mechanism the data cannot determine: {"candidates", "modelled_as",
+    #: "held_out" (name -> held-out figures or why not), "settled_by"} (see :mod:`.ambiguity`)
+    undetermined: dict | None = None
 
     def evidence(self) -> dict[str, Any]:
         return jsonable({

@@ -31,8 +31,11 @@ class Step:
     def to_json(self) -> dict[str, Any]:
         ev = self.test.evidence()
         ev["share_of_gap_closed"] = float(self.gap_closed)
-        return jsonable({"name": self.name, "params": self.params, "rmse_before": float(self.rmse_before),
-                        "rmse_after": float(self.rmse_after), "evidence": ev})
+        out = {"name": self.name, "params": self.params, "rmse_before": float(self.rmse_before),
+               "rmse_after": float(self.rmse_after), "evidence": ev}
+        if self.test.undetermined:  # only on a step that stands for an undetermined mechanism
+            out["undetermined"] = self.test.undetermined
+        return jsonable(out)
 
 
 @dataclass
@@ -77,7 +80,10 @@ class Diagnosis:
         if not self.tested:
             return "no candidate tested (--max-steps 0): the gap above is all this run measured"
         if self.steps:
-            return "named: " + ", ".join(self.names)
+            und = [s.test.undetermined for s in self.steps if s.test.undetermined]
+            return "named: " + ", ".join(self.names) + "".join(
+                f"; mechanism undetermined: {' or '.join(u['candidates'])}, modelled as {u['modelled_as']}; "
+                f"to settle it: {u['settled_by']}" for u in und)
         if self.ambiguous:
             return "nothing named: candidates are ambiguous"
         if self.rejected:
@@ -109,9 +115,23 @@ class Diagnosis:
                 h = ev.held_out
                 out.append(f"    held out ({h.scheme}): RMSE {h.rmse_without:.4g} -> {h.rmse_with:.4g} {u}, "
                            f"better in {h.folds_improved}/{h.n_folds} folds, p = {h.p_value:.2g}")
+            if ev.undetermined:
+                und = ev.undetermined
+                others = [n for n in und["candidates"] if n != s.name]
+                out.append(f"    mechanism undetermined: {' or '.join(und['candidates'])} explain the same residual; "
+                           f"modelled as {s.name}, the lower held-out error ({_held_out_figures(und, u)}); "
+                           f"{' and '.join(others) or 'the other'} not ruled out; to settle it: {und['settled_by']}")
         for a in self.ambiguous:
+            if a.get("modelled_as"):
+                k = self.names.index(a["modelled_as"]) + 1 if a["modelled_as"] in self.names else 0
+                what = f"modelled as {a['modelled_as']}" + (f" (step {k})" if k else "") + ", mechanism undetermined"
+                settle = ""  # the step says what would settle it
+            else:
+                what = ("not guessing: none of them is plausible and lowers the held-out error" if a.get("held_out")
+                        else "not guessing")
+                settle = f"; to settle it: {a['settled_by']}" if a.get("settled_by") else ""
             out.append(f"ambiguous: {' or '.join(a['candidates'])} explain the same residual ({a['reason']}); "
-                       "not guessing")
+                       f"{what}{settle}")
         for r in self.rejected:
             out.append(f"not named: {r['name']}: {r['reason']}")
         if not self.steps and not self.ambiguous:
@@ -121,6 +141,20 @@ class Diagnosis:
                    + f"; relative error {100 * self.rel_after:.2f} %")
         out += [f"note: {n}" for n in self.notes]
         return out
+
+
+def _held_out_figures(und: dict, unit: str) -> str:
+    """'held-out RMSE backlash 0.1661 N·m, presliding 0.102 N·m' (or why a candidate has no figure)."""
+    parts = []
+    for n in und["candidates"]:
+        h = (und.get("held_out") or {}).get(n)
+        if h is None:
+            parts.append(f"{n} not tested")
+        elif "rmse_with" in h:
+            parts.append(f"{n} {h['rmse_with']:.4g} {unit}" + (f" ({h['reason']})" if h.get("reason") else ""))
+        else:
+            parts.append(f"{n}: {h.get('reason', 'no figure')}")
+    return "held-out RMSE " + ", ".join(parts)
 
 
 def _fmt_param(k: str, v: Any, sd: Any) -> str:

@@ -8,7 +8,11 @@
    partialled out, Bonferroni over a candidate's grid, Holm over the candidates) and require a
    minimum effect size against the noise.  The significant candidate that removes the most residual
    is named, unless another significant candidate explains the same thing (each one is no longer
-   significant given the other): then the two are reported as ambiguous and nothing is guessed.
+   significant given the other; a reversal transient with one position sensor, which backlash and
+   pre-sliding friction give alike): then the residual is still modelled, by the candidate of the
+   group that predicts better on held-out data (plausible, and passing the held-out test), and
+   both are named with "mechanism undetermined" and the measurement that would settle it
+   (:mod:`kukaid.diagnose.ambiguity`).  When neither passes, nothing is added.
 3. **Add and refit** all parameters jointly with the effect; repeat until nothing is significant.
 4. **Prune and order by size**: with several effects, an effect the later ones explain is dropped,
    each one's discrete settings are searched again given the others, and the steps are listed
@@ -24,6 +28,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from kukaid.diagnose import ambiguity as A
 from kukaid.diagnose import candidates as C
 from kukaid.diagnose import heldout
 from kukaid.diagnose import selection as S
@@ -159,6 +164,70 @@ def _search(model: Model, sigs: Sequence[LogSignals], cand: C.Candidate) -> dict
     return Round(model, sigs).best_option(cand)[0]
 
 
+def _undetermined_size(step: Step) -> str:
+    """Why the joint refit does not determine the size of the step's effect ("" when it does: some
+    coefficient at least 2 HAC standard deviations from zero).  An effect that stands for a group
+    of explanations is modelled only when its size is determined."""
+    std = step.params.get("std") or {}
+    ratios = {k: abs(float(v)) / float(std[k]) for k, v in step.params.items()
+              if k in std and isinstance(v, (int, float)) and std[k] and math.isfinite(float(std[k]))}
+    if ratios and max(ratios.values()) < 2.0:
+        k = max(ratios, key=ratios.get)
+        return (f"its size is not determined in the joint refit ({k} = {step.params[k]:.3g} +/- "
+                f"{float(std[k]):.2g})")
+    return ""
+
+
+def _settle(group: Sequence[CandidateTest], model: Model, sigs: Sequence[LogSignals], rmse: float, rel: float,
+            floor: float, given: Model, alpha_held_out: float) -> tuple[Step | None, dict]:
+    """Candidates that explain the same residual: each one's refit checked for plausibility and on
+    held-out data; the significant one with the lowest held-out error among those that pass the
+    held-out test is the step (None when none passes).  Returns (step, {"candidates",
+    "modelled_as", "held_out": name -> figures or why not, "settled_by"})."""
+    figures: dict[str, dict] = {}
+    best: Step | None = None
+    for t in group:
+        coefs = dict(zip(C.get(t.name).coef_keys(t.nl), t.wald.coef))
+        st = _add(model, t, coefs, sigs, rmse, rel, floor)
+        why = C.get(t.name).implausible(st.model_after, sigs, given) or _undetermined_size(st)
+        if why:
+            figures[t.name] = {"reason": why}
+            continue
+        ho = heldout.evaluate(model, t.name, t.nl, coefs, sigs, _search)
+        t.held_out = ho
+        if ho is None:
+            figures[t.name] = {"reason": "no held-out data to check it on"}
+            continue
+        figures[t.name] = ho.to_json()
+        if not (ho.passed and ho.p_value < alpha_held_out):
+            figures[t.name]["reason"] = f"held-out error not significantly lower (p = {ho.p_value:.2g})"
+        elif not t.significant:
+            figures[t.name]["reason"] = "not significant in the fit"
+        elif best is None or ho.rmse_with < best.test.held_out.rmse_with:
+            best = st
+    names = list(dict.fromkeys(t.name for t in group))
+    info = {"candidates": names, "modelled_as": best.name if best else None, "held_out": figures,
+            "settled_by": A.settled_by(names, best.name if best else None)}
+    if best is not None:
+        best.test.undetermined = info
+    return best, info
+
+
+def _mechanism_note(u: dict) -> str:
+    return (f"mechanism undetermined: {' or '.join(u['candidates'])} explain the same residual; modelled as "
+            f"{u['modelled_as']}, the lower held-out error; to settle it: {u['settled_by']}")
+
+
+def _undetermined(steps: list[Step], ambiguous: list[dict]) -> list[dict]:
+    """The undetermined mechanisms the final model keeps (one per step that stands for a group);
+    an ambiguity whose modelled term was dropped later (a note says so) is left unmodelled."""
+    kept = {s.name for s in steps}
+    for x in ambiguous:
+        if x.get("modelled_as") is not None and x["modelled_as"] not in kept:
+            x["modelled_as"] = None
+    return [s.test.undetermined for s in steps if s.test.undetermined]
+
+
 def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float = 0.01, min_effect: float = 0.15,
                      max_steps: int = 4, candidates: Sequence[str] | None = None,
                      max_held_out: int = 3, alpha_held_out: float = 0.05,
@@ -227,22 +296,36 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
                 if p_ab >= alpha and p_ba >= alpha:
                     amb.append({"candidates": [a.name, b.name],
                                 "reason": f"each loses significance given the other (p = {p_ab:.2g}, {p_ba:.2g})"})
-        if any(best.name in x["candidates"] for x in amb):  # not guessed; the search goes on without them
-            ambiguous += amb
+        step, retry = None, False
+        if any(best.name in x["candidates"] for x in amb):
+            # the residual is still modelled: by the one of the group that predicts better on held-out
+            # data; the mechanism is undetermined.  The search goes on without the group.
+            group_names = {n for x in amb if best.name in x["candidates"] for n in x["candidates"]}
+            step, info = _settle([t for t in sig_tests if t.name in group_names], model, sigs, cur_rmse, cur_rel,
+                                 floor, given, alpha_held_out)
             for x in amb:
+                x["modelled_as"] = info["modelled_as"] if info["modelled_as"] in x["candidates"] else None
+                x["held_out"] = {n: info["held_out"][n] for n in x["candidates"] if n in info["held_out"]}
+                x["settled_by"] = A.settled_by(x["candidates"])
                 excluded.update(x["candidates"])
-            continue
+            ambiguous += amb
+            if step is None:
+                continue
         # the decision is taken on data not fitted: the first significant candidate (most residual
         # explained first) whose refit is plausible and that lowers the held-out error, significantly
-        step, retry = None, False
-        for t in sig_tests[:max_held_out]:
-            if t.name == "backlash" and not C.separable_backlash(sigs):
-                # one position sensor: a reversal transient is backlash or pre-sliding friction
-                ambiguous.append({"candidates": ["backlash", "presliding"],
+        for t in ([] if step is not None else sig_tests[:max_held_out]):
+            if t.name in A.REVERSAL_PAIR and not C.separable_backlash(sigs):
+                # one position sensor: a reversal transient is backlash or pre-sliding friction alike;
+                # modelled by the one that predicts better held out, the mechanism undetermined
+                group = [t] + [u for u in tests if u.name in A.REVERSAL_PAIR and u.name != t.name]
+                step, info = _settle(group, model, sigs, cur_rmse, cur_rel, floor, given, alpha_held_out)
+                info.update(candidates=list(A.REVERSAL_PAIR), settled_by=A.settled_by(A.REVERSAL_PAIR))
+                ambiguous.append({"candidates": list(A.REVERSAL_PAIR),
                                   "reason": "a transient after each reversal; with one position sensor backlash and "
-                                            "pre-sliding friction cannot be told apart (a load-side encoder would)"})
-                excluded.update(("backlash", "presliding"))
-                retry = True
+                                            "pre-sliding friction cannot be told apart (a load-side encoder would)",
+                                  **{k: v for k, v in info.items() if k != "candidates"}})
+                excluded.update(A.REVERSAL_PAIR)
+                retry = step is None
                 break
             coefs = dict(zip(C.get(t.name).coef_keys(t.nl), t.wald.coef))
             cand_step = _add(model, t, coefs, sigs, cur_rmse, cur_rel, floor)
@@ -285,8 +368,16 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     out_params = model_to_params(model, params, added) if added else copy.deepcopy(params)
     if not added:
         model, cur_rmse, cur_rel = given, rmse0, rel0
+    undetermined = _undetermined(steps, ambiguous)
+    for u in undetermined:  # the refined file says it next to the term ("_" keys are notes) and in provenance
+        eff = (out_params.get("effects") or {}).get(u["modelled_as"])
+        if isinstance(eff, dict):
+            eff["_mechanism"] = _mechanism_note(u)
     prov = dict(out_params.get("provenance") or {})
     prov["diagnose"] = {"effects_added": added, "rmse_before": rmse0, "rmse_after": cur_rmse, "noise_floor": floor}
+    if undetermined:
+        prov["diagnose"]["undetermined"] = [{k: u[k] for k in ("candidates", "modelled_as", "settled_by")}
+                                            for u in undetermined]
     out_params["provenance"] = jsonable(prov)
     steps = [st for st in steps if st.test.p_adjusted < alpha]  # never a step with p >= alpha as found
     return Diagnosis(steps, rmse0, cur_rmse, floor, sigma, ambiguous, out_params, rel0, cur_rel, rmse_r, tests,
