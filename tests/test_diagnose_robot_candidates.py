@@ -27,11 +27,12 @@ def kr6() -> RobotModel:
 
 
 def _logs(kr6, effect=None, duration=10.0):
-    """Three recordings of one robot (each its own multi-sine) with a motor-temperature channel
-    (about 25, 40, 55 degC, warming by a degree within each); the truth has ``effect`` or not."""
+    """Four recordings of one robot (each its own multi-sine) with a motor-temperature channel
+    (about 25, 40, 55, 70 degC, warming by a degree within each); the truth has ``effect`` or not.
+    The file is fitted on the first: the diagnosis judges on the other three."""
     pi, fr = true_parameters(kr6, 1), true_friction(6, 2)
     out = []
-    for k in range(3):
+    for k in range(4):
         t, q, qd, qdd = multisine(kr6, duration, 250.0, seed=40 + k)
         temp = 25.0 + 15.0 * k + np.linspace(0.0, 1.0, t.size)[:, None] + np.arange(6)[None, :] * 0.5
         tau = np.einsum("sjk,k->sj", kr6.regressor(q, qd, qdd), pi) + fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]

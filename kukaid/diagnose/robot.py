@@ -36,8 +36,12 @@ from kukaid.errors import KukaidError
 
 #: a candidate must lower the held-out relative error of the joints it acts on by this share
 MARGIN = 0.05
-#: contiguous blocks of one recording when there is only one
+#: contiguous blocks of one recording when there is only one (and of each held-out recording, for the
+#: spread of a candidate's held-out gain)
 FOLDS = 5
+#: a candidate's held-out gain must be at least this many standard errors of its spread over the
+#: held-out blocks (about a 5 % one-sided chance that a candidate with no gain passes)
+MIN_T = 2.0
 
 
 @dataclass
@@ -169,8 +173,8 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
     ``Fj`` plus ``local`` {joint: (N, c) columns of that joint only} plus ``shared`` (per joint
     (N, s) columns whose coefficients all joints share), fitted on the other folds (weights ``w``
     per joint), on the folds ``evaluate`` (default all). Returns the sums of squared errors (K, n)
-    and of squared torques (K, n) per fold (0 for the folds not evaluated) and the coefficients
-    fitted on all samples."""
+    and of squared torques (K, n) per fold (0 for the folds not evaluated), the coefficients
+    fitted on all samples and the held-out squared error of every sample (N, n)."""
     n = r.shape[1]
     ks = [F.shape[1] + (local[j].shape[1] if local and j in local else 0) for j, F in enumerate(Fj)]
     ns = 0 if shared is None else shared[0].shape[1]
@@ -208,7 +212,7 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
         return x
 
     parts = [normal(folds == f) for f in range(K)]
-    num, den = np.zeros((K, n)), np.zeros((K, n))
+    num, den, sq = np.zeros((K, n)), np.zeros((K, n)), np.zeros_like(r)
     for f in (range(K) if evaluate is None else evaluate):
         A = sum(p[0] for p in parts) - parts[f][0]
         b = sum(p[1] for p in parts) - parts[f][1]
@@ -218,15 +222,29 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
             pred = cols(j, rows) @ x[off[j]:off[j + 1]]
             if shared is not None:
                 pred = pred + shared[j][rows] @ x[off[-1]:]
-            num[f, j] = float(np.sum((r[rows, j] - pred) ** 2))
+            sq[rows, j] = (r[rows, j] - pred) ** 2
+            num[f, j] = float(np.sum(sq[rows, j]))
             den[f, j] = float(np.sum(tau[rows, j] ** 2))
     x_all = solve(sum(p[0] for p in parts), sum(p[1] for p in parts))
-    return num, den, x_all
+    return num, den, x_all, sq
 
 
 def _rel(num: np.ndarray, den: np.ndarray) -> np.ndarray:
     """Relative error per joint of per-fold sums (K, n)."""
     return np.sqrt(num.sum(0) / np.maximum(den.sum(0), 1e-300))
+
+
+def _gain_t(sq0: np.ndarray, sq: np.ndarray, den: np.ndarray, block: np.ndarray, joints: list[int]) -> float:
+    """The held-out gain of a candidate (squared error before - after, each joint relative to its
+    squared torque) summed per block of held-out samples: its mean over the blocks divided by its
+    standard error (a t statistic; inf when every block gains alike)."""
+    ids = np.unique(block[block >= 0])
+    d = (sq0 - sq)[:, joints] / np.maximum(den[joints], 1e-300)
+    g = np.array([float(d[block == b].sum()) for b in ids])
+    if g.size < 2:
+        return float("inf") if g.sum() > 0 else 0.0
+    se = float(np.std(g, ddof=1)) / np.sqrt(g.size)
+    return float(np.mean(g) / se) if se > 0 else (float("inf") if np.mean(g) > 0 else 0.0)
 
 
 def _choose(A: np.ndarray, y: np.ndarray, B: np.ndarray) -> int:
@@ -287,19 +305,20 @@ def _try(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds, K
         B = cand.batch(ctx, opts)
         parts = [Fj[j]] + ([local[j]] if j in local else []) + ([shared[j]] if shared is not None else [])
         A = np.concatenate(parts, axis=1)
-        pick = [_choose(A[folds != f], r[folds != f, j], B[folds != f]) if f in held else -1 for f in range(K)]
         best_all = _choose(A, r[:, j], B)
-    num, den = np.zeros((K, n)), np.zeros((K, n))
+        pick = [best_all if cand.shape_from_all_samples else _choose(A[folds != f], r[folds != f, j], B[folds != f])
+                if f in held else -1 for f in range(K)]
+    num, den, sq = np.zeros((K, n)), np.zeros((K, n)), np.zeros_like(r)
 
     def cols_of(o):
         return B[:, o, :] if B is not None else cand.columns(ctx, opts[o])
 
     for o in sorted(set(pick[f] for f in held)):
         loc, sh = _with(local, shared, cand, cols_of(o), n)
-        a, b, _ = _heldout(r, tau, Fj, sh, loc, folds, K, w, [f for f in held if pick[f] == o])
-        num, den = num + a, den + b
+        a, b, _, q2 = _heldout(r, tau, Fj, sh, loc, folds, K, w, [f for f in held if pick[f] == o])
+        num, den, sq = num + a, den + b, sq + q2
     loc, sh = _with(local, shared, cand, cols_of(best_all), n)
-    _, _, x = _heldout(r, tau, Fj, sh, loc, folds, K, w, [])
+    _, _, x, _ = _heldout(r, tau, Fj, sh, loc, folds, K, w, [])
     c = cols_of(best_all).shape[-1]
     if cand.joint is None:
         coefs = x[-c:]
@@ -307,7 +326,7 @@ def _try(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds, K
         j = cand.joint
         end = sum(F.shape[1] + (loc[i].shape[1] if i in loc else 0) for i, F in enumerate(Fj[:j + 1]))
         coefs = x[end - c:end]
-    return num, den, opts[best_all], coefs, cols_of(best_all)
+    return num, den, sq, opts[best_all], coefs, cols_of(best_all)
 
 
 def diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps: int = 3) -> RobotDiagnosis:
@@ -342,7 +361,14 @@ def diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps: 
     remaining = {c.name: c for c in robot_candidates(ctx, grav)}
     local: dict = {}
     shared = None
-    num, den, _ = _heldout(r, tau, Fj, shared, local, folds, K, w, held)
+    num, den, _, sq0 = _heldout(r, tau, Fj, shared, local, folds, K, w, held)
+    # blocks of the held-out samples (FOLDS contiguous blocks of each held-out recording, or the
+    # blocks themselves): a named effect's held-out gain must stand out from its spread over them
+    block = np.full(r.shape[0], -1)
+    for f in held:
+        idx = np.flatnonzero(folds == f)
+        nb = FOLDS if K > 1 else 1
+        block[idx] = f * FOLDS + np.minimum(np.arange(idx.size) * nb // max(idx.size, 1), nb - 1)
     err = _rel(num, den)
     fold_err = num
     before = err.copy()
@@ -355,38 +381,43 @@ def diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps: 
             res = _try(cand, ctx, r, tau, Fj, shared, local, folds, K, w, held)
             if res is None:
                 continue
-            fnum, fden, opt, coefs, col = res
+            fnum, fden, fsq, opt, coefs, col = res
+            gain_t = _gain_t(sq0, fsq, den.sum(0), block, cand.joints(ctx))
             e = _rel(fnum, fden)
             joints = cand.joints(ctx)
             info = cand.describe(ctx, opt, coefs)
             mb, ma = float(np.mean(err[joints])), float(np.mean(e[joints]))
             per_fold = (fnum[held][:, joints].sum(1) / np.maximum(fold_err[held][:, joints].sum(1), 1e-300)).tolist()
-            trials.append({"name": name, "mean_before": mb, "mean_after": ma, "fold_sse_ratio": per_fold})
+            trials.append({"name": name, "mean_before": mb, "mean_after": ma, "fold_sse_ratio": per_fold,
+                           "gain_t": gain_t})
             worse = [f"A{k + 1}" for k in range(n) if e[k] > (1 + MARGIN) * err[k] + 1e-12]
             reason = None
             if ma > (1 - MARGIN) * mb:
                 reason = f"held-out error {100 * mb:.2f} -> {100 * ma:.2f} % (needs a {100 * MARGIN:.0f} % drop)"
             elif worse:
                 reason = f"makes {', '.join(worse)} worse on held-out data"
+            elif gain_t < MIN_T:
+                reason = (f"held-out error {100 * mb:.2f} -> {100 * ma:.2f} %, but the gain is {gain_t:.2g} x its "
+                          f"standard error over the held-out blocks (needs {MIN_T:g})")
             else:
                 reason = cand.implausible(ctx, opt, coefs) or None
             if reason is None and (best is None or (mb - ma) / mb > best[0]):
-                best = ((mb - ma) / mb, name, e, joints, info, mb, ma, col, fnum)
+                best = ((mb - ma) / mb, name, e, joints, info, mb, ma, col, fnum, fsq, gain_t)
             elif reason is not None:
                 rejected = [x_ for x_ in rejected if x_["name"] != name] + [{"name": name, "reason": reason}]
         if rnd == 0:
             tried = trials
         if best is None:
             break
-        _, name, e, joints, info, mb, ma, col, fnum = best
+        _, name, e, joints, info, mb, ma, col, fnum, fsq, gain_t = best
         cand = remaining.pop(name)
         rejected = [x_ for x_ in rejected if x_["name"] != name]
         local, shared = _with(local, shared, cand, col, n)
         steps.append({"name": name, "joints": [f"A{k + 1}" for k in joints], "params": {
             k: v for k, v in info.items() if not isinstance(v, list)}, "details": info,
-            "mean_before": mb, "mean_after": ma, "heldout_before": err.tolist(), "heldout_after": e.tolist(),
-            "trials": trials})
-        err, fold_err = e, fnum
+            "mean_before": mb, "mean_after": ma, "gain_t": gain_t, "heldout_before": err.tolist(),
+            "heldout_after": e.tolist(), "trials": trials})
+        err, fold_err, sq0 = e, fnum, fsq
     return RobotDiagnosis(axes=axes, folds=how, before=before.tolist(), after=err.tolist(), steps=steps,
                           rejected=rejected, in_sample=in_sample, noise_floor=floor.tolist(), rms=rms.tolist(),
                           tried=tried, fitted_on=fitted_on)
