@@ -301,6 +301,8 @@ def summarise(rows: list[dict]) -> dict:
             s["right_first"] = sum(bool(r["named"]) and r["named"][0] == r["expected"] for r in rs)
             s["before_x_floor"] = float(np.mean([r["before_x_floor"] for r in rs]))
             s["after_x_floor"] = float(np.mean([r["after_x_floor"] for r in rs]))
+            sz = [r["effect_x_floor"] for r in rs if r.get("effect_x_floor") is not None]
+            s["effect_x_floor"] = float(np.mean(sz)) if sz else None
             tw = [r["twin_x_floor"] for r in rs if "twin_x_floor" in r]
             s["twin_x_floor"] = float(np.mean(tw)) if tw else None
         else:
@@ -314,6 +316,23 @@ def summarise(rows: list[dict]) -> dict:
     return out
 
 
+def markdown(summary: dict) -> list[str]:
+    """The summary as the docs' table (Markdown)."""
+    out = ["| hidden effect | cases | right effect first | anything else named | effect RMS | before | after | "
+           "clean twin |", "|---|---|---|---|---|---|---|---|"]
+    for k, v in summary.items():
+        if k == "all":
+            continue
+        f = lambda x: "-" if x is None else f"{x:.1f}"  # noqa: E731
+        rf = "-" if k == "clean" else f"{v['right_first']}/{v['cases']}"
+        other = v["named_anything"] if k == "clean" else v["named_something_else"]
+        out.append(f"| {k} | {v['cases']} | {rf} | {other} | {f(v.get('effect_x_floor'))} | {f(v['before_x_floor'])} | "
+                   f"{f(v.get('after_x_floor'))} | {f(v.get('twin_x_floor'))} |")
+    al = summary["all"]
+    out.append(f"| all hidden | {al['cases']} | {al['right_first']}/{al['cases']} ({100 * al['right_rate']:.0f} %) | | | | | |")
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="*", default=[0, 1, 2], help="seeds of the hidden-effect cases")
@@ -323,6 +342,7 @@ def main(argv=None) -> int:
     ap.add_argument("--recordings", type=int, default=4, help="recordings per case (the first is fitted on)")
     ap.add_argument("--no-twin", action="store_true", help="skip the clean twins (half the time)")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--markdown", action="store_true", help="the summary as the docs' table")
     ap.add_argument("--quick", action="store_true", help="one seed per effect, one clean case, three 4 s recordings, no twins")
     a = ap.parse_args(argv)
     if a.quick:
@@ -345,6 +365,9 @@ def main(argv=None) -> int:
            "seconds": time.perf_counter() - t0, "summary": summary, "rows": rows}
     if a.json:
         print(json.dumps(out, indent=1))
+        return 0
+    if a.markdown:
+        print("\n".join(markdown(summary)))
         return 0
     print(f"hidden robot effects, {ROBOT} on the six-axis virtual KR C4, seeds {a.seeds} (clean {a.clean_seeds}), "
           f"{a.recordings} x {a.duration:g} s recordings per case; fit on the first, diagnose on the others, each left out in turn")

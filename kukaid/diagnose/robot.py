@@ -11,15 +11,18 @@ the joints that carry at least half of the largest gravity torque range), ``payl
 link's mass and first moments), and per joint ``load_dependent_friction@A<j>``,
 ``thermal_friction@A<j>`` (with a temperature channel) and ``position_ripple@A<j>``.
 
-A candidate's nonlinear settings (the gas spring's geometry, the ripple order, the load or the
-thermal form) are chosen on the training folds only, by least squares of the joint's own terms
-with the candidate, so the held-out fold judges the choice too (a search over many orders cannot
-fit the held-out data by choosing). Its coefficients and the joint's terms are then fitted on the
-training folds and the held-out error measured.
+A candidate's nonlinear settings (the ripple order, the load or the thermal form) are chosen on
+the training folds only, by least squares of the joint's own terms with the candidate, so the
+held-out fold judges the choice too (a search over many orders cannot fit the held-out data by
+choosing); the gas spring's geometry is still chosen on all samples (see
+:class:`~kukaid.diagnose.robot_candidates.Counterbalance`). Its coefficients and the joint's terms
+are then fitted on the training folds and the held-out error measured. Recordings the file was
+fitted on are not used when at least two others remain (:func:`_unseen`).
 
 A candidate is named when it lowers the held-out relative error of the joints it acts on by more
-than :data:`MARGIN` and makes no joint's held-out error worse by as much, and its refit on all
-samples passes its plausibility rule; the best is added and the others tried again (at most
+than :data:`MARGIN`, makes no joint's held-out error worse by as much, its gain is at least
+:data:`MIN_T` standard errors of its spread over blocks of the held-out recordings, and its refit
+on all samples passes its plausibility rule; the best is added and the others tried again (at most
 ``max_steps``). The noise floor per joint (:func:`kukaid.diagnose.noise.filtered_noise_floor`:
 the RMSE of a perfect model in the fit's filtered comparison) is reported beside the errors.
 """

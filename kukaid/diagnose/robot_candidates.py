@@ -143,9 +143,10 @@ class Counterbalance(RobotCandidate):
     #: as before the per-joint candidates came: the spring's geometry is one shape per joint, chosen on
     #: all samples; only its force and the joint's terms are fitted on the training folds. (Chosen on
     #: the training folds only, as the other candidates' options are, the tests' and the fleet's
-    #: 5 N·m springs are no longer named: the geometry that wins on all samples is a 60-100 N·m one
-    #: that also takes up the rigid body's A2 error, and the true geometry's 5 N·m is under
-    #: MIN_CB_SHARE. Kept until the counterbalance is judged with the rigid body refitted.)
+    #: 5 N·m springs are no longer named: on the robot test's data the geometry that wins on all
+    #: samples is a 97 N·m one that also takes up the rigid body's A2 error, and with the true
+    #: geometry the spring fits at 5.6 N·m, 4 % of A2's gravity torque, under MIN_CB_SHARE. Kept
+    #: until the counterbalance is judged with the rigid body refitted.)
     shape_from_all_samples = True
 
     def __init__(self, joint: int) -> None:
