@@ -152,8 +152,6 @@ def _trajectory(seed: int, k: int, duration: float):
 
 def recordings(spec: dict, duration: float, n_rec: int = 4, hidden: bool = True):
     """The case's recordings (AxisLog each, with a temperature channel); ``hidden``: with its effect."""
-    import pinocchio as pin
-
     from kukaid.logs import AxisLog
     from kukaid.models.robot import RobotModel
     from kukaid.models.urdf import load_model
