@@ -36,8 +36,10 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     candidates were not named, and when two are ambiguous.
 
     With a robot parameter file (fit --robot): candidates an A2-style counterbalance (a gas spring,
-    one per joint that carries gravity) and a payload at the flange; each joint's own terms are
-    refitted with the candidate on the other logs (or blocks) and judged on the held-out one.
+    one per joint that carries gravity), a payload at the flange, and per joint load-dependent
+    friction, thermal friction (with a temperature channel) and a position ripple; each joint's own
+    terms are refitted with the candidate on the other logs (or blocks) and judged on the held-out
+    one (logs the file was fitted on are left out when two others remain).
     --json and --max-steps apply; -o, --report, --axis, --cutoff and --alpha do not yet.
     """
     import json

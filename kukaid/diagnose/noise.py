@@ -15,7 +15,7 @@ import numpy as np
 from kukaid.diagnose.signals import LogSignals
 from kukaid.identify.adequacy import raw_noise_sigma
 
-__all__ = ["raw_noise_sigma", "noise_sigma", "noise_floor", "row_noise_gain"]
+__all__ = ["raw_noise_sigma", "noise_sigma", "noise_floor", "row_noise_gain", "filtered_noise_floor"]
 
 
 def noise_sigma(sigs: Sequence[LogSignals]) -> float:
@@ -47,4 +47,20 @@ def noise_floor(sigs: Sequence[LogSignals]) -> float:
             continue
         num += sig2 * float(np.sum(row_noise_gain(s)))
         den += k
+    return float(np.sqrt(num / den)) if den else 0.0
+
+
+def filtered_noise_floor(taus: Sequence[np.ndarray], fs: Sequence[float], cutoff: Sequence[float],
+                         order: int) -> float:
+    """The noise floor of one joint's torque through a zero-phase Butterworth low-pass (the robot
+    fit's comparison), N·m: the raw noise of each log's torque ``taus`` (from its second
+    differences) times the square root of the filter's white-noise power gain at that log's rate
+    ``fs`` and ``cutoff`` (Hz), pooled over the logs by sample count: the RMSE of a perfect model."""
+    from kukaid.identify.adequacy import filter_noise_gain
+
+    num = den = 0.0
+    for x, f, c in zip(taus, fs, cutoff):
+        x = np.asarray(x, float)
+        num += x.size * raw_noise_sigma(x) ** 2 * filter_noise_gain(float(f), float(c), int(order))
+        den += x.size
     return float(np.sqrt(num / den)) if den else 0.0

@@ -337,14 +337,32 @@ def _velocity_noise_gain(sos: np.ndarray, dt: float, n: int) -> float:
     return float(np.std(v[k: v.size - k]))
 
 
+def sample_rows(log: AxisLog, settings: RobotFitSettings) -> slice:
+    """The rows of ``log`` the fit uses: two cut-off periods trimmed at each end, then every
+    ``decimate``-th sample (default: about 10 samples per cut-off period)."""
+    fs = 1.0 / log.sample_time
+    fc = _cutoff(settings, fs)
+    edge = int(math.ceil(2.0 * fs / fc))                     # two cut-off periods at each end
+    step = settings.decimate or max(1, int(round(fs / (10.0 * fc))))
+    return slice(edge, max(log.n_samples - edge, edge), step)
+
+
+def log_fingerprint(log: AxisLog) -> str:
+    """A short hash of a log's samples (time, positions, torques): which logs a fit saw, whatever
+    their file names (``kukaid diagnose`` holds those out of nothing: their error is in-sample)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for x in (log.time, log.q, log.tau):
+        h.update(np.ascontiguousarray(np.asarray(x, float)).tobytes())
+    return h.hexdigest()[:16]
+
+
 def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive: DriveModel) -> Motion:
     parts = []
     for log in logs:
-        fs = 1.0 / log.sample_time
-        fc = _cutoff(settings, fs)
-        edge = int(math.ceil(2.0 * fs / fc))                     # two cut-off periods at each end
-        step = settings.decimate or max(1, int(round(fs / (10.0 * fc))))
-        rows = slice(edge, max(log.n_samples - edge, edge), step)
+        fc = _cutoff(settings, 1.0 / log.sample_time)
+        rows = sample_rows(log, settings)
         parts.append(motion(log, n, settings, drive, rows=rows, reversal_window=settings.reversal_window * 1.0 / fc))
     if len(parts) == 1:
         out = parts[0]
@@ -1097,7 +1115,8 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
                     "physically_consistent": bool(checks is not None and all(c["ok"] for c in checks)),
                     "at_bound": at_bound,
                     "solver": solver_info},
-        "provenance": {"logs": [str(lg.attrs.get("source_file", "")) for lg in logs]},
+        "provenance": {"logs": [str(lg.attrs.get("source_file", "")) for lg in logs],
+                       "log_fingerprints": [log_fingerprint(lg) for lg in logs]},
     }
 
 

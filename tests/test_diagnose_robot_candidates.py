@@ -1,0 +1,96 @@
+"""The robot diagnosis' per-joint candidates (load-dependent friction, thermal friction with the
+temperature channel, position ripple): each named on logs that have it, nothing on clean logs; and
+the hidden-effect benchmark's quick size runs."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kukaid.diagnose.robot import diagnose_robot
+from kukaid.identify.robot_fit import fit_robot
+from kukaid.logs import AxisLog
+from kukaid.models.robot import RobotModel
+
+from robot_sim_helpers import multisine, true_friction, true_parameters
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def kr6() -> RobotModel:
+    return RobotModel("kr6-r700-sixx")
+
+
+def _logs(kr6, effect=None, duration=10.0):
+    """Four recordings of one robot (each its own multi-sine) with a motor-temperature channel
+    (about 25, 40, 55, 70 degC, warming by a degree within each); the truth has ``effect`` or not.
+    The file is fitted on the first: the diagnosis judges on the other three."""
+    pi, fr = true_parameters(kr6, 1), true_friction(6, 2)
+    out = []
+    for k in range(4):
+        t, q, qd, qdd = multisine(kr6, duration, 250.0, seed=40 + k)
+        temp = 25.0 + 15.0 * k + np.linspace(0.0, 1.0, t.size)[:, None] + np.arange(6)[None, :] * 0.5
+        tau = np.einsum("sjk,k->sj", kr6.regressor(q, qd, qdd), pi) + fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
+        if effect == "load_dependent_friction":          # A3: Coulomb growing with its gravity load
+            z = np.zeros_like(q)
+            tau[:, 2] += 0.12 * np.abs(np.einsum("sjk,k->sj", kr6.regressor(q, z, z), pi)[:, 2]) * np.sign(qd[:, 2])
+        elif effect == "thermal_friction":               # A2: friction falling as the motor warms
+            tau[:, 1] -= 0.01 * (temp[:, 1] - 25.0) * (fr["Fc"][1] * np.sign(qd[:, 1]) + fr["Fv"][1] * qd[:, 1])
+        elif effect == "position_ripple":                # A4: 0.3 N·m at 11.3 periods per rad
+            tau[:, 3] += 0.3 * np.sin(11.3 * q[:, 3] + 0.4)
+        rng = np.random.default_rng(k)
+        tau += 0.05 * rng.standard_normal(tau.shape)
+        out.append(AxisLog(time=t, q=q + 1e-5 * rng.standard_normal(q.shape), tau=tau, axes=tuple(range(1, 7)),
+                           temp=temp, attrs={"source_file": f"rec{k}.h5"}))
+    return out
+
+
+@pytest.fixture(scope="module")
+def clean(kr6):
+    logs = _logs(kr6)
+    return logs, fit_robot(logs[:1], kr6)
+
+
+def test_clean_logs_with_temperatures_name_nothing(kr6, clean):
+    logs, p = clean
+    d = diagnose_robot(p, logs, kr6)
+    assert d.names == [], d.lines()
+    tried = {t["name"] for t in d.tried}
+    assert {"load_dependent_friction@A3", "thermal_friction@A2", "position_ripple@A4"} <= tried
+    assert d.fitted_on == ["rec0.h5"] and len(d.noise_floor) == 6 and all(x > 0 for x in d.noise_floor)
+
+
+@pytest.mark.parametrize("effect, name", [("load_dependent_friction", "load_dependent_friction@A3"),
+                                          ("thermal_friction", "thermal_friction@A2"),
+                                          ("position_ripple", "position_ripple@A4")])
+def test_a_hidden_joint_effect_is_named_first(kr6, effect, name):
+    logs = _logs(kr6, effect)
+    d = diagnose_robot(fit_robot(logs[:1], kr6), logs, kr6)
+    assert d.names[:1] == [name], d.lines()
+    st = d.steps[0]
+    assert st["mean_after"] < 0.8 * st["mean_before"]
+    if effect == "position_ripple":
+        assert st["params"]["n_per_rad"] == pytest.approx(11.3, rel=0.05)
+        assert st["params"]["amplitude_Nm"] == pytest.approx(0.3, rel=0.25)
+
+
+def test_no_temperature_channel_no_thermal_candidate(kr6, clean):
+    logs, p = clean
+    bare = [AxisLog(time=lg.time, q=lg.q, tau=lg.tau, axes=lg.axes, attrs=lg.attrs) for lg in logs]
+    d = diagnose_robot(p, bare, kr6, max_steps=1)
+    assert not any(t["name"].startswith("thermal_friction") for t in d.tried)
+
+
+def test_benchmark_quick_runs():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "diagnose_robot_hidden.py"), "--quick", "--json"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    out = json.loads(r.stdout)
+    s = out["summary"]
+    assert set(s) >= {"counterbalance", "payload", "load_friction", "thermal_friction", "ripple", "clean", "all"}
+    assert all(np.isfinite(x["before_x_floor"]) for x in out["rows"])
