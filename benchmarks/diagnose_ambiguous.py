@@ -33,6 +33,9 @@ import time
 
 import numpy as np
 
+sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))  # multisine.py, also under a test
+from multisine import multisine  # noqa: E402
+
 KINDS = ("dahl", "impact")
 
 
@@ -67,15 +70,7 @@ def make_log(tr: dict, seed: int, k: int, fs: float = 250.0, T: float = 40.0):
 
     rng = np.random.default_rng(100 * seed + k + 17)
     t = np.arange(0.0, T, 1.0 / fs)
-    q = np.full(t.size, rng.uniform(-0.4, 0.4))
-    qd = np.zeros(t.size)
-    qdd = np.zeros(t.size)
-    for _ in range(4):
-        f, a, ph = rng.uniform(0.08, 0.5), rng.uniform(0.08, 0.3), rng.uniform(0, 2 * np.pi)
-        w = 2 * np.pi * f
-        q += a * np.sin(w * t + ph)
-        qd += a * w * np.cos(w * t + ph)
-        qdd -= a * w * w * np.sin(w * t + ph)
+    q, qd, qdd = multisine(rng, t, (-0.4, 0.4), (0.08, 0.5), (0.08, 0.3))
     s = np.sign(qd)
     fric = tr["Fc"] * s
     if tr["kind"] == "dahl":  # exact for a constant direction within a step

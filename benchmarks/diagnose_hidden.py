@@ -21,6 +21,9 @@ import time
 
 import numpy as np
 
+sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))  # multisine.py, also under a test
+from multisine import multisine  # noqa: E402
+
 EFFECTS = ("torque_offset", "gravity_sine", "position_ripple", "thermal_drift", "load_dependent_friction",
            "stribeck", None)
 
@@ -30,15 +33,7 @@ def make_log(effect: str | None, seed: int, fs: float = 250.0, T: float = 150.0)
 
     rng = np.random.default_rng(1000 + seed)
     t = np.arange(0.0, T, 1.0 / fs)
-    q = np.full(t.size, rng.uniform(-0.5, 0.5))
-    qd = np.zeros(t.size)
-    qdd = np.zeros(t.size)
-    for _ in range(4):
-        f, a, ph = rng.uniform(0.04, 0.4), rng.uniform(0.15, 0.5), rng.uniform(0, 2 * np.pi)
-        w = 2 * np.pi * f
-        q += a * np.sin(w * t + ph)
-        qd += a * w * np.cos(w * t + ph)
-        qdd -= a * w * w * np.sin(w * t + ph)
+    q, qd, qdd = multisine(rng, t, (-0.5, 0.5), (0.04, 0.4), (0.15, 0.5))
     Izz, Mx = rng.uniform(0.5, 3.0), rng.uniform(5, 40) * rng.choice([-1, 1])
     Fc, Fv = rng.uniform(3, 15), rng.uniform(2, 12)
     noise = rng.uniform(0.2, 0.8)
