@@ -30,10 +30,11 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))  # multisine.py, also under a test
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # multisine.py, also under a test
 from multisine import multisine  # noqa: E402
 
 KINDS = ("dahl", "impact")
