@@ -132,9 +132,11 @@ def test_kvp_capture_keeps_the_samples(tmp_path, monkeypatch):
         with pytest.raises(DiskFullError, match="recording stopped; the log keeps the") as e:
             capture_kvp(out, "127.0.0.1", srv.port, [3], 20.0, False, "poll", None)
         # the writer is handed a batch every 0.25 s, whatever its size (about 1400 samples on a
-        # fast machine, a few dozen on a loaded one): the log fills to exactly its room either way
+        # fast machine, a few dozen on a loaded one): the log fills to exactly its room either way;
+        # a loaded machine can also miss a poll, and the gap it marks takes 16 bytes of that room
         log = read_hdf5(out)
-        assert log.n_samples == 1000 and "keeps the 1000 samples" in str(e.value)
+        n = (8 * 4 * 1000 - 16 * len(log.attrs.get("gaps", []))) // (8 * 4)
+        assert log.n_samples == n >= 990 and f"keeps the {n} samples" in str(e.value)
         assert np.all(np.diff(log.time) > 0) and np.all(np.abs(log.q[:, 0] - 0.3) <= 0.11)
     finally:
         srv.stop()
