@@ -260,16 +260,15 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
         else:
             phase = PHASE_ADMITTANCE
             sd0 = adm.sigma_dot
-            # a detected push drives the admittance; below the detection only a torque against
-            # the reference's motion is applied (a person braking the coasting axis), and never
-            # so far that it reverses it: it can only take energy out
-            if (r.detected and v_hold > 0.0 and abs(r.gamma_r) < cfg.threshold
-                    and abs(r.gamma_r) < D_now * v_hold):
+            if r.detected and abs(r.gamma_r) < min(cfg.threshold, D_now * v_hold):
                 # below the start threshold a detection holds only while what it commands is faster than
                 # the Stribeck velocity: slower, the model's friction is at its least certain, and a
                 # residual of a few N·m from it (a person gone, a damping raised to 500) crept the axis on
                 est.end_detection()
                 r = dataclasses.replace(r, detected=False)
+            # a detected push drives the admittance; below the detection only a torque against
+            # the reference's motion is applied (a person braking the coasting axis), and never
+            # so far that it reverses it: it can only take energy out
             braking = not r.detected and sd0 * r.gamma_r < 0.0
             gamma = r.gamma_r if (r.detected or braking) else 0.0
             floor = mon.step(r.gamma_r, D_now, contact=r.detected)
