@@ -310,3 +310,46 @@ def test_strict_exits_4_when_the_run_did_not_settle_and_lugre_is_selectable(tmp_
     res = CliRunner().invoke(cli, args + ["-o", str(tmp_path / "b.h5"), "--strict"])
     assert res.exit_code == 4 and "--strict" in res.stderr
     assert (tmp_path / "b.h5").exists()  # the run is recorded all the same
+
+
+def test_a_hand_left_on_under_the_threshold_as_the_axis_stops_is_no_push_when_it_lets_go():
+    """A soft hand still pressing 4 N·m (under the threshold) as the axis stops: the new rest's Γu
+    takes it in.  At rest the measured torque then creeps (a servo's integral action against
+    stiction: 5 N·m in 0.25 s, faster than Γu follows), and the hand lets go: about 9 N·m against the
+    new Γu, 6 N·m against the model without the hand the moving model had read.  Not a push; a push
+    both readings see still is one."""
+    m = _model(vibration=False)
+    est = TorqueResidual(m, sample_time=0.012, threshold=5.0)
+    W = float(np.sum(m.maxwell_slip.W))
+    out = []
+    for k in range(1100):
+        x = min(max((k - 100) / 100.0, 0.0), 1.0)  # a 0.06 rad move up from sample 100 to 200
+        q = Q0 + 0.06 * x ** 3 * (10 - 15 * x + 6 * x * x)
+        v = 0.06 * 30 * x * x * (1 - x) ** 2 / 1.2
+        hand = 4.0 if 150 <= k < 700 else (20.0 if 900 <= k < 1000 else 0.0)
+        creep = 5.0 * min(max((k - 650) / 20.0, 0.0), 1.0)
+        fric = float(m.friction(v)) if 100 <= k < 200 else (0.0 if k < 100 else W)
+        r = est.update(q, m.rigid.Mx * math.cos(q) + fric + creep - hand)  # Γr = Γp - τ
+        out.append(r.detected)
+    det = np.array(out)
+    assert not det[200:900].any()  # the stop with the hand on, the creep, the hand letting go: nothing
+    assert det[915:1000].all()  # a 20 N·m push after it (the threshold at rest has risen): a push
+
+
+def test_a_coast_slower_than_the_stribeck_velocity_does_not_start_the_axis_on_its_own_error():
+    """After a release the axis coasts slowly on, in the Stribeck region where the model's friction is
+    least sure (here 4.5 N·m off, with 0.5 N·m of noise: at the threshold of 5 N·m now and then).
+    The start threshold while moving is twice the RMS of the residual moving out of contact, so the
+    coast's own error starts nothing; a 20 N·m push still does."""
+    m = _model(vibration=False)
+    est = TorqueResidual(m, sample_time=0.012, threshold=5.0)
+    rng = np.random.default_rng(3)
+    det = []
+    for k in range(800):
+        q = Q0 + 0.01 * k * 0.012  # 0.01 rad/s
+        push = 20.0 if k >= 700 else 0.0  # (the first 0.25 s after the start is the move's own start)
+        tau = m.rigid.Mx * math.cos(q) + float(m.friction(0.01)) + 4.5 + 0.5 * rng.standard_normal() - push
+        r = est.update(q, tau)
+        det.append(r.detected and r.mode == "dynamic")
+    assert not any(det[25:700])
+    assert any(det[700:])

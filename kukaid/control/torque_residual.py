@@ -39,14 +39,22 @@ Online, causal version (what a controller can do):
   speed falling below ``qd_thr``) the start threshold is ``switch_share`` x ``threshold``: a
   stop leaves spikes in Γr (the paper's backlash spikes, the friction settling, the servo's
   overshoot) that must not move the axis (a start is not guarded: a push at rest starts the axis);
-* a residual standing at rest: when the start threshold falls under |Γr| (the doubled threshold
-  of a stop ends, the threshold at rest comes down) rather than |Γr| rising through it, that
-  Γr is no push; it is a hand still on the axis after braking it (the stop kept the old Γu) or
-  the model's friction at rest off by that much, and one cannot tell which.  Until the axis
-  moves again the residual is read both ways (Γr, and Γr minus the standing value): a push is
-  what both readings see, the smaller of the two; so a release (Γr towards 0) is none, and
-  nothing is left to move the axis when a push ends (:attr:`standing_max` reports it); the
-  standing value follows a slow drift as Γu does (``u_tau``, below half the start threshold).
+  while moving, the start threshold is at least ``MOVING_MARGIN`` times the RMS of Γr moving out
+  of contact (:attr:`moving_threshold`: a slow coast after a release is where a model's friction is
+  least sure);
+* a hand, or the model, at rest: at rest a torque that stands still is a hand left on the axis or
+  the model's friction off by that much, and one cannot tell which.  So at rest the residual is
+  read two ways until the axis moves again: Γr, relative to what Γu has taken in, and Γr plus the
+  part of it that may be a hand (:attr:`_hand`); a push is what both readings see, the smaller of
+  the two, so a hand letting go (one reading towards 0, the other away) moves nothing.  That part
+  is what the moving model read as the axis stopped (averaged over ``DYN_MEMORY`` s: a hand left
+  on below the threshold, or the model's error while moving); what a stop's settling adds beyond
+  the threshold (a settling as large as a push may be a hand pressing harder as the axis
+  stopped); and a residual standing at rest when the start threshold falls under |Γr| (the
+  doubled threshold of a stop ends, the threshold at rest comes down) rather than |Γr| rising
+  through it (:attr:`standing_max` reports the largest).  Γu goes on following a slow drift
+  relative to it, and leaves it out when the axis moves (the next stop may keep that Γu).
+  The cost: until the axis has moved, a push against that part needs that much more force.
 
 Effects a diagnosis added to the parameter file are included when they depend on position only
 (``gravity_sine``, ``torque_offset``, ``position_ripple``); others are listed in
@@ -73,6 +81,10 @@ RELEASE_SHARE = 0.3
 #: a stop begins a new rest (Γu anew) only after this long (s) with |Γr| below the threshold: a
 #: hand that braked the coasting axis (applied, not detected) is still on it when it stops
 QUIET_BEFORE_REST = 0.3
+#: while moving, a start needs this many times the RMS of the residual moving out of contact
+MOVING_MARGIN = 2.0
+#: memory (s) of the residual read while moving, taken as the hand's torque when the axis stops
+DYN_MEMORY = 0.1
 #: effects of a parameter file that the online residual evaluates
 SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
 
@@ -92,6 +104,11 @@ class ResidualSample:
     mode: str
     detected: bool
     gamma_u: float
+
+
+def _beyond(x: float, cap: float) -> float:
+    """The part of ``x`` beyond ±``cap``."""
+    return x - min(max(x, -cap), cap)
 
 
 def _check(name: str, v: float, lo: float, hi: float = math.inf, open_lo: bool = True) -> float:
@@ -215,6 +232,7 @@ class TorqueResidual:
         self._u_n = 0
         self._u_need = max(1, int(round(self.u_window / self.sample_time)))
         self._gamma_u = 0.0  # Γu at the rest's anchor, N·m
+        self._u_anchor = 0.0  # Γu at the end of the rest's first window, N·m
         # mean square of Γr at rest out of contact, N²m², from the level where the start threshold
         # is ``threshold``
         self._rest_ms = (self.threshold / self.floor_k) ** 2 if self.floor_k > 0 else 0.0
@@ -226,7 +244,8 @@ class TorqueResidual:
         self._since_stop = math.inf  # s since the axis last stopped
         self._quiet = math.inf  # s since |Γr| was last at the threshold (or detected)
         self._rest_age = math.inf  # s of close following since the present rest began
-        self._standing = None  # Γr standing at rest when the start threshold fell under it, N·m
+        self._hand = 0.0  # at rest: the part of the residual that may be a hand still on the axis, N·m
+        self._dyn_r = 0.0  # Γr while moving, averaged over DYN_MEMORY s, N·m
         self._start_prev = math.inf  # the start threshold at the previous sample, N·m
         self._moving = False
         self._detected = False
@@ -250,6 +269,14 @@ class TorqueResidual:
         return min(max(self.release, 1.5 * math.sqrt(self._dyn_ms)), max(self.release, 0.8 * self.threshold))
 
     @property
+    def moving_threshold(self) -> float:
+        """The start threshold while the axis moves, N·m: ``threshold``, or ``MOVING_MARGIN`` times the RMS
+        of Γr while it moved with nobody in contact when that is larger (at most ``floor_cap`` x
+        ``threshold``): a coast after a release, slower than the friction's Stribeck velocity, is where
+        a model is least sure of its friction, and its own error there must not start the axis again."""
+        return min(max(self.threshold, MOVING_MARGIN * math.sqrt(self._dyn_ms)), self.floor_cap * self.threshold)
+
+    @property
     def rest_threshold(self) -> float:
         """The start threshold at rest, N·m: ``threshold``, or ``floor_k`` times the RMS of Γr at rest
         out of contact when that is larger (a model that misses part of the friction at rest then
@@ -267,7 +294,6 @@ class TorqueResidual:
         """A rest begins (the axis stopped, nobody in contact): Γu anew (the paper: eq. 13)."""
         self._u_n = 0
         self._rest_age = 0.0
-        self._standing = None
 
     def _learn_rest(self, raw: float, h: float) -> None:
         """Out of contact at rest: Γu is the mean of the raw residual over the first ``u_window`` s of
@@ -280,10 +306,16 @@ class TorqueResidual:
         if self._u_n < self._u_need:
             self._u_n += 1
             self._gamma_u += e / self._u_n
+            self._u_anchor = self._gamma_u
         elif self._rest_age < self.switch_quiet:  # the stop settling (not a push's deflection)
             self._rest_age += h
+            before = self._gamma_u - self._u_anchor
             self._gamma_u += min(h / max(self.u_window, h), 1.0) * e
-        elif self._standing is None and abs(e) < 0.5 * self.rest_threshold:  # (else the standing value follows)
+            # beyond the threshold a settling is as large as a push, and may be a hand pressing harder as
+            # the axis stopped: what goes beyond it is kept out of the reading without the hand
+            after = self._gamma_u - self._u_anchor
+            self._hand -= _beyond(after, self.threshold) - _beyond(before, self.threshold)
+        elif abs(e) < 0.5 * self.rest_threshold:
             self._gamma_u += min(h / self.u_tau, 1.0) * e
 
     def update(self, q: float, tau: float, dt: float | None = None) -> ResidualSample:
@@ -322,7 +354,8 @@ class TorqueResidual:
         q_f, qd_f, qdd_f, tau_f = fq.step(q), fqd.step(qd_raw), fqdd.step(qdd_raw), ftau.step(tau)
         pred_f = fpred.step(pred_raw)
 
-        old_mode, old_u = self._mode, (self._gamma_u if self._mode == QUASI_STATIC else 0.0)
+        # Γu without the hand (the model's own offset at rest) makes the switches bumpless
+        old_mode, old_u = self._mode, (self._gamma_u + self._hand if self._mode == QUASI_STATIC else 0.0)
         if abs(qd_f) >= self.qd_thr:
             self._mode = DYNAMIC
         elif self._mode == DYNAMIC:
@@ -333,15 +366,23 @@ class TorqueResidual:
             # wrong way (a 36 N·m jump of Γp, a self-sustained cycle on a LuGre plant)
             self._mode = QUASI_STATIC
         quasi = self._mode == QUASI_STATIC
-        if quasi and old_mode == DYNAMIC and not self._detected and self._quiet >= QUIET_BEFORE_REST:
-            self._new_rest()  # stopped with nobody in contact (no detection, nor a braking hand)
+        if not quasi and old_mode == QUASI_STATIC:  # moving: Γu is kept without the hand
+            self._gamma_u, self._hand = self._gamma_u + self._hand, 0.0
+        if quasi and old_mode == DYNAMIC and not self._detected:
+            if self._quiet >= QUIET_BEFORE_REST:
+                self._new_rest()  # stopped with nobody in contact (no detection, nor a braking hand)
+            else:  # the old Γu, read from here relative to what the moving model last saw
+                self._gamma_u -= self._dyn_r
+            # what the moving model read as the axis stopped (a hand left on below the threshold, or the
+            # model's own error) is, at rest, either: Γu takes it in, and the two readings below keep it
+            self._hand = self._dyn_r
         raw = tau_f - pred_f  # what Γu must add for Γr = 0
         learning = quasi and not self._detected
         if learning:
             self._learn_rest(raw, h)
         new_u = self._gamma_u if quasi else 0.0
         if self._mode != old_mode:  # bumpless: the prediction does not jump at a switch
-            self._bump += old_u - new_u
+            self._bump += old_u - new_u - self._hand
         moving = v > thr  # the axis starting or stopping (on the differenced speed)
         if self._mode != old_mode or moving != self._moving:
             self._since_switch = 0.0
@@ -355,10 +396,10 @@ class TorqueResidual:
         self._bump *= math.exp(-h / self.switch_tau)
         gamma_p = pred_f + new_u + self._bump
         gamma_r = r1 = gamma_p - tau_f
-        if not quasi:
-            self._standing = None  # moving: the dynamic model reads the hand again
-        elif self._standing is not None:  # a push only if both readings see it, the smaller of the two
-            g2 = r1 - self._standing
+        if not quasi:  # moving: the dynamic model reads the hand again
+            self._dyn_r += min(h / DYN_MEMORY, 1.0) * (r1 - self._dyn_r)
+        elif self._hand:  # a push only if both readings see it (Γr with and without the hand), the smaller
+            g2 = r1 + self._hand
             gamma_r = 0.0 if r1 * g2 <= 0.0 else (r1 if abs(r1) < abs(g2) else g2)
         a = abs(gamma_r)
         if not quasi and not self._detected and self._since_switch >= self.switch_quiet / 4:
@@ -369,7 +410,7 @@ class TorqueResidual:
             self._detected = a >= self.release_now
             self._start_prev = math.inf
         else:
-            start = self.threshold
+            start = self.moving_threshold
             if quasi:
                 if (learning and self._u_n >= self._u_need and self._since_switch >= self.switch_quiet
                         and abs(r1) < self.rest_threshold):  # what is not taken for a push (gated at half
@@ -379,16 +420,14 @@ class TorqueResidual:
                 self.rest_threshold_max = max(self.rest_threshold_max, start)
             if self._since_stop < self.switch_quiet:  # a stop: friction settles, the servo overshoots
                 start = max(start, self.switch_share * self.threshold)
-            if quasi and self._standing is None and start <= a < self._start_prev:
+            if quasi and start <= a < self._start_prev:
                 # the start threshold fell under a residual standing at rest (a stop's 2 x ended, the
                 # floor came down): not a push, rather a model off at this rest, or a hand that stayed
-                # on after braking the axis; from here a push must show in both readings
-                self._standing = r1
-                self.standing_max = max(self.standing_max, abs(r1))
+                # on after braking the axis; Γu takes it in, and a push must show in both readings
+                self._hand += r1
+                self._gamma_u -= r1
+                self.standing_max = max(self.standing_max, abs(self._hand))
                 gamma_r = a = 0.0
-            elif self._standing is not None and abs(r1 - self._standing) < 0.5 * start:
-                # like Γu, the standing value follows a slow drift while nobody pushes (u_tau)
-                self._standing += min(h / self.u_tau, 1.0) * (r1 - self._standing)
             self._start_prev = start
             self._detected = a >= start
         return ResidualSample(gamma_r, gamma_p, tau_f, q_f, qd_f, qdd_f, self._mode, self._detected, new_u)
