@@ -75,10 +75,11 @@ def fault_fleet(out: Path) -> tuple[Path, dict[str, str]]:
 
 
 def counterbalanced_arm_log(path: Path, seed: int = 20) -> Path:
-    """A 12 s six-axis log of the KR 6 R700 sixx (250 Hz, a seeded multi-sine, A2 about mid-range)
-    whose A2 carries a gas counterbalance the URDF does not know (about 5 N·m, a tenth of its
-    gravity torque), as tests/test_diagnose_robot.py builds it: ``kukaid diagnose`` of its own
-    whole-arm fit names ``counterbalance@A2``."""
+    """A 12 s six-axis log of the KR 6 R700 sixx (250 Hz, a seeded multi-sine over A2's range)
+    whose A2 carries a gas counterbalance the URDF does not know (a geometry off the diagnosis'
+    grid, about 30 N·m, a quarter of A2's gravity torque: a 5 N·m one, 4 % of it, is not a
+    plausible counterbalance): ``kukaid diagnose`` of its own whole-arm fit names
+    ``counterbalance@A2``."""
     import numpy as np
 
     from kukaid.diagnose.robot import gas_spring
@@ -89,12 +90,8 @@ def counterbalanced_arm_log(path: Path, seed: int = 20) -> Path:
     kr6 = RobotModel("kr6-r700-sixx")
     pi, fr = true_parameters(kr6, 1), true_friction(6, 2)
     t, q, qd, qdd = multisine(kr6, 12.0, 250.0, seed=seed)
-    mid = 0.5 * (kr6.lower[1] + kr6.upper[1])
-    q[:, 1] = mid + 0.35 * (q[:, 1] - mid)
-    qd[:, 1] *= 0.35
-    qdd[:, 1] *= 0.35
     tau = np.einsum("sjk,k->sj", kr6.regressor(q, qd, qdd), pi) + fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
-    tau[:, 1] -= 6.0 * gas_spring(q[:, 1], -1.2, 0.5)
+    tau[:, 1] -= 60.0 * gas_spring(q[:, 1], -1.23, 0.37, 1.4)
     rng = np.random.default_rng(0)
     tau += 0.05 * rng.standard_normal(tau.shape)
     log = AxisLog(time=t, q=q + 1e-5 * rng.standard_normal(q.shape), tau=tau, axes=tuple(range(1, 7)), attrs={})
