@@ -28,8 +28,8 @@ A candidate's nonlinear settings (the ripple order, the load or the thermal form
 spring's geometry: a grid, then a finer one about its pick) are chosen on the training folds only,
 by least squares of the joint's equation with the candidate, so the held-out fold judges the choice
 too. Its coefficients and the baseline are then fitted on the training folds and the held-out
-error measured. A counterbalance takes the place of its joint's spring and ripple terms and is
-judged at every prior strength (the file's gravity took part of it in). Recordings the file was
+error measured. A counterbalance takes the place of its joint's spring and ripple terms; it and a
+payload are judged at every prior strength (a rigid body refitted freely takes part of either in). Recordings the file was
 fitted on are not used when at least two others remain (:func:`_unseen`).
 
 A candidate is named when it lowers the held-out relative error of the joints it acts on by more
@@ -131,14 +131,16 @@ class RobotDiagnosis:
 COULOMB_GRID = (0.001, 0.003, 0.01, 0.03)
 VELOCITY_BAND = 4.0
 #: multiples of the prior's information (the file's uncertainty) tried for the rigid body's correction
-PRIOR_SCALES = (1.0, 1e-2, 1e-4)
+#: (1e6: the file's rigid body as it is)
+PRIOR_SCALES = (1e6, 1.0, 1e-2, 1e-4)
 
 
 @dataclass
 class _Baseline:
     """The joints' own columns the diagnosis refits beside a candidate, with its choices: per joint
-    the Coulomb transition (index into :data:`COULOMB_GRID`) and the viscous form ("hold" as the
-    file, or "linear"). ``coulomb`` (N, n, V), ``viscous`` {form: (N, n)}; ``cols(j, v, form)``."""
+    the Coulomb transition (index into :data:`COULOMB_GRID`, or the last: the file's own column), the
+    viscous form ("hold" as the file, or "linear") and a rotor inertia or not. ``coulomb`` (N, n,
+    V + 1), ``viscous`` {form: (N, n)}; ``cols(j, v, form, rotor)``."""
 
     base: list                 # per joint (N, c): the file's own columns (Coulomb and viscous replaced)
     ic: list                   # per joint: the Coulomb column's index in base[j]
@@ -162,11 +164,12 @@ class _Baseline:
         F[:, self.angle[j]] = 0.0
         return r, [F if i == j else f for i, f in enumerate(Fj)]
 
-    def cols(self, j: int, v: int, form: str) -> np.ndarray:
+    def cols(self, j: int, v: int, form: str, rotor: bool = True) -> np.ndarray:
         F = self.base[j].copy()
         F[:, self.ic[j]] = self.coulomb[:, j, v]
         F[:, self.iv[j]] = self.viscous[form][:, j]
-        return np.concatenate([F, self.qdd[:, j:j + 1]], axis=1)     # + the joint's rotor inertia
+        # + the joint's rotor inertia (a zero column when left out: the prior's indices stay)
+        return np.concatenate([F, self.qdd[:, j:j + 1] if rotor else np.zeros((F.shape[0], 1))], axis=1)
 
 
 def _signals(params: dict, logs: Sequence[Any], robot):
@@ -240,6 +243,9 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     coulomb = np.concatenate([filtered_coulomb(lg, n, settings, sample_rows(lg, settings), v_smooth=COULOMB_GRID,
                                                velocity_cutoff=VELOCITY_BAND * _cutoff(settings, 1.0 / lg.sample_time))
                               for lg in logs])
+    # the file's own column (the sign of the filtered velocity) the last option
+    coulomb = np.concatenate([coulomb, np.column_stack([Fj[j][:, own[j].index(coul[j])] for j in range(n)])[:, :, None]],
+                             axis=2)
     base = _Baseline(Fj, [own[j].index(coul[j]) for j in range(n)], [own[j].index(visc[j]) for j in range(n)],
                      coulomb, {"hold": hold, "linear": m.qd}, m.qdd, own_prior,
                      [[i for i, k in enumerate(own[j]) if names[k].endswith(".k") or ".ripple_" in names[k]]
@@ -305,30 +311,16 @@ class BaseCorrection:
 def _choose_baseline(base: _Baseline, r, tau, corr, prior, folds, K, w) -> tuple[list, list]:
     """Each joint's Coulomb transition and viscous form by its held-out error (every joint given the
     same option in turn, the rigid body's correction refitted beside; each joint takes its best).
-    Returns the joints' own columns and the choice per joint ``(v index, form)``."""
+    Returns the joints' own columns and the choice per joint ``(v index, form, rotor)``."""
     n = r.shape[1]
-    opts = [(v, f) for f in ("hold", "linear") for v in range(len(COULOMB_GRID))]
+    opts = [(v, f, rot) for rot in (True, False) for f in ("hold", "linear") for v in range(base.coulomb.shape[2])]
     errs = []
-    for v, f in opts:
-        num, _, _, _ = _heldout(r, tau, [base.cols(j, v, f) for j in range(n)], corr, {}, folds, K, w, prior=prior)
+    for o in opts:
+        num, _, _, _ = _heldout(r, tau, [base.cols(j, *o) for j in range(n)], corr, {}, folds, K, w, prior=prior)
         errs.append(num.sum(0))
     best = np.argmin(np.array(errs), axis=0)
     choice = [opts[int(b)] for b in best]
     return [base.cols(j, *choice[j]) for j in range(n)], choice
-
-
-def _choose_prior(Fj, r, tau, corr, prior, folds, K, w) -> tuple[float, list]:
-    """The strength of the prior on the rigid body's correction and on the joints' angle terms (a
-    multiple of the file's uncertainty, :data:`PRIOR_SCALES`) by the baseline's held-out error
-    (weighted, summed over the joints): recordings that cover the joints' ranges let the rigid body
-    be refitted freely, one that covers a narrow range does not."""
-    errs = []
-    for c in PRIOR_SCALES:
-        num, _, _, _ = _heldout(r, tau, Fj, corr, {}, folds, K, w, prior=_scaled(prior, c))
-        errs.append(float(np.sum(num.sum(0) * w)))
-    # the best, as each candidate's model is judged at the strength that predicts it best (:func:`_try`)
-    k = int(np.argmin(errs))
-    return PRIOR_SCALES[k], errs
 
 
 def _scaled(prior, c):
@@ -486,16 +478,20 @@ def _unseen(params: dict, logs: Sequence[Any]) -> tuple[list[Any], list[str]]:
             [str(lg.attrs.get("source_file") or f"log {k + 1}") for k, (lg, x) in enumerate(zip(logs, seen)) if x])
 
 
-def _try(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds, K, w, held, prior, base=None,
-         scales: Sequence[float] = (1.0,)):
-    """:func:`_try_at` at each prior strength of ``scales`` (multiples of the raw ``prior``): the one
-    with the smallest weighted held-out error, and that strength (None when no option applies).
-    With and without the candidate, the model is judged at the strength that predicts it best."""
-    res = _try_at(cand, ctx, r, tau, Fj, shared, local, folds, K, w, held, [_scaled(prior, c) for c in scales], base)
-    if res is None:
-        return None
-    k = int(np.argmin([float(np.sum(x[0].sum(0) * w)) for x in res]))
-    return res[k] + (scales[k],)
+def _try(cand: RobotCandidate, ctx: Context, r, tau, Fjs: dict, shared, local, folds, K, w, held, prior, base=None):
+    """:func:`_try_at` at each prior strength of ``Fjs`` {multiple of the raw ``prior``: the joints'
+    own columns chosen at it}: the one with the smallest weighted held-out error, and that strength
+    (None when no option applies). With and without the candidate, the model is judged at the
+    strength that predicts it best."""
+    best = None
+    for c, Fj in Fjs.items():
+        res = _try_at(cand, ctx, r, tau, Fj, shared, local, folds, K, w, held, _scaled(prior, c), base)
+        if res is None:
+            return None
+        e = float(np.sum(res[0].sum(0) * w))
+        if best is None or e < best[0]:
+            best = (e, res + (c,))
+    return best[1]
 
 
 def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds, K, w, held, prior, base=None):
@@ -594,12 +590,16 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     rms = np.sqrt(np.mean(tau ** 2, axis=0))
     sig = np.maximum(np.std(tau - tau_hat, axis=0), 1e-9)
     w = 1.0 / sig ** 2
-    Fj, choice = _choose_baseline(base, r, tau, corr, _scaled(prior, 1.0), folds, K, w)
-    scale, _ = _choose_prior(Fj, r, tau, corr, prior, folds, K, w)
-    # the equations' weights: the baseline's held-out residual (the file's own residual carries
-    # the file's rigid-body error, several times the baseline's on the wrist)
-    _, _, _, sqb = _heldout(r, tau, Fj, corr, {}, folds, K, w, prior=_scaled(prior, scale))
-    w = 1.0 / np.maximum(np.mean(sqb, axis=0), 1e-18)
+    # the baseline's choices at each prior strength; the strength whose baseline predicts best
+    best, Fjs = None, {}
+    for c in PRIOR_SCALES:
+        Fc_, ch_ = _choose_baseline(base, r, tau, corr, _scaled(prior, c), folds, K, w)
+        num_c = _heldout(r, tau, Fc_, corr, {}, folds, K, w, prior=_scaled(prior, c))[0]
+        e_c = float(np.sum(num_c.sum(0) * w))
+        Fjs[c] = Fc_
+        if best is None or e_c < best[0]:
+            best = (e_c, Fc_, ch_, c)
+    _, Fj, choice, scale = best
     ctx = _context(pieces, base, choice)
     # joints that carry gravity over the data: a counterbalance candidate each
     # (a counterbalance sits on a joint that carries the most gravity: at least half the largest range)
@@ -626,10 +626,11 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
         best = None
         trials: list[dict] = []
         for name, cand in remaining.items():
-            # a counterbalance is judged at every prior strength: the file's gravity took part of it in,
-            # which only a weaker prior gives back; the others at the baseline's
-            res = _try(cand, ctx, r, tau, Fj, shared, local, folds, K, w, held, prior, base,
-                       PRIOR_SCALES if cand.replaces_angle_terms else (scale,))
+            # a counterbalance or a payload is judged at every prior strength (a rigid body refitted
+            # freely takes part of either in, held it keeps what the file took in); the others at the
+            # baseline's
+            res = _try(cand, ctx, r, tau, Fjs if cand.rigid_body_like else {scale: Fj}, shared, local, folds, K, w,
+                       held, prior, base)
             if res is None:
                 continue
             fnum, fden, fsq, opt, coefs, col, c_scale = res
@@ -664,11 +665,15 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
         if best is None:
             break
         _, name, e, joints, info, mb, ma, col, fnum, fsq, gain_t, scale = best
+        Fj = Fjs[scale]
         cand = remaining.pop(name)
         rejected = [x_ for x_ in rejected if x_["name"] != name]
         local, shared = _with(local, shared, cand, col, n)
         if cand.replaces_angle_terms:
-            r, Fj = base.without_angle_terms(cand.joint, r, Fj)
+            r0 = r
+            r, Fj = base.without_angle_terms(cand.joint, r0, Fj)
+            Fjs = {c: base.without_angle_terms(cand.joint, r0, F)[1] for c, F in Fjs.items()}
+        Fjs[scale] = Fj
         steps.append({"name": name, "joints": [f"A{k + 1}" for k in joints], "params": {
             k: v for k, v in info.items() if not isinstance(v, list)}, "details": info,
             "mean_before": mb, "mean_after": ma, "gain_t": gain_t, "heldout_before": err.tolist(),

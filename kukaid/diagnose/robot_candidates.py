@@ -126,6 +126,8 @@ class RobotCandidate:
     shape_from_all_samples: bool = False
     #: the candidate takes the place of the file's terms of the joint's own angle (spring, ripple)
     replaces_angle_terms: bool = False
+    #: a torque the rigid body's correction can take in part of: judged at every prior strength
+    rigid_body_like: bool = False
 
     def joints(self, ctx: Context) -> list[int]:
         return list(range(ctx.n)) if self.joint is None else [self.joint]
@@ -162,6 +164,7 @@ class Counterbalance(RobotCandidate):
     the recording the file was fitted on they stood in for it, and extrapolate as it does not)."""
 
     replaces_angle_terms = True
+    rigid_body_like = True
 
     def __init__(self, joint: int) -> None:
         self.joint, self.name = joint, f"counterbalance@A{joint + 1}"
@@ -204,6 +207,7 @@ class Counterbalance(RobotCandidate):
 
 class Payload(RobotCandidate):
     name = "payload"
+    rigid_body_like = True
 
     def columns(self, ctx, option):
         return ctx.payload
