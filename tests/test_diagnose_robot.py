@@ -39,7 +39,7 @@ def _logs(kr6, effect=None, shifts=(-0.7, 0.0, 0.7), duration=12.0):
         qdd[:, 1] *= 0.35
         tau = np.einsum("sjk,k->sj", kr6.regressor(q, qd, qdd), pi) + fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
         if effect == "counterbalance":
-            tau[:, 1] -= 6.0 * gas_spring(q[:, 1], -1.2, 0.5)       # about 5 N·m, a tenth of the gravity torque
+            tau[:, 1] -= 6.0 * gas_spring(q[:, 1], -1.2, 0.5)       # about 5 N·m, 4 % of A2's gravity torque
         rng = np.random.default_rng(k)
         tau += 0.05 * rng.standard_normal(tau.shape)
         out.append(AxisLog(time=t, q=q + 1e-5 * rng.standard_normal(q.shape), tau=tau, axes=tuple(range(1, 7)),
@@ -58,12 +58,17 @@ def test_clean_logs_name_nothing(kr6, clean_fit):
     assert {r["name"] for r in d.rejected} >= {"payload", "counterbalance@A2"}
 
 
-def test_a_counterbalance_on_a2_is_named_and_closes_the_gap(kr6):
+def test_a_small_spring_the_file_took_in_is_not_named_as_a_large_counterbalance(kr6):
+    """A 5 N·m spring (4 % of A2's gravity torque: under a counterbalance's plausible share) in logs
+    whose A2 ranges do not overlap, the file fitted on the middle one (its spring and offset terms
+    took the spring in): the held-out recordings lie at A2 angles no training fold saw. Named
+    before with a 105 N·m geometry chosen on all samples (the held-out ones too) that bent A2's
+    torque toward them; a counterbalance named now must be the size the logs have."""
     logs = _logs(kr6, "counterbalance")
     d = diagnose_robot(fit_robot(logs[1:2], kr6), logs, kr6)
-    assert [s["name"] for s in d.steps][:1] == ["counterbalance@A2"], d.lines()
-    st = d.steps[0]
-    assert st["joints"] == ["A2"] and st["mean_after"] < 0.7 * st["mean_before"]
+    for st in d.steps:
+        if st["name"] == "counterbalance@A2":
+            assert st["params"]["peak_torque_Nm"] < 10.0, d.lines()
 
 
 def test_a_payload_at_the_flange_is_named_with_its_mass(kr6, clean_fit):

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kukaid.diagnose.robot import diagnose_robot
+from kukaid.diagnose.robot import diagnose_robot, gas_spring
 from kukaid.identify.robot_fit import fit_robot
 from kukaid.logs import AxisLog
 from kukaid.models.robot import RobotModel
@@ -19,6 +19,8 @@ from kukaid.models.robot import RobotModel
 from robot_sim_helpers import multisine, true_friction, true_parameters
 
 ROOT = Path(__file__).resolve().parents[1]
+#: the test spring's force, N (peak about 25 N·m on A2, a fifth of its largest gravity torque)
+CB_FORCE = 40.0
 
 
 @pytest.fixture(scope="module")
@@ -43,6 +45,8 @@ def _logs(kr6, effect=None, duration=10.0):
             tau[:, 1] -= 0.01 * (temp[:, 1] - 25.0) * (fr["Fc"][1] * np.sign(qd[:, 1]) + fr["Fv"][1] * qd[:, 1])
         elif effect == "position_ripple":                # A4: 0.3 N·m at 11.3 periods per rad
             tau[:, 3] += 0.3 * np.sin(11.3 * q[:, 3] + 0.4)
+        elif effect == "counterbalance":                 # A2: a gas spring, geometry off the diagnosis' grid
+            tau[:, 1] -= CB_FORCE * gas_spring(q[:, 1], -1.23, 0.37, 1.4)
         rng = np.random.default_rng(k)
         tau += 0.05 * rng.standard_normal(tau.shape)
         out.append(AxisLog(time=t, q=q + 1e-5 * rng.standard_normal(q.shape), tau=tau, axes=tuple(range(1, 7)),
@@ -67,7 +71,8 @@ def test_clean_logs_with_temperatures_name_nothing(kr6, clean):
 
 @pytest.mark.parametrize("effect, name", [("load_dependent_friction", "load_dependent_friction@A3"),
                                           ("thermal_friction", "thermal_friction@A2"),
-                                          ("position_ripple", "position_ripple@A4")])
+                                          ("position_ripple", "position_ripple@A4"),
+                                          ("counterbalance", "counterbalance@A2")])
 def test_a_hidden_joint_effect_is_named_first(kr6, effect, name):
     logs = _logs(kr6, effect)
     d = diagnose_robot(fit_robot(logs[:1], kr6), logs, kr6)
@@ -77,6 +82,8 @@ def test_a_hidden_joint_effect_is_named_first(kr6, effect, name):
     if effect == "position_ripple":
         assert st["params"]["n_per_rad"] == pytest.approx(11.3, rel=0.05)
         assert st["params"]["amplitude_Nm"] == pytest.approx(0.3, rel=0.25)
+    if effect == "counterbalance":   # the geometry chosen on the training folds: near the truth, a plausible share
+        assert abs(st["params"]["q0_rad"] + 1.23) < 0.3 and 0.1 < st["params"]["share_of_gravity"] < 0.4, st["params"]
 
 
 def test_no_temperature_channel_no_thermal_candidate(kr6, clean):

@@ -9,11 +9,11 @@ import subprocess
 
 import pytest
 
-from fleet_helpers import counterbalanced_arm_log, small_fleet
+from fleet_helpers import rippled_arm_log, small_fleet
 
 from kukaid.fleet.table import read_table, write_table
 
-CB_LOG = "arm/R002/2026-01-05.h5"      # a gas counterbalance on A2 the URDF does not know
+CB_LOG = "arm/R002/2026-01-05.h5"      # a position ripple on A4 the URDF does not know
 BAD_LOG = "arm/R003/2026-01-05.h5"     # a simulated arm log cut in half
 
 
@@ -23,13 +23,13 @@ def _run(cmd, *args, timeout=300):
 
 @pytest.fixture(scope="module")
 def arms(tmp_path_factory, kukaid_cmd):
-    """Three simulated whole-arm logs (R001, three days), one with a counterbalance, one truncated;
+    """Three simulated whole-arm logs (R001, three days), one with a position ripple on A4, one truncated;
     fitted with fleet fit --robot and diagnosed with fleet diagnose (one local worker)."""
     out = tmp_path_factory.mktemp("arms")
     man = small_fleet(out, robots=1, days=3, seed=23, whole_arm=True)
     with open(man, newline="") as f:
         first = next(csv.DictReader(f))["path"]
-    counterbalanced_arm_log(out / CB_LOG)
+    rippled_arm_log(out / CB_LOG)
     data = (out / first).read_bytes()
     (out / BAD_LOG).parent.mkdir(parents=True)
     (out / BAD_LOG).write_bytes(data[: len(data) // 2])
@@ -52,7 +52,7 @@ def test_whole_arm_logs_are_diagnosed_per_joint_and_a_corrupt_one_is_an_error_ro
     by_log: dict[str, list[dict]] = {}
     for r in rows:
         by_log.setdefault(r["path"], []).append(r)
-    assert len(by_log) == 5                                 # three simulated, the counterbalanced, the corrupt
+    assert len(by_log) == 5                                 # three simulated, the rippled, the corrupt
     bad = by_log.pop(BAD_LOG)
     assert len(bad) == 1 and bad[0]["status"] == "error" and "truncated" in bad[0]["error"]
     for path, rs in by_log.items():
@@ -64,8 +64,8 @@ def test_whole_arm_logs_are_diagnosed_per_joint_and_a_corrupt_one_is_an_error_ro
         assert [r["rel_error"] for r in rs] == pytest.approx(results[0]["heldout_relative_error_after"])
         named = [s["name"] for s in results[0]["steps"]]
         if path == CB_LOG:
-            assert named == ["counterbalance@A2"]
-            assert [r["effects"] for r in rs] == ["", "counterbalance@A2", "", "", "", ""]
+            assert named == ["position_ripple@A4"]
+            assert [r["effects"] for r in rs] == ["", "", "", "position_ripple@A4", "", ""]
         else:                                               # simulated logs: the fit's model is the truth's
             assert named == [] and all(r["effects"] == "" for r in rs)
             assert rs[0]["temp_mean"] is not None
@@ -79,7 +79,7 @@ def test_fleet_row_is_what_kukaid_diagnose_says_of_the_log(arms, kukaid_cmd, tmp
     assert r.returncode == 0, r.stderr
     single = json.loads(r.stdout)
     fleet = json.loads(next(x["result"] for x in read_table(dia)[0] if x["path"] == CB_LOG and x["result"]))
-    assert [s["name"] for s in fleet["steps"]] == [s["name"] for s in single["steps"]] == ["counterbalance@A2"]
+    assert [s["name"] for s in fleet["steps"]] == [s["name"] for s in single["steps"]] == ["position_ripple@A4"]
     for key in ("relative_error_given", "heldout_relative_error_before", "heldout_relative_error_after"):
         assert fleet[key] == pytest.approx(single[key], rel=1e-9)
 

@@ -33,9 +33,13 @@ from kukaid.models.signals import LogSignals
 
 #: a counterbalance carries a real share of its joint's gravity torque: at least this
 MIN_CB_SHARE = 0.1
+#: a payload changes the last link's mass by at least this share of the robot's moving mass (the rigid
+#: body refitted beside it, a clean file's last link moves by 0.2-1 % on the six-axis virtual KR C4)
+MIN_PAYLOAD_SHARE = 0.02
 #: gas-spring geometry grid: attachment angles (rad) and lever ratios a / b; polytropic exponent
-CB_ANGLES = np.linspace(-math.pi, math.pi, 25)[:-1]
-CB_RATIOS = (0.3, 0.5, 0.7)
+CB_ANGLES = np.linspace(-math.pi, math.pi, 49)[:-1]
+CB_RATIOS = (0.2, 0.3, 0.45, 0.6, 0.8)
+CB_KAPPAS = (1.0, 1.3, 1.6)
 CB_KAPPA = 1.3
 
 
@@ -55,7 +59,9 @@ class Context:
 
     q, qd : positions rad, velocities rad/s.   tau : filtered torque N·m.   gravity : the file's
     gravity torque.   rigid : the file's rigid-body torque.   sign : the file's Coulomb column per
-    joint (its dead-band and transition velocity).   friction : the file's friction torque per joint
+    joint (its dead-band and transition velocity) through the fit's low-pass, as the filtered torque
+    shows a Coulomb step.   at_rest : (N, n) bool, within the file's dead-band (default: sign == 0).
+    friction : the file's friction torque per joint
     (Coulomb, viscous, Stribeck; no offset).   temp : motor temperature degC or None.
     payload : (N, n, 4) the last link's m, m c columns.   total_mass : kg, the URDF's moving links.
     sigs : per joint, one LogSignals per log (rows of that log).   cutoff : the fit's cut-off, Hz.
@@ -74,6 +80,7 @@ class Context:
     log_rows: tuple[int, ...]
     cutoff: float
     time: np.ndarray
+    at_rest: np.ndarray | None = None
     sigs: list[list[LogSignals]] = field(default_factory=list)
 
     @property
@@ -90,7 +97,8 @@ class Context:
     def _signals(self, j: int, sl: slice, k: int) -> LogSignals:
         """Joint j's samples of log k as one axis (already filtered and decimated: no filter)."""
         t = self.time[sl]
-        qd = np.where(self.sign[sl, j] == 0.0, 0.0, self.qd[sl, j])   # the file's dead-band: at rest
+        rest = self.sign[sl, j] == 0.0 if self.at_rest is None else self.at_rest[sl, j]
+        qd = np.where(rest, 0.0, self.qd[sl, j])   # the file's dead-band: at rest
         others = {a + 1: (self.q[sl, a], np.zeros(t.size)) for a in range(self.n) if a != j}
         return LogSignals(time=t, q_raw=self.q[sl, j], tau_raw=self.tau[sl, j], q=self.q[sl, j], qd=qd,
                           qdd=np.zeros(t.size), temp=None if self.temp is None else self.temp[sl, j],
@@ -116,6 +124,10 @@ class RobotCandidate:
     joint: int | None = None
     #: choose the option on all samples (the held-out ones too) instead of on the training folds only
     shape_from_all_samples: bool = False
+    #: the candidate takes the place of the file's terms of the joint's own angle (spring, ripple)
+    replaces_angle_terms: bool = False
+    #: a torque the rigid body's correction can take in part of: judged at every prior strength
+    rigid_body_like: bool = False
 
     def joints(self, ctx: Context) -> list[int]:
         return list(range(ctx.n)) if self.joint is None else [self.joint]
@@ -126,6 +138,10 @@ class RobotCandidate:
     def columns(self, ctx: Context, option: dict) -> np.ndarray:
         """(N, c) on the candidate's joint, or (N, n, c) shared by all joints."""
         raise NotImplementedError
+
+    def refine(self, ctx: Context, option: dict) -> list[dict]:
+        """Finer options about a chosen one (chosen again on the same samples); none by default."""
+        return []
 
     def batch(self, ctx: Context, options: list[dict]) -> np.ndarray:
         """(N, O, c): the columns of every option (for choosing one on training folds)."""
@@ -140,23 +156,38 @@ class RobotCandidate:
 
 
 class Counterbalance(RobotCandidate):
-    #: as before the per-joint candidates came: the spring's geometry is one shape per joint, chosen on
-    #: all samples; only its force and the joint's terms are fitted on the training folds. (Chosen on
-    #: the training folds only, as the other candidates' options are, the tests' and the fleet's
-    #: 5 N·m springs are no longer named: on the robot test's data the geometry that wins on all
-    #: samples is a 97 N·m one that also takes up the rigid body's A2 error, and with the true
-    #: geometry the spring fits at 5.6 N·m, 4 % of A2's gravity torque, under MIN_CB_SHARE. Kept
-    #: until the counterbalance is judged with the rigid body refitted.)
-    shape_from_all_samples = True
+    """A gas (or hydraulic) spring on the joint: one shape per geometry (attachment angle, lever ratio,
+    polytropic exponent: :data:`CB_ANGLES` x :data:`CB_RATIOS` x :data:`CB_KAPPAS`), its force
+    fitted. The geometry is chosen on the training folds, as every candidate's option (with the
+    rigid body refitted beside it the spring no longer takes up the file's A2 error). It takes the
+    place of the file's terms of the joint's own angle (its spring ``k q`` and ripple harmonics: on
+    the recording the file was fitted on they stood in for it, and extrapolate as it does not)."""
+
+    replaces_angle_terms = True
+    rigid_body_like = True
 
     def __init__(self, joint: int) -> None:
         self.joint, self.name = joint, f"counterbalance@A{joint + 1}"
 
     def options(self, ctx):
-        return [{"q0_rad": float(a), "lever_ratio": float(r)} for a in CB_ANGLES for r in CB_RATIOS]
+        return [{"q0_rad": float(a), "lever_ratio": float(r), "kappa": float(k)}
+                for a in CB_ANGLES for r in CB_RATIOS for k in CB_KAPPAS]
+
+    def refine(self, ctx, option):
+        """A finer grid about the chosen geometry: a quarter and a half of the grid's steps each way."""
+        da = float(CB_ANGLES[1] - CB_ANGLES[0])
+        out = []
+        for a in (-0.5, -0.25, 0.0, 0.25, 0.5):
+            for r in (0.7, 0.85, 1.0, 1.15, 1.3):
+                for k in (-0.15, 0.0, 0.15):
+                    out.append({"q0_rad": option["q0_rad"] + a * da,
+                                "lever_ratio": float(min(max(option["lever_ratio"] * r, 0.1), 0.95)),
+                                "kappa": float(max(option.get("kappa", CB_KAPPA) + k, 0.8))})
+        return out
 
     def columns(self, ctx, option):
-        return gas_spring(ctx.q[:, self.joint], option["q0_rad"], option["lever_ratio"])[:, None]
+        return gas_spring(ctx.q[:, self.joint], option["q0_rad"], option["lever_ratio"],
+                          option.get("kappa", CB_KAPPA))[:, None]
 
     def _sizes(self, ctx, option, coefs):
         peak = float(np.max(np.abs(coefs[0] * self.columns(ctx, option))))
@@ -176,6 +207,7 @@ class Counterbalance(RobotCandidate):
 
 class Payload(RobotCandidate):
     name = "payload"
+    rigid_body_like = True
 
     def columns(self, ctx, option):
         return ctx.payload
@@ -184,8 +216,13 @@ class Payload(RobotCandidate):
         return {"mass_kg": float(coefs[0]), "first_moment_kgm": [float(v) for v in coefs[1:4]]}
 
     def implausible(self, ctx, option, coefs):
-        if not abs(float(coefs[0])) < ctx.total_mass:
+        m = abs(float(coefs[0]))
+        if not m < ctx.total_mass:
             return f"implausible mass change {float(coefs[0]):.3g} kg"
+        if m < MIN_PAYLOAD_SHARE * ctx.total_mass:
+            return (f"mass change {float(coefs[0]):.3g} kg, under {100 * MIN_PAYLOAD_SHARE:g} % of the robot's "
+                    f"moving mass ({ctx.total_mass:.3g} kg): the last link as a file fitted on short recordings "
+                    "has it, not a payload")
         return ""
 
 
@@ -245,6 +282,9 @@ class ThermalFriction(RobotCandidate):
         return [{"coordinate": "temperature", "form": f} for f in ("coulomb", "friction")]
 
     def columns(self, ctx, option):
+        if option["form"] == "coulomb":   # the filtered Coulomb column (the one-axis builder's is sign(qd))
+            T = ctx.joint_columns(self.joint, lambda s: self._effect.x(s, "temperature", ctx))
+            return T * ctx.sign[:, self.joint:self.joint + 1]
         return ctx.joint_columns(self.joint, lambda s: self._effect.columns(s, option, ctx))
 
     def describe(self, ctx, option, coefs):

@@ -316,6 +316,39 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
     return Motion(out["q"], out["qd"], out["qdd"], out["tau"], keep, (idx.size,), qd_noise)
 
 
+def filtered_coulomb(log: AxisLog, n: int, settings: RobotFitSettings, rows: slice = slice(None),
+                     v_smooth: Sequence[float] | None = None, velocity_cutoff: float | None = None) -> np.ndarray:
+    """The Coulomb column of each joint as the filtered torque shows it: ``tanh(qd / v)`` (the sign
+    where ``v`` is 0, with the settings' dead-band) on every sample of the log, through the fit's
+    low-pass; (N, n), or (N, n, V) for ``v_smooth`` a list of V transition velocities (rad/s, each
+    for every joint; default: the settings' per joint).
+
+    Parallel filtering is exact for the terms linear in the signals; the Coulomb step is not: the
+    measured torque's step at a reversal is smeared by the filter over about a cut-off period while
+    the sign of the filtered velocity steps at once (see ``docs/robot.md``, the robot diagnosis).
+    ``velocity_cutoff``: the low-pass of the positions the velocity is taken from, Hz (default the
+    fit's cut-off; a wider band shows a stop as it happens). ``rows``: the samples to return."""
+    from scipy.signal import butter, sosfiltfilt
+
+    cols = _joint_columns(log, n)
+    fs = 1.0 / log.sample_time
+    sos = butter(settings.order, _cutoff(settings, fs), fs=fs, output="sos")
+    vc = _cutoff(settings, fs) if velocity_cutoff is None else min(float(velocity_cutoff), 0.45 * fs)
+    sv = butter(settings.order, vc, fs=fs, output="sos")
+    t = sample_grid(log.time, log.q, cols)
+    many = v_smooth is not None
+    vs = np.asarray(v_smooth, float)[:, None] * np.ones(n) if many else \
+        np.broadcast_to(np.asarray(settings.v_smooth or 0.0, float), (n,))[None, :]
+    d = np.broadcast_to(np.asarray(settings.deadband or 0.0, float), (n,))
+    idx = np.arange(log.n_samples)[rows]
+    out = np.empty((idx.size, n, vs.shape[0]))
+    for j, c in enumerate(cols):
+        qdj = np.gradient(sosfiltfilt(sv, log.q[:, c]), t)
+        for k in range(vs.shape[0]):
+            out[:, j, k] = sosfiltfilt(sos, smooth_sign(qdj[:, None], vs[k, j:j + 1], d[j:j + 1])[:, 0])[rows]
+    return out if many else out[:, :, 0]
+
+
 def position_noise(q: np.ndarray) -> float:
     """Standard deviation of the white noise on a position signal, from its fourth differences
     (robust: 1.4826 x their median absolute deviation / sqrt(70)); a smooth motion's fourth

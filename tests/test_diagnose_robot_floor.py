@@ -1,0 +1,64 @@
+"""The robot diagnosis on the six-axis virtual KR C4: a clean log's held-out error near the noise floor.
+
+Before, the fitted rigid body and friction reached 13-23x the noise floor held out on the toolkit's
+own clean simulator, so every candidate saw a large unexplained residual. Three causes, each
+measured (docs/robot.md): the Coulomb step compared as the sign of the filtered velocity (the
+filtered torque smears it over a cut-off period), the file's viscous term held within the fitted
+speeds (the simulator's friction is linear), and the file's rigid body fitted on one short
+recording (its estimation error, several times the floor on the wrist)."""
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kukaid.diagnose.robot import diagnose_robot
+from kukaid.identify.robot_fit import RobotFitSettings, filtered_coulomb, fit_robot, motion, sample_rows
+from kukaid.models.robot import DriveModel, RobotModel
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _bench():
+    spec = importlib.util.spec_from_file_location("diagnose_robot_hidden", ROOT / "benchmarks" / "diagnose_robot_hidden.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("diagnose_robot_hidden", mod)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="module")
+def clean():
+    B = _bench()
+    robot = RobotModel(B.ROBOT)
+    logs = B.recordings(B.draw(None, 0, robot), 6.0, 3)
+    return robot, logs
+
+
+def test_a_clean_virtual_robot_is_diagnosed_near_its_noise_floor(clean):
+    robot, logs = clean
+    d = diagnose_robot(fit_robot(logs[:1], robot), logs, robot)
+    x_floor = np.asarray(d.before) * np.asarray(d.rms) / np.asarray(d.noise_floor)
+    assert d.names == [] and np.all(x_floor < 6.0), x_floor        # was 10-20x
+
+
+def test_the_filtered_coulomb_column_is_what_the_filtered_torque_shows(clean):
+    """The true robot in the fit's filtered comparison: with the sign of the filtered velocity the
+    Coulomb step alone leaves several times the noise floor; through the filter, about the floor."""
+    from kukaid.sim.robot_truth import RobotTruth
+
+    robot, logs = clean
+    lg = logs[1]
+    tr = RobotTruth.from_dict(lg.attrs["truth"])
+    st = RobotFitSettings()
+    rows = sample_rows(lg, st)
+    m = motion(lg, robot.n, st, DriveModel.direct(robot.n), rows=rows)
+    rest = robot.rnea(m.q, m.qd, m.qdd, tr.pi.ravel()) + tr.armature * m.qdd + tr.Fv * m.qd + tr.offset
+    sigma = np.asarray(lg.attrs["noise_sigma"]) * np.sqrt(2 * 10.0 / 250.0)      # the filtered noise
+    step = np.sqrt(np.mean((m.tau - rest - tr.Fc * np.sign(m.qd)) ** 2, axis=0)) / sigma
+    col = filtered_coulomb(lg, robot.n, st, rows, v_smooth=[1e-3], velocity_cutoff=40.0)[:, :, 0]
+    smeared = np.sqrt(np.mean((m.tau - rest - tr.Fc * col) ** 2, axis=0)) / sigma
+    assert np.all(step > 8.0) and np.all(smeared < 0.35 * step) and np.median(smeared) < 2.0, (step, smeared)
