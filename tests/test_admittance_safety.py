@@ -160,6 +160,13 @@ def _model(**kw):
     return model_from_params(SimConfig().replace(**kw).truth_params())
 
 
+def _move_up(k: int) -> tuple[float, float]:
+    """Position (rad) and speed (rad/s) at sample k (12 ms) of a 0.06 rad minimum-jerk move up from
+    sample 100 to 200."""
+    x = min(max((k - 100) / 100.0, 0.0), 1.0)
+    return Q0 + 0.06 * x ** 3 * (10 - 15 * x + 6 * x * x), 0.06 * 30 * x * x * (1 - x) ** 2 / 1.2
+
+
 def test_gamma_u_is_taken_anew_at_every_rest():
     """The paper's Γu (eq. 13) at the start of every quasi-static phase: a friction held at the second
     rest that differs from the first by 12 N·m is not a push."""
@@ -215,9 +222,7 @@ def test_a_residual_standing_at_rest_when_the_threshold_falls_is_not_a_push():
     W = float(np.sum(m.maxwell_slip.W))
     out = []
     for k in range(1700):
-        x = min(max((k - 100) / 100.0, 0.0), 1.0)  # a 0.06 rad move up from sample 100 to 200
-        q = Q0 + 0.06 * x ** 3 * (10 - 15 * x + 6 * x * x)
-        v = 0.06 * 30 * x * x * (1 - x) ** 2 / 1.2
+        q, v = _move_up(k)
         brake = -7.0 if 175 <= k < 185 else 0.0  # a hand brakes the axis briefly, 0.2 s before it stops
         push = 8.0 if 600 <= k < 700 else (-6.0 if 800 <= k < 900 else 0.0)
         # at rest after the move the axis holds 8 N·m less friction than the model's saturated elements,
@@ -323,9 +328,7 @@ def test_a_hand_left_on_under_the_threshold_as_the_axis_stops_is_no_push_when_it
     W = float(np.sum(m.maxwell_slip.W))
     out = []
     for k in range(1100):
-        x = min(max((k - 100) / 100.0, 0.0), 1.0)  # a 0.06 rad move up from sample 100 to 200
-        q = Q0 + 0.06 * x ** 3 * (10 - 15 * x + 6 * x * x)
-        v = 0.06 * 30 * x * x * (1 - x) ** 2 / 1.2
+        q, v = _move_up(k)
         hand = 4.0 if 150 <= k < 700 else (20.0 if 900 <= k < 1000 else 0.0)
         creep = 5.0 * min(max((k - 650) / 20.0, 0.0), 1.0)
         fric = float(m.friction(v)) if 100 <= k < 200 else (0.0 if k < 100 else W)
