@@ -160,11 +160,22 @@ def _model(**kw):
     return model_from_params(SimConfig().replace(**kw).truth_params())
 
 
-def _move_up(k: int) -> tuple[float, float]:
-    """Position (rad) and speed (rad/s) at sample k (12 ms) of a 0.06 rad minimum-jerk move up from
-    sample 100 to 200."""
-    x = min(max((k - 100) / 100.0, 0.0), 1.0)
-    return Q0 + 0.06 * x ** 3 * (10 - 15 * x + 6 * x * x), 0.06 * 30 * x * x * (1 - x) ** 2 / 1.2
+def _after_a_move_up(n: int, rest_friction, external):
+    """The estimator (threshold 5 N·m, 12 ms) over ``n`` samples of a 0.06 rad minimum-jerk move up
+    from sample 100 to 200: the model's own friction while moving, ``rest_friction(k, W)`` N·m after
+    it (W: the model's saturated Maxwell-slip torque), ``external(k)`` N·m on the link throughout.
+    Returns (detected per sample, the estimator)."""
+    m = _model(vibration=False)
+    est = TorqueResidual(m, sample_time=0.012, threshold=5.0)
+    W = float(np.sum(m.maxwell_slip.W))
+    out = []
+    for k in range(n):
+        x = min(max((k - 100) / 100.0, 0.0), 1.0)
+        q = Q0 + 0.06 * x ** 3 * (10 - 15 * x + 6 * x * x)
+        v = 0.06 * 30 * x * x * (1 - x) ** 2 / 1.2
+        fric = float(m.friction(v)) if 100 <= k < 200 else (0.0 if k < 100 else rest_friction(k, W))
+        out.append(est.update(q, m.rigid.Mx * math.cos(q) + fric - external(k)).detected)  # Γr = Γp - τ
+    return np.array(out), est
 
 
 def test_gamma_u_is_taken_anew_at_every_rest():
@@ -217,21 +228,13 @@ def test_a_residual_standing_at_rest_when_the_threshold_falls_is_not_a_push():
     the residual can stand at 8 N·m, a hand or the model's friction at rest.  When the stop's doubled
     threshold ends it is not a push; a push is what both readings see (8 N·m more), it ends when it
     is gone, and 6 N·m the other way (one reading) is not one."""
-    m = _model(vibration=False)
-    est = TorqueResidual(m, sample_time=0.012, threshold=5.0)
-    W = float(np.sum(m.maxwell_slip.W))
-    out = []
-    for k in range(1700):
-        q, v = _move_up(k)
-        brake = -7.0 if 175 <= k < 185 else 0.0  # a hand brakes the axis briefly, 0.2 s before it stops
-        push = 8.0 if 600 <= k < 700 else (-6.0 if 800 <= k < 900 else 0.0)
+    det, est = _after_a_move_up(
+        1700,
         # at rest after the move the axis holds 8 N·m less friction than the model's saturated elements,
         # and from sample 950 its friction drifts by 8 N·m more over 8.4 s
-        drift = 8.0 * min(max((k - 950) / 700.0, 0.0), 1.0)
-        fric = float(m.friction(v)) if 100 <= k < 200 else (0.0 if k < 100 else W - 8.0 - drift)
-        r = est.update(q, m.rigid.Mx * math.cos(q) + fric - brake - push)  # Γr = Γp - τ
-        out.append(r.detected)
-    det = np.array(out)
+        lambda k, W: W - 8.0 - 8.0 * min(max((k - 950) / 700.0, 0.0), 1.0),
+        # a hand brakes the axis briefly, 0.2 s before it stops; then pushes
+        lambda k: -7.0 if 175 <= k < 185 else (8.0 if 600 <= k < 700 else (-6.0 if 800 <= k < 900 else 0.0)))
     assert not det[200:600].any()  # the stop, its doubled threshold and its end: nothing
     assert det[615:700].all()  # 8 N·m more: a push
     assert not det[720:900].any()  # gone again: ended; 6 N·m the other way: one reading only
@@ -323,18 +326,8 @@ def test_a_hand_left_on_under_the_threshold_as_the_axis_stops_is_no_push_when_it
     stiction: 5 N·m in 0.25 s, faster than Γu follows), and the hand lets go: about 9 N·m against the
     new Γu, 6 N·m against the model without the hand the moving model had read.  Not a push; a push
     both readings see still is one."""
-    m = _model(vibration=False)
-    est = TorqueResidual(m, sample_time=0.012, threshold=5.0)
-    W = float(np.sum(m.maxwell_slip.W))
-    out = []
-    for k in range(1100):
-        q, v = _move_up(k)
-        hand = 4.0 if 150 <= k < 700 else (20.0 if 900 <= k < 1000 else 0.0)
-        creep = 5.0 * min(max((k - 650) / 20.0, 0.0), 1.0)
-        fric = float(m.friction(v)) if 100 <= k < 200 else (0.0 if k < 100 else W)
-        r = est.update(q, m.rigid.Mx * math.cos(q) + fric + creep - hand)  # Γr = Γp - τ
-        out.append(r.detected)
-    det = np.array(out)
+    det, _ = _after_a_move_up(1100, lambda k, W: W + 5.0 * min(max((k - 650) / 20.0, 0.0), 1.0),
+                              lambda k: 4.0 if 150 <= k < 700 else (20.0 if 900 <= k < 1000 else 0.0))
     assert not det[200:900].any()  # the stop with the hand on, the creep, the hand letting go: nothing
     assert det[915:1000].all()  # a 20 N·m push after it (the threshold at rest has risen): a push
 
