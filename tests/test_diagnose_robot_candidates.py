@@ -86,17 +86,19 @@ def test_a_hidden_joint_effect_is_named_first(kr6, effect, name):
         assert abs(st["params"]["q0_rad"] + 1.23) < 0.3 and 0.1 < st["params"]["share_of_gravity"] < 0.4, st["params"]
 
 
-def test_a_named_ripple_closes_its_joints_gap_to_the_clean_logs(kr6, clean):
-    """After the ripple is named, its joint's own choices (Coulomb transition, viscous form, rotor
-    inertia) and the prior's strength are made again with it beside: made on a torque the ripple
-    dominated, they left A4 at several times the clean logs' held-out error."""
-    logs, p = clean
-    ref = diagnose_robot(p, logs, kr6, max_steps=0).before[3]
-    rl = _logs(kr6, "position_ripple")
-    d = diagnose_robot(fit_robot(rl[:1], kr6), rl, kr6, max_steps=1)
-    assert d.names == ["position_ripple@A4"], d.lines()
-    assert d.after[3] < 1.3 * ref, (d.after[3], ref)
-    assert d.steps[0]["heldout_after"] == d.after
+def test_after_a_named_payload_the_baseline_is_chosen_again(kr6):
+    """The benchmark's quick payload case (a 1.5-5 kg box at the flange, its own inertia too): after
+    the payload is named, the joints' own choices (Coulomb transition, viscous form, rotor inertia)
+    and the prior's strength are made again with it beside. Made on a torque the payload dominated,
+    they left the held-out error at 4.4x the noise floor; made again, 3.4x."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import diagnose_robot_hidden as bench
+    finally:
+        sys.path.pop(0)
+    row = bench.run_case(bench.draw("payload", 0, kr6), 4.0, kr6, twin=False, n_rec=3)
+    assert row["named"] == ["payload"], row["named"]
+    assert row["after_x_floor"] < 3.9, row["after_x_floor"]
 
 
 def test_no_temperature_channel_no_thermal_candidate(kr6, clean):
