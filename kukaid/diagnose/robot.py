@@ -37,9 +37,11 @@ than :data:`MARGIN`, makes no joint's held-out error worse by as much (and by mo
 :data:`WORSE_FLOOR` of its noise floor), its gain is at least
 :data:`MIN_T` standard errors of its spread over blocks of the held-out recordings (the log of
 the squared-error ratio per block), and its refit
-on all samples passes its plausibility rule; the best is added and the others tried again (at most
-``max_steps``). The noise floor per joint (:func:`kukaid.diagnose.noise.filtered_noise_floor`:
-the RMSE of a perfect model in the fit's filtered comparison) is reported beside the errors.
+on all samples passes its plausibility rule; the best is added (the joints' own choices and the
+prior's strength made again with it beside: made without it, they were made on a torque it
+dominated) and the others tried again (at most ``max_steps``). The noise floor per joint
+(:func:`kukaid.diagnose.noise.filtered_noise_floor`: the RMSE of a perfect model in the fit's
+filtered comparison) is reported beside the errors.
 """
 from __future__ import annotations
 
@@ -308,19 +310,29 @@ class BaseCorrection:
         return Y[:, :, self.independent]
 
 
-def _choose_baseline(base: _Baseline, r, tau, corr, prior, folds, K, w) -> tuple[list, list]:
+def _choose_baseline(base: _Baseline, r, tau, corr, prior, folds, K, w, local: dict | None = None,
+                     replaced: Sequence[int] = ()) -> tuple[list, list]:
     """Each joint's Coulomb transition and viscous form by its held-out error (every joint given the
     same option in turn, the rigid body's correction refitted beside; each joint takes its best).
-    Returns the joints' own columns and the choice per joint ``(v index, form, rotor)``."""
+    ``local``, ``replaced``: named effects' columns refitted beside, the joints whose terms of their
+    own angle a named effect took the place of. Returns the joints' own columns and the choice per
+    joint ``(v index, form, rotor)``."""
     n = r.shape[1]
     opts = [(v, f, rot) for rot in (True, False) for f in ("hold", "linear") for v in range(base.coulomb.shape[2])]
+
+    def cols(choice):
+        F = [base.cols(j, *choice[j]) for j in range(n)]
+        for j in replaced:
+            F = base.without_angle_terms(j, r, F)[1]
+        return F
+
     errs = []
     for o in opts:
-        num, _, _, _ = _heldout(r, tau, [base.cols(j, *o) for j in range(n)], corr, {}, folds, K, w, prior=prior)
+        num, _, _, _ = _heldout(r, tau, cols([o] * n), corr, local or {}, folds, K, w, prior=prior)
         errs.append(num.sum(0))
     best = np.argmin(np.array(errs), axis=0)
     choice = [opts[int(b)] for b in best]
-    return [base.cols(j, *choice[j]) for j in range(n)], choice
+    return cols(choice), choice
 
 
 def _scaled(prior, c):
@@ -622,6 +634,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     before = err.copy()
     steps, rejected = [], []
     tried: list[dict] = []
+    replaced: list[int] = []
     for rnd in range(max(0, max_steps)):
         best = None
         trials: list[dict] = []
@@ -674,6 +687,21 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             r, Fj = base.without_angle_terms(cand.joint, r0, Fj)
             Fjs = {c: base.without_angle_terms(cand.joint, r0, F)[1] for c, F in Fjs.items()}
         Fjs[scale] = Fj
+        if cand.replaces_angle_terms:
+            replaced.append(cand.joint)
+        # the joints' own choices and the prior's strength again, with the named effect beside: made
+        # without it, they were made on a torque it dominated (a ripple of 30x the noise floor on a
+        # joint leaves its Coulomb transition, viscous form and rotor inertia to chance)
+        e_now = float(np.sum(fnum.sum(0) * w))
+        for c in PRIOR_SCALES:
+            Fc_, _ = _choose_baseline(base, r, tau, shared, _scaled(prior, c), folds, K, w, local, replaced)
+            num_c, _, _, sq_c = _heldout(r, tau, Fc_, shared, local, folds, K, w, held, prior=_scaled(prior, c))
+            e_c = float(np.sum(num_c.sum(0) * w))
+            Fjs[c] = Fc_
+            if e_c < e_now:
+                e_now, Fj, scale, fnum, fsq = e_c, Fc_, c, num_c, sq_c
+        e = _rel(fnum, den)
+        ma = float(np.mean(e[joints]))
         steps.append({"name": name, "joints": [f"A{k + 1}" for k in joints], "params": {
             k: v for k, v in info.items() if not isinstance(v, list)}, "details": info,
             "mean_before": mb, "mean_after": ma, "gain_t": gain_t, "heldout_before": err.tolist(),
