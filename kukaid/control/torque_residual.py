@@ -238,7 +238,7 @@ class TorqueResidual:
         self._rest_ms = (self.threshold / self.floor_k) ** 2 if self.floor_k > 0 else 0.0
         self._dyn_ms, self._dyn_n = 0.0, 0  # mean square of Γr moving out of contact, N²m²
         self.rest_threshold_max = self.threshold
-        self.standing_max = 0.0  # the largest |Γr| found standing at rest when the threshold fell, N·m
+        self.standing_max = 0.0  # the largest torque held as a possible hand when the threshold fell under one, N·m
         self._bump = 0.0  # Γp jump of the last mode switch, fading
         self._since_switch = math.inf  # s since the axis last started or stopped
         self._since_stop = math.inf  # s since the axis last stopped
