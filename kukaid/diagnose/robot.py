@@ -335,6 +335,24 @@ def _choose_baseline(base: _Baseline, r, tau, corr, prior, folds, K, w, local: d
     return cols(choice), choice
 
 
+def _baselines(base: _Baseline, r, tau, shared, prior, folds, K, w, local: dict | None = None,
+               replaced: Sequence[int] = ()) -> dict:
+    """The joints' own columns chosen (:func:`_choose_baseline`) at each prior strength of
+    :data:`PRIOR_SCALES`: {strength: (columns, choice, held-out squared error per fold (K, n), per
+    sample (N, n))}."""
+    out = {}
+    for c in PRIOR_SCALES:
+        F, choice = _choose_baseline(base, r, tau, shared, _scaled(prior, c), folds, K, w, local, replaced)
+        num, _, _, sq = _heldout(r, tau, F, shared, local or {}, folds, K, w, prior=_scaled(prior, c))
+        out[c] = (F, choice, num, sq)
+    return out
+
+
+def _weighted(num: np.ndarray, w: np.ndarray) -> float:
+    """Held-out squared error per fold and joint (K, n) summed with the joints' weights."""
+    return float(np.sum(num.sum(0) * w))
+
+
 def _scaled(prior, c):
     info, keep = prior[1]
     return ([p * c for p in prior[0]], c * info + (1.0 - c) * keep)
@@ -500,7 +518,7 @@ def _try(cand: RobotCandidate, ctx: Context, r, tau, Fjs: dict, shared, local, f
         res = _try_at(cand, ctx, r, tau, Fj, shared, local, folds, K, w, held, _scaled(prior, c), base)
         if res is None:
             return None
-        e = float(np.sum(res[0].sum(0) * w))
+        e = _weighted(res[0], w)
         if best is None or e < best[0]:
             best = (e, res + (c,))
     return best[1]
@@ -541,7 +559,7 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
 
         extra: list = []
         best_all = pick_on(np.ones(r.shape[0], bool))
-        pick = [best_all if cand.shape_from_all_samples else pick_on(folds != f) if f in held else -1 for f in range(K)]
+        pick = [pick_on(folds != f) if f in held else -1 for f in range(K)]
         opts = opts + [e[0] for e in extra]
         B = np.concatenate([B] + [e[1][:, None, :] for e in extra], axis=1) if extra else B
 
@@ -603,15 +621,10 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     sig = np.maximum(np.std(tau - tau_hat, axis=0), 1e-9)
     w = 1.0 / sig ** 2
     # the baseline's choices at each prior strength; the strength whose baseline predicts best
-    best, Fjs = None, {}
-    for c in PRIOR_SCALES:
-        Fc_, ch_ = _choose_baseline(base, r, tau, corr, _scaled(prior, c), folds, K, w)
-        num_c = _heldout(r, tau, Fc_, corr, {}, folds, K, w, prior=_scaled(prior, c))[0]
-        e_c = float(np.sum(num_c.sum(0) * w))
-        Fjs[c] = Fc_
-        if best is None or e_c < best[0]:
-            best = (e_c, Fc_, ch_, c)
-    _, Fj, choice, scale = best
+    bl = _baselines(base, r, tau, corr, prior, folds, K, w)
+    Fjs = {c: v[0] for c, v in bl.items()}
+    scale = min(bl, key=lambda c: _weighted(bl[c][2], w))
+    Fj, choice = bl[scale][:2]
     ctx = _context(pieces, base, choice)
     # joints that carry gravity over the data: a counterbalance candidate each
     # (a counterbalance sits on a joint that carries the most gravity: at least half the largest range)
@@ -683,23 +696,18 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
         rejected = [x_ for x_ in rejected if x_["name"] != name]
         local, shared = _with(local, shared, cand, col, n)
         if cand.replaces_angle_terms:
-            r0 = r
-            r, Fj = base.without_angle_terms(cand.joint, r0, Fj)
-            Fjs = {c: base.without_angle_terms(cand.joint, r0, F)[1] for c, F in Fjs.items()}
-        Fjs[scale] = Fj
-        if cand.replaces_angle_terms:
+            r, Fj = base.without_angle_terms(cand.joint, r, Fj)
             replaced.append(cand.joint)
         # the joints' own choices and the prior's strength again, with the named effect beside: made
         # without it, they were made on a torque it dominated (a ripple of 30x the noise floor on a
-        # joint leaves its Coulomb transition, viscous form and rotor inertia to chance)
-        e_now = float(np.sum(fnum.sum(0) * w))
-        for c in PRIOR_SCALES:
-            Fc_, _ = _choose_baseline(base, r, tau, shared, _scaled(prior, c), folds, K, w, local, replaced)
-            num_c, _, _, sq_c = _heldout(r, tau, Fc_, shared, local, folds, K, w, held, prior=_scaled(prior, c))
-            e_c = float(np.sum(num_c.sum(0) * w))
-            Fjs[c] = Fc_
-            if e_c < e_now:
-                e_now, Fj, scale, fnum, fsq = e_c, Fc_, c, num_c, sq_c
+        # joint leaves its Coulomb transition, viscous form and rotor inertia to chance); kept where
+        # they predict better than the step's own
+        e_now = _weighted(fnum, w)
+        bl = _baselines(base, r, tau, shared, prior, folds, K, w, local, replaced)
+        Fjs = {c: v[0] for c, v in bl.items()}
+        for c, (Fc_, _, num_c, sq_c) in bl.items():
+            if _weighted(num_c, w) < e_now:
+                e_now, Fj, scale, fnum, fsq = _weighted(num_c, w), Fc_, c, num_c, sq_c
         e = _rel(fnum, den)
         ma = float(np.mean(e[joints]))
         steps.append({"name": name, "joints": [f"A{k + 1}" for k in joints], "params": {

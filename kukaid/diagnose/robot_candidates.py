@@ -122,8 +122,6 @@ class RobotCandidate:
 
     name: str = ""
     joint: int | None = None
-    #: choose the option on all samples (the held-out ones too) instead of on the training folds only
-    shape_from_all_samples: bool = False
     #: the candidate takes the place of the file's terms of the joint's own angle (spring, ripple)
     replaces_angle_terms: bool = False
     #: a torque the rigid body's correction can take in part of: judged at every prior strength
