@@ -46,10 +46,10 @@ class Admittance:
         self.sigma_dot = float(sigma_dot0)
 
     def step(self, gamma_r: float, D: float | None = None) -> tuple[float, float]:
-        d = self.D if D is None else float(D)
-        if D is not None:
-            check_admittance(self.I, d, self.dt)
         h, I = self.dt, self.I
+        d = self.D if D is None else float(D)
+        if D is not None and not 0.0 < d * h / I < 2.0:  # (not for NaN either) the checks' message
+            check_admittance(I, d, h)
         g = float(gamma_r)
         s = self.sigma + (h - 0.5 * h * h * d / I) * self.sigma_dot + 0.5 * h * h / I * g
         sd = (1.0 - h * d / I) * self.sigma_dot + h / I * g

@@ -7,6 +7,7 @@ that enters one residual passes through the same filter, so they stay aligned.
 """
 from __future__ import annotations
 
+import cmath
 import math
 
 import numpy as np
@@ -58,12 +59,14 @@ class CausalButterworth:
         return y
 
     def phase_delay(self, w: float) -> float:
-        """The filter's phase delay at ``w`` rad/s: -(phase of its response) / w, s."""
-        from scipy.signal import sosfreqz
-
+        """The filter's phase delay at ``w`` rad/s: -(phase of its response) / w, s (the response of
+        each section at e^{jωT} in plain complex numbers: called within a control step)."""
         f = min(max(float(w), 1e-6) / (2 * math.pi), 0.499 * self.fs)
-        _, h = sosfreqz(self._sos, worN=[f], fs=self.fs)
-        return float(-np.unwrap([0.0, np.angle(h[0])])[1] % (2 * math.pi)) / (2 * math.pi * f)
+        z1 = cmath.exp(-2j * math.pi * f / self.fs)  # z^-1
+        h = 1.0 + 0j
+        for (b0, b1, b2), (a1, a2) in zip(self._b, self._a):
+            h *= (b0 + z1 * (b1 + z1 * b2)) / (1.0 + z1 * (a1 + z1 * a2))
+        return ((-cmath.phase(h)) % (2 * math.pi)) / (2 * math.pi * f)
 
     def filter(self, x: np.ndarray) -> np.ndarray:
         """Filter a whole array causally (from the present state)."""

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import operator
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,6 +69,14 @@ class RBFConfig:
                                   f"positive scales and width, non-empty levels)")
 
 
+def _gauss(history: list[float], scale: float, levels: list[float], k: float) -> list[float]:
+    """exp(k Σ (x / scale - y)²) over the lags x of ``history``, for every level y (through Σx and Σx²)."""
+    n = len(history)
+    s = sum(history) / scale
+    ss = sum(map(operator.mul, history, history)) / (scale * scale)
+    return [math.exp(k * (ss + y * (n * y - 2.0 * s))) for y in levels]
+
+
 def cost(gamma_r: np.ndarray, lam: float) -> np.ndarray:
     """Per-step cost ξ = ½ dΓr² + ½ λ Γr² of eq. (19) (dΓr first difference; first step dΓr = 0)."""
     g = np.asarray(gamma_r, dtype=float)
@@ -105,20 +114,17 @@ class RBFDamping:
         self._peak_g = 0.0
         self._peak_dg = 0.0
 
-    def _features(self) -> list[float]:
-        """G_i of every centre for the present inputs (plain floats: 15 small centres are faster
-        than numpy's per-call overhead; G factorises over the force and force-change levels)."""
+    def _levels(self) -> tuple[list[float], list[float]]:
+        """The two factors of G: G of centre (i, j) is ``ef[i] * ed[j]``, ``ef`` over the force levels and
+        ``ed`` over the force-change levels (plain floats: 15 small centres are faster than numpy's
+        per-call overhead, and the factors make the sums over centres products of two short sums)."""
         c = self.config
         fs, ds = c.force_scale, c.dforce_scale
         if c.scale_to_seen:  # the outermost centre level sits at the largest recent torque
             fs = max(fs, self._peak_g / self._f_top)
             ds = max(ds, self._peak_dg / self._d_top)
         k = -0.5 / (c.width * c.width)
-        xg = [v / fs for v in self._g]
-        xd = [v / ds for v in self._dg]
-        ef = [math.exp(k * sum((x - y) * (x - y) for x in xg)) for y in self._fl]
-        ed = [math.exp(k * sum((x - y) * (x - y) for x in xd)) for y in self._dl]
-        return [a * b for a in ef for b in ed]
+        return _gauss(self._g, fs, self._fl, k), _gauss(self._dg, ds, self._dl, k)
 
     _fade = 0.0  # per-step forgetting of the envelopes, set by :meth:`set_cycle`
 
@@ -142,14 +148,16 @@ class RBFDamping:
             fade = 1.0 - self._fade
             self._peak_g = max(abs(g), self._peak_g * fade)
             self._peak_dg = max(abs(dg), self._peak_dg * fade)
-        G = self._features()
+        ef, ed = self._levels()
+        G = [e * d for e in ef for d in ed]  # the centres in the order of ``pairs``
         w = self._wl
-        D_raw = c.D0 + sum(wi * gi for wi, gi in zip(w, G))
+        D_raw = c.D0 + sum(map(operator.mul, w, G))
         D = min(max(D_raw, c.D_min), c.D_max)
         if adapt:
             s = 1.0 if direction >= 0 else -1.0
             a = -(c.eta1 * dg + c.lam * c.eta2 * g) * s
-            trend = a * sum(gi * gi for gi in G)  # the change of D this update makes
+            # the change of D this update makes: a times the sum of G² over the centres
+            trend = a * sum(map(operator.mul, ef, ef)) * sum(map(operator.mul, ed, ed))
             # no wind-up: at a bound, do not push further out
             if not ((D_raw <= c.D_min and trend < 0) or (D_raw >= c.D_max and trend > 0)):
                 self._wl = [wi + a * gi for wi, gi in zip(w, G)]

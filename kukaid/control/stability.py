@@ -225,16 +225,14 @@ def critical_damping(K: float, I: float, T: float) -> float:
 def probe_time(D: float, I: float, T: float) -> float:
     """One period (s) of the slowest coupled mode that the damping D cannot hold: the grip
     stiffness K_D with critical_damping(K_D, I, T) = D rings at ω with K_D cos ωT = I ω²; any
-    stiffer grip rings faster, so a rebound shows within this time of a contact's start."""
-    lo, hi = 1e-3, 1e6
-    for _ in range(60):
-        K = math.sqrt(lo * hi)
-        lo, hi = (K, hi) if critical_damping(K, I, T) < D else (lo, K)
-    K = math.sqrt(lo * hi)
+    stiffer grip rings faster, so a rebound shows within this time of a contact's start.
+
+    On the boundary K = I ω² / cos ωT and D = K sin(ωT) / ω, so ω is the root of I ω tan(ωT) = D
+    on (0, π/2T) (increasing in ω: one bisection, no search over K)."""
     a, b = 0.0, 0.5 * math.pi / T
-    for _ in range(40):
+    for _ in range(60):
         w = 0.5 * (a + b)
-        a, b = (w, b) if K * math.cos(w * T) > I * w * w else (a, w)
+        a, b = (w, b) if I * w * math.tan(w * T) < D else (a, w)
     return 2.0 * math.pi / max(0.5 * (a + b), 1e-6)
 
 

@@ -89,7 +89,7 @@ DYN_MEMORY = 0.1
 SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class ResidualSample:
     """One step of the estimator (SI): residual ``gamma_r`` N·m, prediction ``gamma_p`` N·m,
     filtered torque ``tau_f`` N·m, filtered ``q`` rad, ``qd`` rad/s, ``qdd`` rad/s², ``mode``
@@ -348,7 +348,7 @@ class TorqueResidual:
         if v <= lo:
             fric_raw = fp_raw
         else:
-            fs = float(self._friction(qd_raw))
+            fs = self._friction.at(qd_raw)
             fric_raw = fs if v >= hi else fp_raw + (fs - fp_raw) * (v - lo) / (hi - lo)
         pred_raw = self._rigid.Izz * qdd_raw + self.static_torque(q) + fric_raw
         q_f, qd_f, qdd_f, tau_f = fq.step(q), fqd.step(qd_raw), fqdd.step(qdd_raw), ftau.step(tau)

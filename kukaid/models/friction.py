@@ -1,6 +1,7 @@
 """Friction models of the paper: Stribeck (eq. 1) for sliding, Maxwell-slip (eqs. 9-10) for pre-sliding."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,6 +68,13 @@ class Stribeck:
         v = np.asarray(v, dtype=float)
         return self.magnitude(np.abs(v)) * np.sign(v) + self.Fv * v
 
+    def at(self, v: float) -> float:
+        """F(v) of one velocity (plain floats: a control step's cost, not numpy's per-call overhead)."""
+        if v == 0.0:
+            return 0.0
+        m = self.Fc + (self.Fs - self.Fc) * math.exp(-((abs(v) / self.vs) ** self.delta))
+        return math.copysign(m, v) + self.Fv * v
+
     def magnitude(self, speed: np.ndarray | float) -> np.ndarray:
         """Coulomb + Stribeck part, Fc + (Fs - Fc) exp(-(speed/vs)^delta), for speed >= 0."""
         s = np.asarray(speed, dtype=float)
@@ -86,6 +94,10 @@ class CoulombViscous:
     def __call__(self, v: np.ndarray | float) -> np.ndarray:
         v = np.asarray(v, dtype=float)
         return self.Fc * np.sign(v) + self.Fv * v
+
+    def at(self, v: float) -> float:
+        """F(v) of one velocity (plain floats)."""
+        return (math.copysign(self.Fc, v) if v else 0.0) + self.Fv * v
 
     def magnitude(self, speed: np.ndarray | float) -> np.ndarray:
         return np.full_like(np.asarray(speed, dtype=float), self.Fc)
