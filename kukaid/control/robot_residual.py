@@ -288,6 +288,11 @@ class RobotResidual:
         self._qd_prev = np.zeros(self.n)
         self._detected = np.zeros(self.n, dtype=bool)
 
+    def end_detection(self, axis: int) -> None:
+        """End the detection of ``axis`` (1..n) now; a new one needs its threshold again."""
+        self._detected = self._detected.copy()  # the last sample keeps what it reported
+        self._detected[axis - 1] = False
+
     def update(self, q: np.ndarray, tau: np.ndarray, dt: float | None = None) -> RobotResidualSample:
         """Feed one measurement (positions rad, torques N·m, one per axis); return the residual."""
         q = np.asarray(q, dtype=float)
@@ -356,6 +361,11 @@ class GuidedAxisResidual:
         rel = None if release is None else np.where(np.arange(model.n) == self.axis - 1, float(release), math.inf)
         self.residual = RobotResidual(model, sample_time=sample_time, cutoff=cutoff, order=order, threshold=th,
                                       release=rel)
+
+    def end_detection(self) -> None:
+        """End the guided axis's present detection now (the loop's judgement, as
+        :meth:`kukaid.control.torque_residual.TorqueResidual.end_detection`)."""
+        self.residual.end_detection(self.axis)
 
     def update(self, q: np.ndarray, tau: np.ndarray, dt: float | None = None) -> GuidedAxisSample:
         """Feed the positions (rad) and torques (N·m) of every axis; the guided axis's step."""
