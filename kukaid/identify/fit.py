@@ -358,7 +358,21 @@ def format_params(params: dict) -> str:
     eff = params.get("effects") or {}
     if eff:
         text += "\n  effects added by diagnose: " + "; ".join(
-            f"{name} " + ", ".join(f"{k} {v:.4g}" if isinstance(v, (int, float)) else f"{k} {v}"
-                                   for k, v in (p.items() if isinstance(p, dict) else []))
-            for name, p in eff.items())
+            f"{name} " + _effect_terms(p if isinstance(p, dict) else {}) for name, p in eff.items())
     return text
+
+
+def _effect_terms(p: dict) -> str:
+    """An effect's terms as the table shows parameters, ``a 0.9422 +- 0.112``: its ``std`` beside each
+    value, not a dictionary of its own; the file's tag (``model``) left out."""
+    std = p.get("std") if isinstance(p.get("std"), dict) else {}
+    out = []
+    for k, v in p.items():
+        if k in ("model", "std"):
+            continue
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            s = std.get(k)
+            out.append(f"{k} {v:.4g}" + (f" +- {s:.3g}" if isinstance(s, (int, float)) and math.isfinite(s) else ""))
+        else:
+            out.append(f"{k} {v}")
+    return ", ".join(out)
