@@ -268,6 +268,27 @@ def test_load_refuses_a_log_whose_datasets_differ_in_length(files, tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["shape.h5"]
 
 
+@pytest.mark.parametrize("args, piece", [
+    (["capture", "{log}", "-o", "c.h5"], "not a trajectory file (JSON)"),
+    (["show", "{log}"], "not a parameter file (JSON)"),
+    (["report", "--params", "{log}", "-o", "r.pdf"], "not a parameter file (JSON)"),
+    (["validate", "--params", "{log}", "{log}"], "not a parameter file (JSON)"),
+    (["excite", "inertia", "-o", "x.json", "--limits", "{log}"], "not a limits file (JSON)"),
+])
+@pytest.mark.parametrize("fmt", ["h5", "csv"])
+def test_an_axis_log_given_for_a_json_file_is_named_so(files, tmp_path, monkeypatch, args, piece, fmt):
+    """An axis log where a JSON file belongs: said so, not 'not valid JSON (line 1, column 1 ...)'."""
+    log = files / "inertia.h5"
+    if fmt == "csv":
+        log = files / "inertia.csv"
+        if not log.exists():
+            assert _run("load", files / "inertia.h5", "-o", log).exit_code == 0
+    monkeypatch.chdir(tmp_path)
+    r = _run(*[a.format(log=log) for a in args])
+    _one_line_error(r, f"{log}: is an axis log ({fmt.upper() if fmt == 'csv' else 'HDF5'}), {piece}", code=1)
+    assert os.listdir(tmp_path) == []
+
+
 def test_fit_cutoff_above_the_logs_nyquist_names_the_option(files):
     """Its limit depends on the log's sample rate: found with the data, but an option out of range
     (exit 2) that says --cutoff and the log; the defaults' limits stay data errors (exit 1)."""
