@@ -170,7 +170,7 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
 @pytest.mark.parametrize("args, pieces", [
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--release", "8", "--threshold", "3"],
      ["release 8.0 N·m must be in [0, threshold 3.0]"]),
-    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--duration", "0"], ["duration must be > 0 s"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--duration", "0"], ["--duration", "0.0<x<=3600.0"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--noise", "-1"], ["--noise", "-1.0 N·m is not"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--axis", "5"], ["--axis", "simulates A3"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--tau-max", "-1"], ["--tau-max"]),
