@@ -114,7 +114,7 @@ def test_library_pages_truth_and_caveat(fitted):
     pris["provenance"]["joint"] = "prismatic"
     fig = page_parameters(load_report_data(pris))
     cells = " ".join(c.get_text().get_text() for ax in fig.axes for tab in ax.tables for c in tab.get_celld().values())
-    assert "m (Izz: mass)" in cells and "N²" in cells and "0.5249" not in cells and "14.59" not in cells
+    assert "M (Izz: mass)" in cells and "N²" in cells and "0.5249" not in cells and "14.59" not in cells
     assert not layout_problems(fig)
 
 
