@@ -83,23 +83,32 @@ def usage_errors(option: str | None = None, types: tuple[type[KukaidError], ...]
 
 
 @contextmanager
-def option_in_data_error(flag: str, given: bool, phrase: str) -> Iterator[None]:
-    """An option whose allowed range depends on the data (a cut-off below a log's Nyquist frequency)
-    is checked with the data, so its error stays exit 1, but says ``flag`` for ``phrase`` when the
-    option was given: ``with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off")``."""
+def option_in_data_error(*options: tuple[str, bool, str]) -> Iterator[None]:
+    """Options whose allowed range depends on the data (a cut-off below a log's Nyquist frequency,
+    edge samples fewer than half the log) are checked with the data; the library's error names each
+    as ``phrase``.  When one of them was given, the error is a usage error (exit 2) saying its flag:
+    ``with option_in_data_error(("--cutoff", cutoff is not None, "filter cut-off"))``; an error of
+    the defaults stays a data error (exit 1)."""
+    from kukaid.errors import OptionError
+
     try:
         yield
     except KukaidError as e:
-        if not given or phrase not in str(e):
+        msg = str(e)
+        for flag, given, phrase in options:
+            if given and phrase in msg:
+                msg = msg.replace(phrase, flag, 1)
+        if msg == str(e):
             raise
-        raise type(e)(str(e).replace(phrase, flag, 1)) from None
+        raise OptionError(msg) from None
 
 
-def require_positive(*options: tuple[str, float | None]) -> None:
-    """Usage error unless every option given as ``(flag, value)`` is a finite number > 0 (None: not given)."""
+def require_positive(*options: tuple[str, float | None], zero_ok: bool = False) -> None:
+    """Usage error unless every option given as ``(flag, value)`` is a finite number > 0 (``zero_ok``:
+    >= 0; None: not given)."""
     for flag, v in options:
-        if v is not None and not (math.isfinite(v) and v > 0):
-            raise click.BadParameter(f"{v} must be a finite number > 0", param_hint=flag)
+        if v is not None and not (math.isfinite(v) and (v >= 0 if zero_ok else v > 0)):
+            raise click.BadParameter(f"{v} must be a finite number {'>=' if zero_ok else '>'} 0", param_hint=flag)
 
 
 def check_noise(noise: float | None) -> None:

@@ -73,7 +73,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
         for p, lg in zip(logs, data):
             if axis not in lg.axes:
                 raise KukaidError(f"{p}: axis A{axis} is not in the log (axes: {list(lg.axes)})")
-    with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off"):  # its limit: the log's rate
+    with option_in_data_error(("--cutoff", cutoff is not None, "filter cut-off")):  # its limit: the log's rate
         result = diagnose(params, data, axis=axis, cutoff=cutoff, alpha=alpha, max_steps=max_steps,
                           source=str(params_path), stage=stage)
     if output is not None:

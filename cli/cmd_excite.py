@@ -220,12 +220,23 @@ def _krl_figures(krl_dir: Path, summary: dict) -> dict:
 
 
 def _option_names(msg: str) -> str:
-    """A generator's message "option span: ..." with the command's option ("option --span-deg (in rad):
-    ...") for the parameters the options set (one option may set parameters of several kinds)."""
+    """A generator's message "option span: ..." with the command's option ("option --span-deg: ...")
+    for the parameters the options set (one option may set parameters of several kinds); the value
+    a degree option's message quotes (``got 0.0175``, radians to the generator) in degrees, as typed."""
     flags: dict[str, str] = {}
     for name, (param, _, _) in _OPTS.items():
-        flags.setdefault(param, "--" + name.replace("_", "-") + (" (in rad)" if name.endswith("_deg") else ""))
+        flags.setdefault(param, "--" + name.replace("_", "-"))
+    subject = re.match(r"option (\w+):", msg)
+    if subject and flags.get(subject.group(1), "").endswith("-deg"):
+        msg = re.sub(r"got (\S+)$", lambda m: f"got {_degrees(m.group(1))}", msg)
     return re.sub(r"option (\w+)", lambda m: f"option {flags.get(m.group(1), m.group(1))}", msg)
+
+
+def _degrees(rad: str) -> str:
+    try:
+        return f"{float(rad) / _DEG:g} deg"
+    except ValueError:
+        return rad
 
 
 def _generator_options(kind: str, opts: dict[str, Any]) -> dict[str, Any]:
@@ -270,7 +281,7 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
     model = load_model(robot)
     limits = robot_limits(model, None if qdd_max_deg is None else qdd_max_deg * _DEG, robot=robot)
     if limits_file is not None:
-        over = read_json(limits_file, TrajectoryError)
+        over = read_json(limits_file, TrajectoryError, "limits file (JSON)")
         known = {lim.name for lim in limits}
         if not isinstance(over, dict) or any(k not in known for k in over):
             raise TrajectoryError(f"{limits_file}: expected an object {{axis name: limits}} with axis names among "

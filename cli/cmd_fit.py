@@ -74,12 +74,11 @@ def command(logs, friction, inertia, presliding, axis, output, force, as_json, m
     The table on stdout ends with the parameters that ended on a bound, the pre-processing and why,
     and warnings (IPOPT stopped early; other axes move, so a single-axis model cannot explain this
     one); the parameter file's metrics hold the same (at_bound, warnings, single_axis_adequate)."""
-    import math
-
     _check_applicable(click.get_current_context(), robot is not None, presliding is not None)
     from kukaid_cli._util import require_positive
 
-    require_positive(("--cutoff", cutoff))
+    require_positive(("--cutoff", cutoff), ("--stribeck-vs", stribeck_vs))
+    require_positive(("--prior-weight", prior_weight), zero_ok=True)
     if robot is not None:
         _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decimate, prior_weight, torque_side,
                    stribeck_vs, rotor_inertia, coupling, as_json, mass_bounds, viscous_beyond)
@@ -99,9 +98,7 @@ def command(logs, friction, inertia, presliding, axis, output, force, as_json, m
     refuse_other_kind(output, force, SCHEMA)
     if not (logs or friction or inertia):
         raise click.UsageError("no logs to fit: give general logs (LOG...), or --friction and/or --inertia logs")
-    for name, v, lo in (("--qd-thr", qd_thr, None), ("--reversal-window", reversal_window, None)):
-        if v is not None and not (math.isfinite(v) and (v > lo if lo is not None else v >= 0)):
-            raise click.BadParameter(f"{v} must be a finite number {'>' if lo is not None else '>='} 0", param_hint=name)
+    require_positive(("--qd-thr", qd_thr), ("--reversal-window", reversal_window), zero_ok=True)
     if edge is not None and edge < 0:
         raise click.BadParameter(f"{edge} must be >= 0", param_hint="--edge")
     bounds = {}
@@ -119,7 +116,8 @@ def command(logs, friction, inertia, presliding, axis, output, force, as_json, m
         with usage_errors("--bound"):
             check_bound(name, lo, hi)
     stages("fit")("reading, pre-processing and fitting the logs")
-    with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off"):  # its limit: the log's rate
+    with option_in_data_error(("--cutoff", cutoff is not None, "filter cut-off"),  # its limit: the log's rate
+                              ("--edge", edge is not None, "edge trim")):  # and length
         params = fit_axis(logs=list(logs), friction=list(friction), inertia=list(inertia), presliding=presliding,
                           axis=axis, method=method, friction_model=friction_model, gravity=gravity, offset=offset,
                           n_elements=elements, bounds=bounds or None, cutoff=cutoff, order=order, qd_thr=qd_thr,
@@ -217,7 +215,7 @@ def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decima
         from kukaid.errors import ParamFileError
         from kukaid.jsonfile import read_json
 
-        cpl = read_json(coupling, ParamFileError)
+        cpl = read_json(coupling, ParamFileError, "coupling matrix (JSON)")
         try:
             cpl = np.asarray(cpl, dtype=float)
         except (TypeError, ValueError):
@@ -229,7 +227,7 @@ def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decima
     stage("reading the logs")
     data = [read_log(p) for p in logs]
     stage(f"fitting A1..A{model.n} of {robot} (base parameters, then the physically consistent estimate)")
-    with option_in_data_error("--cutoff", cutoff is not None, "filter cut-off"):
+    with option_in_data_error(("--cutoff", cutoff is not None, "filter cut-off")):
         params = fit_robot(data, model, settings, coupling=cpl)
     save_robot_params(output, params)
     _summary(params, output, as_json, format_robot_table)

@@ -21,6 +21,13 @@ _UNITS = {"detection_delay": " s", "residual_rmse": " N·m", "residual_rmse_dyna
           "end_error": " of the move"}
 
 
+#: the longest run, s: the run log is held in memory until it is written, 3.2 MB per simulated
+#: minute (--duration 60 / 600 / 1800 s: peak RSS 227 / 257 / 320 MB), so an hour takes about 0.2 GB
+#: more (about 0.5 GB with --report, whose comparison run is held too: 305 MB at 600 s); a hand-guiding
+#: session longer than that is several runs
+MAX_DURATION = 3600.0
+
+
 def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> None:
     """The position window and the simulated start, in the options' unit (degrees): usage errors."""
     where = "--q-min/--q-max" + ("; sim default --q0 -/+ 90" if defaulted and q0 is not None else "")
@@ -68,8 +75,10 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--release", type=float,
               help="|Γr| below which a detection ends, N·m [0.3 threshold: once in contact the axis follows "
                    "down to this holding torque].")
-@click.option("--duration", type=float, default=10.0, show_default=True,
-              help="Seconds of admittance control (after the 1-degree initiation move and rest).")
+@click.option("--duration", type=click.FloatRange(0.0, MAX_DURATION, min_open=True), default=10.0, show_default=True,
+              help="Seconds of admittance control (after the 1-degree initiation move and rest), at most an hour: "
+                   "the run is held in memory until it is written (about 3.2 MB per minute; a longer session is "
+                   "several runs).")
 @click.option("--cycle", type=float, default=0.012, show_default=True,
               help="Control cycle, s (KRC sample time 0.012; the paper's ~0.024 also works).")
 @click.option("--cutoff", type=float, default=5.0, show_default=True,

@@ -71,7 +71,7 @@ def capture(backend: CaptureSource, output: str | Path, force: bool = False, pro
     """
     output = Path(output)
     if output.suffix.lower() not in (".h5", ".hdf5"):
-        raise KukaidError(f"{output}: a capture writes an HDF5 axis log; name it .h5 or .hdf5 "
+        raise OptionError(f"{output}: a capture writes an HDF5 axis log; name it .h5 or .hdf5 "
                           f"(convert with `kukaid load LOG.h5 -o LOG.csv`)")
     if output.exists() and not force:
         raise KukaidError(f"{output}: already exists; choose another name or pass --force to replace it")

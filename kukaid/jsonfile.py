@@ -8,24 +8,46 @@ from typing import Any
 
 import numpy as np
 
-from kukaid.errors import KukaidError
+from kukaid.errors import KukaidError, ParamFileError, SimConfigError, TrajectoryError
 
 
-def read_json(path: str | Path, error: type[KukaidError] = KukaidError) -> Any:
-    """Parse the JSON file ``path``; raise ``error`` with one line naming the file and the problem."""
+def read_json(path: str | Path, error: type[KukaidError] = KukaidError, what: str | None = None) -> Any:
+    """Parse the JSON file ``path``; raise ``error`` with one line naming the file and the problem
+    (an axis log given instead: said so, ``what`` the file should have been, by default from ``error``)."""
     path = Path(path)
     try:
-        text = path.read_text(errors="replace")
+        raw = path.read_bytes()
     except FileNotFoundError:
         raise error(f"{path}: no such file") from None
     except OSError as e:
         raise error(f"{path}: cannot read: {e.strerror}") from None
+    text = raw.decode("utf-8", errors="replace")
     if not text.strip():
         raise error(f"{path}: empty file")
     try:
         return json.loads(text)
     except json.JSONDecodeError as e:
+        log = _log_format(raw)
+        if log is not None:
+            raise error(f"{path}: is an axis log ({log}), not a {what or _expected(error)}") from None
         raise error(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
+
+
+def _log_format(raw: bytes) -> str | None:
+    """"HDF5" or "CSV" when ``raw`` is an axis log (the HDF5 signature; the CSV log's header), else None."""
+    if raw.startswith(b"\x89HDF\r\n\x1a\n"):
+        return "HDF5"
+    if raw.lstrip(b"\xef\xbb\xbf").startswith(b"time_s,"):
+        return "CSV"
+    return None
+
+
+def _expected(error: type[KukaidError]) -> str:
+    for kind, name in ((SimConfigError, "simulator configuration (JSON)"), (ParamFileError, "parameter file (JSON)"),
+                       (TrajectoryError, "trajectory file (JSON)")):
+        if issubclass(error, kind):
+            return name
+    return "JSON file"
 
 
 def jsonable(x: Any) -> Any:

@@ -170,7 +170,7 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
 @pytest.mark.parametrize("args, pieces", [
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--release", "8", "--threshold", "3"],
      ["release 8.0 N·m must be in [0, threshold 3.0]"]),
-    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--duration", "0"], ["duration must be > 0 s"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--duration", "0"], ["--duration", "0.0<x<=3600.0"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--noise", "-1"], ["--noise", "-1.0 N·m is not"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--axis", "5"], ["--axis", "simulates A3"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--tau-max", "-1"], ["--tau-max"]),
@@ -207,6 +207,17 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
     (["capture", "{d}/inertia.json", "-o", "c.h5", "--effect", "backlash=1e9"], ["--effect", "backlash=1e9"]),
     (["capture", "--backend", "kvp", "-o", "c.h5", "--duration", "1", "--until-interrupt"],
      ["--duration and --until-interrupt"]),
+    # the value and unit the user typed, the command's option names, an order not an ordinal
+    (["excite", "presliding", "-o", "x.json", "--reversals-deg", "-1,nan"],
+     ["option --reversals-deg: must be > 0, got -1 deg"]),
+    (["excite", "friction", "-o", "x.json", "--v-max", "1e9"], ["(1.571 rad = 90 deg)", "widen option --span-deg or"]),
+    # options whose range depends on the log: still usage errors, naming the option and the log
+    (["fit", "{d}/inertia.h5", "-o", "p.json", "--edge", "100000"], ["inertia.h5:", "order 3", "--edge 100000"]),
+    (["fit", "{d}/inertia.h5", "-o", "p.json", "--cutoff", "1e6"], ["inertia.h5: --cutoff 1e+06 Hz must be in"]),
+    (["fit", "{d}/inertia.h5", "-o", "p.json", "--cutoff", "0.001"], ["inertia.h5:", "--cutoff 0.001 Hz"]),
+    (["fit", "{d}/inertia.h5", "-o", "p.json", "--robot", "kr6-r700-sixx", "--prior-weight", "-1"],
+     ["--prior-weight", "-1.0 must be a finite number >= 0"]),
+    (["capture", "{d}/inertia.json", "-o", "c11.csv"], ["c11.csv", "name it .h5 or .hdf5"]),
 ])
 def test_option_errors_are_usage_errors(files, tmp_path, monkeypatch, args, pieces):
     """Contradictory or out-of-range options: exit status 2 (the usage error of docs/errors.md), one line, no output."""
@@ -257,12 +268,34 @@ def test_load_refuses_a_log_whose_datasets_differ_in_length(files, tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["shape.h5"]
 
 
+@pytest.mark.parametrize("args, piece", [
+    (["capture", "{log}", "-o", "c.h5"], "not a trajectory file (JSON)"),
+    (["show", "{log}"], "not a parameter file (JSON)"),
+    (["report", "--params", "{log}", "-o", "r.pdf"], "not a parameter file (JSON)"),
+    (["validate", "--params", "{log}", "{log}"], "not a parameter file (JSON)"),
+    (["excite", "inertia", "-o", "x.json", "--limits", "{log}"], "not a limits file (JSON)"),
+])
+@pytest.mark.parametrize("fmt", ["h5", "csv"])
+def test_an_axis_log_given_for_a_json_file_is_named_so(files, tmp_path, monkeypatch, args, piece, fmt):
+    """An axis log where a JSON file belongs: said so, not 'not valid JSON (line 1, column 1 ...)'."""
+    log = files / "inertia.h5"
+    if fmt == "csv":
+        log = files / "inertia.csv"
+        if not log.exists():
+            assert _run("load", files / "inertia.h5", "-o", log).exit_code == 0
+    monkeypatch.chdir(tmp_path)
+    r = _run(*[a.format(log=log) for a in args])
+    _one_line_error(r, f"{log}: is an axis log ({fmt.upper() if fmt == 'csv' else 'HDF5'}), {piece}", code=1)
+    assert os.listdir(tmp_path) == []
+
+
 def test_fit_cutoff_above_the_logs_nyquist_names_the_option(files):
-    """Its limit depends on the log's sample rate: found with the data (exit 1), but says --cutoff."""
+    """Its limit depends on the log's sample rate: found with the data, but an option out of range
+    (exit 2) that says --cutoff and the log; the defaults' limits stay data errors (exit 1)."""
     r = _run("fit", files / "inertia.h5", "-o", files / "p_cut.json", "--cutoff", "100")
-    _one_line_error(r, "inertia.h5: --cutoff 100 Hz must be in", code=1)
+    _one_line_error(r, "inertia.h5: --cutoff 100 Hz must be in", code=2)
     r = _run("diagnose", "--params", files / "params.json", "--log", files / "inertia.h5", "--cutoff", "100")
-    _one_line_error(r, "inertia.h5: --cutoff 100 Hz must be in", code=1)
+    _one_line_error(r, "inertia.h5: --cutoff 100 Hz must be in", code=2)
     assert not (files / "p_cut.json").exists()
 
 

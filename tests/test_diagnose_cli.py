@@ -106,3 +106,28 @@ def test_bad_inputs_give_one_line_errors(case, tmp_path):
     out = tmp_path / "never.json"
     r = CliRunner().invoke(cli, args(params, paths, "--alpha", "2", "-o", str(out)))
     assert r.exit_code != 0 and not out.exists()
+
+
+def test_show_of_a_refined_file(case, tmp_path):
+    """`kukaid show` of the file diagnose refined: the fit's residual warning was of the model without
+    the effect (it goes once the effect explains the gap), and the effect's std stands beside its values."""
+    from kukaid.identify.adequacy import with_effects
+
+    d, params, paths = case
+    fitted = json.loads(params.read_text())
+    warning = "residual 5.69 x the noise floor: the model misses an effect (run kukaid diagnose)"
+    kept = [w for w in fitted["metrics"].get("warnings", []) if not w.startswith("residual ")]
+    fitted["metrics"].update(residual_over_noise=5.69, warnings=[*kept, warning])  # as a fit writes it
+    (tmp_path / "p.json").write_text(json.dumps(fitted))
+    refined = tmp_path / "refined.json"
+    r = CliRunner().invoke(cli, args(tmp_path / "p.json", paths, "-o", str(refined)))
+    assert r.exit_code == 0, r.output
+    s = CliRunner().invoke(cli, ["show", str(refined)])
+    assert s.exit_code == 0, s.output
+    assert "misses an effect" not in s.stdout and "{" not in s.stdout
+    assert re.search(r"position_ripple n [\d.]+, a [\d.]+ \+- [\d.]+, b -?[\d.]+ \+- [\d.]+", s.stdout), s.stdout
+    # still far above the noise with the effect: both figures, and which effects they include
+    m = with_effects(fitted["metrics"], ["position_ripple"], 9.0, 6.0)
+    assert warning not in m["warnings"]
+    assert any("5.69 x the noise floor in the fit; with the effects diagnose added (position_ripple) 9 -> 6 x" in w
+               for w in m["warnings"])

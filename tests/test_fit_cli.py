@@ -176,6 +176,8 @@ def test_table_units_of_a_prismatic_axis():
 
     text = format_table(_table_params("prismatic", maxwell=True))
     assert "MSE 5.155 N²;" in text and "N²m²" not in text
+    m = next(line for line in text.splitlines() if "95.125" in line)
+    assert m.split()[0] == "M" and m.endswith(" kg") and "Izz" not in text, text  # the slide's mass
     assert "k = 1000 N/m" in text and "W = 2 N" in text and "N·m" not in text
     text = format_table(_table_params("revolute", maxwell=True))
     assert "MSE 5.155 N²m²" in text and "k = 1000 N·m/rad" in text and "W = 2 N·m" in text

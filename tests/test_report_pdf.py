@@ -114,7 +114,7 @@ def test_library_pages_truth_and_caveat(fitted):
     pris["provenance"]["joint"] = "prismatic"
     fig = page_parameters(load_report_data(pris))
     cells = " ".join(c.get_text().get_text() for ax in fig.axes for tab in ax.tables for c in tab.get_celld().values())
-    assert "m (Izz: mass)" in cells and "N²" in cells and "0.5249" not in cells and "14.59" not in cells
+    assert "M (Izz: mass)" in cells and "N²" in cells and "0.5249" not in cells and "14.59" not in cells
     assert not layout_problems(fig)
 
 
@@ -170,3 +170,22 @@ def test_bad_logs_give_one_line_error_and_no_pdf(fitted):
     r = _run(["--params", p["params"], "--inertia", p["inertia"], "--axis", "2", "-o", out])
     assert r.exit_code != 0 and "A2" in r.output and not out.exists()
     assert not [x for x in d.iterdir() if x.name.endswith(".tmp")]
+
+
+def test_a_six_axis_log_is_reported_with_a_one_axis_parameter_file(fitted):
+    """A log of the six-axis virtual KR C4 carries the whole robot's truth (lists per axis): the
+    one-axis report draws its pages without it instead of failing on a list (as validate does)."""
+    pytest.importorskip("pinocchio")
+    from kukaid.excite.fourier import fourier
+    from kukaid.sim.robot_plant import RobotSimConfig, VirtualRobotKRC4
+    from robot_helpers import ROBOT
+
+    d, p, _, _ = fitted
+    traj = fourier(ROBOT, harmonics=2, period=4.0, periods=1, iterations=0, starts=1)
+    six = d / "fourier.h5"
+    write_hdf5(VirtualRobotKRC4(RobotSimConfig(robot=ROBOT), seed=2).run(traj, settle=0.2), six)
+    for role in ("--log", "--inertia"):
+        out = d / f"six{role}.pdf"
+        r = _run(["--params", p["params"], role, six, "-o", out])
+        assert r.exit_code == 0, r.output
+        assert _pages(out) >= 2

@@ -167,6 +167,22 @@ def test_log_with_more_axes_than_the_robot_is_refused(kr6, tmp_path):
     assert not out.exists()
 
 
+def test_a_cutoff_that_trims_the_whole_log_names_the_log_and_the_option(kr6, tmp_path):
+    """Two cut-off periods trimmed at each end leave nothing: the log and --cutoff are named (exit 2)."""
+    from click.testing import CliRunner
+
+    from kukaid.logs import write_csv
+    from kukaid_cli.main import cli
+
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    csv = tmp_path / "short.csv"
+    write_csv(log, csv, angle_unit="rad")
+    r = CliRunner().invoke(cli, ["fit", str(csv), "--robot", "kr6-r700-sixx", "--cutoff", "0.001",
+                                 "-o", str(tmp_path / "p.json")])
+    assert r.exit_code == 2 and len(r.stderr.splitlines()) == 1, r.output
+    assert "short.csv: too few samples left (0)" in r.stderr and "--cutoff 0.001 Hz" in r.stderr
+
+
 def test_settings_are_checked():
     with pytest.raises(FitError, match="friction model"):
         RobotFitSettings(friction="dahl")

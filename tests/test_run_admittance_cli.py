@@ -137,6 +137,23 @@ def test_position_window_is_checked_in_degrees(files, tmp_path, args, message):
     assert "rad" not in r.stderr and not out.exists()
 
 
+@pytest.mark.parametrize("duration", ["1e9", "3601", "inf"])
+def test_a_run_is_at_most_an_hour(files, tmp_path, monkeypatch, duration):
+    """The run is held in memory until it is written: --duration beyond an hour is a usage error,
+    before anything runs (without the bound, --duration 1e9 ran until killed)."""
+    import kukaid.control.loop
+
+    def must_not_run(*a, **k):
+        raise AssertionError("the loop started")
+
+    monkeypatch.setattr(kukaid.control.loop, "run_admittance", must_not_run)
+    out = tmp_path / "r.h5"
+    r = _run(["--params", files / "params.json", "--duration", duration, "-o", out])
+    assert r.exit_code == 2 and "--duration" in r.stderr and "3600" in r.stderr, r.output
+    assert len(r.stderr.strip().splitlines()) == 1 and not list(tmp_path.iterdir())
+    assert "at most an hour" in " ".join(CliRunner().invoke(cli, ["run-admittance", "--help"]).output.split())
+
+
 def test_safety_errors_name_the_window_in_degrees():
     from kukaid.control.safety import ReferenceLimiter, SafetyLimits
     from kukaid.errors import LimitError

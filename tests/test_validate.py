@@ -83,6 +83,19 @@ def test_unknown_schema_and_missing_axis(tmp_path):
         validate(p, [sine_log(1, 0.2)])
 
 
+def test_a_log_where_the_axis_stands_is_named(tmp_path):
+    """No dynamic-mode sample to compare: the error says which log (not only the axis)."""
+    p = {"schema": "kukaid.params/1", "axis": 3, "friction": {"model": "coulomb-viscous", "Fc": 1.0, "Fv": 1.0},
+         "inertial": {"Izz": 1.0, "Mx": 15.0}}
+    par, still = tmp_path / "p.json", tmp_path / "still.h5"
+    par.write_text(json.dumps(p))
+    write_hdf5(sine_log(4, 0.2, amp=0.0), still)
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(still)])
+    assert r.exit_code == 1, r.output
+    assert r.output.startswith("kukaid: error: ") and "still.h5" in r.output and "A3" in r.output
+    assert len(r.output.strip().splitlines()) == 1
+
+
 def test_validate_warns_when_other_axes_move(tmp_path):
     """A one-axis model checked on a log where other axes move is told why it fails (as fit does)."""
     fit_log, both = tmp_path / "a.h5", tmp_path / "b.h5"

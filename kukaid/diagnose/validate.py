@@ -157,15 +157,18 @@ def validate(params: dict, logs: Sequence[Any], axis: int | None = None,
                 check_model_of(params, source, joint=log.joint[log.index(ax)])
     predict = predictor_for(params)
     parts: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+    names: dict[int, list[str]] = {}
     for log in logs:
         for ax, pair in predict(params, log, axis).items():
             parts.setdefault(int(ax), []).append(pair)
+            names.setdefault(int(ax), []).append(str(log.attrs.get("source_file", "log")))
     out = {}
     for ax in sorted(parts):
         tau = np.concatenate([p[0] for p in parts[ax]])
         hat = np.concatenate([p[1] for p in parts[ax]])
         if tau.size == 0:
-            raise KukaidError(f"A{ax}: no dynamic-mode samples in the logs (the axis does not move)")
+            raise KukaidError(f"{', '.join(names[ax])}: no dynamic-mode samples of A{ax} to compare (the axis does "
+                              "not move, or only where the filter trims the log's ends)")
         out[ax] = score(tau, hat)
     return out
 

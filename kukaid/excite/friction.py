@@ -81,7 +81,7 @@ def friction(speeds: Sequence[float] | None = None, v_min: float = 0.01, v_max: 
                     what = (f"{v:g} rad/s" if source == "speeds" else
                             f"{speeds[-1]:g} rad/s is too fast: its speed {v:g} rad/s (of {len(speeds)} from v_min)")
                     raise TrajectoryError(f"option {source}: {what} cannot be reached within the position window "
-                                          f"({d:.4g} rad) at acc = {acc:g} rad/s²; lower it, widen option span or "
+                                          f"({d:.4g} rad = {math.degrees(d):.4g} deg) at acc = {acc:g} rad/s²; lower it, widen option span or "
                                           "raise option acc")
                 plateaus.append([round(p[0], 9), round(p[1], 9), p[2]])
                 path.hold(settle)

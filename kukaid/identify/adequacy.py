@@ -110,9 +110,28 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
             f"{ratio:.3g} x the noise floor). Fit all axes together with a robot model (kukaid fit --robot URDF), "
             f"or record A{axis} moving alone; treat these parameters as a local description only")
     elif ratio > FAR_ABOVE_NOISE:
-        warnings.append(f"residual {ratio:.3g} x the noise floor: the model misses an effect (run kukaid diagnose)")
+        warnings.append(_residual_warning(ratio))
     figures = {"residual_over_noise": ratio, "other_axes_moving": list(others), "single_axis_adequate": not inadequate}
     return warnings, figures
+
+
+def _residual_warning(ratio: float) -> str:
+    return f"residual {ratio:.3g} x the noise floor: the model misses an effect (run kukaid diagnose)"
+
+
+def with_effects(metrics: dict, added: Sequence[str], before: float, after: float) -> dict:
+    """The fit's ``metrics`` for the file diagnose writes with the effects ``added``: the fit's
+    residual warning was of the model without them, so it goes, or (the gap still far above the
+    noise: diagnose's ``before`` and ``after``, x its noise floor) says both figures."""
+    fit_warning = _residual_warning(float(metrics.get("residual_over_noise", math.nan)))
+    if fit_warning not in metrics.get("warnings", []):
+        return metrics
+    warnings = [w for w in metrics["warnings"] if w != fit_warning]
+    if after > FAR_ABOVE_NOISE:
+        warnings.append(f"residual {metrics['residual_over_noise']:.3g} x the noise floor in the fit; with the "
+                        f"effects diagnose added ({', '.join(added)}) {before:.3g} -> {after:.3g} x its noise floor: "
+                        "the model still misses an effect (run kukaid diagnose)")
+    return {**metrics, "warnings": warnings}
 
 
 def held_share(log: Any) -> float:

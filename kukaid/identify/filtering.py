@@ -287,8 +287,8 @@ def preprocess(log: Any, axis: int | None = None, cutoff: float | None = None, o
     padlen = 3 * (2 * ((order + 1) // 2) + 1)  # sosfiltfilt's default pad length
     need = max(2 * edge + 10, padlen + 1)
     if t.size < need:
-        raise FitError(f"{where}: {t.size} samples is too short for the filter ({order}th order, {cutoff:g} Hz at "
-                       f"{fs:.4g} Hz, {edge} edge samples trimmed each side): need at least {need}")
+        raise FitError(f"{where}: {t.size} samples is too short for the filter (order {order}, filter cut-off "
+                       f"{cutoff:g} Hz at {fs:.4g} Hz, edge trim {edge} samples each side): need at least {need}")
     diff = "central" if diff is None else diff
     if diff == "central":
         qf = lowpass(q, fs, cutoff, order)[0]

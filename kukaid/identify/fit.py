@@ -302,8 +302,10 @@ def format_table(params: dict) -> str:
     """A short text table of the parameters with their standard deviations."""
     unc = params.get("uncertainty", {})
     rows = []
+    names = {}  # the label of a parameter whose file key says something else
     if (params.get("provenance") or {}).get("joint") == "prismatic":
-        units = {"Fc": "N", "Fs": "N", "vs": "m/s", "delta": "-", "Fv": "N·s/m", "Izz": "kg (mass)",
+        names = {"Izz": "M"}  # the slide's mass, kept under the file's key Izz
+        units = {"Fc": "N", "Fs": "N", "vs": "m/s", "delta": "-", "Fv": "N·s/m", "Izz": "kg",
                  "Mx": "N", "My": "N", "offset": "N", "k": "N/m", "W": "N", "mse": "N²"}
     else:
         units = {"Fc": "N·m", "Fs": "N·m", "vs": "rad/s", "delta": "-", "Fv": "N·m·s/rad", "Izz": "kg·m²",
@@ -315,8 +317,9 @@ def format_table(params: dict) -> str:
     for k, v in items:
         s = unc.get(k)
         rel = _relative(v, s) if s is not None else ""
-        rows.append(f"  {k:<7} {v:>12.5g}  +- {s:<10.3g} {rel:>9}  {units.get(k, '')}" if s is not None
-                    else f"  {k:<7} {v:>12.5g}")
+        label = names.get(k, k)
+        rows.append(f"  {label:<7} {v:>12.5g}  +- {s:<10.3g} {rel:>9}  {units.get(k, '')}" if s is not None
+                    else f"  {label:<7} {v:>12.5g}")
     ms = params.get("maxwell_slip")
     if ms:
         rows.append("  Maxwell-slip k = " + ", ".join(f"{x:.4g}" for x in ms["k"]) + f" {units['k']}")
@@ -330,7 +333,8 @@ def format_table(params: dict) -> str:
         extra.append(f"IPOPT: {m['ipopt_status']}")
     tail = []
     if m.get("at_bound"):
-        tail.append("  at a bound: " + ", ".join(f"{b['name']} ({b['side']} {b['bound']:.4g})" for b in m["at_bound"]))
+        tail.append("  at a bound: " + ", ".join(f"{names.get(b['name'], b['name'])} ({b['side']} {b['bound']:.4g})"
+                                             for b in m["at_bound"]))
     else:
         tail.append("  at a bound: none")
     pre = (params.get("provenance") or {}).get("preprocess") or {}
@@ -358,7 +362,21 @@ def format_params(params: dict) -> str:
     eff = params.get("effects") or {}
     if eff:
         text += "\n  effects added by diagnose: " + "; ".join(
-            f"{name} " + ", ".join(f"{k} {v:.4g}" if isinstance(v, (int, float)) else f"{k} {v}"
-                                   for k, v in (p.items() if isinstance(p, dict) else []))
-            for name, p in eff.items())
+            f"{name} " + _effect_terms(p if isinstance(p, dict) else {}) for name, p in eff.items())
     return text
+
+
+def _effect_terms(p: dict) -> str:
+    """An effect's terms as the table shows parameters, ``a 0.9422 +- 0.112``: its ``std`` beside each
+    value, not a dictionary of its own; the file's tag (``model``) left out."""
+    std = p.get("std") if isinstance(p.get("std"), dict) else {}
+    out = []
+    for k, v in p.items():
+        if k in ("model", "std"):
+            continue
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            s = std.get(k)
+            out.append(f"{k} {v:.4g}" + (f" +- {s:.3g}" if isinstance(s, (int, float)) and math.isfinite(s) else ""))
+        else:
+            out.append(f"{k} {v}")
+    return ", ".join(out)

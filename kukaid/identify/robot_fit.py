@@ -403,7 +403,11 @@ def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive:
         out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau", "keep")),
                      tuple(p.q.shape[0] for p in parts), np.max([p.qd_noise for p in parts], axis=0))
     if out.q.shape[0] < 10:
-        raise FitError(f"too few samples left after trimming and decimation ({out.q.shape[0]})")
+        names = ", ".join(str(log.attrs.get("source_file", "axis log")) for log in logs)
+        fcs = sorted({f"{_cutoff(settings, 1.0 / log.sample_time):g}" for log in logs})
+        raise FitError(f"{names}: too few samples left ({out.q.shape[0]}) after trimming two periods of the filter "
+                       f"cut-off {' / '.join(fcs)} Hz at each end and decimating: give a longer log or a higher "
+                       "cut-off")
     return out
 
 

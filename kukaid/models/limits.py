@@ -89,7 +89,7 @@ class AxisLimits:
 
     @classmethod
     def load(cls, path: str | Path, base: "AxisLimits | None" = None) -> "AxisLimits":
-        return cls.from_dict(read_json(path, TrajectoryError), base=base, where=str(path))
+        return cls.from_dict(read_json(path, TrajectoryError, "limits file (JSON)"), base=base, where=str(path))
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "q_min": self.q_min, "q_max": self.q_max, "qd_max": self.qd_max,

@@ -32,7 +32,9 @@ class ReportData:
 
     params : validated parameter dictionary.   source : the parameter file's path (text).
     friction, inertia, general : lists of ``(log, prepared)``.   presliding : ``(log, prepared)``.
-    truth : the simulator's truth (``log.attrs["truth"]``) when a log carries one, else None.
+    truth : the one-axis simulator's truth (``log.attrs["truth"]``, a ``kukaid.params/1`` of the reported
+        axis) when a log carries one, else None (the six-axis simulator's ``kukaid.robot-truth/1`` holds
+        the whole robot, lists per axis, no Izz of one axis).
     warnings : lines for the user (a log given in a role whose experiment it does not record,
         as ``fit`` warns).
     """
@@ -121,7 +123,7 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
     ParamFileError : broken parameter file.   LogFormatError, ReportError : missing or broken log,
     log without the axis, log too short for the filter.
     """
-    from kukaid.params import check_model_of, load_params, validate_params
+    from kukaid.params import SCHEMA, check_model_of, load_params, validate_params
 
     if isinstance(params, dict):
         par, source = validate_params(params), "parameters"
@@ -148,7 +150,7 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
         check_model_of(par, source, joint=log.joint[log.index(axis)])
     for log, _ in every:
         t = log.attrs.get("truth")
-        if isinstance(t, dict) and isinstance(t.get("friction"), dict) and int(t.get("axis", axis)) == int(axis):
+        if isinstance(t, dict) and t.get("schema") == SCHEMA and int(t.get("axis", axis)) == int(axis):
             data.truth = t
             data.truth_source = str(log.attrs.get("source_file", "log"))
             break

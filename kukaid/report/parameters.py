@@ -48,7 +48,7 @@ def page_parameters(data: ReportData):
     cells = []
     for k, v in values.items():
         s = unc.get(k)
-        row = ["m (Izz: mass)" if k == "Izz" and data.prismatic else k, _fmt(v, 6), units.get(k, ""), _fmt(s, 3),
+        row = ["M (Izz: mass)" if k == "Izz" and data.prismatic else k, _fmt(v, 6), units.get(k, ""), _fmt(s, 3),
                f"{100 * s / abs(v):.3g} %" if s is not None and v else "-"]
         if cf is not None:
             row.append(_fmt(s * cf, 3) if s is not None else "-")
