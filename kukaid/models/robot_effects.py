@@ -3,17 +3,18 @@
 coefficients for fixed settings, written once here for the diagnosis' candidates, its refit and
 every prediction of the file.
 
-=============================  ======================================================  ==============
-name                           term (on joint j; s the file's Coulomb column of joint j)  settings
-=============================  ======================================================  ==============
-counterbalance@A<j>            c0 gas_spring(q_j; q0, a/b, kappa)                      q0_rad, lever_ratio, kappa
-payload                        the last link's m, m c change: regressor columns, all joints  -
-load_dependent_friction@A<j>   c0 |L_j| s, L_j the file's gravity or rigid-body torque    load
-thermal_friction@A<j>          c0 T_j s, or c0 T_j F_j (the file's friction torque)       form
-position_ripple@A<j>           c0 sin(n q_j) + c1 cos(n q_j)                            n
-=============================  ======================================================  ==============
+Terms on joint j, with their settings (s: joint j's Coulomb column, the file's when a file
+predicts, the diagnosis' filtered one while a candidate is judged):
 
-An effect's entry: its settings, ``coefficients`` (the c above) and what describes it (sizes).
+- ``counterbalance@A<j>``: c0 gas_spring(q_j; q0_rad, lever_ratio, kappa), a gas spring.
+- ``payload``: the last link's m, m c change (its regressor columns, c0..c3), on every joint.
+- ``load_dependent_friction@A<j>``: c0 |L_j| s, L_j the file's gravity (``load`` "gravity") or
+  rigid-body torque ("rigid").
+- ``thermal_friction@A<j>``: c0 T_j s (``form`` "coulomb") or c0 T_j F_j, F_j the file's friction
+  torque ("friction"); T_j the log's motor temperature, degC.
+- ``position_ripple@A<j>``: c0 sin(n q_j) + c1 cos(n q_j).
+
+An effect's entry in the file: its settings and ``coefficients`` (the c above).
 """
 from __future__ import annotations
 

@@ -170,7 +170,7 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
 
 
 #: an effect's settings that are words, and the words allowed (every other setting is a number)
-_EFFECT_WORDS = {"load": ("gravity", "rigid"), "form": ("coulomb", "friction"), "coordinate": ("temperature",)}
+_EFFECT_WORDS = {"load": ("gravity", "rigid"), "form": ("coulomb", "friction")}
 
 
 def _effects(where: str, effects: Any, n: int) -> None:
@@ -185,14 +185,13 @@ def _effects(where: str, effects: Any, n: int) -> None:
             _fail(where, f"'effects.{name}': the robot has {n} axes")
         e = _object(where, f"effects.{name}", e)
         keys, nc = KINDS[kind]
-        for k in keys:
+        for k in keys + tuple(k for k in ("kappa",) if k in e):
             if k not in e:
                 _fail(where, f"missing field 'effects.{name}.{k}'")
-        for k in keys:
-            ok = _EFFECT_WORDS.get(k)
-            if ok and e[k] not in ok:
-                _fail(where, f"'effects.{name}.{k}' must be one of {', '.join(ok)}, got {json.dumps(e[k])[:40]}")
-            if not ok:
+            words = _EFFECT_WORDS.get(k)
+            if words and e[k] not in words:
+                _fail(where, f"'effects.{name}.{k}' must be one of {', '.join(words)}, got {json.dumps(e[k])[:40]}")
+            if not words:
                 _numbers(where, f"effects.{name}.{k}", [e[k]])
         _numbers(where, f"effects.{name}.coefficients", e.get("coefficients"), nc)
 
