@@ -60,9 +60,11 @@ def tables(result: RobotDiagnosis) -> list[tuple[list[str], list[list[str]]]]:
 
 
 def _plot(ax, x, before, after, floor: float, label: str, points: bool) -> None:
-    """Residual before and after against ``x``: points (when ``points``) or lines, binned means,
-    the noise floor."""
-    for r, name, c in ((before, "before", "C0"), (after, "after", "C3")):
+    """Residual before and after (None: the one residual) against ``x``: points (when ``points``)
+    or lines, binned means, the noise floor."""
+    for r, name, c in ((before, "before" if after is not None else "residual", "C0"), (after, "after", "C3")):
+        if r is None:
+            continue
         rms = float(np.sqrt(np.nanmean(r ** 2)))
         if points:
             ax.plot(x, r, ".", ms=1.2, alpha=0.35, color=c, label=f"{name}: RMSE {rms:.3g} N·m", rasterized=True)
@@ -106,9 +108,11 @@ def page_joint(result: RobotDiagnosis, j: int):
     coords = [c for c in coords if c[2] is not None]
     fig, axs = plt.subplots(1 + len(coords), 1, figsize=(8.27, 11.69), squeeze=False)
     names = ", ".join(st["name"] for _, st in mine) or "none"
-    _plot(axs[0, 0], *_in_time(result, res[0][:, j], res[-1][:, j]), floor,
-          "time (s; the held-out recordings one after another)", points=False)
-    axs[0, 0].set_title(f"before and after every named effect (on A{j + 1}: {names})", fontsize=9)
+    t, r0, r1 = _in_time(result, res[0][:, j], res[-1][:, j])
+    _plot(axs[0, 0], t, r0, r1 if result.steps else None, floor, "time (s; the held-out recordings one after another)",
+          points=False)
+    axs[0, 0].set_title(f"before and after every named effect (on A{j + 1}: {names})" if result.steps else
+                        "the file's own terms refitted: no effect named", fontsize=9)
     for ax, (k, st, (x, label)) in zip(axs[1:, 0], coords):
         _plot(ax, x, res[k][:, j], res[k + 1][:, j], floor, label, points=True)
         ax.set_title(f"step {k + 1}: before and after {st['name']}", fontsize=9)
