@@ -106,9 +106,12 @@ def test_o_replaces_a_parameter_file_and_refuses_any_other_without_force(case, t
     assert note.read_text() == '{"schema": "something/1"}'
     # the forced run of the case replaced its note; an existing parameter file is replaced without it
     assert json.loads((d / "refined.json").read_text())["schema"] == "kukaid.robot_params/1"
+    old = tmp_path / "old.json"
+    old.write_text((d / "refined.json").read_text())
     r = _run("diagnose", "--params", d / "robot.json", "--log", logs[1], "--log", logs[2], "--max-steps", "0",
-             "-o", d / "refined.json")
+             "-o", old)
     assert r.exit_code == 0, r.output
+    assert json.loads(old.read_text()).get("effects") is None     # nothing named: the file as it was
 
 
 def test_axis_cutoff_alpha_stay_refused_for_a_robot_file(case):
@@ -138,3 +141,22 @@ def _minimal(effects):
             "base_parameters": {"names": ["a"], "values": [1.0], "independent": [0], "dependent": list(range(19)),
                                 "R": [[0.0] * 19]},
             "friction": {"model": "coulomb-viscous", "values": {}}, "settings": {}, "effects": effects}
+
+
+def test_a_thermal_effect_needs_the_temperature_and_run_admittance_refuses_effects(case):
+    """validate of a file with a thermal effect on a log without temperatures: one clear line;
+    the real-time torque model (run-admittance) has no effects yet: it refuses the file."""
+    from dataclasses import replace
+
+    from kukaid.control.robot_residual import RobotTorqueModel
+    from kukaid.errors import ParamFileError
+    from kukaid.logs import read_log
+
+    d, logs, _ = case
+    p = json.loads((d / "refined.json").read_text())
+    p["effects"]["thermal_friction@A2"] = {"form": "coulomb", "coefficients": [-0.01]}
+    (d / "thermal.json").write_text(json.dumps(p))
+    write_hdf5(replace(read_log(logs[3]), temp=None), d / "cold.h5")
+    _one_line_error(_run("validate", "--params", d / "thermal.json", d / "cold.h5"), "temperature channel")
+    with pytest.raises(ParamFileError, match="payload.*not in the real-time torque model"):
+        RobotTorqueModel.from_params(p)
