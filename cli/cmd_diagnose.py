@@ -15,10 +15,12 @@ import click
 @click.option("--axis", type=int, default=None, help="KUKA axis number (default: the parameter file's).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
 @click.option("--report", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Write PDF pages: residual against each effect's coordinate, spectrum, table of steps.")
+              help="Write PDF pages: the table of steps, the residual before and after each effect against its "
+                   "coordinate, the spectrum (a robot file: a page per joint, also against time, the noise floor).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Write the refined parameter file (effects in 'effects'); an existing parameter file is "
-                   "replaced (it is derived from the logs), any other file only with --force.")
+              help="Write the refined parameter file (effects in 'effects', predicted with by validate and "
+                   "report); an existing parameter file is replaced (it is derived from the logs), any other file "
+                   "only with --force.")
 @click.option("--force", is_flag=True, help="Replace an existing -o file that is not a parameter file.")
 @click.option("--cutoff", type=float, default=None, help="Comparison filter cut-off, Hz (default: the fit's).")
 @click.option("--alpha", type=float, default=0.01, show_default=True,
@@ -39,18 +41,18 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     one per joint that carries gravity), a payload at the flange, and per joint load-dependent
     friction, thermal friction (with a temperature channel) and a position ripple; each joint's own
     terms are refitted with the candidate on the other logs (or blocks) and judged on the held-out
-    one (logs the file was fitted on are left out when two others remain).
-    --json and --max-steps apply; -o, --report, --axis, --cutoff and --alpha do not yet.
+    one (logs the file was fitted on are left out when two others remain).  -o writes the robot file
+    with the named effects in 'effects' (validate, show, report and diagnose read them), its terms
+    refitted beside them on the logs; --report one page per joint: the held-out residual before and
+    after against time and each effect's coordinate, the noise floor drawn.  Effects already in the
+    file are held and not named again.  --axis, --cutoff and --alpha do not apply to a robot file.
     """
-    import json
-
     from kukaid.errors import KukaidError
-    from kukaid.atomic import atomic_paths
     from kukaid.logs import read_log
     from kukaid_cli._util import (check_outputs, check_suffix, option_in_data_error, refuse_other_kind,
                                   require_positive, stages)
-    from kukaid.params import is_robot_params, load_any_params, save_params, validate_params
-    from kukaid.params.axis import SCHEMA
+    from kukaid.params import ROBOT_SCHEMA, SCHEMA, is_robot_params, load_any_params, save_params, validate_params
+    from kukaid.diagnose.plots import write_report
     from kukaid.diagnose.workflow import diagnose
 
     if not 0 < alpha < 1:
@@ -61,12 +63,12 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     check_suffix(output, ".json")
     check_suffix(report, ".pdf")
     check_outputs([output, report], [params_path, *logs])
-    refuse_other_kind(output, force, SCHEMA)
+    refuse_other_kind(output, force, SCHEMA, ROBOT_SCHEMA)
     params = load_any_params(params_path)
-    if is_robot_params(params):
-        _robot(click.get_current_context(), params, logs, as_json, max_steps)
-        return
     stage = stages("diagnose")
+    if is_robot_params(params):
+        _robot(click.get_current_context(), params, logs, as_json, max_steps, output, report, stage)
+        return
     stage("reading the logs")
     data = [read_log(p) for p in logs]
     if axis is not None:
@@ -76,19 +78,29 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     with option_in_data_error(("--cutoff", cutoff is not None, "filter cut-off")):  # its limit: the log's rate
         result = diagnose(params, data, axis=axis, cutoff=cutoff, alpha=alpha, max_steps=max_steps,
                           source=str(params_path), stage=stage)
+    _write(result, as_json, output, report, validate_params, save_params, write_report, stage)
+
+
+def _write(result, as_json: bool, output, report, check, save, draw, stage) -> None:
+    """The refined parameter file (``check``ed first: a problem names -o, not a temporary file;
+    ``save(path, params)``) and the report (``draw(result, path)``), both or neither; then the
+    result on stdout (JSON with --json, else its lines)."""
+    import json
+
+    from kukaid.atomic import atomic_paths
+    from kukaid.jsonfile import jsonable
+
     if output is not None:
-        validate_params(result.params, str(output))  # a problem names -o, not a temporary file
+        check(jsonable(result.params), str(output))
     with atomic_paths(*[p for p in (output, report) if p is not None]) as tmps:  # both or neither
         tmp = iter(tmps)
         if output is not None:
-            save_params(next(tmp), result.params)
+            save(next(tmp), result.params)
         if report is not None:
-            from kukaid.diagnose.plots import write_report
-
             stage("drawing the report")
-            write_report(result, next(tmp))
+            draw(result, next(tmp))
     if as_json:
-        click.echo(json.dumps(result.to_json(), indent=2))
+        click.echo(json.dumps(jsonable(result.to_json()), indent=2))
     else:
         for line in result.lines():
             click.echo(line)
@@ -97,24 +109,21 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
             click.echo(f"{path}: {what} written", err=True)
 
 
-def _robot(ctx: click.Context, params: dict, logs, as_json: bool, max_steps: int) -> None:
+def _robot(ctx: click.Context, params: dict, logs, as_json: bool, max_steps: int, output, report, stage) -> None:
     """``kukaid diagnose --params robot.json``: the robot's candidates (kukaid.diagnose.robot)."""
-    import json
-
     from click.core import ParameterSource
 
     from kukaid.diagnose.robot import diagnose_robot
-    from kukaid.jsonfile import jsonable
+    from kukaid.diagnose.robot_plots import write_robot_report
     from kukaid.logs import read_log
+    from kukaid.params import save_robot_params, validate_robot_params
 
-    for name, flag in (("axis", "--axis"), ("report", "--report"), ("output", "-o/--output"), ("cutoff", "--cutoff"),
-                       ("alpha", "--alpha"), ("force", "--force")):
+    for name, flag in (("axis", "--axis"), ("cutoff", "--cutoff"), ("alpha", "--alpha")):
         if ctx.get_parameter_source(name) not in (None, ParameterSource.DEFAULT, ParameterSource.DEFAULT_MAP):
             raise click.UsageError(f"option {flag} does not apply to a robot parameter file (yet): the robot "
                                    "diagnosis prints its findings (--json for a machine)")
-    result = diagnose_robot(params, [read_log(p) for p in logs], max_steps=max_steps)
-    if as_json:
-        click.echo(json.dumps(jsonable(result.to_json()), indent=2))
-    else:
-        for line in result.lines():
-            click.echo(line)
+    stage("reading the logs")
+    data = [read_log(p) for p in logs]
+    stage("testing the candidate effects on held-out recordings")
+    result = diagnose_robot(params, data, max_steps=max_steps)
+    _write(result, as_json, output, report, validate_robot_params, save_robot_params, write_robot_report, stage)

@@ -1,9 +1,35 @@
 """Shared fixtures."""
 from __future__ import annotations
 
+import importlib.util
+import os
 import sys
+from pathlib import Path
 
 import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _this_checkouts_cli() -> None:
+    """``kukaid_cli`` from this checkout's ``cli/``, here and in the subprocesses the tests start.
+    An editable install maps it to the checkout it was made from: a git worktree's tests run with
+    ``PYTHONPATH=<worktree>`` took ``kukaid`` from the worktree and ``kukaid_cli`` from the install's
+    checkout (its CLI, not the one under test)."""
+    spec = importlib.util.find_spec("kukaid_cli")
+    if spec is not None and spec.origin and Path(spec.origin).resolve().parent == (ROOT / "cli").resolve():
+        return
+    where = ROOT / ".pytest_cache" / "kukaid_cli_path"      # ignored by git
+    link = where / "kukaid_cli"
+    if not link.is_symlink():
+        where.mkdir(parents=True, exist_ok=True)
+        link.symlink_to(ROOT / "cli", target_is_directory=True)
+    sys.path.insert(0, str(where))
+    os.environ["PYTHONPATH"] = os.pathsep.join([str(where), *filter(None, [os.environ.get("PYTHONPATH")])])
+    sys.modules.pop("kukaid_cli", None)
+
+
+_this_checkouts_cli()
 
 
 @pytest.fixture(scope="session")

@@ -93,6 +93,7 @@ def test_cli_accepts_a_robot_parameter_file(kr6, clean_fit, tmp_path):
     assert "step 1: payload" in r.stdout and "held out: each recording left out in turn" in r.stdout
     r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths, "--json"])
     assert r.exit_code == 0 and json.loads(r.stdout)["steps"][0]["name"] == "payload"
-    r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths, "-o", str(tmp_path / "out.json")])
+    r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths, "--alpha", "0.05", "-o",
+                                 str(tmp_path / "out.json")])
     assert r.exit_code == 2 and "does not apply to a robot parameter file" in r.output
     assert len(r.output.strip().splitlines()) == 1 and not (tmp_path / "out.json").exists()

@@ -129,6 +129,9 @@ class RobotTorqueModel:
         same terms as :func:`kukaid.identify.robot_fit.predict_robot`."""
         from kukaid.models.urdf import load_model
 
+        if params.get("effects"):      # a file refined by kukaid diagnose -o: not modelled here yet
+            raise ParamFileError(f"{where}: its effects ({', '.join(params['effects'])}, named by kukaid diagnose) "
+                                 "are not in the real-time torque model yet; use the file without them")
         try:
             model = load_model(params["robot"]["urdf"])
             n = model.nv

@@ -33,35 +33,44 @@ def _unit(result: Diagnosis) -> str:
 def page_table(result: Diagnosis) -> tuple[list, float]:
     """The summary pages: the diagnosis's lines wrapped to the page, continued on new pages, then the
     table of steps; and the height (figure fraction) left free at the bottom of the last page."""
+    cols = ["step", "effect", "RMSE before", "RMSE after", "gap closed", "Wald", "p (corr.)"]
+    cells = [[str(i + 1), s.name, f"{s.rmse_before:.4g}", f"{s.rmse_after:.4g}", f"{100 * s.gap_closed:.0f} %",
+              f"{s.test.wald.stat:.1f}", f"{s.test.p_adjusted:.2g}"] for i, s in enumerate(result.steps)]
+    return summary_pages(result.lines(), [(cols, cells)] if cells else [])
+
+
+def summary_pages(lines: list[str], tables: list[tuple], title: str = "kukaid diagnose: the gap and the effects found",
+                  row: float = 0.03) -> tuple[list, float]:
+    """A4 pages of ``lines`` wrapped to the page, continued on new pages, then each table
+    ``(column labels, rows)`` or ``(column labels, rows, column widths)``, ``row`` high per row
+    (figure fraction); and the height left free at the bottom of the last page."""
     import matplotlib.pyplot as plt
 
     figs: list = []
 
     def new_page():
         fig = plt.figure(figsize=(8.27, 11.69))
-        fig.text(0.05, 0.96, "kukaid diagnose: the gap and the effects found" + (" (continued)" if figs else ""),
-                 fontsize=14, weight="bold")
+        fig.text(0.05, 0.96, title + (" (continued)" if figs else ""), fontsize=14, weight="bold")
         figs.append(fig)
         return fig, 0.92
 
     fig, y = new_page()
-    for ln in result.lines():  # wrapped to the page: 100 characters of 8 pt monospace are 480 pt of 595 pt
+    for ln in lines:  # wrapped to the page: 100 characters of 8 pt monospace are 480 pt of 595 pt
         for sub in textwrap.wrap(ln, 100, subsequent_indent=" " * (len(ln) - len(ln.lstrip()) + 2)) or [""]:
             if y < 0.05:
                 fig, y = new_page()
             fig.text(0.05, y, sub, fontsize=8, family="monospace")
             y -= 0.015
         y -= 0.007
-    if result.steps:
-        if y - 0.1 < 0.03 * (len(result.steps) + 1):  # the table's rows would not fit below the text
+    for cols, cells, *widths in tables:
+        if y - 0.1 < row * (len(cells) + 1):  # the table's rows would not fit below the text
             fig, y = new_page()
-        cols = ["step", "effect", "RMSE before", "RMSE after", "gap closed", "Wald", "p (corr.)"]
-        cells = [[str(i + 1), s.name, f"{s.rmse_before:.4g}", f"{s.rmse_after:.4g}", f"{100 * s.gap_closed:.0f} %",
-                  f"{s.test.wald.stat:.1f}", f"{s.test.p_adjusted:.2g}"] for i, s in enumerate(result.steps)]
-        h = min(max(0.05, y - 0.1), 0.03 * (len(cells) + 1))
+        h = min(max(0.05, y - 0.1), row * (len(cells) + 1))
         ax = fig.add_axes([0.05, y - 0.02 - h, 0.9, h])
         ax.axis("off")
-        ax.table(cellText=cells, colLabels=cols, bbox=[0.0, 0.0, 1.0, 1.0])
+        tab = ax.table(cellText=cells, colLabels=cols, bbox=[0.0, 0.0, 1.0, 1.0], colWidths=(widths or [None])[0])
+        tab.auto_set_font_size(False)
+        tab.set_fontsize(7)
         y -= 0.04 + h
     return figs, y
 
@@ -125,20 +134,34 @@ def page_spectrum(result: Diagnosis, fig=None, top: float = 0.92):
 
 def write_report(result: Diagnosis, path: str | Path) -> None:
     """Write the diagnosis pages to ``path`` (PDF, atomically)."""
+    def pages():
+        figs, free = page_table(result)
+        if free > 0.5:  # the spectrum fits below the summary
+            page_spectrum(result, figs[-1], free)
+        figs += [page_step(result, k) for k in range(len(result.steps))]
+        if free <= 0.5:
+            figs.append(page_spectrum(result))
+        return figs
+
+    write_pages(pages, path)
+
+
+def write_pages(draw, path: str | Path) -> int:
+    """Draw the pages (``draw()``: a list of figures, on the Agg backend) and write them as one PDF at
+    ``path``, atomically (no file is left on failure); returns the number of pages."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_pdf import PdfPages
 
-    figs, free = page_table(result)
-    if free > 0.5:  # the spectrum fits below the summary
-        page_spectrum(result, figs[-1], free)
-    figs += [page_step(result, k) for k in range(len(result.steps))]
-    if free <= 0.5:
-        figs.append(page_spectrum(result))
-    with atomic_path(path) as tmp:
-        with PdfPages(tmp) as pdf:
-            for fig in figs:
-                pdf.savefig(fig)
-                plt.close(fig)
+    figs = draw()
+    try:
+        with atomic_path(path) as tmp:
+            with PdfPages(tmp) as pdf:
+                for fig in figs:
+                    pdf.savefig(fig)
+    finally:
+        for fig in figs:
+            plt.close(fig)
+    return len(figs)

@@ -42,6 +42,11 @@ prior's strength made again with it beside: made without it, they were made on a
 dominated) and the others tried again (at most ``max_steps``). The noise floor per joint
 (:func:`kukaid.diagnose.noise.filtered_noise_floor`: the RMSE of a perfect model in the fit's
 filtered comparison) is reported beside the errors.
+
+The result carries the refined file (``params``, :func:`_refined`: the named effects in
+``effects``, the file's own terms refitted beside them, as ``kukaid diagnose -o`` writes it) and the
+held-out residuals at the start and after each step (``series``, :mod:`kukaid.diagnose.robot_plots`
+draws them). A file's own effects are held in the baseline and not tried again.
 """
 from __future__ import annotations
 
@@ -69,8 +74,22 @@ MIN_T = 2.0
 
 
 @dataclass
+class Series:
+    """What a report draws: over the diagnosis' samples (N,), the time s (each recording's own),
+    samples per recording, the file's signals (positions, temperatures, load torques:
+    :class:`~kukaid.models.robot_effects.EffectSignals`) and the held-out residual (measured minus
+    predicted, filtered as compared; (N, n) N·m) at the start and after each named effect."""
+
+    time: np.ndarray
+    log_rows: tuple[int, ...]
+    signals: Any
+    residuals: list
+
+
+@dataclass
 class RobotDiagnosis:
-    """Result of :func:`diagnose_robot`: ``lines()`` for the terminal, ``to_json()`` for a machine."""
+    """Result of :func:`diagnose_robot`: ``lines()`` for the terminal, ``to_json()`` for a machine,
+    ``params`` the refined parameter file (the named effects in it), ``series`` for a report."""
 
     axes: list[int]
     folds: str
@@ -83,6 +102,9 @@ class RobotDiagnosis:
     rms: list[float] = field(default_factory=list)          # N·m per joint: RMS of the compared torque
     tried: list[dict] = field(default_factory=list)         # every candidate of the first round, its evidence
     fitted_on: list[str] = field(default_factory=list)      # recordings the file was fitted on: not used
+    given: list[str] = field(default_factory=list)          # the file's own effects: held, not candidates
+    params: dict | None = None                              # the refined parameter file
+    series: Series | None = field(default=None, repr=False)
 
     @property
     def names(self) -> list[str]:
@@ -99,13 +121,15 @@ class RobotDiagnosis:
                 "heldout_rmse_before_Nm": self.rmse(self.before).tolist() if self.rms else [],
                 "heldout_rmse_after_Nm": self.rmse(self.after).tolist() if self.rms else [],
                 "steps": self.steps, "rejected": self.rejected, "tried": self.tried,
-                "not_used_fitted_on": self.fitted_on}
+                "not_used_fitted_on": self.fitted_on, "effects_in_the_file": self.given}
 
     def lines(self) -> list[str]:
         ax = " ".join(f"{f'A{a}':>7}" for a in self.axes)
         out = [f"robot diagnosis, held out: {self.folds}"]
         if self.fitted_on:
             out.append(f"  not used: {', '.join(self.fitted_on)} (the file was fitted on it: its error is in-sample)")
+        if self.given:
+            out.append(f"  in the file already (held, not tried again): {', '.join(self.given)}")
         out += [f"{'relative error':<34}{ax}",
                 f"{'  the file as it is':<34}" + " ".join(f"{100 * x:6.1f}%" for x in self.in_sample),
                 f"{'  held out, its terms refitted':<34}" + " ".join(f"{100 * x:6.1f}%" for x in self.before)]
@@ -153,6 +177,7 @@ class _Baseline:
     prior: list = field(default_factory=list)   # per joint: information of a prior at 0 per column of cols()
     angle: list = field(default_factory=list)   # per joint: indices of its terms of its own angle (k, ripple)
     angle_torque: np.ndarray | None = None      # (N, n) those terms' torque as the file has them
+    names: list = field(default_factory=list)   # per joint: the file's names of its own columns (A2.Fc, ...)
 
     def without_angle_terms(self, j: int, r: np.ndarray, Fj: list) -> tuple[np.ndarray, list]:
         """``r`` and ``Fj`` with joint j's terms of its own angle taken out (the file's torque of them
@@ -179,8 +204,9 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     each joint's own columns (:class:`_Baseline`), the file's prediction, the candidates' pieces
     (gravity, payload columns, times, temperatures), the rigid body's correction columns and the
     noise floor."""
-    from kukaid.identify.robot_fit import (DriveModel, RobotFitSettings, _blocks, _cutoff, _samples, extra_names,
-                                           extras, filtered_coulomb, sample_rows)
+    from kukaid.identify.robot_fit import (DriveModel, RobotFitSettings, _blocks, _cutoff, _samples, effect_signals,
+                                           extra_names, extras, filtered_coulomb, log_temperatures, sample_rows)
+    from kukaid.models import robot_effects
 
     s = params["settings"]
     settings = RobotFitSettings(**{"ripple": 0, **{k: s[k] for k in RobotFitSettings.__dataclass_fields__ if k in s}})
@@ -193,11 +219,15 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     names = extra_names(robot, settings)
     fr = params["friction"]
     x = np.array([fr["values"].get(k, 0.0) for k in names])
-    bp = params["base_parameters"]
-    ind, beta = np.asarray(bp["independent"], int), np.asarray(bp["values"], float)
     N = m.q.shape[0]
-    rigid, gravity = np.empty((N, n)), np.empty((N, n))
-    at_rest = np.zeros((N, n), bool)
+    times, temps = [], []
+    for lg in logs:
+        rows = sample_rows(lg, settings)
+        times.append(np.asarray(lg.time, float)[rows])
+        temps.append(None if getattr(lg, "temp", None) is None else log_temperatures(lg, n)[rows])
+    temp = None if any(t is None for t in temps) else np.concatenate(temps)
+    rigid, gravity, sign, friction, fixed = (np.empty((N, n)) for _ in range(5))
+    effects = params.get("effects") or {}
     # each joint's own terms as the file has them: ripple harmonics the fit held at 0 (not covered by
     # its range, or not chosen) stay out, else their refit bends the torque outside the fitted range
     own = [[i for i, nm in enumerate(names) if nm.startswith(f"A{j + 1}.") and not (".ripple_" in nm and x[i] == 0.0)]
@@ -209,22 +239,20 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     payload = np.empty((N, n, 4))
     B = BaseCorrection(robot, params)
     corr = np.empty((N, n, B.size))
-    k0 = robot.n_std - 10
     fit_file = np.empty((N, n))
     for rows, mb in _blocks(m):
         Y = robot.regressor(mb.q, mb.qd, mb.qdd)
         F = extras(robot, mb, settings, drive, qd_range=fr.get("qd_range"))
-        rigid[rows] = Y[:, :, ind] @ beta
+        es = effect_signals(robot, mb.q, Y, F, params, names, None if temp is None else temp[rows])
+        rigid[rows], gravity[rows], payload[rows], sign[rows], friction[rows] = (
+            es.rigid, es.gravity, es.payload, es.sign, es.friction)
+        fixed[rows] = robot_effects.torque(effects, es)    # the file's own effects: held as it has them
         corr[rows] = B.columns(Y)
-        z = np.zeros_like(mb.q)
-        gravity[rows] = robot.regressor(mb.q, z, z)[:, :, ind] @ beta
-        payload[rows] = Y[:, :, k0: k0 + 4]
-        at_rest[rows] = F[:, np.arange(n), coul] == 0.0
         hold[rows] = F[:, np.arange(n), visc]
         for j in range(n):
             Fj[j][rows] = F[:, j, own[j]]
             fit_file[rows, j] = F[:, j, own[j]] @ x[own[j]]
-    tau_hat = rigid + fit_file
+    tau_hat = rigid + fit_file + fixed
     # the file's terms of a joint's own angle (spring k q_j, ripple harmonics) are refitted as changes
     # from the file's values under its uncertainty: refitted freely on a recording that covers a
     # narrow range of the joint they extrapolate (a file's k of 92 N·m/rad on A2: 150 % held out)
@@ -251,24 +279,22 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     base = _Baseline(Fj, [own[j].index(coul[j]) for j in range(n)], [own[j].index(visc[j]) for j in range(n)],
                      coulomb, {"hold": hold, "linear": m.qd}, m.qdd, own_prior,
                      [[i for i, k in enumerate(own[j]) if names[k].endswith(".k") or ".ripple_" in names[k]]
-                      for j in range(n)], shape)
-    times, temps = [], []
-    for lg in logs:
-        rows = sample_rows(lg, settings)
-        times.append(np.asarray(lg.time, float)[rows])
-        t = getattr(lg, "temp", None)
-        temps.append(None if t is None else np.asarray(t, float)[rows][:, [lg.index(a) for a in range(1, n + 1)]])
-    temp = None if any(t is None for t in temps) else np.concatenate(temps)
+                      for j in range(n)], shape, [[names[k] for k in own[j]] for j in range(n)])
     fs = [1.0 / lg.sample_time for lg in logs]
     pieces = dict(q=m.q, qd=m.qd, tau=m.tau, gravity=gravity, rigid=rigid, temp=temp, payload=payload,
                   total_mass=float(np.sum(np.maximum(robot.pi_nominal[0::10], 0))), log_rows=m.log_rows or (N,),
-                  cutoff=_cutoff(settings, min(fs)), time=np.concatenate(times), at_rest=at_rest,
+                  cutoff=_cutoff(settings, min(fs)), time=np.concatenate(times), at_rest=sign == 0.0,
                   Fc=np.array([x[c] for c in coul]), Fv=np.array([x[c] for c in visc]))
+    # what the file's effects read, its own Coulomb column and friction: a refined file's effects are
+    # refitted on it (:func:`_refined`)
+    own_signals = robot_effects.EffectSignals(q=m.q, sign=sign, friction=friction, gravity=gravity, rigid=rigid,
+                                              payload=payload, temp=temp)
     from kukaid.diagnose.noise import filtered_noise_floor
 
     floor = [filtered_noise_floor([lg.tau[:, lg.index(j + 1)] for lg in logs], fs, [_cutoff(settings, f) for f in fs],
                                   settings.order) for j in range(n)]
-    return m, rigid + shape, base, tau_hat, pieces, [corr[:, j, :] for j in range(n)], B.prior, np.asarray(floor)
+    return (m, rigid + shape + fixed, base, tau_hat, pieces, [corr[:, j, :] for j in range(n)], B.prior,
+            np.asarray(floor), own_signals)
 
 
 class BaseCorrection:
@@ -338,13 +364,13 @@ def _choose_baseline(base: _Baseline, r, tau, corr, prior, folds, K, w, local: d
 def _baselines(base: _Baseline, r, tau, shared, prior, folds, K, w, local: dict | None = None,
                replaced: Sequence[int] = ()) -> dict:
     """The joints' own columns chosen (:func:`_choose_baseline`) at each prior strength of
-    :data:`PRIOR_SCALES`: {strength: (columns, choice, held-out squared error per fold (K, n), per
-    sample (N, n))}."""
+    :data:`PRIOR_SCALES`: {strength: (columns, choice, held-out squared error per fold (K, n), held-out
+    residual per sample (N, n))}."""
     out = {}
     for c in PRIOR_SCALES:
         F, choice = _choose_baseline(base, r, tau, shared, _scaled(prior, c), folds, K, w, local, replaced)
-        num, _, _, sq = _heldout(r, tau, F, shared, local or {}, folds, K, w, prior=_scaled(prior, c))
-        out[c] = (F, choice, num, sq)
+        num, _, _, res = _heldout(r, tau, F, shared, local or {}, folds, K, w, prior=_scaled(prior, c))
+        out[c] = (F, choice, num, res)
     return out
 
 
@@ -376,8 +402,8 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
     (N, s) columns whose coefficients all joints share), fitted on the other folds (weights ``w``
     per joint), on the folds ``evaluate`` (default all). Returns the sums of squared errors (K, n)
     and of squared torques (K, n) per fold (0 for the folds not evaluated), the coefficients
-    fitted on all samples and the held-out squared error of every sample (N, n). ``prior``: (per
-    joint the diagonal information of a prior at 0 on its ``Fj`` columns; the information matrix of one
+    fitted on all samples and the held-out residual (measured minus predicted) of every sample (N, n).
+    ``prior``: (per joint the diagonal information of a prior at 0 on its ``Fj`` columns; the information matrix of one
     on the first shared columns: :class:`BaseCorrection`); a list of them: a list of results, the
     normal equations formed once."""
     n = r.shape[1]
@@ -429,7 +455,7 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
             if shared_p is not None and ns:
                 pi_ = np.arange(off[-1], off[-1] + shared_p.shape[0])
                 Pp[np.ix_(pi_, pi_)] += shared_p
-        num, den, sq = np.zeros((K, n)), np.zeros((K, n)), np.zeros_like(r)
+        num, den, res = np.zeros((K, n)), np.zeros((K, n)), np.zeros_like(r)
         for f in (range(K) if evaluate is None else evaluate):
             x = solve(data_A + Pp - parts[f][0], data_b - parts[f][1])
             rows = folds == f
@@ -437,10 +463,10 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
                 pred = cols(j, rows) @ x[off[j]:off[j + 1]]
                 if shared is not None:
                     pred = pred + shared[j][rows] @ x[off[-1]:]
-                sq[rows, j] = (r[rows, j] - pred) ** 2
-                num[f, j] = float(np.sum(sq[rows, j]))
+                res[rows, j] = r[rows, j] - pred
+                num[f, j] = float(np.sum(res[rows, j] ** 2))
                 den[f, j] = float(np.sum(tau[rows, j] ** 2))
-        out.append((num, den, solve(data_A + Pp, data_b), sq))
+        out.append((num, den, solve(data_A + Pp, data_b), res))
     return out if isinstance(prior, list) else out[0]
 
 
@@ -449,7 +475,7 @@ def _rel(num: np.ndarray, den: np.ndarray) -> np.ndarray:
     return np.sqrt(num.sum(0) / np.maximum(den.sum(0), 1e-300))
 
 
-def _gain_t(sq0: np.ndarray, sq: np.ndarray, den: np.ndarray, block: np.ndarray, joints: list[int]) -> float:
+def _gain_t(res0: np.ndarray, res: np.ndarray, den: np.ndarray, block: np.ndarray, joints: list[int]) -> float:
     """The held-out gain of a candidate per block of held-out samples, as the log of the ratio of
     the squared errors before and after (each joint relative to its squared torque, summed over the
     candidate's joints): its mean over the blocks divided by its standard error (a t statistic; inf
@@ -457,8 +483,8 @@ def _gain_t(sq0: np.ndarray, sq: np.ndarray, den: np.ndarray, block: np.ndarray,
     block to block (a counterbalance between A2's angles, a thermal term between temperatures), and
     a difference would read a gain of 90 % in one block and 50 % in another as noise."""
     ids = np.unique(block[block >= 0])
-    b0 = (sq0[:, joints] / np.maximum(den[joints], 1e-300)).sum(1)
-    b1 = (sq[:, joints] / np.maximum(den[joints], 1e-300)).sum(1)
+    b0 = (res0[:, joints] ** 2 / np.maximum(den[joints], 1e-300)).sum(1)
+    b1 = (res[:, joints] ** 2 / np.maximum(den[joints], 1e-300)).sum(1)
     g = np.array([math.log(max(float(b0[block == b].sum()), 1e-300) / max(float(b1[block == b].sum()), 1e-300))
                   for b in ids])
     if g.size < 2:
@@ -571,9 +597,9 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
     acc = [[np.zeros((K, n)), np.zeros((K, n)), np.zeros_like(r)] for _ in priors]
     for o in sorted(set(pick[f] for f in held)):
         loc, sh = _with(local, shared, cand, cols_of(o), n)
-        for a_, (a, b, _, q2) in zip(acc, _heldout(r, tau, Fj, sh, loc, folds, K, w,
+        for a_, (a, b, _, res_o) in zip(acc, _heldout(r, tau, Fj, sh, loc, folds, K, w,
                                                     [f for f in held if pick[f] == o], prior=priors)):
-            a_[0], a_[1], a_[2] = a_[0] + a, a_[1] + b, a_[2] + q2
+            a_[0], a_[1], a_[2] = a_[0] + a, a_[1] + b, a_[2] + res_o
     loc, sh = _with(local, shared, cand, cols_of(best_all), n)
     c = cols_of(best_all).shape[-1]
     out = []
@@ -608,7 +634,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     if not logs:
         raise KukaidError("diagnose: no logs")
     logs, fitted_on = _unseen(params, logs)
-    m, rigid, base, tau_hat, pieces, corr, corr_prior, floor = _signals(params, logs, robot)
+    m, rigid, base, tau_hat, pieces, corr, corr_prior, floor, own_signals = _signals(params, logs, robot)
     prior = (base.prior, corr_prior)          # own columns' diagonals; (information, payload part)
     n = robot.n
     axes = list(range(1, n + 1))
@@ -631,10 +657,11 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     g = ctx.gravity
     span = np.ptp(g, axis=0)
     grav = [j for j in range(n) if span[j] >= 0.5 * span.max() and np.std(g[:, j]) > 0.1 * np.sqrt(np.mean(tau[:, j] ** 2))]
-    remaining = {c.name: c for c in robot_candidates(ctx, grav)}
+    given = params.get("effects") or {}     # the file's own effects are held, never named again
+    remaining = {c.name: c for c in robot_candidates(ctx, grav) if c.name not in given}
     local: dict = {}
     shared = corr
-    num, den, _, sq0 = _heldout(r, tau, Fj, shared, local, folds, K, w, held, prior=_scaled(prior, scale))
+    num, den, _, res0 = _heldout(r, tau, Fj, shared, local, folds, K, w, held, prior=_scaled(prior, scale))
     # blocks of the held-out samples (FOLDS contiguous blocks of each held-out recording, or the
     # blocks themselves): a named effect's held-out gain must stand out from its spread over them
     block = np.full(r.shape[0], -1)
@@ -648,6 +675,8 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     steps, rejected = [], []
     tried: list[dict] = []
     replaced: list[int] = []
+    named: list = []                        # (candidate, its option) in the order named
+    residuals = [res0]                      # held-out residual (N, n) at the start and after each step
     for rnd in range(max(0, max_steps)):
         best = None
         trials: list[dict] = []
@@ -659,8 +688,8 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
                        held, prior, base)
             if res is None:
                 continue
-            fnum, fden, fsq, opt, coefs, col, c_scale = res
-            gain_t = _gain_t(sq0, fsq, den.sum(0), block, cand.joints(ctx))
+            fnum, fden, fres, opt, coefs, col, c_scale = res
+            gain_t = _gain_t(res0, fres, den.sum(0), block, cand.joints(ctx))
             e = _rel(fnum, fden)
             joints = cand.joints(ctx)
             info = cand.describe(ctx, opt, coefs)
@@ -683,16 +712,17 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             else:
                 reason = cand.implausible(ctx, opt, coefs) or None
             if reason is None and (best is None or (mb - ma) / mb > best[0]):
-                best = ((mb - ma) / mb, name, e, joints, info, mb, ma, col, fnum, fsq, gain_t, c_scale)
+                best = ((mb - ma) / mb, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, c_scale, opt)
             elif reason is not None:
                 rejected = [x_ for x_ in rejected if x_["name"] != name] + [{"name": name, "reason": reason}]
         if rnd == 0:
             tried = trials
         if best is None:
             break
-        _, name, e, joints, info, mb, ma, col, fnum, fsq, gain_t, scale = best
+        _, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, scale, opt = best
         Fj = Fjs[scale]
         cand = remaining.pop(name)
+        named.append((cand, opt))
         rejected = [x_ for x_ in rejected if x_["name"] != name]
         local, shared = _with(local, shared, cand, col, n)
         if cand.replaces_angle_terms:
@@ -705,16 +735,78 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
         e_now = _weighted(fnum, w)
         bl = _baselines(base, r, tau, shared, prior, folds, K, w, local, replaced)
         Fjs = {c: v[0] for c, v in bl.items()}
-        for c, (Fc_, _, num_c, sq_c) in bl.items():
+        for c, (Fc_, _, num_c, res_c) in bl.items():
             if _weighted(num_c, w) < e_now:
-                e_now, Fj, scale, fnum, fsq = _weighted(num_c, w), Fc_, c, num_c, sq_c
+                e_now, Fj, scale, fnum, fres = _weighted(num_c, w), Fc_, c, num_c, res_c
         e = _rel(fnum, den)
         ma = float(np.mean(e[joints]))
         steps.append({"name": name, "joints": [f"A{k + 1}" for k in joints], "params": {
             k: v for k, v in info.items() if not isinstance(v, list)}, "details": info,
             "mean_before": mb, "mean_after": ma, "gain_t": gain_t, "heldout_before": err.tolist(),
-            "heldout_after": e.tolist(), "trials": trials})
-        err, fold_err, sq0 = e, fnum, fsq
+            "heldout_after": e.tolist(), "trials": trials, "option": opt})
+        err, fold_err, res0 = e, fnum, fres
+        residuals.append(fres)
+    refined = _refined(params, logs, base, own_signals, named, r, tau, corr, _scaled(prior, scale), w, replaced)
     return RobotDiagnosis(axes=axes, folds=how, before=before.tolist(), after=err.tolist(), steps=steps,
                           rejected=rejected, in_sample=in_sample, noise_floor=floor.tolist(), rms=rms.tolist(),
-                          tried=tried, fitted_on=fitted_on)
+                          tried=tried, fitted_on=fitted_on, given=list(given), params=refined,
+                          series=Series(time=pieces["time"], log_rows=tuple(pieces["log_rows"]), signals=own_signals,
+                                        residuals=residuals))
+
+
+def _refined(params: dict, logs: Sequence[Any], base: _Baseline, own, named: list, r, tau, corr, prior, w,
+             replaced: Sequence[int]) -> dict:
+    """The parameter file with the named effects in it (``effects``: :mod:`kukaid.models.robot_effects`),
+    as it predicts: its own terms (its Coulomb column and held viscous term, as the file has them)
+    and the rigid body's correction (under the prior at the strength the diagnosis ended on: the
+    file's uncertainty) refitted beside the effects' columns on every sample of the diagnosis (the
+    file's effects held). A counterbalance's joint has its spring and ripple terms at 0 (it takes
+    their place). The file as it was when nothing is named. ``own``: the file's signals
+    (:class:`~kukaid.models.robot_effects.EffectSignals`)."""
+    import copy
+
+    from kukaid.identify.robot_fit import log_fingerprint
+    from kukaid.models import robot_effects
+
+    out = copy.deepcopy(params)
+    if not named:
+        return out
+    n = r.shape[1]
+    Fj = [base.cols(j, base.coulomb.shape[2] - 1, "hold", rotor=False) for j in range(n)]
+    for j in replaced:
+        Fj = base.without_angle_terms(j, r, Fj)[1]
+    local, shared, cols = {}, corr, []
+    for cand, opt in named:
+        col = robot_effects.columns(cand.name, opt, own)
+        local, shared = _with(local, shared, cand, col, n)
+        cols.append(col.shape[-1])
+    x = _heldout(r, tau, Fj, shared, local, np.zeros(r.shape[0], int), 1, w, [], prior=prior)[2]
+    vals = out["friction"]["values"]
+    at, coefs = 0, {}
+    for j in range(n):
+        for k, v in zip(base.names[j], x[at:at + len(base.names[j])]):
+            angle = k.endswith(".k") or ".ripple_" in k     # fitted as a change from the file's value
+            vals[k] = float(v) + (vals[k] if angle and j not in replaced else 0.0)
+        at += Fj[j].shape[1]
+        for (cand, _), c in zip(named, cols):
+            if cand.joint == j:
+                coefs[cand.name], at = x[at:at + c], at + c
+    bp = out["base_parameters"]
+    size = corr[0].shape[1]
+    bp["values"] = (np.asarray(bp["values"], float) + x[at:at + size]).tolist()
+    at += size
+    for (cand, _), c in zip(named, cols):
+        if cand.joint is None:
+            coefs[cand.name], at = x[at:at + c], at + c
+    out["effects"] = {**(params.get("effects") or {}),
+                      **{cand.name: {**opt, "coefficients": coefs[cand.name].tolist()} for cand, opt in named}}
+    prov = out.setdefault("provenance", {}) or {}
+    names = [str(lg.attrs.get("source_file", "")) for lg in logs]
+    prov["logs"] = list(dict.fromkeys([*(prov.get("logs") or []), *names]))
+    prov["log_fingerprints"] = list(dict.fromkeys([*(prov.get("log_fingerprints") or []),
+                                                   *(log_fingerprint(lg) for lg in logs)]))
+    prov["diagnose"] = {"effects_added": [cand.name for cand, _ in named], "refitted_on": names,
+                        "refitted": "friction values, base_parameters.values (under the file's uncertainty); "
+                                    "standard_parameters, sigma and metrics are the fit's"}
+    out["provenance"] = prov
+    return out

@@ -2,9 +2,10 @@
 
 Each candidate is a term added to one joint's equation (``joint``) or to every joint's with shared
 coefficients (``payload``), linear in its coefficients for fixed nonlinear settings (an option of
-:meth:`RobotCandidate.options`), with a plausibility rule. The one-axis effects' column builders
-and rules (:mod:`kukaid.models.effects`, :mod:`kukaid.diagnose.candidates`) are reused through
-one :class:`~kukaid.models.signals.LogSignals` per log for the joint (its samples as the robot fit
+:meth:`RobotCandidate.options`), with a plausibility rule. Its columns are the robot file's effect
+of the same name (:mod:`kukaid.models.robot_effects`: what a refined file predicts with); the
+one-axis effects' rules (:mod:`kukaid.diagnose.candidates`) are reused through one
+:class:`~kukaid.models.signals.LogSignals` per log for the joint (its samples as the robot fit
 filters and decimates them), so a ripple or a thermal term is written once for an axis and a robot.
 
 =============================  =============================================================
@@ -29,6 +30,8 @@ import numpy as np
 
 from kukaid.diagnose import candidates as C
 from kukaid.models import effects as E
+from kukaid.models import robot_effects as RE
+from kukaid.models.robot_effects import CB_KAPPA, gas_spring  # noqa: F401 (this module's names before)
 from kukaid.models.signals import LogSignals
 
 #: a counterbalance carries a real share of its joint's gravity torque: at least this
@@ -40,16 +43,6 @@ MIN_PAYLOAD_SHARE = 0.02
 CB_ANGLES = np.linspace(-math.pi, math.pi, 49)[:-1]
 CB_RATIOS = (0.2, 0.3, 0.45, 0.6, 0.8)
 CB_KAPPAS = (1.0, 1.3, 1.6)
-CB_KAPPA = 1.3
-
-
-def gas_spring(q: np.ndarray, q0: float, ratio: float, kappa: float = CB_KAPPA) -> np.ndarray:
-    """Torque shape of a gas spring (per unit force scale, lever b = 1 m, a = ratio), N·m per N."""
-    x = np.asarray(q, float) - q0
-    a, b = ratio, 1.0
-    s = np.sqrt(a * a + b * b - 2 * a * b * np.cos(x))
-    s0 = math.hypot(a, b)
-    return (s0 / np.maximum(s, 1e-9)) ** kappa * a * b * np.sin(x) / np.maximum(s, 1e-9)
 
 
 @dataclass
@@ -105,10 +98,6 @@ class Context:
                           rows=np.arange(t.size), joint="revolute", fs=1.0 / max(float(np.median(np.diff(t))), 1e-9),
                           cutoff=self.cutoff, order=0, name=f"log {k + 1}", others=others)
 
-    def joint_columns(self, j: int, build) -> np.ndarray:
-        """``build(sig)`` (a one-axis column builder) over every log of joint j, stacked (N, c)."""
-        return np.concatenate([np.asarray(build(s), float).reshape(s.n, -1) for s in self.sigs[j]], axis=0)
-
     # the model view the one-axis builders and rules read (kukaid.models.effects.ModelView)
     def friction_torque(self, sig: LogSignals, friction: dict | None = None) -> np.ndarray:
         return self._fric[id(sig)]
@@ -134,8 +123,9 @@ class RobotCandidate:
         return [{}]
 
     def columns(self, ctx: Context, option: dict) -> np.ndarray:
-        """(N, c) on the candidate's joint, or (N, n, c) shared by all joints."""
-        raise NotImplementedError
+        """(N, c) on the candidate's joint, or (N, n, c) shared by all joints: the effect's own
+        (:func:`kukaid.models.robot_effects.columns`, the context as its signals)."""
+        return RE.columns(self.name, option, ctx)
 
     def refine(self, ctx: Context, option: dict) -> list[dict]:
         """Finer options about a chosen one (chosen again on the same samples); none by default."""
@@ -183,10 +173,6 @@ class Counterbalance(RobotCandidate):
                                 "kappa": float(max(option.get("kappa", CB_KAPPA) + k, 0.8))})
         return out
 
-    def columns(self, ctx, option):
-        return gas_spring(ctx.q[:, self.joint], option["q0_rad"], option["lever_ratio"],
-                          option.get("kappa", CB_KAPPA))[:, None]
-
     def _sizes(self, ctx, option, coefs):
         peak = float(np.max(np.abs(coefs[0] * self.columns(ctx, option))))
         return peak, peak / max(float(np.max(np.abs(ctx.gravity[:, self.joint]))), 1e-12)
@@ -206,9 +192,6 @@ class Counterbalance(RobotCandidate):
 class Payload(RobotCandidate):
     name = "payload"
     rigid_body_like = True
-
-    def columns(self, ctx, option):
-        return ctx.payload
 
     def describe(self, ctx, option, coefs):
         return {"mass_kg": float(coefs[0]), "first_moment_kgm": [float(v) for v in coefs[1:4]]}
@@ -245,10 +228,6 @@ class LoadDependentFriction(RobotCandidate):
                 out.append({"load": load})
         return out
 
-    def columns(self, ctx, option):
-        L = ctx.gravity[:, self.joint] if option["load"] == "gravity" else ctx.rigid[:, self.joint]
-        return (np.abs(L) * ctx.sign[:, self.joint])[:, None]
-
     def describe(self, ctx, option, coefs):
         return {"load": option["load"], "mu": float(coefs[0])}
 
@@ -263,9 +242,9 @@ class LoadDependentFriction(RobotCandidate):
 
 class ThermalFriction(RobotCandidate):
     """The joint's friction changing with its motor temperature: the one-axis ``thermal_drift``
-    on the temperature coordinate (its column builder and its size rule), both forms."""
+    on the temperature coordinate (its column, T times the Coulomb column or the friction, and its
+    size rule), both forms."""
 
-    _effect = E.ThermalDrift()
     _rule = C.ThermalDrift()
 
     def __init__(self, joint: int) -> None:
@@ -278,12 +257,6 @@ class ThermalFriction(RobotCandidate):
 
     def options(self, ctx):
         return [{"coordinate": "temperature", "form": f} for f in ("coulomb", "friction")]
-
-    def columns(self, ctx, option):
-        if option["form"] == "coulomb":   # the filtered Coulomb column (the one-axis builder's is sign(qd))
-            T = ctx.joint_columns(self.joint, lambda s: self._effect.x(s, "temperature", ctx))
-            return T * ctx.sign[:, self.joint:self.joint + 1]
-        return ctx.joint_columns(self.joint, lambda s: self._effect.columns(s, option, ctx))
 
     def describe(self, ctx, option, coefs):
         T = ctx.temp[:, self.joint]
@@ -310,9 +283,6 @@ class PositionRipple(RobotCandidate):
         ok, _ = self._rule.applies(sigs, ctx)
         return self._rule.options(sigs, ctx) if ok else []
 
-    def columns(self, ctx, option):
-        return self._effect.columns(_Joint(ctx.q[:, self.joint]), option, ctx)
-
     def batch(self, ctx, options):
         s, c = self._effect.columns_at(ctx.q[:, self.joint], options)
         return np.stack([s, c], axis=2)
@@ -327,11 +297,6 @@ class PositionRipple(RobotCandidate):
         if scale > 0 and amp > self._rule.max_share * scale:
             return f"amplitude {amp:.4g} is more than {self._rule.max_share:g} x the torque scale {scale:.4g}"
         return self._rule.rule(ctx, sigs, option, {"a": float(coefs[0]), "b": float(coefs[1])})
-
-
-@dataclass
-class _Joint:
-    q: np.ndarray
 
 
 def robot_candidates(ctx: Context, gravity_joints: Sequence[int]) -> list[RobotCandidate]:

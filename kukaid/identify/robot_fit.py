@@ -36,6 +36,7 @@ from kukaid.identify.uncertainty import correlation_factor
 from kukaid.logs import AxisLog
 from kukaid.params.robot import SCHEMA as ROBOT_SCHEMA
 from kukaid.params.robot import validate_robot_params
+from kukaid.models import robot_effects
 from kukaid.models.urdf import BUNDLED
 from kukaid.models.robot import (FRICTION_MODELS, LINK_PARAMS, DriveModel, RobotModel, consistency,
                                  friction_names, friction_regressor, pseudo_inertia, smooth_sign)
@@ -1206,18 +1207,52 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     m = motion(log, n, settings, filter_tau=False)
     drive = DriveModel.direct(n) if not settings.rotor else DriveModel(
         np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
-    bp = params["base_parameters"]
-    ind = np.asarray(bp["independent"], int)
-    beta = np.asarray(bp["values"], float)
-    extra = np.array([params["friction"]["values"][k] for k in extra_names(robot, settings)])
+    names = extra_names(robot, settings)
+    extra = np.array([params["friction"]["values"][k] for k in names])
+    effects = params.get("effects") or {}
+    temp = log_temperatures(log, n) if any(k.startswith("thermal") for k in effects) else None
     tau = np.empty_like(m.q)
     for rows, mb in _blocks(m):      # block by block: an hour's log never holds its (N, n, p) regressor
         F = extras(robot, mb, settings, drive, qd_range=params["friction"].get("qd_range"))
-        tau[rows] = robot.regressor(mb.q, mb.qd, mb.qdd)[:, :, ind] @ beta + F @ extra
+        s = effect_signals(robot, mb.q, robot.regressor(mb.q, mb.qd, mb.qdd), F, params, names,
+                           None if temp is None else temp[rows], gravity=bool(effects))
+        tau[rows] = s.rigid + F @ extra + robot_effects.torque(effects, s)
     if settings.torque_side == "motor":
         drive = DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
         tau = drive.motor_torque(tau)
     return {a: tau[:, a - 1] for a in range(1, n + 1)}
+
+
+def log_temperatures(log: AxisLog, n: int) -> np.ndarray:
+    """(N, n) the log's motor temperatures of axes A1..An, degC (a thermal effect needs them)."""
+    if getattr(log, "temp", None) is None:
+        raise FitError(f"{log.attrs.get('source_file', 'axis log')}: a thermal effect of the parameter file needs "
+                       "the log's motor temperature channel (temp)")
+    return np.asarray(log.temp, float)[:, [log.index(a) for a in range(1, n + 1)]]
+
+
+def effect_signals(robot: RobotModel, q: np.ndarray, Y: np.ndarray, F: np.ndarray, params: dict,
+                   names: Sequence[str], temp: np.ndarray | None = None,
+                   gravity: bool = True) -> robot_effects.EffectSignals:
+    """What a robot file's effects read on one block of samples (:mod:`kukaid.models.robot_effects`):
+    its rigid-body torque (from the standard regressor ``Y`` (B, n, 10 n)), gravity torque (zeros
+    when ``gravity`` is false), the last link's m, m c columns, its Coulomb column and friction
+    torque (from its extra columns ``F`` named ``names``)."""
+    bp = params["base_parameters"]
+    ind, beta = np.asarray(bp["independent"], int), np.asarray(bp["values"], float)
+    vals = params["friction"]["values"]
+    n = robot.n
+    at = np.arange(n)
+    coul = [names.index(f"A{j + 1}.Fc") for j in range(n)]
+    visc = [names.index(f"A{j + 1}.Fv") for j in range(n)]
+    sign = F[:, at, coul]
+    friction = sign * np.array([vals.get(names[c], 0.0) for c in coul]) + \
+        F[:, at, visc] * np.array([vals.get(names[c], 0.0) for c in visc])
+    z = np.zeros_like(q)
+    k0 = robot.n_std - 10
+    return robot_effects.EffectSignals(q=q, sign=sign, friction=friction, rigid=Y[:, :, ind] @ beta,
+                                       gravity=robot.regressor(q, z, z)[:, :, ind] @ beta if gravity else z,
+                                       payload=Y[:, :, k0:k0 + 4], temp=temp)
 
 
 def robot_predictor(params: dict, log: AxisLog, axis: int | None = None,
@@ -1381,4 +1416,8 @@ def format_robot_table(params: dict) -> str:
     lines.append(f"sigma: least squares x the residual correlation factor {cf:.2f}; condition number "
                  f"{_g(mt.get('condition_number'))}; physically consistent: {'yes' if mt.get('physically_consistent') else 'no'}")
     lines.append(f"on a bound: {', '.join(at) or 'none'}")
+    eff = params.get("effects") or {}
+    if eff:
+        lines.append(f"effects named by kukaid diagnose, predicted with ({len(eff)}):")
+        lines += [f"  {robot_effects.describe(k, e)}" for k, e in eff.items()]
     return "\n".join(lines)

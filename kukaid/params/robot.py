@@ -13,6 +13,8 @@ standard_parameters : {link: {m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz}} of t
     consistent estimate (kg, kg·m, kg·m² at the joint frame), or null.
 friction : {model, vs, offset, values {A1.Fc: ...}, least_squares, sigma}.
 drive : {ratio, coupling} or null.   settings : the fit's settings.   metrics, provenance : objects.
+effects : {name: {its settings, coefficients, ...}} added by ``kukaid diagnose -o``
+    (:mod:`kukaid.models.robot_effects`: ``counterbalance@A2``, ``payload``, ...); predicted with.
 """
 from __future__ import annotations
 
@@ -162,7 +164,36 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
     for sec in ("metrics", "provenance"):
         if sec in d and d[sec] is not None:
             _object(where, sec, d[sec])
+    if d.get("effects") is not None:
+        _effects(where, d["effects"], n)
     return d
+
+
+#: an effect's settings that are words, and the words allowed (every other setting is a number)
+_EFFECT_WORDS = {"load": ("gravity", "rigid"), "form": ("coulomb", "friction")}
+
+
+def _effects(where: str, effects: Any, n: int) -> None:
+    from kukaid.models.robot_effects import KINDS, parse
+
+    for name, e in _object(where, "effects", effects).items():
+        try:
+            kind, j = parse(name)
+        except ValueError as x:
+            _fail(where, f"'effects': {x}")
+        if j is not None and j >= n:
+            _fail(where, f"'effects.{name}': the robot has {n} axes")
+        e = _object(where, f"effects.{name}", e)
+        keys, nc = KINDS[kind]
+        for k in keys + tuple(k for k in ("kappa",) if k in e):
+            if k not in e:
+                _fail(where, f"missing field 'effects.{name}.{k}'")
+            words = _EFFECT_WORDS.get(k)
+            if words and e[k] not in words:
+                _fail(where, f"'effects.{name}.{k}' must be one of {', '.join(words)}, got {json.dumps(e[k])[:40]}")
+            if not words:
+                _numbers(where, f"effects.{name}.{k}", [e[k]])
+        _numbers(where, f"effects.{name}.coefficients", e.get("coefficients"), nc)
 
 
 def is_robot_params(d: Any) -> bool:

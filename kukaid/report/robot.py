@@ -73,6 +73,13 @@ def page_friction_consistency(params: dict, source: str):
                ["link", "mass (kg)", "triangle margin (kg·m²)", "min eig. pseudo-inertia", "consistent"], fontsize=7)
     ax2.set_title("physical consistency of the estimate (mass > 0, triangle inequalities at the centre of mass)",
                   fontsize=8)
+    eff = params.get("effects") or {}
+    if eff:   # named by kukaid diagnose: predicted with
+        from kukaid.models.robot_effects import describe
+
+        fig.text(0.05, 0.52, textwrap.fill("effects named by kukaid diagnose, predicted with: "
+                                           + "; ".join(describe(k, e) for k, e in eff.items()), 130),
+                 fontsize=7, va="top")
     return fig
 
 

@@ -1,0 +1,115 @@
+"""Effects a robot parameter file carries beyond its URDF and per-joint friction, named by
+``kukaid diagnose`` (``effects`` of ``kukaid.robot_params/1``): each a term linear in its
+coefficients for fixed settings, written once here for the diagnosis' candidates, its refit and
+every prediction of the file.
+
+Terms on joint j, with their settings (s: joint j's Coulomb column, the file's when a file
+predicts, the diagnosis' filtered one while a candidate is judged):
+
+- ``counterbalance@A<j>``: c0 gas_spring(q_j; q0_rad, lever_ratio, kappa), a gas spring.
+- ``payload``: the last link's m, m c change (its regressor columns, c0..c3), on every joint.
+- ``load_dependent_friction@A<j>``: c0 |L_j| s, L_j the file's gravity (``load`` "gravity") or
+  rigid-body torque ("rigid").
+- ``thermal_friction@A<j>``: c0 T_j s (``form`` "coulomb") or c0 T_j F_j, F_j the file's friction
+  torque ("friction"); T_j the log's motor temperature, degC.
+- ``position_ripple@A<j>``: c0 sin(n q_j) + c1 cos(n q_j).
+
+An effect's entry in the file: its settings and ``coefficients`` (the c above).
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from kukaid.models import effects as E
+
+#: polytropic exponent of a gas spring when a file does not say
+CB_KAPPA = 1.3
+#: kind -> (settings it needs, number of coefficients)
+KINDS = {
+    "counterbalance": (("q0_rad", "lever_ratio"), 1),
+    "payload": ((), 4),
+    "load_dependent_friction": (("load",), 1),
+    "thermal_friction": (("form",), 1),
+    "position_ripple": (("n",), 2),
+}
+
+
+def gas_spring(q: np.ndarray, q0: float, ratio: float, kappa: float = CB_KAPPA) -> np.ndarray:
+    """Torque shape of a gas spring (per unit force scale, lever b = 1 m, a = ratio), N·m per N."""
+    x = np.asarray(q, float) - q0
+    a, b = ratio, 1.0
+    s = np.sqrt(a * a + b * b - 2 * a * b * np.cos(x))
+    s0 = math.hypot(a, b)
+    return (s0 / np.maximum(s, 1e-9)) ** kappa * a * b * np.sin(x) / np.maximum(s, 1e-9)
+
+
+@dataclass
+class EffectSignals:
+    """What the effects read, over N samples of n joints: positions rad (N, n), the file's Coulomb
+    column and friction torque (N, n), its gravity and rigid-body torque N·m (N, n), the last link's
+    m, m c regressor columns (N, n, 4), motor temperatures degC (N, n) or None."""
+
+    q: np.ndarray
+    sign: np.ndarray
+    friction: np.ndarray
+    gravity: np.ndarray
+    rigid: np.ndarray
+    payload: np.ndarray
+    temp: np.ndarray | None = None
+
+
+def parse(name: str) -> tuple[str, int | None]:
+    """``'counterbalance@A2'`` -> ``('counterbalance', 1)`` (0-based joint); ``'payload'`` -> (.., None).
+    Raises ValueError for a name that is not an effect of this module."""
+    m = re.fullmatch(r"([a-z_]+)(?:@A([1-9][0-9]*))?", name)
+    if not m or m.group(1) not in KINDS or (m.group(1) == "payload") != (m.group(2) is None):
+        raise ValueError(f"unknown robot effect {name!r} (known: {', '.join(k if k == 'payload' else k + '@A<j>' for k in KINDS)})")
+    return m.group(1), None if m.group(2) is None else int(m.group(2)) - 1
+
+
+def columns(name: str, spec: dict, s: EffectSignals) -> np.ndarray:
+    """The effect's columns: (N, c) on its joint, or (N, n, c) for a term on every joint (payload)."""
+    kind, j = parse(name)
+    if kind == "payload":
+        return s.payload
+    if kind == "counterbalance":
+        return gas_spring(s.q[:, j], spec["q0_rad"], spec["lever_ratio"], spec.get("kappa", CB_KAPPA))[:, None]
+    if kind == "load_dependent_friction":
+        L = s.gravity[:, j] if spec["load"] == "gravity" else s.rigid[:, j]
+        return (np.abs(L) * s.sign[:, j])[:, None]
+    if kind == "thermal_friction":
+        if s.temp is None:
+            raise ValueError(f"{name} needs the log's motor temperature channel (temp)")
+        return (s.temp[:, j] * (s.sign[:, j] if spec["form"] == "coulomb" else s.friction[:, j]))[:, None]
+    return E.PositionRipple().columns(_Joint(s.q[:, j]), spec, None)
+
+
+@dataclass
+class _Joint:
+    q: np.ndarray
+
+
+def torque(effects: dict, s: EffectSignals) -> np.ndarray:
+    """(N, n) N·m: the sum of the effects ``{name: entry}``, each its columns times its coefficients."""
+    out = np.zeros_like(s.q)
+    for name, spec in (effects or {}).items():
+        c = np.asarray(spec["coefficients"], float)
+        B = columns(name, spec, s)
+        if B.ndim == 3:
+            out += B @ c
+        else:
+            out[:, parse(name)[1]] += B @ c
+    return out
+
+
+def describe(name: str, spec: dict) -> str:
+    """One line of an effect for a table: its name, settings and coefficients."""
+    kind, _ = parse(name)
+    keys = KINDS[kind][0] + (("kappa",) if kind == "counterbalance" and "kappa" in spec else ())
+    parts = [f"{k} {spec[k]:.4g}" if isinstance(spec[k], (int, float)) else f"{k} {spec[k]}" for k in keys]
+    parts.append("coefficients " + ", ".join(f"{c:.4g}" for c in spec["coefficients"]))
+    return f"{name}: {'; '.join(parts)}"

@@ -1,0 +1,162 @@
+"""`kukaid diagnose --params robot.json -o refined.json --report r.pdf`: the refined robot file with the
+named effects in it, read by validate (predicting with them), show, report and diagnose again; the
+PDF of where the gap closed per joint; the output rules of the one-axis path (atomic, both files or
+neither, a parameter file replaced, any other file only with --force, one clear line on a bad input).
+
+The case: a 3.5 kg payload hidden in the six-axis virtual KR C4 (benchmarks/diagnose_robot_hidden.py,
+seed 0, four 4 s recordings), the file fitted on a recording without it; diagnosed on three, the
+fourth kept out for validate."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from kukaid.logs import write_hdf5
+from pdf_layout import capture_pages
+from test_cli_errors import _one_line_error, _run
+from test_diagnose_robot_floor import _bench
+from test_report_pdf import _pages
+
+
+@pytest.fixture(scope="module")
+def case(tmp_path_factory):
+    """The payload case on disk, diagnosed once with -o (onto a note file, with --force) and --report."""
+    from kukaid.identify.robot_fit import fit_robot
+    from kukaid.models.robot import RobotModel
+    from kukaid.params import save_robot_params
+
+    B = _bench()
+    robot = RobotModel(B.ROBOT)
+    spec = B.draw("payload", 0, robot)
+    d = tmp_path_factory.mktemp("robot_out")
+    save_robot_params(d / "robot.json", fit_robot(B.recordings(spec, 4.0, 1, hidden=False), robot))
+    logs = []
+    for k, lg in enumerate(B.recordings(spec, 4.0, 4)):
+        write_hdf5(lg, d / f"rec{k}.h5")
+        logs.append(d / f"rec{k}.h5")
+    (d / "refined.json").write_text("notes, not a parameter file\n")
+    r = _run("diagnose", "--params", d / "robot.json", *[x for p in logs[:3] for x in ("--log", p)],
+             "-o", d / "refined.json", "--force", "--report", d / "diagnosis.pdf")
+    assert r.exit_code == 0, r.output
+    return d, logs, r
+
+
+def _validate(params, log) -> float:
+    r = _run("validate", "--params", params, log, "--json")
+    assert r.exit_code == 0, r.output
+    return json.loads(r.stdout)["mean_relative_error"]
+
+
+def test_the_refined_file_predicts_with_the_payload(case):
+    """validate on a recording no step saw predicts with the payload: its error falls (72.7 -> 8.9 %
+    when written)."""
+    d, logs, r = case
+    assert "step 1: payload" in r.stdout and "refined parameters written" in r.stderr
+    refined = json.loads((d / "refined.json").read_text())
+    assert list(refined["effects"]) == ["payload"] and refined["effects"]["payload"]["coefficients"][0] == \
+        pytest.approx(3.5, rel=0.1)                                   # the hidden box: 3.50 kg
+    before, after = _validate(d / "robot.json", logs[3]), _validate(d / "refined.json", logs[3])
+    assert after < 0.25 * before, (before, after)
+
+
+def test_the_refined_file_is_read_by_show_report_and_diagnose_which_holds_its_effects(case):
+    d, logs, _ = case
+    again = _run("diagnose", "--params", d / "refined.json", *[x for p in logs[:3] for x in ("--log", p)], "--json")
+    assert again.exit_code == 0, again.output
+    out = json.loads(again.stdout)
+    assert out["effects_in_the_file"] == ["payload"] and "payload" not in [s["name"] for s in out["steps"]]
+    shown = _run("show", d / "refined.json")
+    assert shown.exit_code == 0 and "payload: coefficients 3." in shown.stdout
+    rep = _run("report", "--params", d / "refined.json", "--log", logs[3], "-o", d / "fit.pdf")
+    assert rep.exit_code == 0 and _pages(d / "fit.pdf") == 3, rep.output
+
+
+def test_the_report_has_a_page_per_joint_and_nothing_is_written_on_a_bad_input(case, tmp_path):
+    d, logs, r = case
+    pdf = d / "diagnosis.pdf"
+    assert pdf.read_bytes()[:5] == b"%PDF-" and _pages(pdf) == 1 + 6 and "report written" in r.stderr
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(b"not an HDF5 file")
+    for extra, what in ((["--log", bad], "bad.h5"), (["--log", tmp_path / "missing.h5"], "missing.h5"),
+                        (["--report", tmp_path], "is a directory")):
+        r = _run("diagnose", "--params", d / "robot.json", "--log", logs[0], "--log", logs[1],
+                 "-o", tmp_path / "out.json", *(extra if extra[0] == "--report" else
+                                                [*extra, "--report", tmp_path / "out.pdf"]))
+        _one_line_error(r, what)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.h5"]
+
+
+def test_the_report_pages_keep_within_the_paper_with_no_effect_named(case, tmp_path, monkeypatch):
+    """Nothing to name (--max-steps 0): the report still shows each joint's residual and says so."""
+    d, logs, _ = case
+    problems = capture_pages(monkeypatch)
+    r = _run("diagnose", "--params", d / "robot.json", *[x for p in logs[:3] for x in ("--log", p)],
+             "--max-steps", "0", "--report", tmp_path / "none.pdf")
+    assert r.exit_code == 0, r.output
+    assert _pages(tmp_path / "none.pdf") == 7 and problems == []
+
+
+def test_o_replaces_a_parameter_file_and_refuses_any_other_without_force(case, tmp_path):
+    d, logs, _ = case
+    note = tmp_path / "note.json"
+    note.write_text('{"schema": "something/1"}')
+    r = _run("diagnose", "--params", d / "robot.json", "--log", logs[1], "--log", logs[2], "-o", note)
+    _one_line_error(r, "already exists", "--force")
+    assert note.read_text() == '{"schema": "something/1"}'
+    # the forced run of the case replaced its note; an existing parameter file is replaced without it
+    assert json.loads((d / "refined.json").read_text())["schema"] == "kukaid.robot_params/1"
+    old = tmp_path / "old.json"
+    old.write_text((d / "refined.json").read_text())
+    r = _run("diagnose", "--params", d / "robot.json", "--log", logs[1], "--log", logs[2], "--max-steps", "0",
+             "-o", old)
+    assert r.exit_code == 0, r.output
+    assert json.loads(old.read_text()).get("effects") is None     # nothing named: the file as it was
+
+
+def test_axis_cutoff_alpha_stay_refused_for_a_robot_file(case):
+    d, logs, _ = case
+    for opt in (["--axis", "2"], ["--cutoff", "5"], ["--alpha", "0.05"]):
+        r = _run("diagnose", "--params", d / "robot.json", "--log", logs[0], *opt)
+        assert r.exit_code == 2 and "does not apply to a robot parameter file" in r.output
+
+
+def test_a_robot_file_names_its_effects_right():
+    from kukaid.errors import ParamFileError
+    from kukaid.models.robot_effects import parse
+    from kukaid.params import validate_robot_params
+
+    assert parse("counterbalance@A2") == ("counterbalance", 1) and parse("payload") == ("payload", None)
+    for bad in ("payload@A1", "counterbalance", "spring@A2"):
+        with pytest.raises(ValueError):
+            parse(bad)
+    with pytest.raises(ParamFileError, match="effects.position_ripple@A2.coefficients"):
+        validate_robot_params(_minimal({"position_ripple@A2": {"n": 7.0, "coefficients": [1.0]}}))
+    with pytest.raises(ParamFileError, match="unknown robot effect 'gravity_sine@A1'"):
+        validate_robot_params(_minimal({"gravity_sine@A1": {"coefficients": [1.0]}}))
+
+
+def _minimal(effects):
+    return {"schema": "kukaid.robot_params/1", "robot": {"urdf": "kr6-r700-sixx"}, "axes": [1, 2],
+            "base_parameters": {"names": ["a"], "values": [1.0], "independent": [0], "dependent": list(range(19)),
+                                "R": [[0.0] * 19]},
+            "friction": {"model": "coulomb-viscous", "values": {}}, "settings": {}, "effects": effects}
+
+
+def test_a_thermal_effect_needs_the_temperature_and_run_admittance_refuses_effects(case):
+    """validate of a file with a thermal effect on a log without temperatures: one clear line;
+    the real-time torque model (run-admittance) has no effects yet: it refuses the file."""
+    from dataclasses import replace
+
+    from kukaid.control.robot_residual import RobotTorqueModel
+    from kukaid.errors import ParamFileError
+    from kukaid.logs import read_log
+
+    d, logs, _ = case
+    p = json.loads((d / "refined.json").read_text())
+    p["effects"]["thermal_friction@A2"] = {"form": "coulomb", "coefficients": [-0.01]}
+    (d / "thermal.json").write_text(json.dumps(p))
+    write_hdf5(replace(read_log(logs[3]), temp=None), d / "cold.h5")
+    _one_line_error(_run("validate", "--params", d / "thermal.json", d / "cold.h5"), "temperature channel")
+    with pytest.raises(ParamFileError, match="payload.*not in the real-time torque model"):
+        RobotTorqueModel.from_params(p)
