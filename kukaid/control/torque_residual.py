@@ -19,7 +19,9 @@ Online, causal version (what a controller can do):
   mean raw residual over its first ``u_window`` s, then, while the axis settles (``switch_quiet``
   s), a close follower (time constant ``u_window``), then, only while nobody is in contact
   (quasi-static, no detection, the innovation below half the start threshold at rest, so a push
-  building up is not learnt), a slow observer (time constant ``u_tau``).  In contact Γu is
+  building up is not learnt), a slow observer (time constant ``u_tau``), and beyond half the start
+  threshold a drift no faster than ``DRIFT_RATE`` (a servo's integral action winding up against
+  stiction ramps the torque at rest by about 1 N·m/s; a push builds up faster).  In contact Γu is
   frozen, so a push that is still there when the axis stops is never absorbed;
 * at rest, out of contact, the RMS of Γr is tracked (forgetting ``floor_tau``): the start threshold
   at rest is at least ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model
@@ -85,6 +87,8 @@ QUIET_BEFORE_REST = 0.3
 MOVING_MARGIN = 2.0
 #: memory (s) of the residual read while moving, taken as the hand's torque when the axis stops
 DYN_MEMORY = 0.1
+#: at rest, out of contact, the fastest drift (N·m/s) Γu follows beyond half the start threshold
+DRIFT_RATE = 1.0
 #: effects of a parameter file that the online residual evaluates
 SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
 
@@ -299,9 +303,10 @@ class TorqueResidual:
         """Out of contact at rest: Γu is the mean of the raw residual over the first ``u_window`` s of
         a rest (eq. 13), then follows it: closely (time constant ``u_window``) while the axis settles
         (``switch_quiet`` s from the stop, when a push needs ``switch_share`` x the threshold), then with
-        the time constant ``u_tau`` while the difference stays below half the start threshold at rest
-        (a push building up is not learnt).  No gain on the model's pre-sliding torque: fitted at rest
-        it takes up a push (the push deflects the axis, the pre-sliding torque follows)."""
+        the time constant ``u_tau``, no faster than ``DRIFT_RATE`` N·m/s once the difference is beyond
+        half the start threshold at rest (a push building up is not learnt, a servo winding up is).  No
+        gain on the model's pre-sliding torque: fitted at rest it takes up a push (the push deflects the
+        axis, the pre-sliding torque follows)."""
         e = raw - self._gamma_u
         if self._u_n < self._u_need:
             self._u_n += 1
@@ -315,8 +320,12 @@ class TorqueResidual:
             # the axis stopped: what goes beyond it is kept out of the reading without the hand
             after = self._gamma_u - self._u_anchor
             self._hand -= _beyond(after, self.threshold) - _beyond(before, self.threshold)
-        elif abs(e) < 0.5 * self.rest_threshold:
-            self._gamma_u += min(h / self.u_tau, 1.0) * e
+        else:  # beyond half the start threshold only a slow drift is followed (a servo's integrator winding
+            # up against stiction ramps the torque at rest by about 1 N·m/s; a push builds up faster)
+            step = min(h / self.u_tau, 1.0) * e
+            if abs(e) >= 0.5 * self.rest_threshold:
+                step = min(max(step, -DRIFT_RATE * h), DRIFT_RATE * h)
+            self._gamma_u += step
 
     def update(self, q: float, tau: float, dt: float | None = None) -> ResidualSample:
         """Feed one measurement (position rad, motor torque N·m); return the new residual.
