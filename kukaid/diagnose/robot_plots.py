@@ -38,16 +38,19 @@ def coordinate(result: RobotDiagnosis, step: dict, j: int) -> tuple[np.ndarray, 
     return None
 
 
-def _x_floor(result: RobotDiagnosis, rel, j: int) -> float:
-    return float(rel[j]) * result.rms[j] / max(result.noise_floor[j], 1e-300)
+def _x_floor(result: RobotDiagnosis, rel, j: int) -> str:
+    """Joint ``j``'s RMSE (``rel`` of its RMS) in multiples of its noise floor; over 999 "> 999" (a log
+    whose torque was smoothed at the source, as the LWR4+'s, has a floor near 0)."""
+    x = float(rel[j]) * result.rms[j] / max(result.noise_floor[j], 1e-300)
+    return f"{x:.1f}" if x <= 999 else "> 999"
 
 
 def tables(result: RobotDiagnosis) -> list[tuple[list[str], list[list[str]]]]:
     """The steps (held-out RMSE per joint in multiples of the noise floor, before -> after) and the
     candidates tried in the first round (their joints' held-out relative error and verdict)."""
     axes = [f"A{a}" for a in result.axes]
-    steps = [[str(k + 1), st["name"]] + [f"{_x_floor(result, st['heldout_before'], j):.1f} -> "
-                                         f"{_x_floor(result, st['heldout_after'], j):.1f}" if a in st["joints"] else "-"
+    steps = [[str(k + 1), st["name"]] + [f"{_x_floor(result, st['heldout_before'], j)} -> "
+                                         f"{_x_floor(result, st['heldout_after'], j)}" if a in st["joints"] else "-"
                                          for j, a in enumerate(axes)]
              for k, st in enumerate(result.steps)]
     why = {r["name"]: r["reason"] for r in result.rejected}
@@ -118,7 +121,7 @@ def page_joint(result: RobotDiagnosis, j: int):
         ax.set_title(f"step {k + 1}: before and after {st['name']}", fontsize=9)
     rel = result.before[j], result.after[j]
     fig.suptitle(textwrap.fill(f"A{j + 1}: held-out residual, measured - predicted (filtered as compared); RMSE "
-                               f"{_x_floor(result, result.before, j):.1f} -> {_x_floor(result, result.after, j):.1f} x "
+                               f"{_x_floor(result, result.before, j)} -> {_x_floor(result, result.after, j)} x "
                                f"the noise floor ({100 * rel[0]:.1f} -> {100 * rel[1]:.1f} %)"
                                + ("" if mine else "; no effect named"), 90), fontsize=10)
     fig.tight_layout(rect=(0, 0, 1, 0.95))
