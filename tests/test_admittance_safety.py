@@ -388,3 +388,16 @@ def test_after_a_guided_move_a_servo_winding_up_against_stiction_does_not_start_
     run = _quiet_run(p, "constant", 0.024, -1.0, 30.0, op)
     drift, n_det = _drift_and_detections(run, t_from=-op.t_end)
     assert drift < 0.05 and n_det == 0, (drift, n_det)
+
+
+@pytest.mark.xfail(strict=True, reason="known hazard (issue 22): Γu follows a slow drift at rest, and a hand is one")
+def test_a_hand_leaning_in_slowly_at_rest_and_letting_go_is_no_push():
+    """A hand that leans in at rest slower than Γu follows a drift (0.8 N·m/s up to 8 N·m over 10 s), holds
+    3 s and lets go in 0.2 s: Γu has taken it in as the rest's own drift, so the release reads as an
+    8 N·m push the other way.  0bda210 (before DRIFT_RATE) fails the same way: within half the start
+    threshold a 0.8 N·m/s ramp was always followed.  Kept as a strict xfail until it is fixed."""
+    def hand(k):
+        t = (k - 200) * 0.012  # s since the stop
+        return 0.0 if t < 2.0 else 0.8 * (t - 2.0) if t < 12.0 else 8.0 if t < 15.0 else max(0.0, 8.0 * (15.2 - t) / 0.2)
+    det, _ = _after_a_move_up(200 + int(25 / 0.012), lambda k, W: W, hand)
+    assert not det[200:].any()
