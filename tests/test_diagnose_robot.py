@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from kukaid.diagnose.robot import diagnose_robot, gas_spring
+from kukaid.diagnose.robot import diagnose_robot
 from kukaid.identify.robot_fit import fit_robot
 from kukaid.logs import AxisLog, write_hdf5
 from kukaid.models.robot import RobotModel
+from kukaid.models.robot_effects import gas_spring
 
 from robot_sim_helpers import multisine, true_friction, true_parameters
 

@@ -11,10 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kukaid.diagnose.robot import diagnose_robot, gas_spring
+from kukaid.diagnose.robot import diagnose_robot
 from kukaid.identify.robot_fit import fit_robot
 from kukaid.logs import AxisLog
 from kukaid.models.robot import RobotModel
+from kukaid.models.robot_effects import gas_spring
 
 from robot_sim_helpers import multisine, true_friction, true_parameters
 

@@ -56,8 +56,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from kukaid.diagnose.robot_candidates import (CB_ANGLES, CB_KAPPA, CB_RATIOS, MIN_CB_SHARE,  # noqa: F401
-                                              Context, RobotCandidate, gas_spring, robot_candidates)
+from kukaid.diagnose.robot_candidates import Context, RobotCandidate, robot_candidates
 from kukaid.errors import KukaidError
 
 #: a candidate must lower the held-out relative error of the joints it acts on by this share

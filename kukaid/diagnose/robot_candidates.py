@@ -31,7 +31,7 @@ import numpy as np
 from kukaid.diagnose import candidates as C
 from kukaid.models import effects as E
 from kukaid.models import robot_effects as RE
-from kukaid.models.robot_effects import CB_KAPPA, gas_spring  # noqa: F401 (this module's names before)
+from kukaid.models.robot_effects import CB_KAPPA
 from kukaid.models.signals import LogSignals
 
 #: a counterbalance carries a real share of its joint's gravity torque: at least this
