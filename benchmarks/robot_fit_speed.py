@@ -2,7 +2,8 @@
 directly: a seeded multi-sine, Pinocchio's rigid body with seeded "true" links, friction, noise;
 the tests' helper) of DURATION s at FS Hz, written to HDF5 and fitted by ``fit_robot`` in a fresh
 process (filter, normal equations accumulated block by block, base least squares with sigma,
-physically consistent IPOPT fit, a second pass for the metrics).
+physically consistent IPOPT fit, a second pass for the metrics), with a rotor inertia per motor as
+for a KR C4's logs.
 
 Per duration: the fit's CPU time (user + system of ``fit_robot`` alone) and wall time, and the fit
 process's peak resident memory (imports and the log included: what ``kukaid fit`` needs). With
@@ -39,7 +40,7 @@ def _child(path: str) -> int:
     import casadi  # noqa: F401  (imports are not the fit's time, but count in its memory)
     import scipy.signal  # noqa: F401
 
-    from kukaid.identify.robot_fit import fit_robot
+    from kukaid.identify.robot_fit import RobotFitSettings, fit_robot
     from kukaid.logs import read_log
     from kukaid.models.robot import RobotModel
 
@@ -49,7 +50,8 @@ def _child(path: str) -> int:
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     r0 = resource.getrusage(resource.RUSAGE_SELF)
     t0 = time.perf_counter()
-    params = fit_robot([log], robot)
+    # with a rotor inertia per motor, as the defaults fit a KR C4's motor-current torques (the larger fit)
+    params = fit_robot([log], robot, RobotFitSettings(rotor=True))
     wall = time.perf_counter() - t0
     r1 = resource.getrusage(resource.RUSAGE_SELF)
     print(json.dumps({"samples": log.n_samples, "fitted_samples": params["metrics"]["samples"],

@@ -149,7 +149,7 @@ def naive_fit(robot, fit_log, val_logs):
 
     p = fit_robot([fit_log], robot, RobotFitSettings(consistent=False, spring=False, ripple=0, v_smooth=0.0, deadband=0.0,
                                                      choose=False, mass_bounds=None, total_mass_bounds=None,
-                                                     weighting="none", reversal_window=0.0,
+                                                     weighting="none", reversal_window=0.0, rotor=False,
                                                      viscous_beyond="linear"))
     p["base_parameters"]["values"] = p["base_parameters"]["least_squares"]
     p["friction"]["values"] = p["friction"]["least_squares"]

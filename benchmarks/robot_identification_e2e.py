@@ -59,7 +59,7 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     cfg = out / "sim.json"
     sim_cfg: dict = {"armature": bool(a.rotor or a.coupled)}
-    fit_extra = ["--rotor-inertia"] if a.rotor or a.coupled else []
+    fit_extra = ["--rotor-inertia"] if a.rotor or a.coupled else ["--no-rotor-inertia"]
     fit_extra += ["--cutoff", str(a.cutoff)] if a.cutoff is not None else []
     if a.coupled:
         C = np.zeros((6, 6))

@@ -55,7 +55,10 @@ import click
               help="With --robot: the logs' torques are joint-side or motor-side (gear ratios from the URDF).")
 @click.option("--stribeck-vs", type=float, default=0.05, show_default=True,
               help="With --robot and --friction-model stribeck: the (fixed) Stribeck velocity, rad/s.")
-@click.option("--rotor-inertia", is_flag=True, help="With --robot: fit one rotor inertia per motor.")
+@click.option("--rotor-inertia/--no-rotor-inertia", default=None,
+              help="With --robot: fit one rotor inertia per motor, or not [when the logs' torques come from the "
+                   "motor currents: KUKA Trace, KUKAVARPROXY, the virtual KR C4; a link-side torque sensor does not "
+                   "see the rotors].")
 @click.option("--mass-bounds", default=None, metavar="LO:HI|none",
               help="With --robot: every link's mass within LO-HI times its URDF mass, the total within 0.67-1.5x "
                    "[default: 0.4:2.5]; none: no bounds.")

@@ -8,7 +8,7 @@ in turn, else :data:`FOLDS` contiguous blocks) and judged on the held-out fold, 
   harmonics as changes from the file's values under the file's uncertainty), with the Coulomb
   column as the filtered torque shows it (:func:`kukaid.identify.robot_fit.filtered_coulomb`: the
   step smeared by the fit's low-pass, its transition from :data:`COULOMB_GRID`), the viscous term
-  held as the file holds it or linear, and a rotor inertia per joint (chosen per joint by held-out
+  held as the file holds it or linear, and a rotor inertia per joint on top of the file's (chosen per joint by held-out
   error);
 - a correction of the file's rigid body (:class:`BaseCorrection`: every base parameter, under a
   prior of the file's uncertainty times its residual correlation factor, scaled by
@@ -209,15 +209,18 @@ def _signals(params: dict, logs: Sequence[Any], robot):
 
     s = params["settings"]
     settings = RobotFitSettings(**{"ripple": 0, **{k: s[k] for k in RobotFitSettings.__dataclass_fields__ if k in s}})
-    if settings.torque_side != "joint" or settings.rotor:
-        raise KukaidError("diagnose: robot parameter files with motor-side torques or rotor inertias are not "
-                          "supported yet (fit with joint-side torques)")
+    if settings.torque_side != "joint":
+        raise KukaidError("diagnose: robot parameter files with motor-side torques are not supported yet (fit with "
+                          "joint-side torques)")
     n = robot.n
-    drive = DriveModel.direct(n)
+    dr = params.get("drive") or {}
+    drive = DriveModel(np.asarray(dr["ratio"], float), np.asarray(dr["coupling"], float), np.zeros(n)) \
+        if settings.rotor else DriveModel.direct(n)
     m = _samples(logs, n, settings, drive)
     names = extra_names(robot, settings)
     fr = params["friction"]
     x = np.array([fr["values"].get(k, 0.0) for k in names])
+    rotors = [i for i, k in enumerate(names) if k.endswith(".rotor_inertia")]
     N = m.q.shape[0]
     times, temps = [], []
     for lg in logs:
@@ -245,7 +248,8 @@ def _signals(params: dict, logs: Sequence[Any], robot):
         es = effect_signals(robot, mb.q, Y, F, params, names, None if temp is None else temp[rows])
         rigid[rows], gravity[rows], payload[rows], sign[rows], friction[rows] = (
             es.rigid, es.gravity, es.payload, es.sign, es.friction)
-        fixed[rows] = robot_effects.torque(effects, es)    # the file's own effects: held as it has them
+        # the file's own effects and rotor inertias: held as it has them
+        fixed[rows] = robot_effects.torque(effects, es) + F[:, :, rotors] @ x[rotors]
         corr[rows] = B.columns(Y)
         hold[rows] = F[:, np.arange(n), visc]
         for j in range(n):
