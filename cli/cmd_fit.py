@@ -141,7 +141,7 @@ def _check_applicable(ctx: click.Context, with_robot: bool, with_presliding: boo
     """An option given that the chosen fit does not use is a usage error, not silently ignored."""
     from click.core import ParameterSource
 
-    given = {p.name: _flag(p) for p in ctx.command.params
+    given = {p.name: _flag(p, ctx.params.get(p.name)) for p in ctx.command.params
              if ctx.get_parameter_source(p.name) not in (None, ParameterSource.DEFAULT, ParameterSource.DEFAULT_MAP)}
     p = ctx.params
     if with_robot:
@@ -167,9 +167,10 @@ def _check_applicable(ctx: click.Context, with_robot: bool, with_presliding: boo
                                "on the pre-sliding log)")
 
 
-def _flag(param: click.Parameter) -> str:
-    flag = max(param.opts or [param.name], key=len)
-    return "/".join([flag, *getattr(param, "secondary_opts", [])])
+def _flag(param: click.Parameter, value) -> str:
+    """The option as given: ``--no-x`` for an on/off flag given off."""
+    off = getattr(param, "secondary_opts", None)
+    return max(off if off and value is False else param.opts or [param.name], key=len)
 
 
 def _mass_bounds(text: str | None):

@@ -120,7 +120,7 @@ def test_bad_bound_option(logs, tmp_path, bound, msg):
     (["--robot", "kr6-r700-sixx", "--friction", "{f}"], "option --friction does not apply with --robot"),
     (["--robot", "kr6-r700-sixx", "--axis", "2"], "option --axis does not apply with --robot"),
     (["--robot", "kr6-r700-sixx", "--method", "staged"], "option --method does not apply with --robot"),
-    (["--robot", "kr6-r700-sixx", "--no-offset"], "option --offset/--no-offset does not apply with --robot"),
+    (["--robot", "kr6-r700-sixx", "--no-offset"], "option --no-offset does not apply with --robot"),
     (["--robot", "kr6-r700-sixx", "--bound", "vs=0:1"], "option --bound does not apply with --robot"),
     (["--robot", "kr6-r700-sixx", "--stribeck-vs", "0.1"], "--stribeck-vs needs --friction-model stribeck"),
     (["--robot", "kr6-r700-sixx", "--friction-model", "auto"], "--friction-model auto does not apply with --robot"),
@@ -128,6 +128,7 @@ def test_bad_bound_option(logs, tmp_path, bound, msg):
     (["--stribeck-vs", "0.1"], "option --stribeck-vs needs --robot"),
     (["--torque-side", "joint"], "option --torque-side needs --robot"),
     (["--rotor-inertia"], "option --rotor-inertia needs --robot"),
+    (["--no-rotor-inertia"], "option --no-rotor-inertia needs --robot"),
     (["--elements", "2"], "option --elements needs --presliding"),
 ])
 def test_option_of_the_other_fit_is_a_usage_error(logs, tmp_path, args, msg):
