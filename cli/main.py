@@ -49,7 +49,7 @@ class LazyGroup(click.Group):
         sys.exit(rv if isinstance(rv, int) else 0)
 
     def invoke(self, ctx: click.Context):
-        from kukaid.errors import KukaidError
+        from kukaid.errors import EXIT_INTERNAL, KukaidError
 
         try:
             return super().invoke(ctx)
@@ -69,7 +69,8 @@ class LazyGroup(click.Group):
         except Exception as e:  # a bug: still one line, full traceback with KUKAID_DEBUG=1
             if os.environ.get("KUKAID_DEBUG"):
                 raise
-            _fail(f"internal error ({type(e).__name__}: {e}); rerun with KUKAID_DEBUG=1 for a traceback", 2)
+            _fail(f"internal error ({type(e).__name__}: {e}); rerun with KUKAID_DEBUG=1 for a traceback",
+                  EXIT_INTERNAL)
 
 
 #: exit status when stdout's reader has gone (`kukaid ... | head`): 128 + SIGPIPE, as a command

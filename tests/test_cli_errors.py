@@ -344,3 +344,20 @@ def test_excite_keeps_existing_krl_files_without_force(tmp_path):
     assert src.read_bytes() == edited and (tmp_path / "t.json").read_bytes() == before  # all or nothing
     assert _run(*args, "--period", "3", "--force").exit_code == 0
     assert src.read_bytes() != edited
+
+
+def test_an_internal_error_has_its_own_exit_status(files, monkeypatch):
+    """A bug is one line too, but not exit status 2, which says the user's options were wrong: 70
+    (EX_SOFTWARE), distinct from every status docs/errors.md gives (1, 2, 3, 4, 130, 141)."""
+    import kukaid.params
+
+    from kukaid.errors import EXIT_INTERNAL
+
+    def boom(*a, **k):
+        raise RuntimeError("boom")
+
+    monkeypatch.delenv("KUKAID_DEBUG", raising=False)
+    monkeypatch.setattr(kukaid.params, "load_any_params", boom)
+    r = _run("show", files / "params.json")
+    _one_line_error(r, "internal error (RuntimeError: boom)", "KUKAID_DEBUG=1", code=70)
+    assert EXIT_INTERNAL == 70 and EXIT_INTERNAL not in (0, 1, 2, 3, 4, 130, 141)
