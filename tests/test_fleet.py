@@ -41,6 +41,8 @@ def test_manifest_and_folder_give_the_same_logs(tmp_path):
 @pytest.mark.parametrize("text, phrase", [
     ("robot,date,path\nR1,2026-01-01,a.h5\n", "lacks column(s) axis"),
     ("robot,axis,date,path\nR1,3,01/02/2026,a.h5\n", "not a date"),
+    ("robot,axis,date,path\nR1,3,2026-02-30,a.h5\n", "line 2: date '2026-02-30' is not a date"),  # no such day
+    ("robot,axis,date,path\nR1,3,2026-13-01,a.h5\n", "line 2: date '2026-13-01' is not a date"),  # nor month
     ("robot,axis,date,path\nR1,A13,2026-01-01,a.h5\n", "not an axis number"),
     ("robot,axis,date,path\n", "lists no logs"),
 ])
@@ -49,6 +51,16 @@ def test_bad_manifest_is_one_clear_error(tmp_path, text, phrase):
     p.write_text(text)
     with pytest.raises(ManifestError, match=phrase.replace("(", r"\(").replace(")", r"\)")):
         read_manifest(p)
+
+
+def test_a_folder_date_that_is_no_day_is_one_clear_error(tmp_path):
+    """A folder named like a date that does not exist stops the command before any work, as a
+    manifest's does (it was fitted, then `fleet wear` failed on it with an internal error)."""
+    small_fleet(tmp_path, robots=1, days=1)
+    (day,) = (tmp_path / "logs" / "R001").iterdir()
+    day.rename(day.with_name("2026-02-30"))
+    with pytest.raises(ManifestError, match="date '2026-02-30' is not a date YYYY-MM-DD"):
+        scan_folder(tmp_path / "logs", "{robot}/{date}/A{axis}.h5")
 
 
 # -- faults, resume ------------------------------------------------------------------------------
