@@ -214,6 +214,19 @@ def test_wear_ignores_a_drift_the_whole_fleet_shares():
     assert res["summary"]["flagged"] <= 1
 
 
+def test_wear_of_a_small_fleet_prints_no_numpy_warning():
+    """Two axes give no spread of the temperature slopes (each axis takes the fleet's): `fleet wear`
+    printed numpy's 'RuntimeWarning: invalid value encountered in divide' and its source line."""
+    import warnings
+
+    from kukaid.fleet.wear import assess
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = assess(_synthetic_rows(2, 24, seed=9))
+    assert res["summary"]["assessed"] == 2 and res["temperature_model"]["Fc_per_K"] is not None
+
+
 def test_wear_cli_writes_json_and_pdf(tmp_path, kukaid_cmd):
     from kukaid.fleet.table import write_table
 
