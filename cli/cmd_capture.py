@@ -83,7 +83,9 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
         else:
             be = _one_axis_backend(traj, trajectory, sim_config, noise, effects, seed, chunk, settle)
     else:
-        given = [n for n, v in (("--sim-config", sim_config), ("--noise", noise is not None), ("--effect", effects))
+        src = click.get_current_context().get_parameter_source
+        given = [n for n, v in (("--sim-config", sim_config), ("--noise", noise is not None), ("--effect", effects),
+                                *((f"--{k}", src(k).name != "DEFAULT") for k in ("seed", "chunk", "settle")))
                  if v]
         if given:
             raise click.UsageError(f"option {given[0]} is for --backend sim")

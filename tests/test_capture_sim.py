@@ -254,3 +254,14 @@ def test_interrupted_capture_keeps_data_and_says_so(long_traj, tmp_path, sig):
     assert "capture interrupted" in err and "kept in" in err and "Traceback" not in err
     n = _check_prefix(out, long_traj)
     assert f"{n} samples" in err
+
+
+@pytest.mark.parametrize("option", [["--seed", "5"], ["--chunk", "5"], ["--settle", "2"]])
+def test_kvp_capture_refuses_a_simulator_option(tmp_path, option):
+    """The robot runs its own program: a seed, block length or settle time of the simulator does
+    nothing there, and was taken without a word (as --noise and --effect are not)."""
+    out = tmp_path / "k.h5"
+    code, text = run("capture", "-o", out, "--backend", "kvp", "--port", "1", "--duration", "1", *option)
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    assert code == 2 and lines == [f"kukaid: error: capture: option {option[0]} is for --backend sim"], text
+    assert not out.exists()

@@ -125,6 +125,23 @@ def test_a_real_robot_moves_only_when_asked_and_bounded(files, tmp_path, args, m
 
 
 @pytest.mark.parametrize("args, message", [
+    (["--operator", "pull"], "--operator is for --backend sim"),
+    (["--seed", "3"], "--seed is for --backend sim"),
+    (["--q0", "10"], "--q0 is for --backend sim"),
+    (["--grip", "firm"], "--grip is for --backend sim"),
+    (["--noise", "2", "--seed", "3"], "--noise, --seed are for --backend sim"),
+])
+def test_a_real_robot_run_refuses_the_simulators_options(files, tmp_path, args, message):
+    """--operator, --seed, --grip and --q0 act on the simulator and its simulated person: with
+    --backend kvp they were taken without a word (a start position that is not where the robot
+    starts), while --noise and --sim-config were refused."""
+    r = _run(["--params", files / "params.json", "--backend", "kvp", "--port", "9", "--enable-motion", "--q-min", "0",
+              "--q-max", "60", "-o", tmp_path / "r.h5", *args])
+    assert r.exit_code == 2 and message in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert not (tmp_path / "r.h5").exists()
+
+
+@pytest.mark.parametrize("args, message", [
     (["--q-min", "50", "--q-max", "10"], "position window [50, 10] degrees (--q-min/--q-max) must have q_min < q_max"),
     (["--q-min", "40", "--q-max", "60"], "start position --q0 30 degrees is outside the position window [40, 60] degrees"),
     (["--q-min", "200"], "position window [200, 120] degrees"),
