@@ -69,6 +69,13 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
 
     if q0 is not None and not math.isfinite(q0):  # FloatRange lets nan through
         raise click.BadParameter(f"{q0} is not a position in degrees", param_hint="--q0")
+    given = click.get_current_context().get_parameter_source
+    if grip is not None and operator != "human":
+        raise click.UsageError("--grip is for --operator human")
+    if operator is None and given("operator_start").name != "DEFAULT":
+        raise click.UsageError("--operator-start is for --operator (a simulated person)")
+    if not follower_window and given("stale_ms").name != "DEFAULT":
+        raise click.UsageError("--stale-ms is for --follower")
     if truth_path is not None:  # checked now, not after the session
         check_suffix(truth_path, ".h5", ".hdf5")
         check_outputs([truth_path], [traj_path, sim_config])
@@ -95,6 +102,9 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         check_noise(noise)
         cfg = cfg.replace(noise_sigma=noise)
     if traj is not None:
+        if given("axis").name != "DEFAULT" and int(getattr(traj, "axis", axis) or axis) != axis:
+            raise click.UsageError(f"--axis {axis} differs from the trajectory's axis A{traj.axis} ({traj_path}); "
+                                   "the trajectory's axis is simulated")
         axis = int(getattr(traj, "axis", axis) or axis)
     sim = VirtualKRC4(cfg, seed=seed, axis=axis)
     if q0 is not None:
@@ -103,9 +113,6 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         sim.reset(math.radians(q0))
     if operator is not None:
         from kukaid.sim.operator import make_operator
-
-        if grip is not None and operator != "human":
-            raise click.UsageError("--grip is for --operator human")
 
         def hand_on() -> None:
             sim.set_external_torque(make_operator(operator, seed, sim.q, t_start=sim.t + operator_start, grip=grip))

@@ -54,10 +54,20 @@ def files(tmp_path_factory):
     (["fit", "a.h5", "-o", "p.json", "--order", "60"], ["fit: Invalid value for '--order'"]),
     (["excite", "inertia", "-o", "x.json", "--lead", "1e9"], ["--lead", "longer than an hour"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--q0", "nan"], ["--q0", "not a position"]),
+    # options of serve-sim that did nothing, without a word: a simulated A3 served for --axis 4, a
+    # grip or start of a hand that is not there, a heartbeat timeout of no follower
+    (["serve-sim", "--port", "0", "--duration", "1", "--axis", "4", "--trajectory", "{traj}"],
+     ["--axis 4 differs from the trajectory's axis A3"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--grip", "firm"], ["--grip is for --operator human"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--operator-start", "5"], ["--operator-start is for --operator"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--stale-ms", "50"], ["--stale-ms is for --follower"]),
 ])
 def test_usage_errors_are_one_line(args, pieces, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    _one_line_error(_run(*args), *pieces, code=2)
+    traj = tmp_path.parent / f"{tmp_path.name}-a3.json"  # a trajectory of A3, beside the folder that must stay empty
+    if any("{traj}" in a for a in args):
+        assert _run("excite", "inertia", "-o", traj, "--period", "2").exit_code == 0
+    _one_line_error(_run(*[a.replace("{traj}", str(traj)) for a in args]), *pieces, code=2)
     assert os.listdir(tmp_path) == []
 
 
