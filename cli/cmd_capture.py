@@ -89,6 +89,9 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
                  if v]
         if given:
             raise click.UsageError(f"option {given[0]} is for --backend sim")
+        twice = sorted({a for a in axes if axes.count(a) > 1})
+        if twice:
+            raise click.UsageError(f"--axis {twice[0]} is given twice")
         if duration is not None and until_interrupt:
             raise click.UsageError("options --duration and --until-interrupt contradict each other: record for "
                                    "--duration S, or until Ctrl-C with --until-interrupt")

@@ -228,6 +228,8 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
     (["fit", "{d}/inertia.h5", "-o", "p.json", "--robot", "kr6-r700-sixx", "--prior-weight", "-1"],
      ["--prior-weight", "-1.0 must be a finite number >= 0"]),
     (["capture", "{d}/inertia.json", "-o", "c11.csv"], ["c11.csv", "name it .h5 or .hdf5"]),
+    (["capture", "-o", "c12.h5", "--backend", "kvp", "--port", "9", "--duration", "1", "--axis", "3", "--axis", "3"],
+     ["capture: --axis 3 is given twice"]),
 ])
 def test_option_errors_are_usage_errors(files, tmp_path, monkeypatch, args, pieces):
     """Contradictory or out-of-range options: exit status 2 (the usage error of docs/errors.md), one line, no output."""
@@ -247,6 +249,9 @@ def test_load_option_errors_are_usage_errors_and_data_errors_are_not(tmp_path):
     _one_line_error(_run(*base, "--q-scale", "0"), "(--q-scale) must be a finite", code=2)
     _one_line_error(_run(*base, "--tau-scale-var", "nope"), "no variable 'nope'", code=1)  # found in the file
     _one_line_error(_run(*base, "--sample-time", "0.001"), "--time and --sample-time", code=2)
+    # an axis number out of range or given twice is the option's fault (it was exit 1, unnamed)
+    _one_line_error(_run(*base, "--axis", "0"), "--axis must be distinct axis numbers 1 to 12; got '0'", code=2)
+    _one_line_error(_run(*base, "--axis", "1,1"), "--axis must be distinct axis numbers 1 to 12; got '1,1'", code=2)
     assert not (tmp_path / "o.h5").exists()
 
 
