@@ -126,7 +126,8 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         with usage_errors():  # the options alone
             follower = FollowerConfig(axis=axis, q_min_deg=follower_window[0], q_max_deg=follower_window[1],
                                       stale_ms=stale_ms)
-    ring = RingLayout(axes=tuple(ring_axes) or (axis,))
+    with usage_errors("--ring-axes"):  # the options alone
+        ring = RingLayout(axes=tuple(ring_axes) or (axis,))
     source = SimSource(sim, axis=axis, trajectory=traj, speed=speed, ring=ring, follower=follower,
                        on_run=hand_on if operator is not None and follower else None).start()
     _run(source, sim, traj, host, port, duration, delay, truth_path, f"A{axis}")

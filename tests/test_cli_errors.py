@@ -61,6 +61,10 @@ def files(tmp_path_factory):
     (["serve-sim", "--port", "0", "--duration", "1", "--grip", "firm"], ["--grip is for --operator human"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--operator-start", "5"], ["--operator-start is for --operator"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--stale-ms", "50"], ["--stale-ms is for --follower"]),
+    # an axis given twice is the option's fault (it was exit 1)
+    (["krl-logger", "-o", "krl", "--axis", "3", "--axis", "3"], ["--axis", "axes must be distinct", "[3, 3]"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--ring-axes", "3", "--ring-axes", "3"],
+     ["--ring-axes", "axes must be distinct"]),
 ])
 def test_usage_errors_are_one_line(args, pieces, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
