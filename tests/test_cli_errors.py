@@ -380,3 +380,11 @@ def test_an_internal_error_has_its_own_exit_status(files, monkeypatch):
     r = _run("show", files / "params.json")
     _one_line_error(r, "internal error (RuntimeError: boom)", "KUKAID_DEBUG=1", code=70)
     assert EXIT_INTERNAL == 70 and EXIT_INTERNAL not in (0, 1, 2, 3, 4, 130, 141)
+
+
+def test_a_fit_decimated_to_a_handful_of_samples_says_so(files, tmp_path):
+    """`fit --decimate 300` leaves a sample or two: the error said the axis moves in one direction only."""
+    r = _run("fit", files / "inertia.h5", "--friction-model", "coulomb-viscous", "--decimate", "300",
+             "-o", tmp_path / "p.json")
+    _one_line_error(r, "inertia.h5: only ", "dynamic-mode samples for 4 parameters", "--decimate 300", code=1)
+    assert "one direction" not in r.output and not (tmp_path / "p.json").exists()
