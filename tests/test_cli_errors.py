@@ -388,3 +388,30 @@ def test_a_fit_decimated_to_a_handful_of_samples_says_so(files, tmp_path):
              "-o", tmp_path / "p.json")
     _one_line_error(r, "inertia.h5: only ", "dynamic-mode samples for 4 parameters", "--decimate 300", code=1)
     assert "one direction" not in r.output and not (tmp_path / "p.json").exists()
+
+
+def test_files_a_windows_editor_saved_with_a_byte_order_mark_are_read(files, tmp_path):
+    """Excel's 'CSV UTF-8' and Notepad put a UTF-8 byte order mark first: a log CSV was refused
+    with "first column must be 'time_s', found 'time_s'" (the mark unseen), a JSON file with
+    'Unexpected UTF-8 BOM', a fleet manifest lacked its column 'robot'."""
+    from kukaid.fleet.manifest import read_manifest
+
+    bom = b"\xef\xbb\xbf"
+    assert _run("load", files / "inertia.h5", "-o", tmp_path / "log.csv").exit_code == 0
+    (tmp_path / "bom.csv").write_bytes(bom + (tmp_path / "log.csv").read_bytes())
+    r = _run("load", tmp_path / "bom.csv", "-o", tmp_path / "bom.h5")
+    assert r.exit_code == 0, r.output
+    (tmp_path / "bom.json").write_bytes(bom + (files / "params.json").read_bytes())
+    r = _run("show", tmp_path / "bom.json")
+    assert r.exit_code == 0 and "Izz" in r.output, r.output
+    (tmp_path / "m.csv").write_bytes(bom + b"robot,axis,date,path\nR1,3,2026-01-05,log.csv\n")
+    assert [(e.robot, e.axis) for e in read_manifest(tmp_path / "m.csv")] == [("R1", 3)]
+
+
+def test_a_log_csv_with_semicolons_says_so(tmp_path):
+    """A spreadsheet set to a decimal comma exports ';'-separated columns: the error quoted the
+    whole header as the first column's name."""
+    p = tmp_path / "semi.csv"
+    p.write_text("time_s;A3_deg;A3_Nm\n0,012;1,5;2,0\n")
+    r = _run("load", p, "-o", tmp_path / "x.h5")
+    _one_line_error(r, "semi.csv: columns must be separated by commas, not ';'", code=1)

@@ -87,7 +87,7 @@ def read_manifest(path: str | Path) -> list[Entry]:
     path = Path(path)
     base = path.resolve().parent
     try:
-        with open(path, newline="", encoding="utf-8") as f:
+        with open(path, newline="", encoding="utf-8-sig") as f:  # Excel's 'CSV UTF-8' begins with a mark
             rows = list(csv.reader(f))
     except UnicodeDecodeError:
         raise ManifestError(f"{path}: not a text CSV file") from None
