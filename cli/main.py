@@ -42,7 +42,8 @@ class LazyGroup(click.Group):
             sys.exit(0)
         except click.ClickException as e:
             ctx = getattr(e, "ctx", None)
-            where = f"{ctx.info_name}: " if ctx is not None and ctx.parent is not None else ""
+            # the command as typed after `kukaid` (`fleet fit`, not `fit`, which is another command)
+            where = " ".join(ctx.command_path.split()[1:]) + ": " if ctx is not None and ctx.parent is not None else ""
             _fail(where + " ".join(e.format_message().split()), e.exit_code)
         except click.Abort:
             _fail("interrupted", 130)

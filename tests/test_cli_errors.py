@@ -50,6 +50,7 @@ def files(tmp_path_factory):
     (["excite", "bogus", "-o", "x.json"], ["excite: Invalid value", "'bogus'"]),
     (["excite", "friction"], ["excite: Missing option '-o'"]),
     (["nosuch"], ["No such command 'nosuch'"]),
+    (["fleet", "fit"], ["kukaid: error: fleet fit: Missing argument 'INPUT'"]),  # not `fit:`, another command
     (["capture", "x.json", "-o", "y.h5", "--seed", "-1"], ["capture: Invalid value for '--seed'"]),
     (["fit", "a.h5", "-o", "p.json", "--order", "60"], ["fit: Invalid value for '--order'"]),
     (["excite", "inertia", "-o", "x.json", "--lead", "1e9"], ["--lead", "longer than an hour"]),
