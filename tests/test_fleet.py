@@ -15,7 +15,7 @@ import pytest
 from fleet_helpers import DaskProcesses, fault_fleet, small_fleet
 
 from kukaid.fleet.manifest import ManifestError, read_input, read_manifest, scan_folder
-from kukaid.fleet.table import journal_path, read_table
+from kukaid.fleet.table import journal_path, read_journal, read_table
 
 
 def _run(cmd, *args, timeout=180, **kw):
@@ -86,6 +86,56 @@ def test_bad_logs_become_error_rows_and_the_rest_is_fitted(faults, tmp_path, kuk
     assert "0 fitted" in r2.stderr and "already in the table" in r2.stderr
     rows2, _ = read_table(table)
     assert rows2 == rows
+
+
+def test_ctrl_c_mid_run_says_what_is_kept_and_how_to_go_on(tmp_path, monkeypatch):
+    """Ctrl-C during `fleet fit` said only 'interrupted' (exit 130): the finished rows are in a
+    hidden journal that the next run reads, which the line now says."""
+    import kukaid.fleet.run as run
+    from kukaid.errors import KukaidError
+    from kukaid.fleet.tasks import error_row, fit_task
+
+    man = small_fleet(tmp_path, robots=1, days=2)
+
+    def stream(client, jobs, task, options, kind, rows, journal, *a, **k):
+        new = [error_row(jobs[0], kind, "done before the interrupt")]
+        journal.append(new)
+        rows.extend(new)
+        raise KeyboardInterrupt
+
+    class Client:
+        def nthreads(self):
+            return {"w": 1}
+
+    monkeypatch.setattr(run, "_stream", stream)
+    table = tmp_path / "t.parquet"
+    with pytest.raises(KukaidError) as e:
+        run.run_tasks(read_input(man), table, fit_task, None, {"task": "fit"}, client=Client())
+    assert e.value.exit_code == 130
+    assert str(e.value) == (f"{table}: interrupted after 1 of 2 logs; the finished rows are kept (in "
+                            f"{journal_path(table).name} beside it): run the same command again to go on")
+    assert len(read_journal(table)[0]) == 1 and not table.exists()
+
+
+def _sigint_handler() -> str:
+    """The SIGINT handler of this process, by name (run on a Dask worker)."""
+    import signal
+
+    h = signal.getsignal(signal.SIGINT)
+    return getattr(h, "name", None) or getattr(h, "__name__", repr(h))
+
+
+def test_the_local_workers_leave_ctrl_c_to_the_command():
+    """A terminal's Ctrl-C reaches the whole process group: a local Dask worker then printed its
+    KeyboardInterrupt traceback (and its nanny's) under the command's one line, at about one
+    Ctrl-C in three.  The workers ignore SIGINT; the command, whose own handler stays, stops them."""
+    from kukaid.fleet.run import open_client
+
+    before = signal.getsignal(signal.SIGINT)
+    with open_client(workers=1) as client:
+        assert signal.getsignal(signal.SIGINT) is before
+        handlers = client.run(_sigint_handler)
+    assert list(handlers.values()) == ["SIG_IGN"], handlers
 
 
 def test_kill_mid_run_then_rerun_completes_without_refitting(tmp_path, kukaid_cmd):
