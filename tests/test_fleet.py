@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -207,6 +208,30 @@ def test_table_made_with_other_settings_is_not_mixed(tmp_path, kukaid_cmd):
 
 
 # -- simulate -----------------------------------------------------------------------------------
+
+def test_an_interrupted_simulate_leaves_no_half_made_fleet(tmp_path, monkeypatch):
+    """Ctrl-C during `fleet simulate` left the logs simulated so far without a manifest, and the next
+    run refused the folder ('not empty'); a folder that held files before keeps them."""
+    import kukaid.fleet.simulate as simulate
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    def interrupted(cfg, outdir, **k):
+        (Path(outdir) / "logs" / "R001").mkdir(parents=True)
+        (Path(outdir) / "logs" / "R001" / "A3.h5").write_bytes(b"half")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(simulate, "simulate_fleet", interrupted)
+    out = tmp_path / "fleet"
+    r = CliRunner().invoke(cli, ["fleet", "simulate", "--robots", "1", "--days", "1", "-o", str(out)])
+    assert r.exit_code == 130 and r.output.strip() == "kukaid: error: interrupted", r.output
+    assert not out.exists()
+    out.mkdir()
+    (out / "mine.txt").write_text("kept")
+    r = CliRunner().invoke(cli, ["fleet", "simulate", "--robots", "1", "--days", "1", "-o", str(out), "--force"])
+    assert r.exit_code == 130 and (out / "mine.txt").read_text() == "kept"
+
 
 def test_simulate_keeps_the_truth_apart(tmp_path):
     from kukaid.logs import read_log
