@@ -121,6 +121,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
             old[sig] = signal.signal(sig, _stop)
     total = be.total()
     interrupted = False
+    result = None
     try:
         if total is None:
             result = capture(be, output, force=force, progress=None, stop=stop if backend == "sim" else None)
@@ -135,7 +136,10 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
             signal.signal(sig, h)
     if interrupted:
         kept = ""
-        if output.exists():
+        if result is not None and result.n_samples == 0:  # the output, if any, is an earlier log, untouched
+            kept = " before its first sample; nothing recorded" + (f" ({output} is not changed)" if output.exists()
+                                                                    else "")
+        elif output.exists():
             try:
                 from kukaid.logs import read_hdf5
 

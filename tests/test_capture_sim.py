@@ -265,3 +265,21 @@ def test_kvp_capture_refuses_a_simulator_option(tmp_path, option):
     lines = [ln for ln in text.splitlines() if ln.strip()]
     assert code == 2 and lines == [f"kukaid: error: capture: option {option[0]} is for --backend sim"], text
     assert not out.exists()
+
+
+def test_a_capture_interrupted_before_its_first_sample_does_not_report_the_old_log(short_traj, tmp_path, monkeypatch):
+    """`capture --force` over an earlier log, Ctrl-C before the first block: nothing was recorded and
+    the old log is untouched, but the line read the old log and said 'capture interrupted after
+    58.27 of 415.9 s; 4857 samples kept'."""
+    import kukaid.capture
+    from kukaid.capture import CaptureResult
+
+    out = tmp_path / "old.h5"
+    assert run("capture", short_traj, "-o", out, "--seed", "1")[0] == 0
+    before = out.read_bytes()
+    monkeypatch.setattr(kukaid.capture, "capture",
+                        lambda be, output, **k: CaptureResult(output=output, n_samples=0, duration=0.0, complete=False))
+    code, text = run("capture", short_traj, "-o", out, "--seed", "2", "--force")
+    assert code == 130 and text.strip().splitlines() == [
+        f"kukaid: error: capture interrupted before its first sample; nothing recorded ({out} is not changed)"], text
+    assert out.read_bytes() == before
