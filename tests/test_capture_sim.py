@@ -283,3 +283,57 @@ def test_a_capture_interrupted_before_its_first_sample_does_not_report_the_old_l
     assert code == 130 and text.strip().splitlines() == [
         f"kukaid: error: capture interrupted before its first sample; nothing recorded ({out} is not changed)"], text
     assert out.read_bytes() == before
+
+
+def _fail_cycle_at(monkeypatch, n, seen=None, out=None, before=None):
+    """SimRobot.cycle raises a ControllerError at its n-th call (after n - 1 blocks were written)."""
+    from kukaid.errors import ControllerError
+    from kukaid.robot import SimRobot
+
+    real, calls = SimRobot.cycle, [0]
+
+    def cycle(self, *a, **k):
+        calls[0] += 1
+        if seen is not None and calls[0] == n - 1:  # while the capture runs: the old log whole, the new one beside
+            seen.append((out.read_bytes() == before, out.with_name(f"{out.stem}.partial{out.suffix}").exists()))
+        if calls[0] == n:
+            raise ControllerError("the controller stopped answering")
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(SimRobot, "cycle", cycle)
+
+
+def test_a_forced_capture_that_fails_leaves_the_old_log_and_keeps_what_it_recorded(short_traj, tmp_path, monkeypatch):
+    """`capture --force` over an earlier log truncated it at the first block: a capture that then
+    failed (or was killed) lost the earlier log for a part of the new one.  It is now recorded
+    beside it (NAME.partial.h5) and put in its place only when it has ended."""
+    from kukaid.logs import read_hdf5
+
+    out = tmp_path / "old.h5"
+    assert run("capture", short_traj, "-o", out, "--seed", "1", "--chunk", "0.5")[0] == 0
+    before = out.read_bytes()
+    partial = tmp_path / "old.partial.h5"
+    seen = []
+    _fail_cycle_at(monkeypatch, 4, seen, out, before)
+    code, text = run("capture", short_traj, "-o", out, "--seed", "2", "--chunk", "0.5", "--force")
+    lines = text.strip().splitlines()
+    assert code == 1 and len(lines) == 1, text
+    assert lines[0] == (f"kukaid: error: the controller stopped answering; the samples recorded are kept in {partial} "
+                        f"({out} is not changed)")
+    assert seen == [(True, True)] and out.read_bytes() == before
+    assert read_hdf5(partial).n_samples > 100
+    # the partial record is never replaced: the next capture refuses while it is in the way
+    monkeypatch.undo()
+    code, text = run("capture", short_traj, "-o", out, "--seed", "2", "--force")
+    assert code == 1 and f"{partial}: the record of an earlier capture that did not finish is in the way" in text
+    assert out.read_bytes() == before
+
+
+def test_a_forced_capture_replaces_the_old_log_when_it_has_ended(short_traj, tmp_path):
+    from kukaid.logs import read_hdf5
+
+    out = tmp_path / "old.h5"
+    assert run("capture", short_traj, "-o", out, "--seed", "1")[0] == 0
+    code, text = run("capture", short_traj, "-o", out, "--seed", "2", "--force")
+    assert code == 0 and text.startswith(f"{out}: ") and text.strip().endswith("(sim, seed 2)"), text
+    assert read_hdf5(out).attrs["seed"] == 2 and sorted(p.name for p in tmp_path.iterdir()) == ["old.h5"]
