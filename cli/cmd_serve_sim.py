@@ -28,7 +28,8 @@ import click
 @click.option("--speed", type=click.FloatRange(0.01, 100.0), default=1.0, show_default=True,
               help="Simulated seconds per second.")
 @click.option("--ring-axes", type=click.IntRange(1, 6), multiple=True,
-              help="Axes recorded by the emulated KRL ring-buffer logger (default: the simulated axis).")
+              help="Axes recorded by the emulated KRL ring-buffer logger (default: the simulated axis; "
+                   "of one axis, only it; with --robot, any of the robot's).")
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write every 12 ms sample the simulator took (ground truth, sim time) to this HDF5 log on exit.")
 @click.option("--force", is_flag=True, help="Replace an existing --truth log.")
@@ -128,6 +129,10 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
                                       stale_ms=stale_ms)
     with usage_errors("--ring-axes"):  # the options alone
         ring = RingLayout(axes=tuple(ring_axes) or (axis,))
+    other = [a for a in ring.axes if a != axis]
+    if other:  # the emulated logger would record a standing axis with no torque at all
+        raise click.BadParameter(f"A{other[0]} is not simulated: the one-axis simulator runs A{axis} only (--robot "
+                                 "runs every axis)", param_hint="--ring-axes")
     source = SimSource(sim, axis=axis, trajectory=traj, speed=speed, ring=ring, follower=follower,
                        on_run=hand_on if operator is not None and follower else None).start()
     _run(source, sim, traj, host, port, duration, delay, truth_path, f"A{axis}")

@@ -66,6 +66,9 @@ def files(tmp_path_factory):
     (["krl-logger", "-o", "krl", "--axis", "3", "--axis", "3"], ["--axis", "axes must be distinct", "[3, 3]"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--ring-axes", "3", "--ring-axes", "3"],
      ["--ring-axes", "axes must be distinct"]),
+    # a one-axis simulator's ring logger of another axis recorded zeros (position and torque)
+    (["serve-sim", "--port", "0", "--duration", "1", "--ring-axes", "4"],
+     ["--ring-axes", "A4 is not simulated: the one-axis simulator runs A3 only"]),
 ])
 def test_usage_errors_are_one_line(args, pieces, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
