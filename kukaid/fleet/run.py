@@ -94,8 +94,8 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR)
     finally:
-        if main:
-            signal.signal(signal.SIGINT, old)
+        if main:  # None: a handler set outside Python, taken as Python's own
+            signal.signal(signal.SIGINT, signal.default_int_handler if old is None else old)
     client = Client(cluster)
     try:
         client.register_plugin(_leave_ctrl_c_to_the_command())
