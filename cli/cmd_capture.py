@@ -83,10 +83,15 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
         else:
             be = _one_axis_backend(traj, trajectory, sim_config, noise, effects, seed, chunk, settle)
     else:
-        given = [n for n, v in (("--sim-config", sim_config), ("--noise", noise is not None), ("--effect", effects))
+        src = click.get_current_context().get_parameter_source
+        given = [n for n, v in (("--sim-config", sim_config), ("--noise", noise is not None), ("--effect", effects),
+                                *((f"--{k}", src(k).name != "DEFAULT") for k in ("seed", "chunk", "settle")))
                  if v]
         if given:
             raise click.UsageError(f"option {given[0]} is for --backend sim")
+        twice = sorted({a for a in axes if axes.count(a) > 1})
+        if twice:
+            raise click.UsageError(f"--axis {twice[0]} is given twice")
         if duration is not None and until_interrupt:
             raise click.UsageError("options --duration and --until-interrupt contradict each other: record for "
                                    "--duration S, or until Ctrl-C with --until-interrupt")
@@ -116,6 +121,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
             old[sig] = signal.signal(sig, _stop)
     total = be.total()
     interrupted = False
+    result = None
     try:
         if total is None:
             result = capture(be, output, force=force, progress=None, stop=stop if backend == "sim" else None)
@@ -130,7 +136,10 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
             signal.signal(sig, h)
     if interrupted:
         kept = ""
-        if output.exists():
+        if result is not None and result.n_samples == 0:  # the output, if any, is an earlier log, untouched
+            kept = " before its first sample; nothing recorded" + (f" ({output} is not changed)" if output.exists()
+                                                                    else "")
+        elif output.exists():
             try:
                 from kukaid.logs import read_hdf5
 

@@ -149,9 +149,16 @@ def simulate_cmd(robots, days, outdir, axes, whole_arm, wear_share, wear_range, 
     with usage_errors():
         cfg = FleetSimConfig(robots=robots, days=days, axes=ax, whole_arm=whole_arm, wear_share=wear_share,
                              wear_range=(lo, hi), temp_swing=temp_swing, seed=seed)
+    fresh = not outdir.exists() or not any(outdir.iterdir())  # then the folder will hold only this run's files
     bar = _Progress("fleet simulate")
     try:
         s = simulate_fleet(cfg, outdir, workers=workers, scheduler=scheduler, progress=bar)
+    except BaseException:  # Ctrl-C, a failure: no half-made fleet (logs without a manifest) in the way of the next run
+        if fresh:
+            import shutil
+
+            shutil.rmtree(outdir, ignore_errors=True)
+        raise
     finally:
         bar.close()
     click.echo(f"{outdir}: {s.logs} logs of {s.axes} axes ({s.wearing} wearing) in {s.wall_s:.1f} s; "

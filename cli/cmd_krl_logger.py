@@ -22,9 +22,10 @@ def command(axes: tuple[int, ...], blocks: int, block_samples: int, outdir: Path
     robot variable.
     """
     from kukaid.krc.krl_logger import RingLayout, krl_logger_files
-    from kukaid_cli._util import write_krl_files
+    from kukaid_cli._util import usage_errors, write_krl_files
 
-    layout = RingLayout(axes=tuple(axes) or (3,), nb=blocks, bs=block_samples)
+    with usage_errors("--axis"):  # the options alone
+        layout = RingLayout(axes=tuple(axes) or (3,), nb=blocks, bs=block_samples)
     files = krl_logger_files(layout)
     write_krl_files(outdir, files, force)
     click.echo(f"{outdir}: {', '.join(files)} (axes {', '.join(f'A{a}' for a in layout.axes)}, "

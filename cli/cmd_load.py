@@ -131,6 +131,8 @@ def _axes(source: Path, text: str) -> int | list[int]:
         raise click.UsageError(f"{source}: --axis must be an axis number or a list such as 1,2,3; got {text!r}") from None
     if not axes:
         raise click.UsageError(f"{source}: --axis must name at least one axis")
+    if len(set(axes)) != len(axes) or not all(1 <= a <= 12 for a in axes):
+        raise click.UsageError(f"{source}: --axis must be distinct axis numbers 1 to 12; got {text!r}")
     return axes[0] if len(axes) == 1 and "," not in str(text) else axes
 
 

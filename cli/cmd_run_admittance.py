@@ -175,9 +175,15 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     check_no_partial(output)  # a run that was killed or failed: recorded data, never replaced
     if backend == "kvp" and axis > 6:
         raise click.BadParameter(f"{axis}: a KR C4 over KUKAVARPROXY moves A1..A6", param_hint="--axis")
-    if backend == "kvp" and (sim_config is not None or noise is not None or program is not None
-                             or plant_friction is not None):
-        raise click.UsageError("--sim-config, --noise, --plant-friction and --program are for --backend sim")
+    if backend == "kvp":  # the simulator's and the simulated person's options do nothing on a robot
+        src = click.get_current_context().get_parameter_source
+        given = [f"--{k.replace('_', '-')}" for k, v in (("sim_config", sim_config), ("noise", noise),
+                                                          ("plant_friction", plant_friction), ("program", program),
+                                                          ("grip", grip)) if v is not None]
+        given += [f"--{k}" for k in ("operator", "seed", "q0") if src(k).name != "DEFAULT"]
+        if given:
+            raise click.UsageError(f"{', '.join(given)} {'is' if len(given) == 1 else 'are'} for --backend sim (the "
+                                   "simulator and its simulated person): a real robot starts where it stands")
     raw = read_json(params_path, ParamFileError)
     robot_file = is_robot_params(raw)  # a whole robot (`kukaid fit --robot`): Γr of the axis from every axis
     if robot_file:

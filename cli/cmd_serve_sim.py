@@ -28,7 +28,8 @@ import click
 @click.option("--speed", type=click.FloatRange(0.01, 100.0), default=1.0, show_default=True,
               help="Simulated seconds per second.")
 @click.option("--ring-axes", type=click.IntRange(1, 6), multiple=True,
-              help="Axes recorded by the emulated KRL ring-buffer logger (default: the simulated axis).")
+              help="Axes recorded by the emulated KRL ring-buffer logger (default: the simulated axis; "
+                   "of one axis, only it; with --robot, any of the robot's).")
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write every 12 ms sample the simulator took (ground truth, sim time) to this HDF5 log on exit.")
 @click.option("--force", is_flag=True, help="Replace an existing --truth log.")
@@ -69,6 +70,13 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
 
     if q0 is not None and not math.isfinite(q0):  # FloatRange lets nan through
         raise click.BadParameter(f"{q0} is not a position in degrees", param_hint="--q0")
+    given = click.get_current_context().get_parameter_source
+    if grip is not None and operator != "human":
+        raise click.UsageError("--grip is for --operator human")
+    if operator is None and given("operator_start").name != "DEFAULT":
+        raise click.UsageError("--operator-start is for --operator (a simulated person)")
+    if not follower_window and given("stale_ms").name != "DEFAULT":
+        raise click.UsageError("--stale-ms is for --follower")
     if truth_path is not None:  # checked now, not after the session
         check_suffix(truth_path, ".h5", ".hdf5")
         check_outputs([truth_path], [traj_path, sim_config])
@@ -95,6 +103,9 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         check_noise(noise)
         cfg = cfg.replace(noise_sigma=noise)
     if traj is not None:
+        if given("axis").name != "DEFAULT" and int(getattr(traj, "axis", axis) or axis) != axis:
+            raise click.UsageError(f"--axis {axis} differs from the trajectory's axis A{traj.axis} ({traj_path}); "
+                                   "the trajectory's axis is simulated")
         axis = int(getattr(traj, "axis", axis) or axis)
     sim = VirtualKRC4(cfg, seed=seed, axis=axis)
     if q0 is not None:
@@ -103,9 +114,6 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         sim.reset(math.radians(q0))
     if operator is not None:
         from kukaid.sim.operator import make_operator
-
-        if grip is not None and operator != "human":
-            raise click.UsageError("--grip is for --operator human")
 
         def hand_on() -> None:
             sim.set_external_torque(make_operator(operator, seed, sim.q, t_start=sim.t + operator_start, grip=grip))
@@ -119,7 +127,12 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         with usage_errors():  # the options alone
             follower = FollowerConfig(axis=axis, q_min_deg=follower_window[0], q_max_deg=follower_window[1],
                                       stale_ms=stale_ms)
-    ring = RingLayout(axes=tuple(ring_axes) or (axis,))
+    with usage_errors("--ring-axes"):  # the options alone
+        ring = RingLayout(axes=tuple(ring_axes) or (axis,))
+    other = [a for a in ring.axes if a != axis]
+    if other:  # the emulated logger would record a standing axis with no torque at all
+        raise click.BadParameter(f"A{other[0]} is not simulated: the one-axis simulator runs A{axis} only (--robot "
+                                 "runs every axis)", param_hint="--ring-axes")
     source = SimSource(sim, axis=axis, trajectory=traj, speed=speed, ring=ring, follower=follower,
                        on_run=hand_on if operator is not None and follower else None).start()
     _run(source, sim, traj, host, port, duration, delay, truth_path, f"A{axis}")

@@ -42,14 +42,15 @@ class LazyGroup(click.Group):
             sys.exit(0)
         except click.ClickException as e:
             ctx = getattr(e, "ctx", None)
-            where = f"{ctx.info_name}: " if ctx is not None and ctx.parent is not None else ""
+            # the command as typed after `kukaid` (`fleet fit`, not `fit`, which is another command)
+            where = " ".join(ctx.command_path.split()[1:]) + ": " if ctx is not None and ctx.parent is not None else ""
             _fail(where + " ".join(e.format_message().split()), e.exit_code)
         except click.Abort:
             _fail("interrupted", 130)
         sys.exit(rv if isinstance(rv, int) else 0)
 
     def invoke(self, ctx: click.Context):
-        from kukaid.errors import KukaidError
+        from kukaid.errors import EXIT_INTERNAL, KukaidError
 
         try:
             return super().invoke(ctx)
@@ -69,7 +70,8 @@ class LazyGroup(click.Group):
         except Exception as e:  # a bug: still one line, full traceback with KUKAID_DEBUG=1
             if os.environ.get("KUKAID_DEBUG"):
                 raise
-            _fail(f"internal error ({type(e).__name__}: {e}); rerun with KUKAID_DEBUG=1 for a traceback", 2)
+            _fail(f"internal error ({type(e).__name__}: {e}); rerun with KUKAID_DEBUG=1 for a traceback",
+                  EXIT_INTERNAL)
 
 
 #: exit status when stdout's reader has gone (`kukaid ... | head`): 128 + SIGPIPE, as a command

@@ -15,7 +15,8 @@ HDF5 axis log at ``output`` and returns a :class:`CaptureResult`.  Two sources:
     ``kukaid.krc.kvp_capture.capture_kvp`` (polling, or the KRL ring-buffer logger that keeps
     every 12 ms sample, which a command cycle over the network cannot guarantee).
 
-:func:`capture` refuses to replace an existing log unless ``force`` (nothing recorded is lost).
+:func:`capture` refuses to replace an existing log unless ``force`` (nothing recorded is lost); with
+``force`` the new log is recorded beside the old one and replaces it only when the capture has ended.
 """
 from __future__ import annotations
 
@@ -77,7 +78,30 @@ def capture(backend: CaptureSource, output: str | Path, force: bool = False, pro
         raise KukaidError(f"{output}: already exists; choose another name or pass --force to replace it")
     if output.exists() and output.is_dir():
         raise KukaidError(f"{output}: is a directory")
-    return backend.capture(output, progress, stop)
+    if not output.exists():
+        return backend.capture(output, progress, stop)
+    # --force over an earlier log: recorded beside it, and put in its place when the capture has
+    # ended (cut short too: a record, as --force asked); one that fails or is killed leaves it as it was
+    partial = output.with_name(f"{output.stem}.partial{output.suffix}")
+    if partial.exists() or partial.is_symlink():
+        raise KukaidError(f"{partial}: the record of an earlier capture that did not finish is in the way; move it "
+                          "away or remove it, then capture again")
+    try:
+        result = backend.capture(partial, progress, stop)
+    except (KukaidError, KeyboardInterrupt) as e:
+        if not partial.exists():
+            raise
+        msg = str(e) if isinstance(e, KukaidError) else "capture interrupted"
+        kept = "" if str(partial) in msg else f"; the samples recorded are kept in {partial}"
+        err = KukaidError(f"{msg}{kept} ({output} is not changed)")
+        err.exit_code = e.exit_code if isinstance(e, KukaidError) else 130
+        raise err from None
+    if result.n_samples == 0:  # nothing recorded: nothing to put in place
+        partial.unlink(missing_ok=True)
+        return CaptureResult(output=output, n_samples=0, duration=0.0, complete=result.complete, info=result.info)
+    partial.replace(output)
+    return CaptureResult(output=output, n_samples=result.n_samples, duration=result.duration,
+                         complete=result.complete, info={**result.info, "output": str(output)})
 
 
 class SimCapture:

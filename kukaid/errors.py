@@ -1,5 +1,9 @@
 """Errors the toolkit raises on bad input; the CLI prints them as one line, without a traceback."""
 
+#: exit status of an internal error (a bug, not bad input): sysexits' EX_SOFTWARE, apart from 1 (the
+#: data), 2 (usage), 3 and 4 (a stopped or, with --strict, warned admittance run), 130 and 141 (signals)
+EXIT_INTERNAL = 70
+
 
 class KukaidError(Exception):
     """Base class: a problem the user can fix, described in one line.

@@ -21,7 +21,7 @@ def read_json(path: str | Path, error: type[KukaidError] = KukaidError, what: st
         raise error(f"{path}: no such file") from None
     except OSError as e:
         raise error(f"{path}: cannot read: {e.strerror}") from None
-    text = raw.decode("utf-8", errors="replace")
+    text = raw.decode("utf-8", errors="replace").removeprefix("\ufeff")  # a Windows editor's byte order mark
     if not text.strip():
         raise error(f"{path}: empty file")
     try:

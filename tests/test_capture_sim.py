@@ -254,3 +254,86 @@ def test_interrupted_capture_keeps_data_and_says_so(long_traj, tmp_path, sig):
     assert "capture interrupted" in err and "kept in" in err and "Traceback" not in err
     n = _check_prefix(out, long_traj)
     assert f"{n} samples" in err
+
+
+@pytest.mark.parametrize("option", [["--seed", "5"], ["--chunk", "5"], ["--settle", "2"]])
+def test_kvp_capture_refuses_a_simulator_option(tmp_path, option):
+    """The robot runs its own program: a seed, block length or settle time of the simulator does
+    nothing there, and was taken without a word (as --noise and --effect are not)."""
+    out = tmp_path / "k.h5"
+    code, text = run("capture", "-o", out, "--backend", "kvp", "--port", "1", "--duration", "1", *option)
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    assert code == 2 and lines == [f"kukaid: error: capture: option {option[0]} is for --backend sim"], text
+    assert not out.exists()
+
+
+def test_a_capture_interrupted_before_its_first_sample_does_not_report_the_old_log(short_traj, tmp_path, monkeypatch):
+    """`capture --force` over an earlier log, Ctrl-C before the first block: nothing was recorded and
+    the old log is untouched, but the line read the old log and said 'capture interrupted after
+    58.27 of 415.9 s; 4857 samples kept'."""
+    import kukaid.capture
+    from kukaid.capture import CaptureResult
+
+    out = tmp_path / "old.h5"
+    assert run("capture", short_traj, "-o", out, "--seed", "1")[0] == 0
+    before = out.read_bytes()
+    monkeypatch.setattr(kukaid.capture, "capture",
+                        lambda be, output, **k: CaptureResult(output=output, n_samples=0, duration=0.0, complete=False))
+    code, text = run("capture", short_traj, "-o", out, "--seed", "2", "--force")
+    assert code == 130 and text.strip().splitlines() == [
+        f"kukaid: error: capture interrupted before its first sample; nothing recorded ({out} is not changed)"], text
+    assert out.read_bytes() == before
+
+
+def _fail_cycle_at(monkeypatch, n, seen=None, out=None, before=None):
+    """SimRobot.cycle raises a ControllerError at its n-th call (after n - 1 blocks were written)."""
+    from kukaid.errors import ControllerError
+    from kukaid.robot import SimRobot
+
+    real, calls = SimRobot.cycle, [0]
+
+    def cycle(self, *a, **k):
+        calls[0] += 1
+        if seen is not None and calls[0] == n - 1:  # while the capture runs: the old log whole, the new one beside
+            seen.append((out.read_bytes() == before, out.with_name(f"{out.stem}.partial{out.suffix}").exists()))
+        if calls[0] == n:
+            raise ControllerError("the controller stopped answering")
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(SimRobot, "cycle", cycle)
+
+
+def test_a_forced_capture_that_fails_leaves_the_old_log_and_keeps_what_it_recorded(short_traj, tmp_path, monkeypatch):
+    """`capture --force` over an earlier log truncated it at the first block: a capture that then
+    failed (or was killed) lost the earlier log for a part of the new one.  It is now recorded
+    beside it (NAME.partial.h5) and put in its place only when it has ended."""
+    from kukaid.logs import read_hdf5
+
+    out = tmp_path / "old.h5"
+    assert run("capture", short_traj, "-o", out, "--seed", "1", "--chunk", "0.5")[0] == 0
+    before = out.read_bytes()
+    partial = tmp_path / "old.partial.h5"
+    seen = []
+    _fail_cycle_at(monkeypatch, 4, seen, out, before)
+    code, text = run("capture", short_traj, "-o", out, "--seed", "2", "--chunk", "0.5", "--force")
+    lines = text.strip().splitlines()
+    assert code == 1 and len(lines) == 1, text
+    assert lines[0] == (f"kukaid: error: the controller stopped answering; the samples recorded are kept in {partial} "
+                        f"({out} is not changed)")
+    assert seen == [(True, True)] and out.read_bytes() == before
+    assert read_hdf5(partial).n_samples > 100
+    # the partial record is never replaced: the next capture refuses while it is in the way
+    monkeypatch.undo()
+    code, text = run("capture", short_traj, "-o", out, "--seed", "2", "--force")
+    assert code == 1 and f"{partial}: the record of an earlier capture that did not finish is in the way" in text
+    assert out.read_bytes() == before
+
+
+def test_a_forced_capture_replaces_the_old_log_when_it_has_ended(short_traj, tmp_path):
+    from kukaid.logs import read_hdf5
+
+    out = tmp_path / "old.h5"
+    assert run("capture", short_traj, "-o", out, "--seed", "1")[0] == 0
+    code, text = run("capture", short_traj, "-o", out, "--seed", "2", "--force")
+    assert code == 0 and text.startswith(f"{out}: ") and text.strip().endswith("(sim, seed 2)"), text
+    assert read_hdf5(out).attrs["seed"] == 2 and sorted(p.name for p in tmp_path.iterdir()) == ["old.h5"]

@@ -50,14 +50,32 @@ def files(tmp_path_factory):
     (["excite", "bogus", "-o", "x.json"], ["excite: Invalid value", "'bogus'"]),
     (["excite", "friction"], ["excite: Missing option '-o'"]),
     (["nosuch"], ["No such command 'nosuch'"]),
+    (["fleet", "fit"], ["kukaid: error: fleet fit: Missing argument 'INPUT'"]),  # not `fit:`, another command
     (["capture", "x.json", "-o", "y.h5", "--seed", "-1"], ["capture: Invalid value for '--seed'"]),
     (["fit", "a.h5", "-o", "p.json", "--order", "60"], ["fit: Invalid value for '--order'"]),
     (["excite", "inertia", "-o", "x.json", "--lead", "1e9"], ["--lead", "longer than an hour"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--q0", "nan"], ["--q0", "not a position"]),
+    # options of serve-sim that did nothing, without a word: a simulated A3 served for --axis 4, a
+    # grip or start of a hand that is not there, a heartbeat timeout of no follower
+    (["serve-sim", "--port", "0", "--duration", "1", "--axis", "4", "--trajectory", "{traj}"],
+     ["--axis 4 differs from the trajectory's axis A3"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--grip", "firm"], ["--grip is for --operator human"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--operator-start", "5"], ["--operator-start is for --operator"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--stale-ms", "50"], ["--stale-ms is for --follower"]),
+    # an axis given twice is the option's fault (it was exit 1)
+    (["krl-logger", "-o", "krl", "--axis", "3", "--axis", "3"], ["--axis", "axes must be distinct", "[3, 3]"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--ring-axes", "3", "--ring-axes", "3"],
+     ["--ring-axes", "axes must be distinct"]),
+    # a one-axis simulator's ring logger of another axis recorded zeros (position and torque)
+    (["serve-sim", "--port", "0", "--duration", "1", "--ring-axes", "4"],
+     ["--ring-axes", "A4 is not simulated: the one-axis simulator runs A3 only"]),
 ])
 def test_usage_errors_are_one_line(args, pieces, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    _one_line_error(_run(*args), *pieces, code=2)
+    traj = tmp_path.parent / f"{tmp_path.name}-a3.json"  # a trajectory of A3, beside the folder that must stay empty
+    if any("{traj}" in a for a in args):
+        assert _run("excite", "inertia", "-o", traj, "--period", "2").exit_code == 0
+    _one_line_error(_run(*[a.replace("{traj}", str(traj)) for a in args]), *pieces, code=2)
     assert os.listdir(tmp_path) == []
 
 
@@ -218,6 +236,8 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
     (["fit", "{d}/inertia.h5", "-o", "p.json", "--robot", "kr6-r700-sixx", "--prior-weight", "-1"],
      ["--prior-weight", "-1.0 must be a finite number >= 0"]),
     (["capture", "{d}/inertia.json", "-o", "c11.csv"], ["c11.csv", "name it .h5 or .hdf5"]),
+    (["capture", "-o", "c12.h5", "--backend", "kvp", "--port", "9", "--duration", "1", "--axis", "3", "--axis", "3"],
+     ["capture: --axis 3 is given twice"]),
 ])
 def test_option_errors_are_usage_errors(files, tmp_path, monkeypatch, args, pieces):
     """Contradictory or out-of-range options: exit status 2 (the usage error of docs/errors.md), one line, no output."""
@@ -237,6 +257,9 @@ def test_load_option_errors_are_usage_errors_and_data_errors_are_not(tmp_path):
     _one_line_error(_run(*base, "--q-scale", "0"), "(--q-scale) must be a finite", code=2)
     _one_line_error(_run(*base, "--tau-scale-var", "nope"), "no variable 'nope'", code=1)  # found in the file
     _one_line_error(_run(*base, "--sample-time", "0.001"), "--time and --sample-time", code=2)
+    # an axis number out of range or given twice is the option's fault (it was exit 1, unnamed)
+    _one_line_error(_run(*base, "--axis", "0"), "--axis must be distinct axis numbers 1 to 12; got '0'", code=2)
+    _one_line_error(_run(*base, "--axis", "1,1"), "--axis must be distinct axis numbers 1 to 12; got '1,1'", code=2)
     assert not (tmp_path / "o.h5").exists()
 
 
@@ -344,3 +367,55 @@ def test_excite_keeps_existing_krl_files_without_force(tmp_path):
     assert src.read_bytes() == edited and (tmp_path / "t.json").read_bytes() == before  # all or nothing
     assert _run(*args, "--period", "3", "--force").exit_code == 0
     assert src.read_bytes() != edited
+
+
+def test_an_internal_error_has_its_own_exit_status(files, monkeypatch):
+    """A bug is one line too, but not exit status 2, which says the user's options were wrong: 70
+    (EX_SOFTWARE), distinct from every status docs/errors.md gives (1, 2, 3, 4, 130, 141)."""
+    import kukaid.params
+
+    from kukaid.errors import EXIT_INTERNAL
+
+    def boom(*a, **k):
+        raise RuntimeError("boom")
+
+    monkeypatch.delenv("KUKAID_DEBUG", raising=False)
+    monkeypatch.setattr(kukaid.params, "load_any_params", boom)
+    r = _run("show", files / "params.json")
+    _one_line_error(r, "internal error (RuntimeError: boom)", "KUKAID_DEBUG=1", code=70)
+    assert EXIT_INTERNAL == 70 and EXIT_INTERNAL not in (0, 1, 2, 3, 4, 130, 141)
+
+
+def test_a_fit_decimated_to_a_handful_of_samples_says_so(files, tmp_path):
+    """`fit --decimate 300` leaves a sample or two: the error said the axis moves in one direction only."""
+    r = _run("fit", files / "inertia.h5", "--friction-model", "coulomb-viscous", "--decimate", "300",
+             "-o", tmp_path / "p.json")
+    _one_line_error(r, "inertia.h5: only ", "dynamic-mode samples for 4 parameters", "--decimate 300", code=1)
+    assert "one direction" not in r.output and not (tmp_path / "p.json").exists()
+
+
+def test_files_a_windows_editor_saved_with_a_byte_order_mark_are_read(files, tmp_path):
+    """Excel's 'CSV UTF-8' and Notepad put a UTF-8 byte order mark first: a log CSV was refused
+    with "first column must be 'time_s', found 'time_s'" (the mark unseen), a JSON file with
+    'Unexpected UTF-8 BOM', a fleet manifest lacked its column 'robot'."""
+    from kukaid.fleet.manifest import read_manifest
+
+    bom = b"\xef\xbb\xbf"
+    assert _run("load", files / "inertia.h5", "-o", tmp_path / "log.csv").exit_code == 0
+    (tmp_path / "bom.csv").write_bytes(bom + (tmp_path / "log.csv").read_bytes())
+    r = _run("load", tmp_path / "bom.csv", "-o", tmp_path / "bom.h5")
+    assert r.exit_code == 0, r.output
+    (tmp_path / "bom.json").write_bytes(bom + (files / "params.json").read_bytes())
+    r = _run("show", tmp_path / "bom.json")
+    assert r.exit_code == 0 and "Izz" in r.output, r.output
+    (tmp_path / "m.csv").write_bytes(bom + b"robot,axis,date,path\nR1,3,2026-01-05,log.csv\n")
+    assert [(e.robot, e.axis) for e in read_manifest(tmp_path / "m.csv")] == [("R1", 3)]
+
+
+def test_a_log_csv_with_semicolons_says_so(tmp_path):
+    """A spreadsheet set to a decimal comma exports ';'-separated columns: the error quoted the
+    whole header as the first column's name."""
+    p = tmp_path / "semi.csv"
+    p.write_text("time_s;A3_deg;A3_Nm\n0,012;1,5;2,0\n")
+    r = _run("load", p, "-o", tmp_path / "x.h5")
+    _one_line_error(r, "semi.csv: columns must be separated by commas, not ';'", code=1)

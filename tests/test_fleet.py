@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ import pytest
 from fleet_helpers import DaskProcesses, fault_fleet, small_fleet
 
 from kukaid.fleet.manifest import ManifestError, read_input, read_manifest, scan_folder
-from kukaid.fleet.table import journal_path, read_table
+from kukaid.fleet.table import journal_path, read_journal, read_table
 
 
 def _run(cmd, *args, timeout=180, **kw):
@@ -41,6 +42,8 @@ def test_manifest_and_folder_give_the_same_logs(tmp_path):
 @pytest.mark.parametrize("text, phrase", [
     ("robot,date,path\nR1,2026-01-01,a.h5\n", "lacks column(s) axis"),
     ("robot,axis,date,path\nR1,3,01/02/2026,a.h5\n", "not a date"),
+    ("robot,axis,date,path\nR1,3,2026-02-30,a.h5\n", "line 2: date '2026-02-30' is not a date"),  # no such day
+    ("robot,axis,date,path\nR1,3,2026-13-01,a.h5\n", "line 2: date '2026-13-01' is not a date"),  # nor month
     ("robot,axis,date,path\nR1,A13,2026-01-01,a.h5\n", "not an axis number"),
     ("robot,axis,date,path\n", "lists no logs"),
 ])
@@ -49,6 +52,16 @@ def test_bad_manifest_is_one_clear_error(tmp_path, text, phrase):
     p.write_text(text)
     with pytest.raises(ManifestError, match=phrase.replace("(", r"\(").replace(")", r"\)")):
         read_manifest(p)
+
+
+def test_a_folder_date_that_is_no_day_is_one_clear_error(tmp_path):
+    """A folder named like a date that does not exist stops the command before any work, as a
+    manifest's does (it was fitted, then `fleet wear` failed on it with an internal error)."""
+    small_fleet(tmp_path, robots=1, days=1)
+    (day,) = (tmp_path / "logs" / "R001").iterdir()
+    day.rename(day.with_name("2026-02-30"))
+    with pytest.raises(ManifestError, match="date '2026-02-30' is not a date YYYY-MM-DD"):
+        scan_folder(tmp_path / "logs", "{robot}/{date}/A{axis}.h5")
 
 
 # -- faults, resume ------------------------------------------------------------------------------
@@ -74,6 +87,56 @@ def test_bad_logs_become_error_rows_and_the_rest_is_fitted(faults, tmp_path, kuk
     assert "0 fitted" in r2.stderr and "already in the table" in r2.stderr
     rows2, _ = read_table(table)
     assert rows2 == rows
+
+
+def test_ctrl_c_mid_run_says_what_is_kept_and_how_to_go_on(tmp_path, monkeypatch):
+    """Ctrl-C during `fleet fit` said only 'interrupted' (exit 130): the finished rows are in a
+    hidden journal that the next run reads, which the line now says."""
+    import kukaid.fleet.run as run
+    from kukaid.errors import KukaidError
+    from kukaid.fleet.tasks import error_row, fit_task
+
+    man = small_fleet(tmp_path, robots=1, days=2)
+
+    def stream(client, jobs, task, options, kind, rows, journal, *a, **k):
+        new = [error_row(jobs[0], kind, "done before the interrupt")]
+        journal.append(new)
+        rows.extend(new)
+        raise KeyboardInterrupt
+
+    class Client:
+        def nthreads(self):
+            return {"w": 1}
+
+    monkeypatch.setattr(run, "_stream", stream)
+    table = tmp_path / "t.parquet"
+    with pytest.raises(KukaidError) as e:
+        run.run_tasks(read_input(man), table, fit_task, None, {"task": "fit"}, client=Client())
+    assert e.value.exit_code == 130
+    assert str(e.value) == (f"{table}: interrupted after 1 of 2 logs; the finished rows are kept (in "
+                            f"{journal_path(table).name} beside it): run the same command again to go on")
+    assert len(read_journal(table)[0]) == 1 and not table.exists()
+
+
+def _sigint_handler() -> str:
+    """The SIGINT handler of this process, by name (run on a Dask worker)."""
+    import signal
+
+    h = signal.getsignal(signal.SIGINT)
+    return getattr(h, "name", None) or getattr(h, "__name__", repr(h))
+
+
+def test_the_local_workers_leave_ctrl_c_to_the_command():
+    """A terminal's Ctrl-C reaches the whole process group: a local Dask worker then printed its
+    KeyboardInterrupt traceback (and its nanny's) under the command's one line, at about one
+    Ctrl-C in three.  The workers ignore SIGINT; the command, whose own handler stays, stops them."""
+    from kukaid.fleet.run import open_client
+
+    before = signal.getsignal(signal.SIGINT)
+    with open_client(workers=1) as client:
+        assert signal.getsignal(signal.SIGINT) is before
+        handlers = client.run(_sigint_handler)
+    assert list(handlers.values()) == ["SIG_IGN"], handlers
 
 
 def test_kill_mid_run_then_rerun_completes_without_refitting(tmp_path, kukaid_cmd):
@@ -146,6 +209,30 @@ def test_table_made_with_other_settings_is_not_mixed(tmp_path, kukaid_cmd):
 
 # -- simulate -----------------------------------------------------------------------------------
 
+def test_an_interrupted_simulate_leaves_no_half_made_fleet(tmp_path, monkeypatch):
+    """Ctrl-C during `fleet simulate` left the logs simulated so far without a manifest, and the next
+    run refused the folder ('not empty'); a folder that held files before keeps them."""
+    import kukaid.fleet.simulate as simulate
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    def interrupted(cfg, outdir, **k):
+        (Path(outdir) / "logs" / "R001").mkdir(parents=True)
+        (Path(outdir) / "logs" / "R001" / "A3.h5").write_bytes(b"half")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(simulate, "simulate_fleet", interrupted)
+    out = tmp_path / "fleet"
+    r = CliRunner().invoke(cli, ["fleet", "simulate", "--robots", "1", "--days", "1", "-o", str(out)])
+    assert r.exit_code == 130 and r.output.strip() == "kukaid: error: interrupted", r.output
+    assert not out.exists()
+    out.mkdir()
+    (out / "mine.txt").write_text("kept")
+    r = CliRunner().invoke(cli, ["fleet", "simulate", "--robots", "1", "--days", "1", "-o", str(out), "--force"])
+    assert r.exit_code == 130 and (out / "mine.txt").read_text() == "kept"
+
+
 def test_simulate_keeps_the_truth_apart(tmp_path):
     from kukaid.logs import read_log
 
@@ -200,6 +287,19 @@ def test_wear_ignores_a_drift_the_whole_fleet_shares():
 
     res = assess(_synthetic_rows(60, 30, seed=8, common=0.15))
     assert res["summary"]["flagged"] <= 1
+
+
+def test_wear_of_a_small_fleet_prints_no_numpy_warning():
+    """Two axes give no spread of the temperature slopes (each axis takes the fleet's): `fleet wear`
+    printed numpy's 'RuntimeWarning: invalid value encountered in divide' and its source line."""
+    import warnings
+
+    from kukaid.fleet.wear import assess
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = assess(_synthetic_rows(2, 24, seed=9))
+    assert res["summary"]["assessed"] == 2 and res["temperature_model"]["Fc_per_K"] is not None
 
 
 def test_wear_cli_writes_json_and_pdf(tmp_path, kukaid_cmd):

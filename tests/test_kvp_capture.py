@@ -195,8 +195,11 @@ def test_garbage_mid_capture_is_survived_and_persistent_garbage_is_a_clear_error
 def test_empty_value_and_unreachable_proxy_are_clear_errors(virtual_krc4, tmp_path):
     srv, _ = virtual_krc4()
     srv.faults.empty = {"$TORQUE_AXIS_ACT[3]"}
-    with pytest.raises(ControllerError, match=r"\$TORQUE_AXIS_ACT\[3\] came back empty"):
+    with pytest.raises(ControllerError, match=r"\$TORQUE_AXIS_ACT\[3\] came back empty") as e:
         capture_kvp(tmp_path / "e.h5", "127.0.0.1", srv.port, [3], 0.5, False, "poll", None)
+    # not a sample: no log (it said 'kept in e.h5' and left an empty file that a second try needed --force for)
+    assert "with no sample recorded, no log written" in str(e.value) and "kept" not in str(e.value)
+    assert not (tmp_path / "e.h5").exists()
     srv.stop()
     with pytest.raises(ControllerError, match="cannot connect"):
         capture_kvp(tmp_path / "u.h5", "127.0.0.1", srv.port, [3], 0.5, False, "poll", None)

@@ -76,6 +76,21 @@ def test_report_with_every_metric_keeps_a_margin(tmp_path, monkeypatch):
     assert not problems, problems
 
 
+def test_a_threshold_raised_by_a_grasp_does_not_blame_an_exact_model(tmp_path):
+    """README's walk-through (`--operator pull --duration 6`, seed 0): the hand's pull rises below the
+    threshold at rest before it is detected, and the threshold at rest rises 20 %.  The warning
+    said the parameter file's friction at rest did not match and asked for a refit with
+    --presliding, here of the plant's own parameters (and in the README after a fit with --presliding)."""
+    params = tmp_path / "truth.json"
+    save_params(params, SimConfig().truth_params())
+    r = _run(["--params", params, "--operator", "pull", "--duration", "6", "--json", "-o", tmp_path / "r.h5"])
+    assert r.exit_code == 0, r.output
+    m = json.loads(r.stdout)
+    (w,) = [w for w in m["warnings"] if w.startswith("at rest, with nothing detected")]
+    assert m["settled"] and m["rest_threshold_max"] > 1.2 * 5.0
+    assert "a hand that leaned on the axis before it was taken for a push, or the parameter file's friction" in w
+
+
 def test_the_fitted_presliding_state_is_not_this_runs(files, tmp_path):
     """The parameter file's Maxwell-slip ``zeta0`` is the state at the start of the fitted log (a fit
     of pre-sliding data leaves the elements saturated); the state at the start of a run is
@@ -120,6 +135,23 @@ def test_a_real_robot_moves_only_when_asked_and_bounded(files, tmp_path, args, m
     # nothing listens on this port: refusals come before any connection; missing or out-of-range
     # options are usage errors (exit status 2)
     r = _run(["--params", files / "params.json", "--backend", "kvp", "--port", "9", "-o", tmp_path / "r.h5", *args])
+    assert r.exit_code == 2 and message in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert not (tmp_path / "r.h5").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--operator", "pull"], "--operator is for --backend sim"),
+    (["--seed", "3"], "--seed is for --backend sim"),
+    (["--q0", "10"], "--q0 is for --backend sim"),
+    (["--grip", "firm"], "--grip is for --backend sim"),
+    (["--noise", "2", "--seed", "3"], "--noise, --seed are for --backend sim"),
+])
+def test_a_real_robot_run_refuses_the_simulators_options(files, tmp_path, args, message):
+    """--operator, --seed, --grip and --q0 act on the simulator and its simulated person: with
+    --backend kvp they were taken without a word (a start position that is not where the robot
+    starts), while --noise and --sim-config were refused."""
+    r = _run(["--params", files / "params.json", "--backend", "kvp", "--port", "9", "--enable-motion", "--q-min", "0",
+              "--q-max", "60", "-o", tmp_path / "r.h5", *args])
     assert r.exit_code == 2 and message in r.output and len(r.output.strip().splitlines()) == 1, r.output
     assert not (tmp_path / "r.h5").exists()
 

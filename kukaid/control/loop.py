@@ -182,8 +182,8 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
         metrics.setdefault("warnings", []).append(
             f"at rest, with nothing detected, Γr wandered so far ({rest_thr / est.floor_k:.3g} N·m RMS) that the "
             f"threshold at rest rose from {cfg.threshold:g} to {rest_thr:.3g} N·m (a push there needs that much): "
-            "the parameter file's friction at rest does not match the axis; refit its Maxwell-slip elements "
-            "(kukaid fit --presliding)")
+            "a hand that leaned on the axis before it was taken for a push, or the parameter file's friction at "
+            "rest off (then refit its Maxwell-slip elements: kukaid fit --presliding)")
     standing = float(getattr(est, "standing_max", 0.0))
     metrics["standing_max"] = standing
     if standing > 0.0:  # not a push, but the run should say it happened

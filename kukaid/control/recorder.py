@@ -21,7 +21,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from kukaid.errors import DiskFullError, KukaidError
+from kukaid.errors import EXIT_INTERNAL, DiskFullError, KukaidError
 
 #: the status of a run that an interrupt stopped (the loop's)
 INTERRUPTED = "stopped: interrupted"
@@ -114,7 +114,7 @@ def kept(e: BaseException, n: int, partial: Path, output: Path) -> BaseException
         new, code = KukaidError(f"{at}{e.strerror or e}; {where}"), 1
     elif isinstance(e, Exception) and not os.environ.get("KUKAID_DEBUG"):
         new, code = KukaidError(f"internal error ({type(e).__name__}: {e}); {where}; rerun with KUKAID_DEBUG=1 "
-                                "for a traceback"), 2
+                                "for a traceback"), EXIT_INTERNAL
     else:
         return e
     new.exit_code = code

@@ -64,8 +64,15 @@ def _axis(text: str, where: str) -> int | None:
 
 
 def _date(text: str, where: str) -> str:
+    """A day of the calendar as YYYY-MM-DD (2026-02-30 is not one: the wear analysis reads them as dates)."""
+    import datetime
+
     text = (text or "").strip()
-    if not _DATE.match(text):
+    try:
+        ok = bool(_DATE.match(text)) and datetime.date.fromisoformat(text).isoformat() == text
+    except ValueError:
+        ok = False
+    if not ok:
         raise ManifestError(f"{where}: date '{text}' is not a date YYYY-MM-DD")
     return text
 
@@ -80,7 +87,7 @@ def read_manifest(path: str | Path) -> list[Entry]:
     path = Path(path)
     base = path.resolve().parent
     try:
-        with open(path, newline="", encoding="utf-8") as f:
+        with open(path, newline="", encoding="utf-8-sig") as f:  # Excel's 'CSV UTF-8' begins with a mark
             rows = list(csv.reader(f))
     except UnicodeDecodeError:
         raise ManifestError(f"{path}: not a text CSV file") from None
@@ -144,7 +151,8 @@ def scan_folder(root: str | Path, pattern: str = DEFAULT_PATTERN) -> list[Entry]
         if m is None:
             continue
         g = m.groupdict()
-        out.append(Entry(g["robot"], _axis(g.get("axis") or "", f"{root}/{rel}"), g["date"], str(p.resolve()), rel))
+        where = f"{root}/{rel}"
+        out.append(Entry(g["robot"], _axis(g.get("axis") or "", where), _date(g["date"], where), str(p.resolve()), rel))
     if not out:
         raise ManifestError(f"{root}: no log matches the pattern '{pattern}' (logs: {', '.join(LOG_SUFFIXES)})")
     return out

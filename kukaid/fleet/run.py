@@ -18,7 +18,7 @@ from typing import Any, Callable, Iterator, Sequence
 
 from kukaid.errors import KukaidError, OptionError
 from kukaid.fleet.manifest import Entry, content_hash
-from kukaid.fleet.table import Journal, read_journal, read_table, write_table
+from kukaid.fleet.table import Journal, journal_path, read_journal, read_table, write_table
 from kukaid.fleet.tasks import Job, duplicate_row, error_row
 
 Progress = Callable[[int, int], None]
@@ -80,14 +80,46 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
             client.close()
         return
     n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR)
+    # Ctrl-C on a terminal reaches the workers too (one process group): each printed its own
+    # KeyboardInterrupt traceback under the command's one line, and one while the cluster started
+    # left it half made.  The workers ignore SIGINT (from birth: started while this process ignores
+    # it, for the second or two the cluster takes to start; and a worker started again later, by the
+    # plugin); the command stops them.
+    import signal
+    import threading
+
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+    try:
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               silence_logs=logging.ERROR)
+    finally:
+        if main:  # None: a handler set outside Python, taken as Python's own
+            signal.signal(signal.SIGINT, signal.default_int_handler if old is None else old)
     client = Client(cluster)
     try:
+        client.register_plugin(_leave_ctrl_c_to_the_command())
         yield client
     finally:
         client.close()
         cluster.close()
+
+
+def _leave_ctrl_c_to_the_command() -> Any:
+    """A Dask worker plugin: the worker ignores SIGINT (set in its main thread, its event loop's)."""
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class LeaveCtrlCToTheCommand(WorkerPlugin):
+        name = "kukaid-leave-ctrl-c-to-the-command"
+
+        def setup(self, worker: Any) -> None:
+            import signal
+            import threading
+
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return LeaveCtrlCToTheCommand()
 
 
 def _key(row: dict) -> tuple[str, str]:
@@ -205,6 +237,13 @@ def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, 
                 s.tasks_s = time.perf_counter() - t0
         write_table(table, _sort(rows), settings)
         journal.remove()
+    except KeyboardInterrupt:  # Ctrl-C: say what is kept, and where, since the journal is a hidden file
+        journal.close()
+        done = len({r.get("path") for r in rows[len(prior):]})
+        err = KukaidError(f"{table}: interrupted after {done} of {len(entries) - skipped} logs; the finished rows are "
+                          f"kept (in {journal_path(table).name} beside it): run the same command again to go on")
+        err.exit_code = 130
+        raise err from None
     except BaseException:
         journal.close()  # the journal stays: the next run picks up from it
         raise

@@ -177,7 +177,8 @@ def _temperature_model(axes: list[_Axis]) -> dict:
     per, pred = {}, {}
     for a, Sxx_i, Sxy_i, v in zip(have_T, sxx, sxy, res_var):
         lam = v / tau2 if np.all(tau2 > 0) else np.full(2, np.inf)
-        bi = np.where(np.isfinite(lam), (Sxy_i + lam * b) / (Sxx_i + lam), b)
+        with np.errstate(invalid="ignore"):  # lam inf (no spread): inf/inf, not taken
+            bi = np.where(np.isfinite(lam), (Sxy_i + lam * b) / (Sxx_i + lam), b)
         per[(a.robot, a.axis)] = bi
         # what the slope's error adds to a prediction at T: (T - mean T of the baseline)^2 / (Sxx + lam)
         pred[(a.robot, a.axis)] = (float(a.T[:a.nb].mean()), Sxx_i + lam)

@@ -138,11 +138,13 @@ def fit_dynamic(prepared_list: Sequence[Any], friction_model: str = "stribeck", 
     where = ", ".join(sorted({pr.source for pr in preps}))[:200]
     if y.size == 0:
         raise FitError(f"{where}: no dynamic-mode samples (|qd| >= qd_thr away from reversals); the axis must move")
+    if y.size < len(names) + 5:  # before the directions: a handful of samples may all be of one
+        dec = max(int(pr.settings.get("decimate", 1)) for pr in preps)
+        raise FitError(f"{where}: only {y.size} dynamic-mode samples for {len(names)} parameters"
+                       + (f" (every {dec}th sample kept: --decimate {dec})" if dec > 1 else ""))
     if not (np.any(v > 0) and np.any(v < 0)):
         raise FitError(f"{where}: the axis moves in one direction only; friction and gravity cannot be "
                        "separated (move both ways)")
-    if y.size < len(names) + 5:
-        raise FitError(f"{where}: only {y.size} dynamic-mode samples for {len(names)} parameters")
     if np.linalg.matrix_rank(A) < A.shape[1]:
         raise FitError(f"{where}: the regressor [{', '.join(names)}] is rank deficient on these data "
                        "(the motion does not excite every parameter)")

@@ -245,13 +245,18 @@ def capture_kvp(output: str | Path, host: str = "127.0.0.1", port: int = DEFAULT
         "stopped_by": stopped_by,
         **result,
     }
-    _finish_attrs(Path(output), summary)
+    if rec.n == 0:  # a file without a sample records nothing: not left in the way of the next try
+        Path(output).unlink(missing_ok=True)
+    else:
+        _finish_attrs(Path(output), summary)
     if err is not None:
         if isinstance(err, ControllerError):  # KvpError, or a malformed ring block
-            raise ControllerError(f"capture stopped after {rec.n} samples (kept in {output}): {err}") from None
+            kept = f"after {rec.n} samples (kept in {output})" if rec.n else "with no sample recorded, no log written"
+            raise ControllerError(f"capture stopped {kept}: {err}") from None
         raise err
     if rec.n < 2:
-        raise ControllerError(f"capture: only {rec.n} sample(s) recorded in {output}; the controller "
+        where = f"recorded in {output}" if rec.n else "recorded, no log written"
+        raise ControllerError(f"capture: only {rec.n} sample(s) {where}; the controller "
                               "answered but no usable samples came back")
     return summary
 

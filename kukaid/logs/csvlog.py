@@ -34,12 +34,16 @@ def read_csv(path: str | Path) -> AxisLog:
     path = Path(path)
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
-    text = path.read_text(errors="replace")
+    text = path.read_text(encoding="utf-8", errors="replace").removeprefix("\ufeff")  # Excel's 'CSV UTF-8' mark
     lines = [ln for ln in text.splitlines()]
     if not lines or not lines[0].strip():
         raise LogFormatError(f"{path}: empty file (expected a header row)")
     header = [h.strip() for h in lines[0].split(",")]
     if header[0] != "time_s":
+        sep = next((c for c in (";", "\t") if c in header[0]), None) if len(header) == 1 else None
+        if sep is not None:  # a spreadsheet's export where the comma is the decimal mark
+            raise LogFormatError(f"{path}: columns must be separated by commas, not {sep!r}, with '.' as the "
+                                 "decimal mark (the header is 'time_s,A3_deg,A3_Nm,...')")
         raise LogFormatError(f"{path}: first column must be 'time_s', found '{header[0]}'")
     cols: dict[tuple[int, str], tuple[int, float]] = {}
     joint_of: dict[int, str] = {}

@@ -139,7 +139,7 @@ def parse_gear_ratios(text: str | Path | dict | None) -> dict[int, float]:
 
         where = str(text)
         try:
-            raw = json.loads(Path(str(text)).read_text())
+            raw = json.loads(Path(str(text)).read_text(encoding="utf-8-sig"))  # a byte order mark first is allowed
         except (OSError, ValueError) as e:
             raise LogFormatError(f"{text}: not a readable JSON file of gear ratios: {str(e)[:120]}") from None
         if isinstance(raw, dict) and isinstance(raw.get("gear_ratio"), dict):
