@@ -80,8 +80,15 @@ def test_a_hidden_joint_effect_is_named_first(kr6, effect, name):
     assert d.names[:1] == [name], d.lines()
     st = d.steps[0]
     assert st["mean_after"] < 0.8 * st["mean_before"]
+    if effect != "load_dependent_friction":
+        # the gap closed to under 2x the joint's noise floor: the ripple's order and the spring's
+        # geometry moved continuously from the grid's pick, the ripple's columns through the fit's
+        # low-pass, the thermal term's Coulomb transition its own (before: 2.3x, 11.1x, 2.7x)
+        j = int(name[-1]) - 1
+        after = d.after[j] * d.rms[j] / d.noise_floor[j]
+        assert after < 2.0, (after, d.lines())
     if effect == "position_ripple":
-        assert st["params"]["n_per_rad"] == pytest.approx(11.3, rel=0.05)
+        assert st["params"]["n_per_rad"] == pytest.approx(11.3, rel=0.01)
         assert st["params"]["amplitude_Nm"] == pytest.approx(0.3, rel=0.25)
     if effect == "counterbalance":   # the geometry chosen on the training folds: near the truth, a plausible share
         assert abs(st["params"]["q0_rad"] + 1.23) < 0.3 and 0.1 < st["params"]["share_of_gravity"] < 0.4, st["params"]

@@ -166,9 +166,13 @@ class PositionRipple(Candidate, E.PositionRipple):
             return False, "position range or filter bandwidth too small to resolve a ripple"
         return True, ""
 
+    def order_step(self, sigs) -> float:
+        """The order grid's step, 1/rad: a quarter period over the position range."""
+        return 0.25 * 2 * math.pi / self._limits(sigs)[0]
+
     def options(self, sigs, model):
         R, lo, hi = self._limits(sigs)
-        step = 0.25 * 2 * math.pi / R
+        step = self.order_step(sigs)
         ns = np.arange(lo, hi + step, step)
         if ns.size > 2000:
             ns = np.geomspace(lo, hi, 2000)
@@ -192,7 +196,7 @@ class PositionRipple(Candidate, E.PositionRipple):
     def rule(self, model, sigs, nl, coefs):
         R, lo, _ = self._limits(sigs)
         periods = R * float(nl["n"]) / (2 * math.pi)
-        if float(nl["n"]) < lo + 0.25 * 2 * math.pi / R:  # within a quarter period of the slowest searched
+        if float(nl["n"]) < lo + self.order_step(sigs):  # within a quarter period of the slowest searched
             plural = "" if round(periods, 2) == 1 else "s"
             return (f"order n = {nl['n']:.3g} is the lowest the {R:.3g} range resolves ({periods:.2g} period{plural}): "
                     "the best fit would be slower still, a smooth position-dependent torque, not a repeating ripple")

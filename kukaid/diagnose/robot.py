@@ -24,19 +24,24 @@ the joints that carry at least half of the largest gravity torque range), ``payl
 link's mass and first moments), and per joint ``load_dependent_friction@A<j>``,
 ``thermal_friction@A<j>`` (with a temperature channel) and ``position_ripple@A<j>``.
 
-A candidate's nonlinear settings (the ripple order, the load or the thermal form, the gas
-spring's geometry: a grid, then a finer one about its pick) are chosen on the training folds only,
-by least squares of the joint's equation with the candidate, so the held-out fold judges the choice
-too. Its coefficients and the baseline are then fitted on the training folds and the held-out
-error measured. A counterbalance takes the place of its joint's spring and ripple terms; it and a
-payload are judged at every prior strength (a rigid body refitted freely takes part of either in). Recordings the file was
-fitted on are not used when at least two others remain (:func:`_unseen`).
+A candidate's nonlinear settings (the ripple order, the load or the thermal form, a friction
+term's own Coulomb transition, the gas spring's geometry: a grid, then a finer one about its pick,
+then the ripple's order and the spring's geometry moved continuously: :func:`_pick`) are chosen on
+the training folds only, by least squares of the joint's equation with the candidate, so the
+held-out fold judges the choice too. A ripple's columns are taken from the raw positions through
+the fit's low-pass, as the torque is (near the cut-off the filter attenuates a ripple in the
+torque, not in a sine of the filtered position). Its coefficients and the baseline are then
+fitted on the training folds and the held-out error measured. A counterbalance takes the place of
+its joint's spring and ripple terms; it and a payload are judged at every prior strength (a rigid
+body refitted freely takes part of either in). Recordings the file was fitted on are not used when
+at least two others remain (:func:`_unseen`).
 
 A candidate is named when it lowers the held-out relative error of the joints it acts on by more
-than :data:`MARGIN`, makes no joint's held-out error worse by as much (and by more than
-:data:`WORSE_FLOOR` of its noise floor), its gain is at least
-:data:`MIN_T` standard errors of its spread over blocks of the held-out recordings (the log of
-the squared-error ratio per block), and its refit
+than :data:`MARGIN` (below the baseline's and below what the candidate without what names it
+predicts, where it says: a thermal friction's friction term without the temperature), makes no
+joint's held-out error worse by as much (and by more than :data:`WORSE_FLOOR` of its noise floor),
+its gain is at least :data:`MIN_T` standard errors of its spread over blocks of the held-out
+recordings (the log of the squared-error ratio per block), and its refit
 on all samples passes its plausibility rule; the best is added (the joints' own choices and the
 prior's strength made again with it beside: made without it, they were made on a torque it
 dominated) and the others tried again (at most ``max_steps``). The noise floor per joint
@@ -155,6 +160,8 @@ class RobotDiagnosis:
 #: fit's cut-off, so a stop shows as it happens (the column then goes through the fit's low-pass)
 COULOMB_GRID = (0.001, 0.003, 0.01, 0.03)
 VELOCITY_BAND = 4.0
+#: values (raw samples x columns) a candidate's columns are filtered in at once (memory: 8 bytes each)
+LOWPASS_VALUES = 2 ** 21
 #: multiples of the prior's information (the file's uncertainty) tried for the rigid body's correction
 #: (1e6: the file's rigid body as it is)
 PRIOR_SCALES = (1e6, 1.0, 1e-2, 1e-4)
@@ -204,7 +211,8 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     (gravity, payload columns, times, temperatures), the rigid body's correction columns and the
     noise floor."""
     from kukaid.identify.robot_fit import (DriveModel, RobotFitSettings, _blocks, _cutoff, _samples, effect_signals,
-                                           extra_names, extras, filtered_coulomb, log_temperatures, sample_rows)
+                                           extra_names, extras, filtered_coulomb, log_temperatures, lowpassed,
+                                           sample_rows)
     from kukaid.models import robot_effects
 
     s = params["settings"]
@@ -284,7 +292,16 @@ def _signals(params: dict, logs: Sequence[Any], robot):
                      [[i for i, k in enumerate(own[j]) if names[k].endswith(".k") or ".ripple_" in names[k]]
                       for j in range(n)], shape, [[names[k] for k in own[j]] for j in range(n)])
     fs = [1.0 / lg.sample_time for lg in logs]
-    pieces = dict(q=m.q, qd=m.qd, tau=m.tau, gravity=gravity, rigid=rigid, temp=temp, payload=payload,
+
+    def lowpass(j, fn, width):
+        out = []
+        for lg in logs:
+            step = max(1, int(LOWPASS_VALUES // lg.n_samples))    # columns filtered at once
+            out.append(np.concatenate([lowpassed(lg, n, settings, j, lambda q, a=a: fn(q, a, min(a + step, width)),
+                                                 sample_rows(lg, settings)) for a in range(0, width, step)], axis=1))
+        return np.concatenate(out)
+
+    pieces = dict(q=m.q, lowpass=lowpass, qd=m.qd, tau=m.tau, gravity=gravity, rigid=rigid, temp=temp, payload=payload,
                   total_mass=float(np.sum(np.maximum(robot.pi_nominal[0::10], 0))), log_rows=m.log_rows or (N,),
                   cutoff=_cutoff(settings, min(fs)), time=np.concatenate(times), at_rest=sign == 0.0,
                   Fc=np.array([x[c] for c in coul]), Fv=np.array([x[c] for c in visc]))
@@ -394,7 +411,9 @@ def _context(pieces: dict, base: _Baseline, choice: list) -> Context:
     visc = np.column_stack([base.viscous[choice[j][1]][:, j] for j in range(n)])
     p = dict(pieces)
     Fc, Fv = p.pop("Fc"), p.pop("Fv")
-    return Context(sign=sign, friction=sign * Fc + visc * Fv, **p)
+    grid = base.coulomb[:, :, :len(COULOMB_GRID)]
+    return Context(sign=sign, friction=sign * Fc + visc * Fv, transitions=COULOMB_GRID, coulomb=grid,
+                   friction_at=grid * Fc[None, :, None] + (visc * Fv)[:, :, None], **p)
 
 
 def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, local: dict | None, folds: np.ndarray,
@@ -496,18 +515,53 @@ def _gain_t(res0: np.ndarray, res: np.ndarray, den: np.ndarray, block: np.ndarra
     return float(np.mean(g) / se) if se > 0 else (float("inf") if np.mean(g) > 0 else 0.0)
 
 
-def _choose(A: np.ndarray, y: np.ndarray, B: np.ndarray) -> int:
-    """The option (of ``B``: (N, O, c)) whose columns, fitted by least squares beside ``A`` (N, k),
-    leave the smallest squared residual of ``y`` (N,)."""
+def _projection(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """An orthonormal basis of ``A``'s (N, k) columns and ``y`` (N,) with them taken out."""
     Q, _ = np.linalg.qr(A[:, np.any(A != 0, axis=0)]) if A.size else (np.zeros((A.shape[0], 0)), None)
-    e = y - Q @ (Q.T @ y)
+    return Q, y - Q @ (Q.T @ y)
+
+
+def _gains(Q: np.ndarray, e: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """(O,): how much each option's columns (``B``: (N, O, c)), fitted by least squares beside the
+    columns ``Q`` spans, lower the squared residual ``e`` (:func:`_projection`)."""
     N, O, c = B.shape
     Bf = B.reshape(N, O * c)
     Bp = (Bf - Q @ (Q.T @ Bf)).reshape(N, O, c)
     G = np.einsum("noc,nod->ocd", Bp, Bp) + 1e-12 * np.eye(c)[None] * (1.0 + np.einsum("noc,noc->o", Bp, Bp)[:, None, None])
     g = np.einsum("noc,n->oc", Bp, e)
-    gain = np.einsum("oc,oc->o", g, np.linalg.solve(G, g[..., None])[..., 0])
-    return int(np.argmax(gain))
+    return np.einsum("oc,oc->o", g, np.linalg.solve(G, g[..., None])[..., 0])
+
+
+def _pick(cand: RobotCandidate, ctx: Context, A: np.ndarray, y: np.ndarray, rows: np.ndarray, opts: list,
+          B: np.ndarray) -> tuple[dict, np.ndarray | None]:
+    """The option whose columns, fitted beside ``A`` on ``rows``, explain most of ``y`` there: the
+    grid's best (``B``: every option's columns, (N, O, c)), then the candidate's finer options about
+    it, then its settings moved continuously within :meth:`RobotCandidate.bounds` (bounded
+    Nelder-Mead on the same squared residual). Returns the option and its columns on every sample
+    (None: the grid's own)."""
+    from scipy.optimize import minimize
+
+    Q, e = _projection(A[rows], y[rows])
+    o = int(np.argmax(_gains(Q, e, B[rows])))
+    opt, cols = opts[o], None
+    fine = cand.refine(ctx, opt)
+    if fine:
+        Bf = cand.batch(ctx, fine)
+        k = int(np.argmax(_gains(Q, e, Bf[rows])))
+        opt, cols = fine[k], Bf[:, k, :]
+    bounds = cand.bounds(ctx, opt)
+    if bounds:
+        keys = list(bounds)
+
+        def cost(v):
+            return -float(_gains(Q, e, cand.batch(ctx, [{**opt, **dict(zip(keys, map(float, v)))}])[rows])[0])
+        x0 = np.array([opt[k] for k in keys], float)
+        res = minimize(cost, x0, method="Nelder-Mead", bounds=[bounds[k] for k in keys],
+                       options={"xatol": 1e-4, "fatol": 1e-9 * float(e @ e), "maxfev": 60 * len(keys)})
+        if res.fun < cost(x0):
+            opt = {**opt, **dict(zip(keys, map(float, res.x)))}
+            cols = cand.batch(ctx, [opt])[:, 0, :]
+    return opt, cols
 
 
 def _with(local: dict, shared: list | None, cand: RobotCandidate, col: np.ndarray, n: int):
@@ -535,6 +589,16 @@ def _unseen(params: dict, logs: Sequence[Any]) -> tuple[list[Any], list[str]]:
         return list(logs), []
     return ([lg for lg, x in zip(logs, seen) if not x],
             [str(lg.attrs.get("source_file") or f"log {k + 1}") for k, (lg, x) in enumerate(zip(logs, seen)) if x])
+
+
+class _Fixed(RobotCandidate):
+    """Fixed columns on one joint, as a candidate (:meth:`RobotCandidate.without`'s)."""
+
+    def __init__(self, joint: int, cols: np.ndarray) -> None:
+        self.joint, self.name, self._cols = joint, "fixed", cols
+
+    def columns(self, ctx, option):
+        return self._cols
 
 
 def _try(cand: RobotCandidate, ctx: Context, r, tau, Fjs: dict, shared, local, folds, K, w, held, prior, base=None):
@@ -577,13 +641,10 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
         A = np.concatenate(parts, axis=1)
 
         def pick_on(rows):
-            o = _choose(A[rows], r[rows, j], B[rows])
-            fine = cand.refine(ctx, opts[o])
-            if not fine:
-                return o
-            Bf = cand.batch(ctx, fine)
-            k = _choose(A[rows], r[rows, j], Bf[rows])
-            extra.append((fine[k], Bf[:, k, :]))
+            opt, cols = _pick(cand, ctx, A, r[:, j], rows, opts, B)
+            if cols is None:
+                return opts.index(opt)
+            extra.append((opt, cols))
             return len(opts) + len(extra) - 1
 
         extra: list = []
@@ -692,11 +753,19 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             if res is None:
                 continue
             fnum, fden, fres, opt, coefs, col, c_scale = res
-            gain_t = _gain_t(res0, fres, den.sum(0), block, cand.joints(ctx))
             e = _rel(fnum, fden)
             joints = cand.joints(ctx)
             info = cand.describe(ctx, opt, coefs)
             mb, ma = float(np.mean(err[joints])), float(np.mean(e[joints]))
+            # judged against the baseline, and against the candidate without what names it when that
+            # predicts better (a thermal friction's own friction term without the temperature)
+            ref, ref_res, without = mb, res0, cand.without(ctx, opt)
+            if without is not None:
+                wnum, _, wres = _try_at(_Fixed(cand.joint, without), ctx, r, tau, Fjs[c_scale] if cand.rigid_body_like
+                                        else Fj, shared, local, folds, K, w, held, _scaled(prior, c_scale), base)[:3]
+                if float(np.mean(_rel(wnum, den)[joints])) < ref:
+                    ref, ref_res = float(np.mean(_rel(wnum, den)[joints])), wres
+            gain_t = _gain_t(ref_res, fres, den.sum(0), block, joints)
             per_fold = (fnum[held][:, joints].sum(1) / np.maximum(fold_err[held][:, joints].sum(1), 1e-300)).tolist()
             trials.append({"name": name, "mean_before": mb, "mean_after": ma, "fold_sse_ratio": per_fold,
                            "gain_t": gain_t})
@@ -705,8 +774,9 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             worse = [f"A{k + 1} ({100 * err[k]:.2f} -> {100 * e[k]:.2f} %)" for k in range(n)
                      if e[k] > (1 + MARGIN) * err[k] + 1e-12 and (e[k] - err[k]) * rms[k] > WORSE_FLOOR * floor[k]]
             reason = None
-            if ma > (1 - MARGIN) * mb:
-                reason = f"held-out error {100 * mb:.2f} -> {100 * ma:.2f} % (needs a {100 * MARGIN:.0f} % drop)"
+            if ma > (1 - MARGIN) * ref:
+                reason = f"held-out error {100 * mb:.2f} -> {100 * ma:.2f} % (needs a {100 * MARGIN:.0f} % drop)" + (
+                    f"; {100 * ref:.2f} % without {cand.without_what}" if ref < mb else "")
             elif worse:
                 reason = f"makes {', '.join(worse)} worse on held-out data"
             elif gain_t < MIN_T:

@@ -358,6 +358,18 @@ def filtered_coulomb(log: AxisLog, n: int, settings: RobotFitSettings, rows: sli
     return out if many else out[:, :, 0]
 
 
+def lowpassed(log: AxisLog, n: int, settings: RobotFitSettings, j: int, fn, rows: slice = slice(None)) -> np.ndarray:
+    """``fn`` of joint j's raw positions (M,) -> (M, c), through the fit's low-pass as the torque
+    goes, at the rows ``rows``: a term nonlinear in the position compared as the filtered torque
+    shows it (a ripple whose frequency n |qd| / 2 pi nears the cut-off is attenuated in the torque,
+    not in ``fn`` of the filtered position)."""
+    from scipy.signal import butter, sosfiltfilt
+
+    fs = 1.0 / log.sample_time
+    sos = butter(settings.order, _cutoff(settings, fs), fs=fs, output="sos")
+    return sosfiltfilt(sos, fn(np.asarray(log.q[:, _joint_columns(log, n)[j]], float)), axis=0)[rows]
+
+
 def position_noise(q: np.ndarray) -> float:
     """Standard deviation of the white noise on a position signal, from its fourth differences
     (robust: 1.4826 x their median absolute deviation / sqrt(70)); a smooth motion's fourth

@@ -14,7 +14,9 @@ predicts, the diagnosis' filtered one while a candidate is judged):
   torque ("friction"); T_j the log's motor temperature, degC.
 - ``position_ripple@A<j>``: c0 sin(n q_j) + c1 cos(n q_j).
 
-An effect's entry in the file: its settings and ``coefficients`` (the c above).
+An effect's entry in the file: its settings and ``coefficients`` (the c above). A friction
+effect's ``v_smooth`` is the Coulomb transition the diagnosis judged it with (its term through a
+transition of its own); a file predicts it with its own Coulomb column s.
 """
 from __future__ import annotations
 
