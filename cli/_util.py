@@ -12,6 +12,15 @@ import click
 from kukaid.errors import KukaidError
 
 
+def given(name: str, ctx: click.Context | None = None) -> bool:
+    """Whether the option (parameter ``name``) was given, on the command line or from the environment,
+    not left at its default (the current command's, or ``ctx``'s)."""
+    from click.core import ParameterSource
+
+    src = (ctx or click.get_current_context()).get_parameter_source(name)
+    return src not in (None, ParameterSource.DEFAULT, ParameterSource.DEFAULT_MAP)
+
+
 def on_terminal() -> bool:
     """Progress is shown only when stderr is a terminal: in a pipe or a log file it is noise, and
     stderr keeps to what went wrong (one line)."""
@@ -95,8 +104,8 @@ def option_in_data_error(*options: tuple[str, bool, str]) -> Iterator[None]:
         yield
     except KukaidError as e:
         msg = str(e)
-        for flag, given, phrase in options:
-            if given and phrase in msg:
+        for flag, typed, phrase in options:
+            if typed and phrase in msg:
                 msg = msg.replace(phrase, flag, 1)
         if msg == str(e):
             raise

@@ -56,7 +56,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
 
     from kukaid.capture import KvpCapture, SimCapture, capture, check_limits
     from kukaid.errors import KukaidError
-    from kukaid_cli._util import check_outputs
+    from kukaid_cli._util import check_outputs, given
 
     check_outputs([output], [trajectory, sim_config])  # capture() checks its suffix and --force
     if backend == "sim":
@@ -83,12 +83,10 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
         else:
             be = _one_axis_backend(traj, trajectory, sim_config, noise, effects, seed, chunk, settle)
     else:
-        src = click.get_current_context().get_parameter_source
-        given = [n for n, v in (("--sim-config", sim_config), ("--noise", noise is not None), ("--effect", effects),
-                                *((f"--{k}", src(k).name != "DEFAULT") for k in ("seed", "chunk", "settle")))
-                 if v]
-        if given:
-            raise click.UsageError(f"option {given[0]} is for --backend sim")
+        sim_only = [n for n, v in (("--sim-config", sim_config), ("--noise", noise is not None), ("--effect", effects),
+                                   *((f"--{k}", given(k)) for k in ("seed", "chunk", "settle"))) if v]
+        if sim_only:
+            raise click.UsageError(f"option {sim_only[0]} is for --backend sim")
         twice = sorted({a for a in axes if axes.count(a) > 1})
         if twice:
             raise click.UsageError(f"--axis {twice[0]} is given twice")

@@ -111,15 +111,14 @@ def _write(result, as_json: bool, output, report, check, save, draw, stage) -> N
 
 def _robot(ctx: click.Context, params: dict, logs, as_json: bool, max_steps: int, output, report, stage) -> None:
     """``kukaid diagnose --params robot.json``: the robot's candidates (kukaid.diagnose.robot)."""
-    from click.core import ParameterSource
-
     from kukaid.diagnose.robot import diagnose_robot
     from kukaid.diagnose.robot_plots import write_robot_report
     from kukaid.logs import read_log
     from kukaid.params import save_robot_params, validate_robot_params
+    from kukaid_cli._util import given
 
     for name, flag in (("axis", "--axis"), ("cutoff", "--cutoff"), ("alpha", "--alpha")):
-        if ctx.get_parameter_source(name) not in (None, ParameterSource.DEFAULT, ParameterSource.DEFAULT_MAP):
+        if given(name, ctx):
             raise click.UsageError(f"option {flag} does not apply to a robot parameter file (yet): the robot "
                                    "diagnosis prints its findings (--json for a machine)")
     stage("reading the logs")

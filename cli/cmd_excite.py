@@ -269,10 +269,9 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
     from kukaid.jsonfile import read_json
     from kukaid.models.limits import AxisLimits
     from kukaid.models.urdf import load_model
-    from kukaid_cli._util import check_outputs, echo_json, krl_texts, progress, usage_errors
+    from kukaid_cli._util import check_outputs, echo_json, given, krl_texts, progress, usage_errors
 
-    ctx = click.get_current_context()
-    if ctx.get_parameter_source("axis") != click.core.ParameterSource.DEFAULT:
+    if given("axis"):
         raise click.UsageError("option --axis does not apply to 'fourier' (it moves every axis of --robot)")
     for flag, v in (("--q-min-deg", q_min_deg), ("--q-max-deg", q_max_deg), ("--qd-max-deg", qd_max_deg)):
         if v is not None:

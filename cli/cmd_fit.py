@@ -139,10 +139,9 @@ _ROBOT_ONLY = ("prior_weight", "torque_side", "stribeck_vs", "rotor_inertia", "c
 
 def _check_applicable(ctx: click.Context, with_robot: bool, with_presliding: bool) -> None:
     """An option given that the chosen fit does not use is a usage error, not silently ignored."""
-    from click.core import ParameterSource
+    from kukaid_cli._util import given as was_given
 
-    given = {p.name: _flag(p, ctx.params.get(p.name)) for p in ctx.command.params
-             if ctx.get_parameter_source(p.name) not in (None, ParameterSource.DEFAULT, ParameterSource.DEFAULT_MAP)}
+    given = {p.name: _flag(p, ctx.params.get(p.name)) for p in ctx.command.params if was_given(p.name, ctx)}
     p = ctx.params
     if with_robot:
         for name in _AXIS_ONLY:

@@ -62,9 +62,7 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
 
     Trace example (KR C4): kukaid load Rec_NextGenDrive#1.dat --gear-ratio gear.json -o rec.h5
     """
-    from click.core import ParameterSource
-
-    from kukaid_cli._util import check_outputs, check_suffix, refuse_overwrite, usage_errors
+    from kukaid_cli._util import check_outputs, check_suffix, given, refuse_overwrite, usage_errors
 
     # before anything is read or written: the output's format, that it is not the input, no overwrite
     check_suffix(output, *OUTPUT_FORMATS)
@@ -73,13 +71,11 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
     fmt = OUTPUT_FORMATS[output.suffix.lower()]
     is_mat = source.suffix.lower() == ".mat"
     is_trace = source.suffix.lower() in TRACE_SUFFIXES
-    ctx = click.get_current_context()
     for options, applies, kind in ((MAT_OPTIONS, is_mat, "MAT (.mat)"),
                                    (TRACE_OPTIONS, is_trace, "KUKA Trace (.dat, .r64)")):
-        given = [opt for name, opt in options.items()
-                 if ctx.get_parameter_source(name) not in (None, ParameterSource.DEFAULT)]
-        if given and not applies:
-            raise click.UsageError(f"{source}: option {given[0]} is for {kind} sources")
+        typed = [opt for name, opt in options.items() if given(name)]
+        if typed and not applies:
+            raise click.UsageError(f"{source}: option {typed[0]} is for {kind} sources")
 
     from kukaid.logs import read_log, write_csv, write_hdf5
 
@@ -94,7 +90,7 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
             check_mat_options(source, tau_scale, tau_scale_var, q_scale, time_scale, sample_time)
         options = dict(time=time_var, q=q_var, tau=tau_var, q_cmd=q_cmd_var, tau_scale=tau_scale,
                        tau_scale_var=tau_scale_var, q_scale=q_scale, time_scale=time_scale, sample_time=sample_time,
-                       joint=joint if ctx.get_parameter_source("joint") != ParameterSource.DEFAULT else None,
+                       joint=joint if given("joint") else None,
                        axis=_axes(source, axis), hints=hints)
     elif is_trace:
         options = dict(gear_ratio=gear_ratio, time_base=time_base)

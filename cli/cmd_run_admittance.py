@@ -162,7 +162,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.jsonfile import read_json
     from kukaid.params import is_robot_params, load_params, model_from_params, validate_robot_params
     from kukaid.atomic import check_writable
-    from kukaid_cli._util import (check_noise, check_outputs, check_suffix, progress, refuse_overwrite,
+    from kukaid_cli._util import (check_noise, check_outputs, check_suffix, given, progress, refuse_overwrite,
                                   require_positive, usage_errors)
 
     check_suffix(output, ".h5", ".hdf5")
@@ -176,14 +176,13 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     if backend == "kvp" and axis > 6:
         raise click.BadParameter(f"{axis}: a KR C4 over KUKAVARPROXY moves A1..A6", param_hint="--axis")
     if backend == "kvp":  # the simulator's and the simulated person's options do nothing on a robot
-        src = click.get_current_context().get_parameter_source
-        given = [f"--{k.replace('_', '-')}" for k, v in (("sim_config", sim_config), ("noise", noise),
-                                                          ("plant_friction", plant_friction), ("program", program),
-                                                          ("grip", grip)) if v is not None]
-        given += [f"--{k}" for k in ("operator", "seed", "q0") if src(k).name != "DEFAULT"]
-        if given:
-            raise click.UsageError(f"{', '.join(given)} {'is' if len(given) == 1 else 'are'} for --backend sim (the "
-                                   "simulator and its simulated person): a real robot starts where it stands")
+        sim_only = [f"--{k.replace('_', '-')}" for k, v in (("sim_config", sim_config), ("noise", noise),
+                                                             ("plant_friction", plant_friction), ("program", program),
+                                                             ("grip", grip)) if v is not None]
+        sim_only += [f"--{k}" for k in ("operator", "seed", "q0") if given(k)]
+        if sim_only:
+            raise click.UsageError(f"{', '.join(sim_only)} {'is' if len(sim_only) == 1 else 'are'} for --backend sim "
+                                   "(the simulator and its simulated person): a real robot starts where it stands")
     raw = read_json(params_path, ParamFileError)
     robot_file = is_robot_params(raw)  # a whole robot (`kukaid fit --robot`): Γr of the axis from every axis
     if robot_file:
@@ -279,8 +278,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                 raise click.UsageError("--program is for a robot parameter file")
             q_start = prog = None
             # the virtual KR C4 simulates one revolute axis, A3 unless --sim-config says another
-            if click.get_current_context().get_parameter_source("axis") != click.core.ParameterSource.DEFAULT \
-                    and axis != scfg.axis:
+            if given("axis") and axis != scfg.axis:
                 raise click.BadParameter(f"{axis}: the virtual KR C4 simulates A{scfg.axis} (a --sim-config's "
                                          "\"axis\" sets another)", param_hint="--axis")
             _check_axis_kind(params, params_path, scfg.axis, f"the virtual KR C4's A{scfg.axis}",

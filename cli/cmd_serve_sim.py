@@ -66,16 +66,15 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
     from kukaid.krc.krl_logger import RingLayout
     from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
     from kukaid.krc.sim_source import SimSource
-    from kukaid_cli._util import check_noise, check_outputs, check_suffix, refuse_overwrite, usage_errors
+    from kukaid_cli._util import check_noise, check_outputs, check_suffix, given, refuse_overwrite, usage_errors
 
     if q0 is not None and not math.isfinite(q0):  # FloatRange lets nan through
         raise click.BadParameter(f"{q0} is not a position in degrees", param_hint="--q0")
-    given = click.get_current_context().get_parameter_source
     if grip is not None and operator != "human":
         raise click.UsageError("--grip is for --operator human")
-    if operator is None and given("operator_start").name != "DEFAULT":
+    if operator is None and given("operator_start"):
         raise click.UsageError("--operator-start is for --operator (a simulated person)")
-    if not follower_window and given("stale_ms").name != "DEFAULT":
+    if not follower_window and given("stale_ms"):
         raise click.UsageError("--stale-ms is for --follower")
     if truth_path is not None:  # checked now, not after the session
         check_suffix(truth_path, ".h5", ".hdf5")
@@ -93,7 +92,7 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         raise click.UsageError("--plant-friction is for the one-axis simulator (not with --robot or a robot trajectory)")
     if robot is not None or hasattr(traj, "axes"):
         _serve_robot(host, port, traj, robot, seed, sim_config, duration, speed, ring_axes, truth_path, delay,
-                     dict(axis=axis if click.get_current_context().get_parameter_source("axis").name != "DEFAULT" else None,
+                     dict(axis=axis if given("axis") else None,
                           noise=noise, q0=q0, follower=follower_window, operator=operator))
         return
     cfg = load_sim_config(sim_config) if sim_config else SimConfig()
@@ -103,7 +102,7 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         check_noise(noise)
         cfg = cfg.replace(noise_sigma=noise)
     if traj is not None:
-        if given("axis").name != "DEFAULT" and int(getattr(traj, "axis", axis) or axis) != axis:
+        if given("axis") and int(getattr(traj, "axis", axis) or axis) != axis:
             raise click.UsageError(f"--axis {axis} differs from the trajectory's axis A{traj.axis} ({traj_path}); "
                                    "the trajectory's axis is simulated")
         axis = int(getattr(traj, "axis", axis) or axis)

@@ -21,7 +21,7 @@ def read_json(path: str | Path, error: type[KukaidError] = KukaidError, what: st
         raise error(f"{path}: no such file") from None
     except OSError as e:
         raise error(f"{path}: cannot read: {e.strerror}") from None
-    text = raw.decode("utf-8", errors="replace").removeprefix("\ufeff")  # a Windows editor's byte order mark
+    text = raw.decode("utf-8-sig", errors="replace")  # a Windows editor's byte order mark first is allowed
     if not text.strip():
         raise error(f"{path}: empty file")
     try:
@@ -37,7 +37,7 @@ def _log_format(raw: bytes) -> str | None:
     """"HDF5" or "CSV" when ``raw`` is an axis log (the HDF5 signature; the CSV log's header), else None."""
     if raw.startswith(b"\x89HDF\r\n\x1a\n"):
         return "HDF5"
-    if raw.lstrip(b"\xef\xbb\xbf").startswith(b"time_s,"):
+    if raw.removeprefix(b"\xef\xbb\xbf").startswith(b"time_s,"):
         return "CSV"
     return None
 

@@ -1080,7 +1080,7 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
                            "deadband": deadband.tolist()}
     choices["ripple"] = {"chosen": [Kh for _, Kh, _, _ in pick], "candidates": K_grid}
     choices["spring"] = {"chosen": [bool(sp) for _, _, _, sp in pick], "candidates": sp_grid}
-    choices["rotor"] = {"fitted": settings.rotor, "why": rotor_why}
+    choices["rotor"] = {"fitted": settings.rotor, "motor_current_logs": motor_currents, "why": rotor_why}
     choices["reversal_window"] = {"chosen": [settings.reversal_window if rw else 0.0 for _, _, rw, _ in pick]}
     # the chosen equations: joint j at its transition velocity, its ripple harmonics, its samples
     G, gb, cc, used = _chosen(fe, pick, harmonic, p, spring_col=spring_col)
@@ -1399,7 +1399,7 @@ def format_robot_table(params: dict) -> str:
     rot = [(k, x) for k, x in vals.items() if k.endswith(".rotor_inertia")]
     if rot:
         lines.append("rotor inertia kg·m²: " + " ".join(f"{k.split('.')[0]} {_g(x)}" for k, x in rot))
-    elif (ch.get("rotor") or {}).get("why", "").startswith("left out: the logs"):
+    elif (ch.get("rotor") or {}).get("motor_current_logs") is False:
         lines.append("no rotor inertias: the logs do not say their torques come from the motor currents "
                      "(--rotor-inertia if they do)")
     # choices and their evidence

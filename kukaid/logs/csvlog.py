@@ -34,7 +34,7 @@ def read_csv(path: str | Path) -> AxisLog:
     path = Path(path)
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
-    text = path.read_text(encoding="utf-8", errors="replace").removeprefix("\ufeff")  # Excel's 'CSV UTF-8' mark
+    text = path.read_text(encoding="utf-8-sig", errors="replace")  # Excel's 'CSV UTF-8' begins with a mark
     lines = [ln for ln in text.splitlines()]
     if not lines or not lines[0].strip():
         raise LogFormatError(f"{path}: empty file (expected a header row)")
