@@ -56,7 +56,11 @@ Online, causal version (what a controller can do):
   doubled threshold of a stop ends, the threshold at rest comes down) rather than |Γr| rising
   through it (:attr:`standing_max` reports the largest).  Γu goes on following a slow drift
   relative to it, and leaves it out when the axis moves (the next stop may keep that Γu).
-  The cost: until the axis has moved, a push against that part needs that much more force.
+  A drift Γu followed at rest may have been a hand leaning in slowly, so Γr is also read against
+  every Γu held since the rest's first window (:attr:`_u_span`, forgotten when the axis moves):
+  the push is the reading nearest zero over all of them, and a hand that leaned in and lets go
+  moves nothing.  The cost: until the axis has moved, a push against that part, or against a
+  drift Γu followed, needs that much more force.
 
 Effects a diagnosis added to the parameter file are included when they depend on position only
 (``gravity_sine``, ``torque_offset``, ``position_ripple``); others are listed in
@@ -249,6 +253,7 @@ class TorqueResidual:
         self._quiet = math.inf  # s since |Γr| was last at the threshold (or detected)
         self._rest_age = math.inf  # s of close following since the present rest began
         self._hand = 0.0  # at rest: the part of the residual that may be a hand still on the axis, N·m
+        self._u_span = (0.0, 0.0)  # at rest: the lowest and highest Γu held since the rest's first window, N·m
         self._dyn_r = 0.0  # Γr while moving, averaged over DYN_MEMORY s, N·m
         self._start_prev = math.inf  # the start threshold at the previous sample, N·m
         self._moving = False
@@ -377,6 +382,8 @@ class TorqueResidual:
         quasi = self._mode == QUASI_STATIC
         if not quasi and old_mode == QUASI_STATIC:  # moving: Γu is kept without the hand
             self._gamma_u, self._hand = self._gamma_u + self._hand, 0.0
+        if not quasi or self._u_n < self._u_need:
+            self._u_span = (self._gamma_u, self._gamma_u)
         if quasi and old_mode == DYNAMIC and not self._detected:
             if self._quiet >= QUIET_BEFORE_REST:
                 self._new_rest()  # stopped with nobody in contact (no detection, nor a braking hand)
@@ -389,6 +396,8 @@ class TorqueResidual:
         learning = quasi and not self._detected
         if learning:
             self._learn_rest(raw, h)
+        lo, hi = self._u_span
+        self._u_span = (min(lo, self._gamma_u), max(hi, self._gamma_u))
         new_u = self._gamma_u if quasi else 0.0
         if self._mode != old_mode:  # bumpless: the prediction does not jump at a switch
             self._bump += old_u - new_u - self._hand
@@ -407,9 +416,11 @@ class TorqueResidual:
         gamma_r = r1 = gamma_p - tau_f
         if not quasi:  # moving: the dynamic model reads the hand again
             self._dyn_r += min(h / DYN_MEMORY, 1.0) * (r1 - self._dyn_r)
-        elif self._hand:  # a push only if both readings see it (Γr with and without the hand), the smaller
-            g2 = r1 + self._hand
-            gamma_r = 0.0 if r1 * g2 <= 0.0 else (r1 if abs(r1) < abs(g2) else g2)
+        else:  # a push only if every reading sees it (Γr with and without the hand, against every Γu held
+            # in this rest: a drift Γu followed may have been a hand leaning in), the one nearest zero
+            lo = min(0.0, self._hand) + self._u_span[0] - self._gamma_u
+            hi = max(0.0, self._hand) + self._u_span[1] - self._gamma_u
+            gamma_r = r1 + lo if r1 + lo > 0.0 else r1 + hi if r1 + hi < 0.0 else 0.0
         a = abs(gamma_r)
         if not quasi and not self._detected and self._since_switch >= self.switch_quiet / 4:
             self._dyn_n += 1  # moving out of contact (the initiation move, coasting): the model's own error
