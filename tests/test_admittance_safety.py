@@ -381,6 +381,7 @@ def test_a_torque_creeping_up_at_rest_is_followed_and_a_push_still_shows(push, s
     det, est = _after_a_move_up(2600, rest, lambda k: push * min(max((k - 2450) / 40.0, 0.0), 1.0))
     assert not det[200:2450].any()
     assert det[2500:].all() if seen else not det[2450:].any()
+    assert est.drift_max == pytest.approx(20.5, abs=3.0)  # what a push against the creep needed more
 
 
 def test_after_a_guided_move_a_servo_winding_up_against_stiction_does_not_start_the_axis():
@@ -392,6 +393,7 @@ def test_after_a_guided_move_a_servo_winding_up_against_stiction_does_not_start_
     run = _quiet_run(p, "constant", 0.024, -1.0, 30.0, op)
     drift, n_det = _drift_and_detections(run, t_from=-op.t_end)
     assert drift < 0.05 and n_det == 0, (drift, n_det)
+    assert run.metrics["rest_drift_max"] > run.config.threshold  # a push against the wind-up needed that much more
 
 
 def test_a_hand_leaning_in_slowly_at_rest_and_letting_go_is_no_push():

@@ -191,6 +191,10 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
             f"at rest Γr stood at up to {standing:.3g} N·m when the start threshold fell below it (a hand still on "
             "the axis after braking it, or the parameter file's friction at rest off by that much): it was not "
             "taken for a push, and a push there needed that much more")
+    # the widest drift Γu followed in one rest (a servo winding up, a hand leaning in, a hand held on while
+    # the axis stood): a push against it needed that much more; not a warning: a held hand makes one in
+    # most guided runs on a LuGre plant (2-12 N·m)
+    metrics["rest_drift_max"] = float(getattr(est, "drift_max", 0.0))
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
 
 

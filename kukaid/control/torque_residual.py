@@ -57,7 +57,8 @@ Online, causal version (what a controller can do):
   through it (:attr:`standing_max` reports the largest).  Γu goes on following a slow drift
   relative to it, and leaves it out when the axis moves (the next stop may keep that Γu).
   A drift Γu followed at rest may have been a hand leaning in slowly, so Γr is also read against
-  every Γu held since the rest's first window (:attr:`_u_span`, forgotten when the axis moves):
+  every Γu held since the rest's first window (forgotten when the axis moves; :attr:`drift_max`
+  reports the widest):
   the push is the reading nearest zero over all of them, and a hand that leaned in and lets go
   moves nothing.  The cost: until the axis has moved, a push against that part, or against a
   drift Γu followed, needs that much more force.
@@ -247,6 +248,7 @@ class TorqueResidual:
         self._dyn_ms, self._dyn_n = 0.0, 0  # mean square of Γr moving out of contact, N²m²
         self.rest_threshold_max = self.threshold
         self.standing_max = 0.0  # the largest torque held as a possible hand when the threshold fell under one, N·m
+        self.drift_max = 0.0  # the widest span of Γu held in one rest, N·m (a push against it needed that much more)
         self._bump = 0.0  # Γp jump of the last mode switch, fading
         self._since_switch = math.inf  # s since the axis last started or stopped
         self._since_stop = math.inf  # s since the axis last stopped
@@ -396,8 +398,9 @@ class TorqueResidual:
         learning = quasi and not self._detected
         if learning:
             self._learn_rest(raw, h)
-        lo, hi = self._u_span
-        self._u_span = (min(lo, self._gamma_u), max(hi, self._gamma_u))
+        lo, hi = min(self._u_span[0], self._gamma_u), max(self._u_span[1], self._gamma_u)
+        self._u_span = (lo, hi)
+        self.drift_max = max(self.drift_max, hi - lo)
         new_u = self._gamma_u if quasi else 0.0
         if self._mode != old_mode:  # bumpless: the prediction does not jump at a switch
             self._bump += old_u - new_u - self._hand
