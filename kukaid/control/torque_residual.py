@@ -58,10 +58,9 @@ Online, causal version (what a controller can do):
   relative to it, and leaves it out when the axis moves (the next stop may keep that Γu).
   A drift Γu followed at rest may have been a hand leaning in slowly, so Γr is also read against
   every Γu held since the rest's first window (forgotten when the axis moves; :attr:`drift_max`
-  reports the widest):
-  the push is the reading nearest zero over all of them, and a hand that leaned in and lets go
-  moves nothing.  The cost: until the axis has moved, a push against that part, or against a
-  drift Γu followed, needs that much more force.
+  reports the widest span): the push is the reading nearest zero over all of them, and a hand
+  that leaned in and lets go moves nothing.  The cost: until the axis has moved, a push against
+  that part, or against a drift Γu followed, needs that much more force.
 
 Effects a diagnosis added to the parameter file are included when they depend on position only
 (``gravity_sine``, ``torque_offset``, ``position_ripple``); others are listed in
