@@ -32,6 +32,7 @@ from typing import Sequence
 import numpy as np
 
 from kukaid.errors import FitError, ParamFileError
+from kukaid.identify.solve_interrupt import interruptible_solve
 from kukaid.identify.uncertainty import correlation_factor
 from kukaid.logs import AxisLog
 from kukaid.params.robot import SCHEMA as ROBOT_SCHEMA
@@ -596,7 +597,8 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
     # the end point is the same minimum, reached in fewer iterations
     iters = 0
     for w in ([x for x in (1e-1, 1e-2) if x > prior_weight] if start is None else []) + [prior_weight]:
-        sol = solver(x0=x0, lbx=lbx, ubx=ubx, p=w, **({"lbg": lbg, "ubg": ubg} if lbg else {}))
+        with interruptible_solve():  # Ctrl-C: KeyboardInterrupt, not a solve that "did not converge"
+            sol = solver(x0=x0, lbx=lbx, ubx=ubx, p=w, **({"lbg": lbg, "ubg": ubg} if lbg else {}))
         iters += int(solver.stats().get("iter_count") or 0)
         x0 = np.asarray(sol["x"]).ravel()
     stats = solver.stats()
