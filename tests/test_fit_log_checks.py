@@ -3,6 +3,7 @@ than the controller's 12 ms) is refused with one line naming it and what to do; 
 role of another experiment (its `experiment` attribute) is a printed warning."""
 from __future__ import annotations
 
+import json
 import subprocess
 
 import numpy as np
@@ -73,6 +74,17 @@ def test_logs_in_the_wrong_role_are_warned(logs, kukaid_cmd):
     r = subprocess.run([*kukaid_cmd, "fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]),
                         "-o", str(d / "right.json")], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0 and "was given as" not in r.stdout, r.stdout
+
+
+def test_with_json_the_warnings_are_on_stderr_too(logs, kukaid_cmd):
+    """--json: stdout is for a script, so a person sees the warnings on stderr (as run-admittance)."""
+    d, p = logs
+    r = subprocess.run([*kukaid_cmd, "fit", "--friction", str(p["inertia"]), "--inertia", str(p["friction"]),
+                        "-o", str(d / "swapped_json.json"), "--json"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert (f"kukaid: warning: fit: {p['inertia']} was given as --friction but records the 'inertia' experiment"
+            in r.stderr), r.stderr
+    assert any("was given as --friction" in w for w in json.loads(r.stdout)["metrics"]["warnings"])
 
 
 def test_role_warning_needs_the_attribute():
