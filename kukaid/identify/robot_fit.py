@@ -32,6 +32,7 @@ from typing import Sequence
 import numpy as np
 
 from kukaid.errors import FitError, ParamFileError
+from kukaid.identify.filtering import check_even_samples
 from kukaid.identify.solve_interrupt import interruptible_solve
 from kukaid.identify.uncertainty import correlation_factor
 from kukaid.logs import AxisLog
@@ -277,32 +278,6 @@ def sample_grid(time: np.ndarray, q: np.ndarray, cols: Sequence[int] | None = No
         return float(sum(np.sum(np.gradient(np.gradient(q[:, c], t), t) ** 2) for c in cols))
 
     return grid if rough(grid) < rough(time) else time
-
-
-#: share of the steps between samples that may skip controller samples (a step over 1.75 x the first
-#: quartile); a poll capture that misses every other sample would be filtered as if it were even
-MAX_SKIPPED_SHARE = 0.05
-
-
-def check_even_samples(time: np.ndarray, where: str) -> None:
-    """Refuse a log whose samples skip many controller samples (FitError naming it).
-
-    The low-pass filter treats the samples as evenly spaced; jitter in the stamps (the LWR4+'s, at
-    most 1.4 x the step) is handled by :func:`sample_grid`, and a few gaps (a reconnect, a ring overflow)
-    cost little, but a log where a step of two or more samples is common (a KUKAVARPROXY
-    poll capture of six axes: about half of its steps) is filtered on a distorted time base, and
-    the fit, validation and diagnosis of it are off by up to several times the torque."""
-    d = np.diff(np.asarray(time, float))
-    if d.size < 20:
-        return
-    step = float(np.percentile(d, 25))  # the controller's step: a median falls between 1 and 2 steps when half skip
-    share = float(np.mean(d > 1.75 * step))
-    if share > MAX_SKIPPED_SHARE:
-        raise FitError(f"{where}: {100 * share:.0f} % of the steps between samples skip samples (steps up to "
-                       f"{1e3 * float(d.max()):.4g} ms, the log's step {1e3 * step:.4g} ms; at most "
-                       f"{100 * MAX_SKIPPED_SHARE:.0f} % can be filtered as evenly spaced): a KUKAVARPROXY poll "
-                       "capture misses samples when a poll takes longer than a cycle; record with capture "
-                       "--mode ring (the program of kukaid krl-logger)")
 
 
 def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel | None = None,
