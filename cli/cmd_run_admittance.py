@@ -110,11 +110,12 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--q0", type=click.FloatRange(-360.0, 360.0), default=30.0, show_default=True,
               help="sim: start position, degrees.")
 @click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
-              help="sim: JSON overriding the simulator's truth and settings.")
-@click.option("--noise", type=float, help="sim: torque noise sigma, N·m [0.5].")
+              help="sim, one-axis parameter file: JSON overriding the simulator's truth and settings.")
+@click.option("--noise", type=float, help="sim, one-axis parameter file: torque noise sigma, N·m [0.5].")
 @click.option("--plant-friction", type=click.Choice(["gms", "lugre"]),
-              help="sim: the simulated axis's friction law [gms, the estimator's own: Maxwell-slip at rest, "
-                   "Stribeck sliding; lugre: LuGre (stiction, bristles), a law the estimator was not built on].")
+              help="sim, one-axis parameter file: the simulated axis's friction law [gms, the estimator's own: "
+                   "Maxwell-slip at rest, Stribeck sliding; lugre: LuGre (stiction, bristles), a law the estimator "
+                   "was not built on].")
 @click.option("--strict", is_flag=True,
               help="Exit with status 4 when the run completed with warnings (did not settle, a detection with "
                    "nobody touching, the threshold at rest had to rise by over 20 %).")

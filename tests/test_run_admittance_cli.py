@@ -186,6 +186,14 @@ def test_a_run_is_at_most_an_hour(files, tmp_path, monkeypatch, duration):
     assert "at most an hour" in " ".join(CliRunner().invoke(cli, ["run-admittance", "--help"]).output.split())
 
 
+def test_help_says_which_sim_options_a_robot_parameter_file_refuses():
+    """With a robot parameter file --sim-config, --noise and --plant-friction are usage errors; the
+    help said only "sim:", so a reader of it tried them on the six-axis virtual robot."""
+    text = " ".join(CliRunner().invoke(cli, ["run-admittance", "--help"]).output.split())
+    for opt in ("--sim-config", "--noise", "--plant-friction"):
+        assert f"{opt} " in text and text.split(f"{opt} ", 1)[1].split("sim, ", 1)[1].startswith("one-axis"), opt
+
+
 def test_safety_errors_name_the_window_in_degrees():
     from kukaid.control.safety import ReferenceLimiter, SafetyLimits
     from kukaid.errors import LimitError
