@@ -117,10 +117,12 @@ def _robot(ctx: click.Context, params: dict, logs, as_json: bool, max_steps: int
     from kukaid.params import save_robot_params, validate_robot_params
     from kukaid_cli._util import given
 
-    for name, flag in (("axis", "--axis"), ("cutoff", "--cutoff"), ("alpha", "--alpha")):
+    for name, flag, why in (("axis", "--axis", "it tests the candidate effects of every axis together"),
+                            ("cutoff", "--cutoff", "it filters the logs as the robot fit did (the file's settings)"),
+                            ("alpha", "--alpha", "it names an effect by the drop of the held-out error it brings, "
+                                                 "not by a test at a false-alarm probability")):
         if given(name, ctx):
-            raise click.UsageError(f"option {flag} does not apply to a robot parameter file (yet): the robot "
-                                   "diagnosis prints its findings (--json for a machine)")
+            raise click.UsageError(f"option {flag} does not apply to a robot parameter file (yet): {why}")
     stage("reading the logs")
     data = [read_log(p) for p in logs]
     stage("testing the candidate effects on held-out recordings")
