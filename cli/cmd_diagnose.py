@@ -71,6 +71,11 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
         return
     stage("reading the logs")
     data = [read_log(p) for p in logs]
+    from kukaid.identify.adequacy import pushed_log_warnings
+
+    for p, lg in zip(logs, data):
+        for w in pushed_log_warnings(lg, str(p)):
+            click.echo(f"kukaid: warning: diagnose: {w}", err=True)
     if axis is not None:
         for p, lg in zip(logs, data):
             if axis not in lg.axes:

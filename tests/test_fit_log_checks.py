@@ -110,6 +110,31 @@ def test_a_log_that_skips_samples_is_refused(logs, kukaid_cmd, tmp_path):
     check_even_samples(one_gap, "reconnect.h5")
 
 
+def test_a_run_admittance_log_is_warned_by_fit_validate_and_diagnose(logs, kukaid_cmd, tmp_path):
+    """A run log's torque holds the person's push: the demo's run validated at 32 % relative error and
+    diagnosed at 50 x the noise floor without a word on why; fit, validate and diagnose now say so."""
+    d, p = logs
+    lg = read_log(p["inertia"])
+    run = AxisLog(lg.time, lg.q, lg.tau, axes=lg.axes, attrs={**lg.attrs, "experiment": "admittance",
+                                                              "source": "kukaid run-admittance"})
+    path = tmp_path / "run.h5"
+    write_hdf5(run, path)
+    what = f"{path} is a run log of kukaid run-admittance: its torque holds the push of the person"
+    r = subprocess.run([*kukaid_cmd, "fit", str(p["friction"]), str(path), "-o", str(tmp_path / "f.json")],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and f"warning: {what}" in r.stdout, r.stdout + r.stderr
+    r = subprocess.run([*kukaid_cmd, "fit", "--friction", str(p["friction"]), "--inertia", str(path),
+                        "-o", str(tmp_path / "g.json")], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and what in r.stdout and "was given as" not in r.stdout, r.stdout + r.stderr
+    for cmd in ("validate", "diagnose"):
+        r = subprocess.run([*kukaid_cmd, cmd, "--params", str(tmp_path / "g.json"), *(["--log"] if cmd == "diagnose"
+                            else []), str(path)], capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0 and f"kukaid: warning: {cmd}: {what}" in r.stderr, r.stderr
+    r = subprocess.run([*kukaid_cmd, "validate", "--params", str(tmp_path / "g.json"), str(p["inertia"])],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "run log" not in r.stderr, r.stderr
+
+
 def test_role_warning_needs_the_attribute():
     t = np.arange(100) * 0.012
     lg = AxisLog(t, np.sin(t)[:, None], np.cos(t)[:, None], axes=(3,), attrs={"source_file": "imported.csv"})
