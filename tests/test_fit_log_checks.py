@@ -105,6 +105,13 @@ def test_a_log_that_skips_samples_is_refused(logs, kukaid_cmd, tmp_path):
     assert r.returncode == 1 and len(r.stderr.splitlines()) == 1, r.stderr
     assert f"{path}: 2.1 % of the steps between samples skip samples" in r.stderr and "--mode ring" in r.stderr
     assert not out.exists()
+    good = tmp_path / "good.json"
+    assert subprocess.run([*kukaid_cmd, "fit", "--inertia", str(logs[1]["inertia"]), "-o", str(good)],
+                          capture_output=True, timeout=300).returncode == 0
+    for cmd in (["validate", str(path)], ["diagnose", "--log", str(path)]):  # the one-axis diagnosis too
+        r = subprocess.run([*kukaid_cmd, cmd[0], "--params", str(good), *cmd[1:]], capture_output=True, text=True,
+                           timeout=300)
+        assert r.returncode == 1 and len(r.stderr.splitlines()) == 1 and "--mode ring" in r.stderr, r.stderr
     one_gap = lg.time.copy()
     one_gap[500:] += 0.5
     check_even_samples(one_gap, "reconnect.h5")
