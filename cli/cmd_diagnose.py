@@ -128,8 +128,14 @@ def _robot(ctx: click.Context, params: dict, logs, as_json: bool, max_steps: int
                                                  "not by a test at a false-alarm probability")):
         if given(name, ctx):
             raise click.UsageError(f"option {flag} does not apply to a robot parameter file (yet): {why}")
+    from kukaid.identify.robot_fit import check_torque_scale
+    from kukaid.models.robot import RobotModel
+
     stage("reading the logs")
     data = [read_log(p) for p in logs]
+    robot = RobotModel(params["robot"]["urdf"])
+    for lg in data:  # torques in another unit, as fit and validate refuse them
+        check_torque_scale(lg, robot)
     stage("testing the candidate effects on held-out recordings")
-    result = diagnose_robot(params, data, max_steps=max_steps)
+    result = diagnose_robot(params, data, robot, max_steps=max_steps)
     _write(result, as_json, output, report, validate_robot_params, save_robot_params, write_robot_report, stage)

@@ -213,6 +213,27 @@ def test_a_log_that_skips_many_samples_is_refused_by_fit_and_validate(kr6, tmp_p
     check_even_samples(t, "jitter.csv")
 
 
+def test_torques_in_newton_millimetres_are_refused_by_fit_and_validate(kr6, tmp_path, sim_fit):
+    """A CSV whose A<i>_Nm columns hold N·mm fitted without a word (a model 1000 times too strong,
+    99.9 % error on the right data); now one line naming the joint, its effort limit and the unit."""
+    from click.testing import CliRunner
+
+    from kukaid.logs import write_csv
+    from kukaid_cli.main import cli
+
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    nmm = type(log)(time=log.time, q=log.q, tau=1000.0 * log.tau, axes=log.axes, attrs={"source_file": "nmm.csv"})
+    with pytest.raises(FitError, match=r"nmm\.csv: the torque of A\d reaches .* x the effort limit .*wrong unit"):
+        fit_robot([nmm], kr6)
+    csv = tmp_path / "nmm.csv"
+    write_csv(nmm, csv, angle_unit="rad")
+    pfile = tmp_path / "kr6.json"
+    save_robot_params(pfile, sim_fit[0])
+    for args in (["validate", str(csv)], ["diagnose", "--log", str(csv)]):
+        r = CliRunner().invoke(cli, [*args, "--params", str(pfile)])
+        assert r.exit_code == 1 and len(r.stderr.splitlines()) == 1 and "wrong unit (N·mm" in r.stderr, r.output
+
+
 def test_settings_are_checked():
     with pytest.raises(FitError, match="friction model"):
         RobotFitSettings(friction="dahl")
