@@ -71,6 +71,11 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
         return
     stage("reading the logs")
     data = [read_log(p) for p in logs]
+    from kukaid.identify.adequacy import pushed_log_warnings
+
+    for p, lg in zip(logs, data):
+        for w in pushed_log_warnings(lg, str(p)):
+            click.echo(f"kukaid: warning: diagnose: {w}", err=True)
     if axis is not None:
         for p, lg in zip(logs, data):
             if axis not in lg.axes:
@@ -117,12 +122,20 @@ def _robot(ctx: click.Context, params: dict, logs, as_json: bool, max_steps: int
     from kukaid.params import save_robot_params, validate_robot_params
     from kukaid_cli._util import given
 
-    for name, flag in (("axis", "--axis"), ("cutoff", "--cutoff"), ("alpha", "--alpha")):
+    for name, flag, why in (("axis", "--axis", "it tests the candidate effects of every axis together"),
+                            ("cutoff", "--cutoff", "it filters the logs as the robot fit did (the file's settings)"),
+                            ("alpha", "--alpha", "it names an effect by the drop of the held-out error it brings, "
+                                                 "not by a test at a false-alarm probability")):
         if given(name, ctx):
-            raise click.UsageError(f"option {flag} does not apply to a robot parameter file (yet): the robot "
-                                   "diagnosis prints its findings (--json for a machine)")
+            raise click.UsageError(f"option {flag} does not apply to a robot parameter file (yet): {why}")
+    from kukaid.identify.robot_fit import check_torque_scale
+    from kukaid.models.robot import RobotModel
+
     stage("reading the logs")
     data = [read_log(p) for p in logs]
+    robot = RobotModel(params["robot"]["urdf"])
+    for lg in data:  # torques in another unit, as fit and validate refuse them
+        check_torque_scale(lg, robot)
     stage("testing the candidate effects on held-out recordings")
-    result = diagnose_robot(params, data, max_steps=max_steps)
+    result = diagnose_robot(params, data, robot, max_steps=max_steps)
     _write(result, as_json, output, report, validate_robot_params, save_robot_params, write_robot_report, stage)

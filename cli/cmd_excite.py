@@ -308,6 +308,6 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
         echo_json(figures)
     click.echo(msg, err=True)
     if traj.params["cond"] > COND_WARN:
-        click.echo(f"warning: regressor condition number {traj.params['cond']:.3g} (above {COND_WARN:g}): the base "
+        click.echo(f"kukaid: warning: excite: regressor condition number {traj.params['cond']:.3g} (above {COND_WARN:g}): the base "
                    "parameters' standard deviations grow with it, some will be poorly determined; widen the limits "
                    "(--qdd-max-deg, --limits), add harmonics or iterations", err=True)

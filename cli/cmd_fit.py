@@ -242,6 +242,9 @@ def _summary(params: dict, output, as_json: bool, table) -> None:
     if as_json:
         from kukaid_cli._util import echo_json
 
+        # the JSON holds them too; a person reads stderr (as run-admittance --json)
+        for w in (params.get("metrics") or {}).get("warnings") or ():
+            click.echo(f"kukaid: warning: fit: {w}", err=True)
         echo_json({"output": str(output), **params})
     else:
         click.echo(table(params))

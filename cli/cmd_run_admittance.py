@@ -94,7 +94,8 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--tau-max", type=float, default=100.0, show_default=True,
               help="Motion stops when the measured torque exceeds this, N·m.")
 @click.option("--max-age", type=float, default=0.1, show_default=True,
-              help="Motion stops when the latest measurement is older than this, s.")
+              help="Motion stops when the latest measurement is older than this, s (kvp: also the longest a "
+                   "reply of KUKAVARPROXY is awaited, at least 2 cycles).")
 # backends
 @click.option("--backend", type=click.Choice(["sim", "kvp"]), default="sim", show_default=True,
               help="sim: the virtual KR C4 with a simulated operator; kvp: a real KR C4 over KUKAVARPROXY.")
@@ -110,11 +111,12 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--q0", type=click.FloatRange(-360.0, 360.0), default=30.0, show_default=True,
               help="sim: start position, degrees.")
 @click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
-              help="sim: JSON overriding the simulator's truth and settings.")
-@click.option("--noise", type=float, help="sim: torque noise sigma, N·m [0.5].")
+              help="sim, one-axis parameter file: JSON overriding the simulator's truth and settings.")
+@click.option("--noise", type=float, help="sim, one-axis parameter file: torque noise sigma, N·m [0.5].")
 @click.option("--plant-friction", type=click.Choice(["gms", "lugre"]),
-              help="sim: the simulated axis's friction law [gms, the estimator's own: Maxwell-slip at rest, "
-                   "Stribeck sliding; lugre: LuGre (stiction, bristles), a law the estimator was not built on].")
+              help="sim, one-axis parameter file: the simulated axis's friction law [gms, the estimator's own: "
+                   "Maxwell-slip at rest, Stribeck sliding; lugre: LuGre (stiction, bristles), a law the estimator "
+                   "was not built on].")
 @click.option("--strict", is_flag=True,
               help="Exit with status 4 when the run completed with warnings (did not settle, a detection with "
                    "nobody touching, the threshold at rest had to rise by over 20 %).")
@@ -372,8 +374,13 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                 click.echo(f"  note: {w}")
             click.echo(f"  -> {output}" + (f", {report}" if report else ""))
         if not run.status.startswith("completed"):
-            click.echo(f"kukaid: error: run-admittance: {run.status} (the run log {output} holds every cycle until then)",
-                       err=True)
+            slow = ""
+            if backend == "kvp" and "no complete reply" in run.status:  # which option sets that deadline
+                slow = (f"; a reply is awaited at most max(--max-age, 2 x --cycle) = {max(max_age, 2 * cycle):g} s: "
+                        "a slower link or proxy needs a larger --max-age, which also lets the robot move on "
+                        "older measurements")
+            click.echo(f"kukaid: error: run-admittance: {run.status} (the run log {output} holds every cycle until "
+                       f"then){slow}", err=True)
             raise SystemExit(3)
         if strict and run.metrics.get("warnings"):
             click.echo(f"kukaid: error: run-admittance: completed with {len(run.metrics['warnings'])} warning(s) "

@@ -19,7 +19,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
 
     from kukaid.diagnose.validate import in_sample, load_model_file, table, to_json, validate
     from kukaid.jsonfile import jsonable
-    from kukaid.identify.adequacy import moving_axes
+    from kukaid.identify.adequacy import moving_axes, pushed_log_warnings
     from kukaid.logs import read_log
     from kukaid.params import is_robot_params
 
@@ -36,6 +36,9 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
                            f"so the gravity and inertia torque on A{ax} depend on their positions, which the "
                            f"single-axis model of {params_path} does not see; fit all axes together (kukaid fit "
                            f"--robot URDF)", err=True)
+    for path, log in zip(logs, data):
+        for w in pushed_log_warnings(log, str(path)):
+            click.echo(f"kukaid: warning: validate: {w}", err=True)
     for path in in_sample(params, logs, params_path):
         click.echo(f"kukaid: warning: validate: {path}: the model of {params_path} was fitted on this log "
                    "(its provenance.logs): these figures are in-sample, not a validation; give a log it did not see",

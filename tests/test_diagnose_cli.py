@@ -131,3 +131,25 @@ def test_show_of_a_refined_file(case, tmp_path):
     assert warning not in m["warnings"]
     assert any("5.69 x the noise floor in the fit; with the effects diagnose added (position_ripple) 9 -> 6 x" in w
                for w in m["warnings"])
+
+
+def test_options_a_robot_file_refuses_say_why(tmp_path):
+    """--axis, --cutoff and --alpha with a robot parameter file: the line said "the robot diagnosis
+    prints its findings (--json for a machine)" whatever the option; now why that option does not apply."""
+    from kukaid.identify.robot_fit import fit_robot
+    from kukaid.logs import write_hdf5
+    from kukaid.models.robot import RobotModel
+    from kukaid.params import save_robot_params
+    from robot_sim_helpers import simulated_log
+
+    kr6 = RobotModel("kr6-r700-sixx")
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    write_hdf5(log, tmp_path / "rec.h5")
+    save_robot_params(tmp_path / "robot.json", fit_robot([log], kr6))
+    for opt, why in ((["--axis", "2"], "every axis together"), (["--cutoff", "5"], "as the robot fit did"),
+                     (["--alpha", "0.05"], "drop of the held-out error")):
+        r = CliRunner().invoke(cli, ["diagnose", "--params", str(tmp_path / "robot.json"), "--log",
+                                     str(tmp_path / "rec.h5"), *opt])
+        assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1, r.output
+        assert f"option {opt[0]} does not apply to a robot parameter file (yet): " in r.stderr and why in r.stderr
+        assert "prints its findings" not in r.stderr

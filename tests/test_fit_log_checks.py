@@ -3,6 +3,7 @@ than the controller's 12 ms) is refused with one line naming it and what to do; 
 role of another experiment (its `experiment` attribute) is a printed warning."""
 from __future__ import annotations
 
+import json
 import subprocess
 
 import numpy as np
@@ -73,6 +74,72 @@ def test_logs_in_the_wrong_role_are_warned(logs, kukaid_cmd):
     r = subprocess.run([*kukaid_cmd, "fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]),
                         "-o", str(d / "right.json")], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0 and "was given as" not in r.stdout, r.stdout
+
+
+def test_with_json_the_warnings_are_on_stderr_too(logs, kukaid_cmd):
+    """--json: stdout is for a script, so a person sees the warnings on stderr (as run-admittance)."""
+    d, p = logs
+    r = subprocess.run([*kukaid_cmd, "fit", "--friction", str(p["inertia"]), "--inertia", str(p["friction"]),
+                        "-o", str(d / "swapped_json.json"), "--json"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert (f"kukaid: warning: fit: {p['inertia']} was given as --friction but records the 'inertia' experiment"
+            in r.stderr), r.stderr
+    assert any("was given as --friction" in w for w in json.loads(r.stdout)["metrics"]["warnings"])
+
+
+def test_a_log_that_skips_samples_is_refused(logs, kukaid_cmd, tmp_path):
+    """A poll capture on a busy PC misses samples (6 % of the steps on one axis); the filters take
+    the samples as evenly spaced, so it validated at 25 % relative error against 0.58 % in ring
+    mode. Refused with one line naming the log and ring mode; a single gap (a reconnect) is not."""
+    from kukaid.identify.filtering import check_even_samples
+
+    lg = read_log(logs[1]["inertia"])
+    keep = np.ones(lg.n_samples, bool)
+    keep[10:-10:50] = False  # one sample in 50 missed
+    gappy = AxisLog(lg.time[keep], lg.q[keep], lg.tau[keep], axes=lg.axes, attrs=dict(lg.attrs))
+    path = tmp_path / "gappy.h5"
+    write_hdf5(gappy, path)
+    out = tmp_path / "g.json"
+    r = subprocess.run([*kukaid_cmd, "fit", "--inertia", str(path), "-o", str(out)], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 1 and len(r.stderr.splitlines()) == 1, r.stderr
+    assert f"{path}: 2.1 % of the steps between samples skip samples" in r.stderr and "--mode ring" in r.stderr
+    assert not out.exists()
+    good = tmp_path / "good.json"
+    assert subprocess.run([*kukaid_cmd, "fit", "--inertia", str(logs[1]["inertia"]), "-o", str(good)],
+                          capture_output=True, timeout=300).returncode == 0
+    for cmd in (["validate", str(path)], ["diagnose", "--log", str(path)]):  # the one-axis diagnosis too
+        r = subprocess.run([*kukaid_cmd, cmd[0], "--params", str(good), *cmd[1:]], capture_output=True, text=True,
+                           timeout=300)
+        assert r.returncode == 1 and len(r.stderr.splitlines()) == 1 and "--mode ring" in r.stderr, r.stderr
+    one_gap = lg.time.copy()
+    one_gap[500:] += 0.5
+    check_even_samples(one_gap, "reconnect.h5")
+
+
+def test_a_run_admittance_log_is_warned_by_fit_validate_and_diagnose(logs, kukaid_cmd, tmp_path):
+    """A run log's torque holds the person's push: the demo's run validated at 32 % relative error and
+    diagnosed at 50 x the noise floor without a word on why; fit, validate and diagnose now say so."""
+    d, p = logs
+    lg = read_log(p["inertia"])
+    run = AxisLog(lg.time, lg.q, lg.tau, axes=lg.axes, attrs={**lg.attrs, "experiment": "admittance",
+                                                              "source": "kukaid run-admittance"})
+    path = tmp_path / "run.h5"
+    write_hdf5(run, path)
+    what = f"{path} is a run log of kukaid run-admittance: its torque holds the push of the person"
+    r = subprocess.run([*kukaid_cmd, "fit", str(p["friction"]), str(path), "-o", str(tmp_path / "f.json")],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and f"warning: {what}" in r.stdout, r.stdout + r.stderr
+    r = subprocess.run([*kukaid_cmd, "fit", "--friction", str(p["friction"]), "--inertia", str(path),
+                        "-o", str(tmp_path / "g.json")], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and what in r.stdout and "was given as" not in r.stdout, r.stdout + r.stderr
+    for cmd in ("validate", "diagnose"):
+        r = subprocess.run([*kukaid_cmd, cmd, "--params", str(tmp_path / "g.json"), *(["--log"] if cmd == "diagnose"
+                            else []), str(path)], capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0 and f"kukaid: warning: {cmd}: {what}" in r.stderr, r.stderr
+    r = subprocess.run([*kukaid_cmd, "validate", "--params", str(tmp_path / "g.json"), str(p["inertia"])],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "run log" not in r.stderr, r.stderr
 
 
 def test_role_warning_needs_the_attribute():

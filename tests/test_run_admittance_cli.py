@@ -186,6 +186,14 @@ def test_a_run_is_at_most_an_hour(files, tmp_path, monkeypatch, duration):
     assert "at most an hour" in " ".join(CliRunner().invoke(cli, ["run-admittance", "--help"]).output.split())
 
 
+def test_help_says_which_sim_options_a_robot_parameter_file_refuses():
+    """With a robot parameter file --sim-config, --noise and --plant-friction are usage errors; the
+    help said only "sim:", so a reader of it tried them on the six-axis virtual robot."""
+    text = " ".join(CliRunner().invoke(cli, ["run-admittance", "--help"]).output.split())
+    for opt in ("--sim-config", "--noise", "--plant-friction"):
+        assert f"{opt} " in text and text.split(f"{opt} ", 1)[1].split("sim, ", 1)[1].startswith("one-axis"), opt
+
+
 def test_safety_errors_name_the_window_in_degrees():
     from kukaid.control.safety import ReferenceLimiter, SafetyLimits
     from kukaid.errors import LimitError
@@ -281,6 +289,30 @@ def test_kvp_controller_that_stops_answering_stops_the_run_and_keeps_the_log(fil
     assert set(good[1:]) <= set(log.tau[:, 0]) <= set(good) and log.tau[-1, 0] == good[-1]
     # the PC told the follower to stop
     assert client.read("KID_RUN") == "FALSE" and client.read("KID_STOP") == str(STOP_BY_PC)
+
+
+def test_a_reply_later_than_max_age_names_the_option_that_sets_the_deadline(files, kvp_robot, tmp_path):
+    """On a busy PC serve-sim once answered KID_TGT after the default 0.1 s: the run stopped with
+    'no complete reply to KID_TGT within 0.1 s', which named no option; the line now says which."""
+    port, _, _ = kvp_robot
+    from kukaid.krc import kvp
+
+    real_write = kvp.KvpClient.write
+    n = [0]
+
+    def write(self, name, value, *a, **k):
+        n[0] += 1
+        if name == "KID_TGT" and n[0] > 100:
+            raise kvp.KvpTimeoutError(f"KUKAVARPROXY at {self.host}:{self.port}: no complete reply to {name} "
+                                      f"within {self.timeout:g} s")
+        return real_write(self, name, value, *a, **k)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(kvp.KvpClient, "write", write)
+        r = _run(_kvp_args(files, port, tmp_path / "slow.h5"))
+    assert r.exit_code == 3, r.output
+    assert "no complete reply to KID_TGT within 0.1 s" in r.stderr
+    assert "max(--max-age, 2 x --cycle) = 0.1 s" in r.stderr and "larger --max-age" in r.stderr, r.stderr
 
 
 def test_kvp_run_interrupted_between_cycles_holds_the_robot_and_keeps_the_log(files, kvp_robot, tmp_path,

@@ -33,7 +33,9 @@ def row_noise_gain(sig: LogSignals) -> np.ndarray:
     imp[n] = 1.0
     h = sig.filt(imp)
     w = np.ones(sig.n) if sig.weight is None else sig.weight
-    g = np.convolve(w, h * h, mode="same")
+    # row r's gain is the full convolution at r + n (the kernel's centre); mode "same" centres on the
+    # longer of the two, so a log shorter than the kernel (2n + 1 samples) read it off by up to n rows
+    g = np.convolve(w, h * h, mode="full")[n:n + sig.n]
     return g[sig.rows]
 
 

@@ -175,6 +175,20 @@ def check_not_held(log: Any, name: str | None = None) -> None:
         f"each controller sample once")
 
 
+def pushed_log_warnings(log: Any, name: str | None = None) -> list[str]:
+    """A warning when ``log`` is a run log of ``kukaid run-admittance`` (attribute ``experiment``
+    'admittance'): its torque holds the push of the person guiding the axis, which no model of the
+    axis predicts (a fit takes the push for friction and inertia, a validation or a diagnosis
+    reports it as the model's error: the demo's run validated at 32 % relative error)."""
+    exp = log.attrs.get("experiment") if hasattr(log, "attrs") else None
+    if exp != "admittance":
+        return []
+    name = name or str(log.attrs.get("source_file", "log"))
+    return [f"{name} is a run log of kukaid run-admittance: its torque holds the push of the person guiding the "
+            "axis, which no model of the axis predicts; use a log recorded with nobody touching the robot "
+            "(kukaid capture)"]
+
+
 def role_warnings(log: Any, role: str, name: str | None = None, command: str = "fit") -> list[str]:
     """A warning when ``log`` records (attribute ``experiment``) an experiment other than ``role``,
     given to ``command`` ("fit" or "report").

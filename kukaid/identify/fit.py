@@ -155,7 +155,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     role_warn: list[str] = []
 
     def prep(x: Any, role: str | None = None) -> Any:
-        from kukaid.identify.adequacy import check_not_held, role_warnings
+        from kukaid.identify.adequacy import check_not_held, pushed_log_warnings, role_warnings
 
         lg = _load(x, ro)
         name = str(lg.attrs.get("source_file") or (x if isinstance(x, (str, bytes)) or hasattr(x, "__fspath__")
@@ -165,7 +165,8 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
             raise OptionError(f"{name}: holds axes {names}; choose one with --axis "
                               "(or fit them all together with --robot URDF)")
         check_not_held(lg, name)
-        if role is not None:
+        role_warn.extend(pushed_log_warnings(lg, name))
+        if role is not None and not pushed_log_warnings(lg):
             role_warn.extend(role_warnings(lg, role, name))
         raw_logs.append(lg)
         return preprocess(lg, **pre)

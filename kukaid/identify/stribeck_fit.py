@@ -32,6 +32,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from kukaid.errors import FitError
+from kukaid.identify.solve_interrupt import interruptible_solve
 from kukaid.identify.uncertainty import Uncertainty, covariance, transform
 from kukaid.models.friction import stribeck_columns_at, stribeck_power
 from kukaid.params.axis import IZZ_MIN
@@ -282,7 +283,8 @@ def _ipopt(y, A, v, p0, lo, hi, max_iter=300):
                         "ipopt.mu_init": 1e-5})
     lbx, ubx = to_x(np.asarray(lo, dtype=float)), to_x(np.asarray(hi, dtype=float))
     t0 = _time.perf_counter()
-    sol = solver(x0=x0, lbx=np.where(np.isfinite(lbx), lbx, -1e20), ubx=np.where(np.isfinite(ubx), ubx, 1e20))
+    with interruptible_solve():  # Ctrl-C: KeyboardInterrupt, not "IPOPT failed to run"
+        sol = solver(x0=x0, lbx=np.where(np.isfinite(lbx), lbx, -1e20), ubx=np.where(np.isfinite(ubx), ubx, 1e20))
     dt = _time.perf_counter() - t0
     st = solver.stats()
     out = to_p(np.asarray(sol["x"]).ravel())
