@@ -212,7 +212,7 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     noise floor."""
     from kukaid.identify.robot_fit import (DriveModel, RobotFitSettings, _blocks, _cutoff, _samples, effect_signals,
                                            extra_names, extras, filtered_coulomb, log_temperatures, lowpassed,
-                                           sample_rows)
+                                           lowpassed_values, sample_rows, wide_velocity)
     from kukaid.models import robot_effects
 
     s = params["settings"]
@@ -253,7 +253,7 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     for rows, mb in _blocks(m):
         Y = robot.regressor(mb.q, mb.qd, mb.qdd)
         F = extras(robot, mb, settings, drive, qd_range=fr.get("qd_range"))
-        es = effect_signals(robot, mb.q, Y, F, params, names, None if temp is None else temp[rows])
+        es = effect_signals(robot, mb.q, Y, F, params, names, None if temp is None else temp[rows], qd=mb.qd)
         rigid[rows], gravity[rows], payload[rows], sign[rows], friction[rows] = (
             es.rigid, es.gravity, es.payload, es.sign, es.friction)
         # the file's own effects and rotor inertias: held as it has them
@@ -301,14 +301,24 @@ def _signals(params: dict, logs: Sequence[Any], robot):
                                                  sample_rows(lg, settings)) for a in range(0, width, step)], axis=1))
         return np.concatenate(out)
 
-    pieces = dict(q=m.q, lowpass=lowpass, qd=m.qd, tau=m.tau, gravity=gravity, rigid=rigid, temp=temp, payload=payload,
+    wide = {}
+
+    def motor_coulomb(mix, v):
+        out = []
+        for k, lg in enumerate(logs):
+            if k not in wide:     # every joint's velocity from the wider band, once per log
+                wide[k] = wide_velocity(lg, n, settings, VELOCITY_BAND * _cutoff(settings, 1.0 / lg.sample_time))
+            out.append(lowpassed_values(lg, settings, np.tanh(wide[k] @ mix.T / v), sample_rows(lg, settings)))
+        return np.concatenate(out)
+
+    pieces = dict(q=m.q, lowpass=lowpass, motor_coulomb=motor_coulomb, qd=m.qd, tau=m.tau, gravity=gravity, rigid=rigid, temp=temp, payload=payload,
                   total_mass=float(np.sum(np.maximum(robot.pi_nominal[0::10], 0))), log_rows=m.log_rows or (N,),
                   cutoff=_cutoff(settings, min(fs)), time=np.concatenate(times), at_rest=sign == 0.0,
                   Fc=np.array([x[c] for c in coul]), Fv=np.array([x[c] for c in visc]))
     # what the file's effects read, its own Coulomb column and friction: a refined file's effects are
     # refitted on it (:func:`_refined`)
     own_signals = robot_effects.EffectSignals(q=m.q, sign=sign, friction=friction, gravity=gravity, rigid=rigid,
-                                              payload=payload, temp=temp)
+                                              payload=payload, temp=temp, qd=m.qd)
     from kukaid.diagnose.noise import filtered_noise_floor
 
     floor = [filtered_noise_floor([lg.tau[:, lg.index(j + 1)] for lg in logs], fs, [_cutoff(settings, f) for f in fs],
@@ -601,6 +611,46 @@ class _Fixed(RobotCandidate):
         return self._cols
 
 
+class _Stacked(RobotCandidate):
+    """A candidate on several joints with shared coefficients seen as one equation: its joints'
+    rows stacked, each joint's weighted by ``sw`` (the square root of its weight), for choosing its
+    option (:func:`_pick`); its finer options and bounds the candidate's own."""
+
+    def __init__(self, cand: RobotCandidate, joints: Sequence[int], sw: np.ndarray) -> None:
+        self.cand, self.J, self.sw = cand, list(joints), np.asarray(sw, float)
+        self.name, self.joint = cand.name, None
+
+    def _stack(self, X: np.ndarray) -> np.ndarray:
+        """(N, n, ...) -> (len(J) N, ...): the joints' rows one after another, weighted."""
+        return np.concatenate([self.sw[j] * X[:, j] for j in self.J])
+
+    def batch(self, ctx, options):
+        return np.stack([self._stack(self.cand.columns(ctx, o)) for o in options], axis=1)
+
+    def refine(self, ctx, option):
+        return self.cand.refine(ctx, option)
+
+    def bounds(self, ctx, option):
+        return self.cand.bounds(ctx, option)
+
+    def equations(self, Fj: list, local: dict, shared: list | None, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The stacked equations' columns (each joint's own and local columns a block of their own,
+        the shared ones in common) and right-hand side."""
+        N = r.shape[0]
+        own = [np.concatenate([Fj[j]] + ([local[j]] if j in local else []), axis=1) for j in self.J]
+        width = sum(o.shape[1] for o in own)
+        ns = 0 if shared is None else shared[0].shape[1]
+        A = np.zeros((len(self.J) * N, width + ns))
+        at = 0
+        for k, (j, o) in enumerate(zip(self.J, own)):
+            rows = slice(k * N, (k + 1) * N)
+            A[rows, at:at + o.shape[1]] = self.sw[j] * o
+            if ns:
+                A[rows, width:] = self.sw[j] * shared[j]
+            at += o.shape[1]
+        return A, np.concatenate([self.sw[j] * r[:, j] for j in self.J])
+
+
 def _try(cand: RobotCandidate, ctx: Context, r, tau, Fjs: dict, shared, local, folds, K, w, held, prior, base=None):
     """:func:`_try_at` at each prior strength of ``Fjs`` {multiple of the raw ``prior``: the joints'
     own columns chosen at it}: the one with the smallest weighted held-out error, and that strength
@@ -634,14 +684,22 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
         B = B[:, None, :] if B.ndim == 2 else None
     else:
         j = cand.joint
-        B = cand.batch(ctx, opts)
-        # the option by least squares of the joint's own terms and the shared ones (the rigid body's
-        # correction among them) on the joint's equation
-        parts = [Fj[j]] + ([local[j]] if j in local else []) + ([shared[j]] if shared is not None else [])
-        A = np.concatenate(parts, axis=1)
+        if j is None:
+            # a term on several joints with shared coefficients: the option by least squares of their
+            # equations stacked (each weighted as the fit weighs it)
+            view = _Stacked(cand, cand.joints(ctx), np.sqrt(w))
+            A, y = view.equations(Fj, local, shared, r)
+            B = view.batch(ctx, opts)
+        else:
+            view = cand
+            B = cand.batch(ctx, opts)
+            # the option by least squares of the joint's own terms and the shared ones (the rigid body's
+            # correction among them) on the joint's equation
+            parts = [Fj[j]] + ([local[j]] if j in local else []) + ([shared[j]] if shared is not None else [])
+            A, y = np.concatenate(parts, axis=1), r[:, j]
 
         def pick_on(rows):
-            opt, cols = _pick(cand, ctx, A, r[:, j], rows, opts, B)
+            opt, cols = _pick(view, ctx, A, y, np.tile(rows, y.size // rows.size), opts, B)
             if cols is None:
                 return opts.index(opt)
             extra.append((opt, cols))
@@ -651,7 +709,10 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
         best_all = pick_on(np.ones(r.shape[0], bool))
         pick = [pick_on(folds != f) if f in held else -1 for f in range(K)]
         opts = opts + [e[0] for e in extra]
-        B = np.concatenate([B] + [e[1][:, None, :] for e in extra], axis=1) if extra else B
+        if j is None:       # the columns of the options picked, on every joint
+            B = None
+        else:
+            B = np.concatenate([B] + [e[1][:, None, :] for e in extra], axis=1) if extra else B
 
     def cols_of(o):
         return B[:, o, :] if B is not None else cand.columns(ctx, opts[o])

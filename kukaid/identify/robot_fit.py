@@ -370,6 +370,30 @@ def lowpassed(log: AxisLog, n: int, settings: RobotFitSettings, j: int, fn, rows
     return sosfiltfilt(sos, fn(np.asarray(log.q[:, _joint_columns(log, n)[j]], float)), axis=0)[rows]
 
 
+def wide_velocity(log: AxisLog, n: int, settings: RobotFitSettings, velocity_cutoff: float) -> np.ndarray:
+    """(M, n) rad/s: every joint's velocity on every sample of the log, differentiated from its
+    positions through a low-pass at ``velocity_cutoff`` Hz (at most 0.45 of the sample rate), the
+    velocity :func:`filtered_coulomb` switches on."""
+    from scipy.signal import butter, sosfiltfilt
+
+    cols = _joint_columns(log, n)
+    fs = 1.0 / log.sample_time
+    sv = butter(settings.order, min(float(velocity_cutoff), 0.45 * fs), fs=fs, output="sos")
+    t = sample_grid(log.time, log.q, cols)
+    return np.column_stack([np.gradient(sosfiltfilt(sv, log.q[:, c]), t) for c in cols])
+
+
+def lowpassed_values(log: AxisLog, settings: RobotFitSettings, values: np.ndarray, rows: slice = slice(None)) -> np.ndarray:
+    """``values`` (M, ...) on every sample of the log through the fit's low-pass (along the
+    samples), at the rows ``rows``: a term nonlinear in the signals compared as the filtered torque
+    shows it."""
+    from scipy.signal import butter, sosfiltfilt
+
+    fs = 1.0 / log.sample_time
+    sos = butter(settings.order, _cutoff(settings, fs), fs=fs, output="sos")
+    return sosfiltfilt(sos, values, axis=0)[rows]
+
+
 def position_noise(q: np.ndarray) -> float:
     """Standard deviation of the white noise on a position signal, from its fourth differences
     (robust: 1.4826 x their median absolute deviation / sqrt(70)); a smooth motion's fourth
@@ -1243,7 +1267,7 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     for rows, mb in _blocks(m):      # block by block: an hour's log never holds its (N, n, p) regressor
         F = extras(robot, mb, settings, drive, qd_range=params["friction"].get("qd_range"))
         s = effect_signals(robot, mb.q, robot.regressor(mb.q, mb.qd, mb.qdd), F, params, names,
-                           None if temp is None else temp[rows], gravity=bool(effects))
+                           None if temp is None else temp[rows], gravity=bool(effects), qd=mb.qd)
         tau[rows] = s.rigid + F @ extra + robot_effects.torque(effects, s)
     if settings.torque_side == "motor":
         drive = DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
@@ -1261,11 +1285,11 @@ def log_temperatures(log: AxisLog, n: int) -> np.ndarray:
 
 def effect_signals(robot: RobotModel, q: np.ndarray, Y: np.ndarray, F: np.ndarray, params: dict,
                    names: Sequence[str], temp: np.ndarray | None = None,
-                   gravity: bool = True) -> robot_effects.EffectSignals:
+                   gravity: bool = True, qd: np.ndarray | None = None) -> robot_effects.EffectSignals:
     """What a robot file's effects read on one block of samples (:mod:`kukaid.models.robot_effects`):
     its rigid-body torque (from the standard regressor ``Y`` (B, n, 10 n)), gravity torque (zeros
     when ``gravity`` is false), the last link's m, m c columns, its Coulomb column and friction
-    torque (from its extra columns ``F`` named ``names``)."""
+    torque (from its extra columns ``F`` named ``names``), the velocities ``qd`` rad/s as given."""
     bp = params["base_parameters"]
     ind, beta = np.asarray(bp["independent"], int), np.asarray(bp["values"], float)
     vals = params["friction"]["values"]
@@ -1280,7 +1304,7 @@ def effect_signals(robot: RobotModel, q: np.ndarray, Y: np.ndarray, F: np.ndarra
     k0 = robot.n_std - 10
     return robot_effects.EffectSignals(q=q, sign=sign, friction=friction, rigid=Y[:, :, ind] @ beta,
                                        gravity=robot.regressor(q, z, z)[:, :, ind] @ beta if gravity else z,
-                                       payload=Y[:, :, k0:k0 + 4], temp=temp)
+                                       payload=Y[:, :, k0:k0 + 4], temp=temp, qd=qd)
 
 
 def robot_predictor(params: dict, log: AxisLog, axis: int | None = None,
