@@ -24,6 +24,11 @@ shapes drawn, none at the diagnosis' grid points or the tests' values):
   with its motor temperature, ``F(qd) (1 - beta (T - 25 degC))`` with beta 0.005-0.012 per degC.
 - ``ripple``: on one joint (A1-A6), ``A sin(n q_j + phi)``, n 6-25 per rad (at least 3 periods
   over the joint's range), A 1-3 % of the joint's torque limit.
+- ``wrist_friction``: the wrist motors' friction on their coupled velocities (in the truth:
+  :attr:`kukaid.sim.robot_truth.RobotTruth.friction_coupling`), ``qd5 + c54 qd4``, ``qd6 + c64 qd4 +
+  c65 qd5``, each ratio 0.1-0.5 in size with a random sign (a hollow KUKA wrist's bevel stages
+  couple by a fraction of a turn; a KR C2's machine data says 0.005-0.013, which no log of this
+  noise shows), the truth's A5 and A6 friction then its motors'.
 
 Per case four recordings (10 s Fourier excitations of all axes, each its own trajectory seed,
 0.5 s rest); ``fit_robot`` with its defaults on the first (as ``kukaid fit --robot``), then
@@ -59,7 +64,7 @@ import time
 import numpy as np
 
 ROBOT = "kr6-r700-sixx"
-EFFECTS = ("counterbalance", "payload", "load_friction", "thermal_friction", "ripple")
+EFFECTS = ("counterbalance", "payload", "load_friction", "thermal_friction", "ripple", "wrist_friction")
 #: recording temperatures, degC at the start (each joint within +-3), and the warm-up within one
 T_START, T_STEP = 25.0, 12.0
 #: tanh width of the friction terms the simulator evaluates once per sample, rad/s
@@ -78,10 +83,13 @@ def expected_name(spec: dict) -> str | None:
     return {"counterbalance": "counterbalance@A2", "payload": "payload",
             "load_friction": f"load_dependent_friction@A{spec.get('joint', 0) + 1}",
             "thermal_friction": f"thermal_friction@A{spec.get('joint', 0) + 1}",
-            "ripple": f"position_ripple@A{spec.get('joint', 0) + 1}"}[e]
+            "ripple": f"position_ripple@A{spec.get('joint', 0) + 1}",
+            "wrist_friction": "coupled_wrist_friction"}[e]
 
 
 def effect_joints(spec: dict, n: int = 6) -> list[int]:
+    if spec["effect"] == "wrist_friction":
+        return [n - 3, n - 2, n - 1]
     return list(range(n)) if spec["effect"] in ("payload", None) else [spec["joint"]]
 
 
@@ -105,7 +113,16 @@ def draw(effect: str | None, seed: int, robot) -> dict:
         j = int(rng.integers(0, n))
         spec.update(joint=j, order=float(rng.uniform(6.0, 25.0)), phase=float(rng.uniform(0, 2 * math.pi)),
                     amplitude=float(rng.uniform(0.01, 0.03) * robot.effort[j]))
+    elif effect == "wrist_friction":
+        spec.update({k: float(rng.choice([-1.0, 1.0]) * rng.uniform(0.1, 0.5)) for k in ("c54", "c64", "c65")})
     return spec
+
+
+def friction_coupling(spec: dict, n: int) -> np.ndarray:
+    """The wrist's coupling matrix C of a ``wrist_friction`` case (motor velocities ``(I + C) qd``)."""
+    C = np.zeros((n, n))
+    C[n - 2, n - 3], C[n - 1, n - 3], C[n - 1, n - 2] = spec["c54"], spec["c64"], spec["c65"]
+    return C
 
 
 class GasSpring:
@@ -131,6 +148,8 @@ def _truth(spec: dict, cfg, model_nominal):
     from kukaid.sim.robot_truth import draw_truth
 
     tr = draw_truth(cfg.robot, model_nominal, seed=cfg.truth_seed, size=cfg.perturb)
+    if spec["effect"] == "wrist_friction":
+        return replace(tr, friction_coupling=friction_coupling(spec, tr.n))
     if spec["effect"] != "payload":
         return tr
     pi = tr.pi.copy()
@@ -179,9 +198,21 @@ def recordings(spec: dict, duration: float, n_rec: int = 4, hidden: bool = True)
         lg = sim.run(traj, settle=0.5)
         # tau_ext_true (the effect's torque, simulator ground truth) is kept for the effect's size only
         logs.append(AxisLog(time=lg.time, q=lg.q, tau=lg.tau, axes=lg.axes, q_cmd=lg.q_cmd, temp=temp(lg.time),
-                            tau_ext_true=lg.tau_ext_true,
+                            tau_ext_true=_truth_effect(effect, truth, lg),
                             attrs={**lg.attrs, "source_file": f"{spec['effect'] or 'clean'}-{spec['seed']}-rec{k}"}))
     return logs
+
+
+def _truth_effect(effect, truth, lg):
+    """The effect's torque on the log (for its size): the simulator's external torque, or for an
+    effect in the truth what it adds to the truth without it (the wrist's coupled friction less the
+    same friction on each joint's own velocity, at the positions' differentiated velocities)."""
+    from dataclasses import replace
+
+    if effect != "wrist_friction":
+        return lg.tau_ext_true
+    qd = np.gradient(np.asarray(lg.q, float), np.asarray(lg.time, float), axis=0)
+    return truth.friction(qd, eps=1e-3) - replace(truth, friction_coupling=None).friction(qd, eps=1e-3)
 
 
 def _effect_torque(effect, spec, sim, robot, temp):

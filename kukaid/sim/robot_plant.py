@@ -172,6 +172,18 @@ def servo_step(qr, vr, ar, gff, q, v, I, te, P, h, ieps, tau, u, arm_eff):
         arm_eff[j] = P[_ARM, j] + h * (g * (1.0 - s * s) * ieps + P[_FV, j])
 
 
+def _coupled_friction(mix, v, fc, dfs, vs, fv, ieps, h, u, Mq):
+    """The motors' friction on their velocities ``mix @ v`` (rad/s, joint units) taken from the net
+    joint torque ``u`` through ``mix^T``, its velocity slope ``h mix^T diag(f') mix`` added to the
+    step's mass matrix ``Mq`` (implicit, as the kernel's per-joint friction); returns both."""
+    vm = mix @ v
+    s = np.tanh(vm * ieps)
+    g = fc + dfs * np.exp(-(vm / vs) ** 2)
+    f = g * s + fv * vm
+    slope = g * (1.0 - s * s) * ieps + fv
+    return u - mix.T @ f, Mq + h * (mix.T * slope) @ mix
+
+
 def integrate(q, v, a, h):
     """Semi-implicit Euler step in place: ``v += h a``, then ``q += h v``."""
     for j in range(q.shape[0]):
@@ -242,6 +254,11 @@ class VirtualRobotKRC4:
         self.rotor_inertia = self.truth.armature / ratio ** 2  # motor side, kg·m²
         self._coupled = bool(np.any(C != 0))
         self._M_rotor = self.G.T @ np.diag(self.rotor_inertia) @ self.G
+        # the truth's friction on coupled motor velocities (a KUKA wrist's): computed beside the
+        # kernel, its velocity slope (I + C)^T diag(f') (I + C) joining the mass matrix for the step
+        self._fmix = self.truth.friction_mix()
+        if self._fmix is not None and self._fmix.shape != (n, n):
+            raise KukaidError(f"robot sim: the truth's friction coupling must be {n} x {n}")
         self._to_motor = np.linalg.inv(self.G)  # row vectors: tau_motor = tau_joint G^-1 (= G^-T tau_joint)
         self.model = self.truth.apply(self.model_nominal)
         self._data = self.model.createData()
@@ -420,9 +437,12 @@ class VirtualRobotKRC4:
         nxt = rec[0] if rec.size else -1
         aba, grav = pin.aba, pin.computeGeneralizedGravity
         step, integrate = _get_kernels()
-        coupled, M_rot = self._coupled, self._M_rotor
+        coupled, M_rot, fmix = self._coupled or self._fmix is not None, self._M_rotor, self._fmix
         if carried is not None:
             P[_ARM] += carried
+        if fmix is not None:       # the kernel's friction off (the offset stays): the motors' below
+            fc, dfs, vsm, fv = P[_FC].copy(), P[_DF].copy(), P[_VS].copy(), P[_FV].copy()
+            P[_FC], P[_DF], P[_FV] = 0.0, 0.0, 0.0
         if coupled:  # the rotor inertia is a full matrix: mass matrix and solve instead of ABA
             P[_ARM] = 0.0 if carried is None else carried
             model.armature = np.zeros(self.n)
@@ -433,6 +453,8 @@ class VirtualRobotKRC4:
             if coupled:
                 Mq = crba(model, data, q)
                 Mq = np.triu(Mq) + np.triu(Mq, 1).T + M_rot + np.diag(arm_eff)
+                if fmix is not None:
+                    u, Mq = _coupled_friction(fmix, v, fc, dfs, vsm, fv, ieps, h, u, Mq)
                 a = solve(Mq, u - nle(model, data, q, v))
             else:
                 model.armature = arm_eff  # implicit friction: its velocity slope joins the inertia for the step
