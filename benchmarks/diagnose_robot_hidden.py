@@ -29,6 +29,13 @@ shapes drawn, none at the diagnosis' grid points or the tests' values):
   c65 qd5``, each ratio 0.1-0.5 in size with a random sign (a hollow KUKA wrist's bevel stages
   couple by a fraction of a turn; a KR C2's machine data says 0.005-0.013, which no log of this
   noise shows), the truth's A5 and A6 friction then its motors'.
+- ``elasticity``: a torsional spring in A2's or A3's gear (in the truth:
+  :attr:`kukaid.sim.robot_truth.RobotTruth.gear_stiffness`, the encoder on the motor, the link
+  lagging), stiffness 2e4-6e4 N·m/rad (log-uniform; a soft gear for this 6 kg robot, whose RV
+  reducers are of the order of 1e5-2e5 N·m/rad), damping 5-20 % of critical on the motor; the
+  servo at 5 kHz (it and its twin: at 1 kHz the velocity loop on the motor alone chatters).
+  Its "effect RMS" is the measured torque's difference from the twin's (same trajectories and
+  noise).
 
 Per case four recordings (10 s Fourier excitations of all axes, each its own trajectory seed,
 0.5 s rest); ``fit_robot`` with its defaults on the first (as ``kukaid fit --robot``), then
@@ -64,7 +71,9 @@ import time
 import numpy as np
 
 ROBOT = "kr6-r700-sixx"
-EFFECTS = ("counterbalance", "payload", "load_friction", "thermal_friction", "ripple", "wrist_friction")
+EFFECTS = ("counterbalance", "payload", "load_friction", "thermal_friction", "ripple", "wrist_friction", "elasticity")
+#: the servo rate of the elasticity case and its twin, Hz
+ELASTIC_SERVO_RATE = 5000.0
 #: recording temperatures, degC at the start (each joint within +-3), and the warm-up within one
 T_START, T_STEP = 25.0, 12.0
 #: tanh width of the friction terms the simulator evaluates once per sample, rad/s
@@ -84,12 +93,15 @@ def expected_name(spec: dict) -> str | None:
             "load_friction": f"load_dependent_friction@A{spec.get('joint', 0) + 1}",
             "thermal_friction": f"thermal_friction@A{spec.get('joint', 0) + 1}",
             "ripple": f"position_ripple@A{spec.get('joint', 0) + 1}",
-            "wrist_friction": "coupled_wrist_friction"}[e]
+            "wrist_friction": "coupled_wrist_friction",
+            "elasticity": f"gear_elasticity@A{spec.get('joint', 0) + 1}"}[e]
 
 
 def effect_joints(spec: dict, n: int = 6) -> list[int]:
     if spec["effect"] == "wrist_friction":
         return [n - 3, n - 2, n - 1]
+    if spec["effect"] == "elasticity":
+        return [spec["joint"]]
     return list(range(n)) if spec["effect"] in ("payload", None) else [spec["joint"]]
 
 
@@ -115,6 +127,9 @@ def draw(effect: str | None, seed: int, robot) -> dict:
                     amplitude=float(rng.uniform(0.01, 0.03) * robot.effort[j]))
     elif effect == "wrist_friction":
         spec.update({k: float(rng.choice([-1.0, 1.0]) * rng.uniform(0.1, 0.5)) for k in ("c54", "c64", "c65")})
+    elif effect == "elasticity":
+        spec.update(joint=int(rng.choice([1, 2])), stiffness=float(np.exp(rng.uniform(np.log(2e4), np.log(6e4)))),
+                    damping_ratio=float(rng.uniform(0.05, 0.2)))
     return spec
 
 
@@ -150,6 +165,11 @@ def _truth(spec: dict, cfg, model_nominal):
     tr = draw_truth(cfg.robot, model_nominal, seed=cfg.truth_seed, size=cfg.perturb)
     if spec["effect"] == "wrist_friction":
         return replace(tr, friction_coupling=friction_coupling(spec, tr.n))
+    if spec["effect"] == "elasticity":
+        j, k = spec["joint"], spec["stiffness"]
+        K, D = np.zeros(tr.n), np.zeros(tr.n)
+        K[j], D[j] = k, 2.0 * spec["damping_ratio"] * math.sqrt(k * tr.armature[j])
+        return replace(tr, gear_stiffness=K, gear_damping=D)
     if spec["effect"] != "payload":
         return tr
     pi = tr.pi.copy()
@@ -177,7 +197,8 @@ def recordings(spec: dict, duration: float, n_rec: int = 4, hidden: bool = True)
     from kukaid.sim.robot_plant import RobotSimConfig, VirtualRobotKRC4
 
     effect = spec["effect"] if hidden else None
-    cfg = RobotSimConfig(robot=ROBOT, truth_seed=spec["truth_seed"])
+    cfg = RobotSimConfig(robot=ROBOT, truth_seed=spec["truth_seed"],
+                         **({"servo_rate": ELASTIC_SERVO_RATE} if spec["effect"] == "elasticity" else {}))
     truth = _truth({**spec, "effect": effect}, cfg, load_model(ROBOT))
     robot = RobotModel(ROBOT)
     rng = _rng(spec["effect"], spec["seed"], 1)
@@ -209,6 +230,8 @@ def _truth_effect(effect, truth, lg):
     same friction on each joint's own velocity, at the positions' differentiated velocities)."""
     from dataclasses import replace
 
+    if effect == "elasticity":
+        return np.zeros_like(lg.tau_ext_true)
     if effect != "wrist_friction":
         return lg.tau_ext_true
     qd = np.gradient(np.asarray(lg.q, float), np.asarray(lg.time, float), axis=0)
@@ -303,7 +326,7 @@ def run_case(spec: dict, duration: float, robot, twin: bool = True, n_rec: int =
     size = np.sqrt(np.mean(np.concatenate([lg.tau_ext_true for lg in logs]) ** 2, axis=0))
     row = {"effect": spec["effect"] or "clean", "seed": spec["seed"], "expected": expected_name(spec),
            "named": named, "joints": [f"A{j + 1}" for j in J], "spec": spec,
-           "effect_x_floor": float(np.mean((size / floor)[J])) if spec["effect"] != "payload" else None,
+           "effect_x_floor": float(np.mean((size / floor)[J])) if spec["effect"] not in ("payload", "elasticity") else None,
            "before_x_floor": ratio(d.before), "after_x_floor": ratio(d.after),
            "noise_floor_Nm": floor.tolist(), "heldout_before": d.before, "heldout_after": d.after,
            "rejected": d.rejected, "steps": [{"name": s["name"], "params": s["params"], "mean_before": s["mean_before"],
@@ -315,6 +338,9 @@ def run_case(spec: dict, duration: float, robot, twin: bool = True, n_rec: int =
         tf, tr = (np.asarray(td.noise_floor), np.asarray(td.rms)) if getattr(td, "noise_floor", None) else \
             _floor_rms(tp, tl, robot)
         row["twin_x_floor"] = float(np.mean((np.asarray(td.before) * tr / tf)[J]))
+        if spec["effect"] == "elasticity":     # in the truth: its size is the torque's difference from the twin's
+            diff = np.concatenate([a.tau - b.tau for a, b in zip(logs, tl)])
+            row["effect_x_floor"] = float(np.mean((np.sqrt(np.mean(diff ** 2, axis=0)) / floor)[J]))
     row["seconds"] = time.perf_counter() - t0
     return row
 

@@ -64,3 +64,52 @@ def test_clean_wrist_names_nothing(kr6):
     d = diagnose_robot(fit_robot(logs[:1], kr6), logs, kr6, max_steps=1)
     assert "coupled_wrist_friction" in {t["name"] for t in d.tried}
     assert d.names == [], d.lines()
+
+
+#: the elastic test's gear: A2's stiffness N·m/rad (a soft gear: its link lags by up to 0.006 rad)
+STIFFNESS = 1.2e4
+
+
+def _elastic_logs(kr6, k: float | None):
+    """Four recordings of the motor side of a robot whose A2 gear is a spring of stiffness ``k``
+    (None: rigid): the motors follow a multi-sine, A2's link lags by its spring's deflection, found
+    by fixed-point iteration of ``q_l = theta - tau_rb(q_l, qd_l, qdd_l) / k`` (the link's velocity and
+    acceleration differentiated from its positions), the measured torque the spring's plus the
+    motor's rotor inertia and friction (the quasi-static two-mass joint: no resonance)."""
+    pi, fr = true_parameters(kr6, 1), true_friction(6, 2)
+    rotor = np.array([0.15, 0.17, 0.14, 0.04, 0.04, 0.014])
+    out = []
+    for r in range(4):
+        t, q, qd, qdd = multisine(kr6, 10.0, 250.0, seed=80 + r)
+        ql, qdl, qddl = q.copy(), qd.copy(), qdd.copy()
+        for _ in range(6 if k else 0):
+            tau_s = np.einsum("sjk,k->sj", kr6.regressor(ql, qdl, qddl), pi)[:, 1]
+            ql[:, 1] = q[:, 1] - tau_s / k
+            qdl[:, 1] = np.gradient(ql[:, 1], t)
+            qddl[:, 1] = np.gradient(qdl[:, 1], t)
+        tau = np.einsum("sjk,k->sj", kr6.regressor(ql, qdl, qddl), pi) + rotor * qdd + \
+            fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
+        rng = np.random.default_rng(r)
+        tau += 0.05 * rng.standard_normal(tau.shape)
+        out.append(AxisLog(time=t, q=q + 1e-5 * rng.standard_normal(q.shape), tau=tau, axes=tuple(range(1, 7)),
+                           attrs={"source_file": f"rec{r}.h5"}))
+    return out
+
+
+def test_gear_elasticity_is_named_and_its_compliance_recovered(kr6):
+    logs = _elastic_logs(kr6, STIFFNESS)
+    d = diagnose_robot(fit_robot(logs[:1], kr6), logs, kr6, max_steps=1)
+    assert d.names == ["gear_elasticity@A2"], d.lines()
+    c = d.steps[0]["params"]["compliance_rad_per_Nm"]
+    assert abs(c * STIFFNESS - 1.0) < 0.25, c           # the compliance within 25 %
+    eff = d.params["effects"]["gear_elasticity@A2"]
+    tau = predict_robot(d.params, logs[1], kr6)
+    bare = predict_robot({**d.params, "effects": {}}, logs[1], kr6)
+    assert len(eff["coefficients"]) == 1 and not np.allclose(tau[2], bare[2])
+
+
+def test_rigid_gears_name_no_elasticity(kr6):
+    logs = _elastic_logs(kr6, None)
+    d = diagnose_robot(fit_robot(logs[:1], kr6), logs, kr6, max_steps=1)
+    assert {"gear_elasticity@A1", "gear_elasticity@A2", "gear_elasticity@A3"} <= {t["name"] for t in d.tried}
+    assert d.names == [], d.lines()

@@ -212,7 +212,7 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     noise floor."""
     from kukaid.identify.robot_fit import (DriveModel, RobotFitSettings, _blocks, _cutoff, _samples, effect_signals,
                                            extra_names, extras, filtered_coulomb, log_temperatures, lowpassed,
-                                           lowpassed_values, sample_rows, wide_velocity)
+                                           lowpassed_values, rigid_at, sample_rows, wide_velocity)
     from kukaid.models import robot_effects
 
     s = params["settings"]
@@ -236,6 +236,7 @@ def _signals(params: dict, logs: Sequence[Any], robot):
         times.append(np.asarray(lg.time, float)[rows])
         temps.append(None if getattr(lg, "temp", None) is None else log_temperatures(lg, n)[rows])
     temp = None if any(t is None for t in temps) else np.concatenate(temps)
+    time_all = np.concatenate(times)
     rigid, gravity, sign, friction, fixed = (np.empty((N, n)) for _ in range(5))
     effects = params.get("effects") or {}
     # each joint's own terms as the file has them: ripple harmonics the fit held at 0 (not covered by
@@ -253,7 +254,8 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     for rows, mb in _blocks(m):
         Y = robot.regressor(mb.q, mb.qd, mb.qdd)
         F = extras(robot, mb, settings, drive, qd_range=fr.get("qd_range"))
-        es = effect_signals(robot, mb.q, Y, F, params, names, None if temp is None else temp[rows], qd=mb.qd)
+        es = effect_signals(robot, mb.q, Y, F, params, names, None if temp is None else temp[rows], qd=mb.qd,
+                            qdd=mb.qdd, time=time_all[rows])
         rigid[rows], gravity[rows], payload[rows], sign[rows], friction[rows] = (
             es.rigid, es.gravity, es.payload, es.sign, es.friction)
         # the file's own effects and rotor inertias: held as it has them
@@ -317,8 +319,12 @@ def _signals(params: dict, logs: Sequence[Any], robot):
                   Fc=np.array([x[c] for c in coul]), Fv=np.array([x[c] for c in visc]))
     # what the file's effects read, its own Coulomb column and friction: a refined file's effects are
     # refitted on it (:func:`_refined`)
+    bp = params["base_parameters"]
+    at_state = rigid_at(robot, m.q, m.qd, m.qdd, np.asarray(bp["independent"], int), np.asarray(bp["values"], float))
+    pieces["rigid_at"] = at_state
     own_signals = robot_effects.EffectSignals(q=m.q, sign=sign, friction=friction, gravity=gravity, rigid=rigid,
-                                              payload=payload, temp=temp, qd=m.qd)
+                                              payload=payload, temp=temp, qd=m.qd, time=time_all, rigid_at=at_state,
+                                              log_rows=tuple(m.log_rows or (N,)))
     from kukaid.diagnose.noise import filtered_noise_floor
 
     floor = [filtered_noise_floor([lg.tau[:, lg.index(j + 1)] for lg in logs], fs, [_cutoff(settings, f) for f in fs],

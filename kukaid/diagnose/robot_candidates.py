@@ -25,6 +25,9 @@ coupled_wrist_friction         the wrist motors 5 and 6's Coulomb and viscous fr
                                velocities qd5 + c54 qd4, qd6 + c64 qd4 + c65 qd5 (joint units), through
                                the coupling's transpose on A4-A6 (4 coefficients shared by the three
                                joints), the ratios c and a Coulomb transition v its own
+gear_elasticity@A<j>           c x d tau_rb / dc: the file's rigid body at the link's state, the
+                               measured (motor-side) position less c tau_j (velocity, acceleration
+                               less c times tau_j's derivatives), c = 1/k the compliance, on every joint
 =============================  =============================================================
 """
 from __future__ import annotations
@@ -60,6 +63,11 @@ MAX_COUPLING = 1.2
 #: a named coupling has at least one ratio this large (|c|): smaller, the motors' friction is the
 #: joints' own (KUKA machine data's $COUP_COMP of a KR C2 wrist: 0.005-0.013, below what this sees)
 MIN_COUPLING = 0.05
+#: a gear's deflection at the joint's largest torque is at most this, rad (0.57 deg: a gear's windup
+#: is arc-minutes; beyond this it is not a gear's spring)
+MAX_DEFLECTION = 0.01
+#: the main axes (0-based) a gear elasticity is tried on: they carry the largest torques
+ELASTIC_JOINTS = (0, 1, 2)
 
 
 @dataclass
@@ -77,7 +85,9 @@ class Context:
     friction with it (its viscous term as chosen; None: ``sign`` and ``friction`` only).
     temp : motor temperature degC or None.   motor_coulomb(mix, v) : (N, k) ``tanh(mix qd / v)`` of
     every joint's velocity from the wider band (``mix``: (k, n) motor velocities from joint
-    velocities), through the fit's low-pass; None: not given (``qd`` then).   lowpass(j, fn, c) : ``fn(q, a, b)`` (columns a..b of c,
+    velocities), through the fit's low-pass; None: not given (``qd`` then).   rigid_at(j, dq, dqd,
+    dqdd) : the file's rigid-body torque (N, n) with joint j's state moved by (N,) each; None: not
+    given (no gear elasticity candidate).   lowpass(j, fn, c) : ``fn(q, a, b)`` (columns a..b of c,
     of joint j's raw positions (M,): (M, b - a)) through the fit's low-pass, at the fit's samples of
     every log (N, c); None: not given.
     payload : (N, n, 4) the last link's m, m c columns.   total_mass : kg, the URDF's moving links.
@@ -100,6 +110,7 @@ class Context:
     at_rest: np.ndarray | None = None
     lowpass: Any = None
     motor_coulomb: Any = None
+    rigid_at: Any = None
     transitions: tuple[float, ...] = ()
     coulomb: np.ndarray | None = None
     friction_at: np.ndarray | None = None
@@ -506,10 +517,57 @@ class CoupledWristFriction(RobotCandidate):
         return ""
 
 
+class GearElasticity(RobotCandidate):
+    """A torsional spring in joint j's gear (stiffness k), seen from the motor side as a KUKA
+    drive logs it: the encoder on the motor, the link lagging by ``tau_j / k``. To first order in the
+    compliance ``c = 1/k`` the motor's torque is the rigid body's at the link's state: the
+    measured position less ``c tau_j``, the velocity and acceleration less ``c`` times the spring
+    torque's first and second derivatives (``tau_j`` the file's rigid-body torque of the joint;
+    :func:`kukaid.models.robot_effects.elastic_columns`). One column per unit compliance, on every
+    joint (the link's lag moves the gravity and inertia torques of the others too), its coefficient
+    the compliance, rad/(N·m). Judged on the joint (the others' own errors, which a file's rigid
+    body leaves larger, would hide its gain; none may get worse). Tried on the main axes
+    (:data:`ELASTIC_JOINTS`)."""
+
+    def __init__(self, joint: int) -> None:
+        self.elastic, self.name = joint, f"gear_elasticity@A{joint + 1}"
+        self._cols = None
+
+    @staticmethod
+    def applies(ctx: Context) -> bool:
+        return ctx.rigid_at is not None
+
+    def columns(self, ctx, option):
+        if self._cols is None:
+            self._cols = RE.elastic_columns(self.elastic, ctx.time, ctx.rigid, ctx.rigid_at, ctx.log_rows)
+        return self._cols
+
+    def joints(self, ctx):
+        return [self.elastic]
+
+    def _deflection(self, ctx, coefs) -> float:
+        return float(coefs[0]) * float(np.max(np.abs(ctx.rigid[:, self.elastic])))
+
+    def describe(self, ctx, option, coefs):
+        c = float(coefs[0])
+        return {"compliance_rad_per_Nm": c, "stiffness_Nm_per_rad": 1.0 / c if c > 0 else math.inf,
+                "peak_deflection_rad": self._deflection(ctx, coefs)}
+
+    def implausible(self, ctx, option, coefs):
+        c = float(coefs[0])
+        if c <= 0:
+            return f"compliance {c:.3g} rad/(N·m): a spring's is positive"
+        d = self._deflection(ctx, coefs)
+        if d > MAX_DEFLECTION:
+            return f"a deflection of {d:.3g} rad at the joint's largest torque, above {MAX_DEFLECTION:g}"
+        return ""
+
+
 def robot_candidates(ctx: Context, gravity_joints: Sequence[int]) -> list[RobotCandidate]:
     """Every candidate for these data: a counterbalance on the joints that carry gravity, a payload,
     per joint load-dependent friction, thermal friction (with a temperature channel) and a
-    position ripple, and on a six-axis robot the wrist's coupled friction."""
+    position ripple, on a six-axis robot the wrist's coupled friction, and a gear elasticity on each
+    main axis."""
     out: list[RobotCandidate] = [Counterbalance(j) for j in gravity_joints]
     out.append(Payload())
     for j in range(ctx.n):
@@ -519,4 +577,6 @@ def robot_candidates(ctx: Context, gravity_joints: Sequence[int]) -> list[RobotC
         out.append(PositionRipple(j))
     if CoupledWristFriction.applies(ctx):
         out.append(CoupledWristFriction())
+    if GearElasticity.applies(ctx):
+        out += [GearElasticity(j) for j in ELASTIC_JOINTS if j < ctx.n]
     return out

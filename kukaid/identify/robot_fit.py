@@ -1267,7 +1267,8 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     for rows, mb in _blocks(m):      # block by block: an hour's log never holds its (N, n, p) regressor
         F = extras(robot, mb, settings, drive, qd_range=params["friction"].get("qd_range"))
         s = effect_signals(robot, mb.q, robot.regressor(mb.q, mb.qd, mb.qdd), F, params, names,
-                           None if temp is None else temp[rows], gravity=bool(effects), qd=mb.qd)
+                           None if temp is None else temp[rows], gravity=bool(effects), qd=mb.qd, qdd=mb.qdd,
+                           time=np.asarray(log.time, float)[rows] if m.q.shape[0] == log.n_samples else None)
         tau[rows] = s.rigid + F @ extra + robot_effects.torque(effects, s)
     if settings.torque_side == "motor":
         drive = DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
@@ -1285,11 +1286,14 @@ def log_temperatures(log: AxisLog, n: int) -> np.ndarray:
 
 def effect_signals(robot: RobotModel, q: np.ndarray, Y: np.ndarray, F: np.ndarray, params: dict,
                    names: Sequence[str], temp: np.ndarray | None = None,
-                   gravity: bool = True, qd: np.ndarray | None = None) -> robot_effects.EffectSignals:
+                   gravity: bool = True, qd: np.ndarray | None = None, qdd: np.ndarray | None = None,
+                   time: np.ndarray | None = None) -> robot_effects.EffectSignals:
     """What a robot file's effects read on one block of samples (:mod:`kukaid.models.robot_effects`):
     its rigid-body torque (from the standard regressor ``Y`` (B, n, 10 n)), gravity torque (zeros
     when ``gravity`` is false), the last link's m, m c columns, its Coulomb column and friction
-    torque (from its extra columns ``F`` named ``names``), the velocities ``qd`` rad/s as given."""
+    torque (from its extra columns ``F`` named ``names``), the velocities ``qd`` rad/s and sample
+    times as given, and with ``qd`` and ``qdd`` its rigid-body torque at a moved state
+    (:func:`rigid_at`)."""
     bp = params["base_parameters"]
     ind, beta = np.asarray(bp["independent"], int), np.asarray(bp["values"], float)
     vals = params["friction"]["values"]
@@ -1304,7 +1308,27 @@ def effect_signals(robot: RobotModel, q: np.ndarray, Y: np.ndarray, F: np.ndarra
     k0 = robot.n_std - 10
     return robot_effects.EffectSignals(q=q, sign=sign, friction=friction, rigid=Y[:, :, ind] @ beta,
                                        gravity=robot.regressor(q, z, z)[:, :, ind] @ beta if gravity else z,
-                                       payload=Y[:, :, k0:k0 + 4], temp=temp, qd=qd)
+                                       payload=Y[:, :, k0:k0 + 4], temp=temp, qd=qd, time=time,
+                                       rigid_at=None if qd is None or qdd is None else
+                                       rigid_at(robot, q, qd, qdd, ind, beta))
+
+
+def rigid_at(robot: RobotModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, independent: np.ndarray,
+             beta: np.ndarray):
+    """``fn(j, dq, dqd, dqdd)`` -> (N, n) N·m: the rigid-body torque (base parameters ``beta`` of the
+    standard regressor's columns ``independent``) with joint j's position, velocity and acceleration
+    moved by ``dq, dqd, dqdd`` (N,) from ``q, qd, qdd`` (N, n), block by block."""
+    def fn(j, dq, dqd, dqdd):
+        out = np.empty_like(q)
+        for a in range(0, q.shape[0], BLOCK):
+            r = slice(a, min(a + BLOCK, q.shape[0]))
+            Q, Qd, Qdd = q[r].copy(), qd[r].copy(), qdd[r].copy()
+            Q[:, j] += dq[r]
+            Qd[:, j] += dqd[r]
+            Qdd[:, j] += dqdd[r]
+            out[r] = robot.regressor(Q, Qd, Qdd)[:, :, independent] @ beta
+        return out
+    return fn
 
 
 def robot_predictor(params: dict, log: AxisLog, axis: int | None = None,

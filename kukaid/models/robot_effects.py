@@ -20,6 +20,11 @@ predicts, the diagnosis' filtered one while a candidate is judged):
   ``f5 + c65 f6``, A6 ``f6`` (coefficients Fc5, Fv5, Fc6, Fv6, N·m and N·m·s/rad; on every joint,
   zero off the wrist). A per-joint friction cannot hold it: A4 feels a friction that switches
   with the other motors' velocities.
+- ``gear_elasticity@A<j>``: c0 (tau_rb(link state) - tau_rb(q)) / compliance on every joint, to
+  first order in the compliance c0 = 1/k (rad/(N·m)): a spring between joint j's motor (where the
+  encoder is) and its link, so the link lags the measured position by ``tau_j / k``, its velocity
+  and acceleration by the spring torque's derivatives over k; the rigid body (the file's) is
+  evaluated at that link state, the torque ``tau_j`` the file's rigid-body torque of joint j.
 
 An effect's entry in the file: its settings and ``coefficients`` (the c above). A friction
 effect's ``v_smooth`` is the Coulomb transition the diagnosis judged it with (its term through a
@@ -30,6 +35,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -45,7 +51,11 @@ KINDS = {
     "thermal_friction": (("form",), 1),
     "position_ripple": (("n",), 2),
     "coupled_wrist_friction": (("c54", "c64", "c65", "v_smooth"), 4),
+    "gear_elasticity": ((), 1),
 }
+#: the compliance a gear elasticity's columns are differenced at, rad/(N·m) (a link shift of 1e-4
+#: rad at 100 N·m): small against any gear's, large against rounding
+ELASTIC_STEP = 1e-6
 #: effects on every joint, named without a joint
 JOINTLESS = ("payload", "coupled_wrist_friction")
 
@@ -64,7 +74,9 @@ class EffectSignals:
     """What the effects read, over N samples of n joints: positions rad (N, n), the file's Coulomb
     column and friction torque (N, n), its gravity and rigid-body torque N·m (N, n), the last link's
     m, m c regressor columns (N, n, 4), motor temperatures degC (N, n) or None, velocities rad/s
-    (N, n; the fit's filtered ones) or None."""
+    (N, n; the fit's filtered ones) or None, sample times s (N,) or None (``log_rows``: samples per
+    recording, when there are several), and ``rigid_at(j, dq, dqd, dqdd)``: the file's rigid-body
+    torque (N, n) with joint j's position, velocity and acceleration moved by these (N,), or None."""
 
     q: np.ndarray
     sign: np.ndarray
@@ -74,6 +86,31 @@ class EffectSignals:
     payload: np.ndarray
     temp: np.ndarray | None = None
     qd: np.ndarray | None = None
+    time: np.ndarray | None = None
+    rigid_at: Any = None
+    log_rows: tuple = ()
+
+
+def elastic_columns(j: int, time: np.ndarray, rigid: np.ndarray, rigid_at, rows: Sequence[int] = ()) -> np.ndarray:
+    """(N, n, 1): a gear elasticity of joint j per unit compliance (N·m per rad/(N·m)): the file's
+    rigid-body torque at the link's state (the measured position less ``c tau_j``, the velocity and
+    acceleration less ``c`` times the torque's first and second time derivatives, ``tau_j`` the
+    rigid-body torque ``rigid[:, j]``) less at the measured state, over ``c``, by a central
+    difference at :data:`ELASTIC_STEP`. ``time`` s (N,); ``rows``: samples per recording (each its own
+    time derivative; default one)."""
+    t, tau = np.asarray(time, float), np.asarray(rigid, float)[:, j]
+    d1, d2 = np.empty_like(tau), np.empty_like(tau)
+    at = 0
+    for r in (list(rows) or [tau.size]):
+        sl = slice(at, at + int(r))
+        if int(r) >= 3:
+            d1[sl] = np.gradient(tau[sl], t[sl])
+            d2[sl] = np.gradient(d1[sl], t[sl])
+        else:
+            d1[sl], d2[sl] = 0.0, 0.0
+        at += int(r)
+    c = ELASTIC_STEP
+    return ((rigid_at(j, -c * tau, -c * d1, -c * d2) - rigid_at(j, c * tau, c * d1, c * d2)) / (2 * c))[:, :, None]
 
 
 def wrist_mix(n: int, spec: dict) -> np.ndarray:
@@ -110,6 +147,10 @@ def columns(name: str, spec: dict, s: EffectSignals) -> np.ndarray:
     kind, j = parse(name)
     if kind == "payload":
         return s.payload
+    if kind == "gear_elasticity":
+        if s.rigid_at is None or s.time is None:
+            raise ValueError(f"{name} needs the file's rigid body and the sample times")
+        return elastic_columns(j, s.time, s.rigid, s.rigid_at, s.log_rows)
     if kind == "coupled_wrist_friction":
         if s.qd is None:
             raise ValueError(f"{name} needs the joint velocities")

@@ -88,6 +88,10 @@ class RobotTruth:
         their velocities ``(I + C) qd`` (joint units: a KUKA wrist's gearing couples A4's motion
         into the A5 and A6 drives, ``C[4, 3] = c54``, ``C[5, 3] = c64``, ``C[5, 4] = c65``), seen at
         the joints through ``(I + C)^T``; ``Fc, Fv, Fs, vs`` are then each motor's (None: per joint).
+    gear_stiffness : (n,) N·m/rad or None: a torsional spring between each joint's motor and its link
+        (0: rigid), the gear's elasticity; the encoder is on the motor side, the link lags by
+        ``tau / k``; the rotor inertia and friction on the motor side.
+    gear_damping : (n,) N·m·s/rad or None: the spring's damping (in parallel).
     """
 
     robot: str
@@ -99,6 +103,8 @@ class RobotTruth:
     armature: np.ndarray
     offset: np.ndarray
     friction_coupling: np.ndarray | None = None
+    gear_stiffness: np.ndarray | None = None
+    gear_damping: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -148,7 +154,13 @@ class RobotTruth:
             "offset": self.offset.tolist(),
             **({} if self.friction_coupling is None else
                {"friction_coupling": np.asarray(self.friction_coupling, float).tolist()}),
+            **{k: np.asarray(getattr(self, k), float).tolist() for k in ("gear_stiffness", "gear_damping")
+               if getattr(self, k) is not None},
         }
+
+    def elastic(self) -> np.ndarray:
+        """Indices of the joints with an elastic gear (:attr:`gear_stiffness` > 0)."""
+        return np.zeros(0, int) if self.gear_stiffness is None else np.flatnonzero(np.asarray(self.gear_stiffness) > 0)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], where: str = "robot truth") -> "RobotTruth":
@@ -158,7 +170,8 @@ class RobotTruth:
             fc = d.get("friction_coupling")
             return cls(robot=str(d["robot"]), pi=np.asarray(d["pi"], dtype=float), armature=np.asarray(d["armature"], dtype=float),
                        offset=np.asarray(d["offset"], dtype=float), **arr,
-                       friction_coupling=None if fc is None else np.asarray(fc, dtype=float))
+                       friction_coupling=None if fc is None else np.asarray(fc, dtype=float),
+                       **{k: np.asarray(d[k], dtype=float) for k in ("gear_stiffness", "gear_damping") if k in d})
         except (KeyError, TypeError, ValueError) as e:
             raise KukaidError(f"{where}: not a {TRUTH_SCHEMA} object ({e})") from None
 
