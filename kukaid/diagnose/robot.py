@@ -21,8 +21,12 @@ this baseline at 1.2-2.7x (``docs/robot.md``).
 
 Candidates (:mod:`kukaid.diagnose.robot_candidates`): ``counterbalance@A<j>`` (a gas spring, on
 the joints that carry at least half of the largest gravity torque range), ``payload`` (the last
-link's mass and first moments), and per joint ``load_dependent_friction@A<j>``,
-``thermal_friction@A<j>`` (with a temperature channel) and ``position_ripple@A<j>``.
+link's mass and first moments), per joint ``load_dependent_friction@A<j>``,
+``thermal_friction@A<j>`` (with a temperature channel) and ``position_ripple@A<j>``, on a six-axis
+robot ``coupled_wrist_friction`` (the wrist motors' friction on their coupled velocities, its
+coefficients shared by A4-A6: its ratios chosen on their equations stacked, :class:`_Stacked`), and
+``gear_elasticity@A<j>`` on the main axes (the rigid body at the link's lagging state, per unit
+compliance).
 
 A candidate's nonlinear settings (the ripple order, the load or the thermal form, a friction
 term's own Coulomb transition, the gas spring's geometry: a grid, then a finer one about its pick,
