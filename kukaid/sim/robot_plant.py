@@ -10,7 +10,15 @@ built once; the plant, the servo's feedforward and the truth each own a data obj
 
 * friction per joint: ``F = (Fc + (Fs - Fc) exp(-(qd/vs)²)) tanh(qd/eps) + Fv qd + offset``
   (Coulomb-viscous when ``Fs = Fc``), integrated implicitly (its velocity slope is added to the
-  joint's inertia for the step), so the stiff Coulomb regularisation stays stable at 1 kHz;
+  joint's inertia for the step), so the stiff Coulomb regularisation stays stable at 1 kHz; a
+  truth with ``friction_coupling`` C has it on the motors' velocities ``(I + C) qd``, seen at the
+  joints through ``(I + C)^T`` (a KUKA wrist's), its slope ``h (I + C)^T diag(F') (I + C)`` in the
+  step's mass matrix;
+* an elastic gear (the truth's ``gear_stiffness``, ``gear_damping``): the joint's motor a body of
+  its own (its rotor inertia, friction and the servo's torque) on a spring to its link, in
+  substeps of the servo cycle with the link held; the encoder (the servo's feedback, the logged
+  position) on the motor. The velocity loop then acts on the motor alone above the spring's
+  resonance: a servo rate below ``Kv J_i / J_motor`` is refused (a KR 6's A2 needs about 4 kHz);
 * servo per axis, as the single-axis simulator's (:mod:`kukaid.sim.krc4`): ``v_ref = qd_ff +
   Kp (q_ref - q)``, ``tau_m = J_i qdd_ff + g_nom(q_ref) + J_i Kv (v_ref - qd) + integral``,
   limited to the joint's torque limit; ``J_i`` is the diagonal of the *nominal* mass matrix at the
