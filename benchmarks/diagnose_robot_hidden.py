@@ -56,7 +56,8 @@ clean twin, in multiples of the noise floor (mean over the joints, then over cas
 anything named.
 
 ``--quick``: one seed per effect, one clean case, three 4 s recordings, no twins (what the test
-suite runs, about 15 s). Seeds 0 1 2 were used while developing the robot candidates; 10 11 12 are
+suite runs, 90 s on the shared 2-core machine, 58 s before the wrist and elasticity cases). Seeds
+0 1 2 were used while developing the robot candidates; 10 11 12 are
 the held-out check (``--seeds 10 11 12 --clean-seeds 10 11 12 13 14``).
 """
 from __future__ import annotations

@@ -215,8 +215,8 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     (gravity, payload columns, times, temperatures), the rigid body's correction columns and the
     noise floor."""
     from kukaid.identify.robot_fit import (DriveModel, RobotFitSettings, _blocks, _cutoff, _samples, effect_signals,
-                                           extra_names, extras, filtered_coulomb, log_temperatures, lowpassed,
-                                           lowpassed_values, rigid_at, sample_rows, wide_velocity)
+                                           extra_names, extras, filtered_coulomb, fit_lowpass, log_temperatures,
+                                           lowpassed, lowpassed_values, rigid_at, sample_rows, wide_velocity)
     from kukaid.models import robot_effects
 
     s = params["settings"]
@@ -312,9 +312,11 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     def motor_coulomb(mix, v):
         out = []
         for k, lg in enumerate(logs):
-            if k not in wide:     # every joint's velocity from the wider band, once per log
-                wide[k] = wide_velocity(lg, n, settings, VELOCITY_BAND * _cutoff(settings, 1.0 / lg.sample_time))
-            out.append(lowpassed_values(lg, settings, np.tanh(wide[k] @ mix.T / v), sample_rows(lg, settings)))
+            if k not in wide:     # every joint's velocity from the wider band and the fit's filter, once per log
+                wide[k] = (wide_velocity(lg, n, settings, VELOCITY_BAND * _cutoff(settings, 1.0 / lg.sample_time)),
+                           fit_lowpass(lg, settings))
+            qd_w, sos = wide[k]
+            out.append(lowpassed_values(lg, settings, np.tanh(qd_w @ mix.T / v), sample_rows(lg, settings), sos))
         return np.concatenate(out)
 
     pieces = dict(q=m.q, lowpass=lowpass, motor_coulomb=motor_coulomb, qd=m.qd, tau=m.tau, gravity=gravity, rigid=rigid, temp=temp, payload=payload,

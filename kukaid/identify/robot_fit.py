@@ -383,15 +383,23 @@ def wide_velocity(log: AxisLog, n: int, settings: RobotFitSettings, velocity_cut
     return np.column_stack([np.gradient(sosfiltfilt(sv, log.q[:, c]), t) for c in cols])
 
 
-def lowpassed_values(log: AxisLog, settings: RobotFitSettings, values: np.ndarray, rows: slice = slice(None)) -> np.ndarray:
+def lowpassed_values(log: AxisLog, settings: RobotFitSettings, values: np.ndarray, rows: slice = slice(None),
+                     sos: np.ndarray | None = None) -> np.ndarray:
     """``values`` (M, ...) on every sample of the log through the fit's low-pass (along the
     samples), at the rows ``rows``: a term nonlinear in the signals compared as the filtered torque
-    shows it."""
-    from scipy.signal import butter, sosfiltfilt
+    shows it. ``sos``: the filter (:func:`fit_lowpass`), when the caller keeps it (designing it
+    takes longer than filtering a 10 s log)."""
+    from scipy.signal import sosfiltfilt
+
+    return sosfiltfilt(fit_lowpass(log, settings) if sos is None else sos, values, axis=0)[rows]
+
+
+def fit_lowpass(log: AxisLog, settings: RobotFitSettings) -> np.ndarray:
+    """The fit's low-pass of the log's torques and positions (second-order sections)."""
+    from scipy.signal import butter
 
     fs = 1.0 / log.sample_time
-    sos = butter(settings.order, _cutoff(settings, fs), fs=fs, output="sos")
-    return sosfiltfilt(sos, values, axis=0)[rows]
+    return butter(settings.order, _cutoff(settings, fs), fs=fs, output="sos")
 
 
 def position_noise(q: np.ndarray) -> float:
