@@ -103,6 +103,7 @@ def test_gear_elasticity_is_named_and_its_compliance_recovered(kr6):
     c = d.steps[0]["params"]["compliance_rad_per_Nm"]
     assert abs(c * STIFFNESS - 1.0) < 0.25, c           # the compliance within 25 %
     eff = d.params["effects"]["gear_elasticity@A2"]
+    assert eff["coefficients"] == pytest.approx([c])     # the refined file keeps the diagnosed compliance
     tau = predict_robot(d.params, logs[1], kr6)
     bare = predict_robot({**d.params, "effects": {}}, logs[1], kr6)
     assert len(eff["coefficients"]) == 1 and not np.allclose(tau[2], bare[2])

@@ -813,6 +813,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     tried: list[dict] = []
     replaced: list[int] = []
     named: list = []                        # (candidate, its option) in the order named
+    kept: dict = {}                         # named effects the refined file keeps at the diagnosis' coefficients
     residuals = [res0]                      # held-out residual (N, n) at the start and after each step
     for rnd in range(max(0, max_steps)):
         best = None
@@ -858,17 +859,19 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             else:
                 reason = cand.implausible(ctx, opt, coefs) or None
             if reason is None and (best is None or (mb - ma) / mb > best[0]):
-                best = ((mb - ma) / mb, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, c_scale, opt)
+                best = ((mb - ma) / mb, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, c_scale, opt, coefs)
             elif reason is not None:
                 rejected = [x_ for x_ in rejected if x_["name"] != name] + [{"name": name, "reason": reason}]
         if rnd == 0:
             tried = trials
         if best is None:
             break
-        _, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, scale, opt = best
+        _, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, scale, opt, coefs = best
         Fj = Fjs[scale]
         cand = remaining.pop(name)
         named.append((cand, opt))
+        if cand.held_in_refit:
+            kept[name] = np.asarray(coefs, float)
         rejected = [x_ for x_ in rejected if x_["name"] != name]
         local, shared = _with(local, shared, cand, col, n)
         if cand.replaces_angle_terms:
@@ -892,7 +895,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             "heldout_after": e.tolist(), "trials": trials, "option": opt})
         err, fold_err, res0 = e, fnum, fres
         residuals.append(fres)
-    refined = _refined(params, logs, base, own_signals, named, r, tau, corr, _scaled(prior, scale), w, replaced)
+    refined = _refined(params, logs, base, own_signals, named, r, tau, corr, _scaled(prior, scale), w, replaced, kept)
     return RobotDiagnosis(axes=axes, folds=how, before=before.tolist(), after=err.tolist(), steps=steps,
                           rejected=rejected, in_sample=in_sample, noise_floor=floor.tolist(), rms=rms.tolist(),
                           tried=tried, fitted_on=fitted_on, given=list(given), params=refined,
@@ -901,14 +904,17 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
 
 
 def _refined(params: dict, logs: Sequence[Any], base: _Baseline, own, named: list, r, tau, corr, prior, w,
-             replaced: Sequence[int]) -> dict:
+             replaced: Sequence[int], kept: dict | None = None) -> dict:
     """The parameter file with the named effects in it (``effects``: :mod:`kukaid.models.robot_effects`),
     as it predicts: its own terms (its Coulomb column and held viscous term, as the file has them)
     and the rigid body's correction (under the prior at the strength the diagnosis ended on: the
     file's uncertainty) refitted beside the effects' columns on every sample of the diagnosis (the
     file's effects held). A counterbalance's joint has its spring and ripple terms at 0 (it takes
     their place). The file as it was when nothing is named. ``own``: the file's signals
-    (:class:`~kukaid.models.robot_effects.EffectSignals`)."""
+    (:class:`~kukaid.models.robot_effects.EffectSignals`); ``kept``: {name: coefficients} of named
+    effects kept as the diagnosis found them, their torque taken from the data before the refit (a
+    gear elasticity: refitted with the file's own columns it is not determined and can come out
+    negative)."""
     import copy
 
     from kukaid.identify.robot_fit import log_fingerprint
@@ -922,8 +928,17 @@ def _refined(params: dict, logs: Sequence[Any], base: _Baseline, own, named: lis
     for j in replaced:
         Fj = base.without_angle_terms(j, r, Fj)[1]
     local, shared, cols = {}, corr, []
+    kept = kept or {}
+    r = r.copy()
     for cand, opt in named:
         col = robot_effects.columns(cand.name, opt, own)
+        if cand.name in kept:       # its torque taken out, its coefficients kept
+            if col.ndim == 3:
+                r -= col @ kept[cand.name]
+            else:
+                r[:, cand.joint] -= col @ kept[cand.name]
+            cols.append(0)
+            continue
         local, shared = _with(local, shared, cand, col, n)
         cols.append(col.shape[-1])
     x = _heldout(r, tau, Fj, shared, local, np.zeros(r.shape[0], int), 1, w, [], prior=prior)[2]
@@ -935,15 +950,16 @@ def _refined(params: dict, logs: Sequence[Any], base: _Baseline, own, named: lis
             vals[k] = float(v) + (vals[k] if angle and j not in replaced else 0.0)
         at += Fj[j].shape[1]
         for (cand, _), c in zip(named, cols):
-            if cand.joint == j:
+            if cand.joint == j and cand.name not in kept:
                 coefs[cand.name], at = x[at:at + c], at + c
     bp = out["base_parameters"]
     size = corr[0].shape[1]
     bp["values"] = (np.asarray(bp["values"], float) + x[at:at + size]).tolist()
     at += size
     for (cand, _), c in zip(named, cols):
-        if cand.joint is None:
+        if cand.joint is None and cand.name not in kept:
             coefs[cand.name], at = x[at:at + c], at + c
+    coefs.update(kept)
     out["effects"] = {**(params.get("effects") or {}),
                       **{cand.name: {**opt, "coefficients": coefs[cand.name].tolist()} for cand, opt in named}}
     prov = out.setdefault("provenance", {}) or {}
