@@ -58,6 +58,72 @@ def test_measured_torque_is_the_true_inverse_dynamics_while_moving():
     assert np.degrees(np.abs(log.q - log.q_cmd)).max() < 1.0
 
 
+def test_coupled_wrist_friction_truth_is_the_motors_friction_seen_at_the_joints():
+    """A truth whose wrist motors' friction is on their coupled velocities: the measured torque is the
+    inverse dynamics plus ``(I + C)^T f((I + C) qd)``, not the per-joint friction; it round-trips
+    through JSON."""
+    from dataclasses import replace
+
+    from scipy.signal import savgol_filter
+
+    from kukaid.sim.robot_truth import RobotTruth
+
+    cfg = RobotSimConfig(robot=ROBOT, noise_rel=0.0, quant_deg=0.0)
+    C = np.zeros((6, 6))
+    C[4, 3], C[5, 3], C[5, 4] = 0.35, -0.3, 0.45
+    truth = replace(draw_truth(ROBOT, load_model(ROBOT), seed=2), friction_coupling=C)
+    assert np.array_equal(RobotTruth.from_dict(truth.to_dict()).friction_coupling, C)
+    sim = VirtualRobotKRC4(cfg, seed=0, truth=truth)
+    log = sim.run(fourier_like(sim.n, 12.0), settle=0.0)
+    dt = log.sample_time
+    sg = dict(window_length=21, polyorder=5, axis=0)
+    q, qd = savgol_filter(log.q, **sg), savgol_filter(log.q, deriv=1, delta=dt, **sg)
+    qdd = savgol_filter(log.q, deriv=2, delta=dt, **sg)
+    d = sim.model.createData()
+    rnea = np.array([pin.rnea(sim.model, d, q[i], qd[i], qdd[i]) for i in range(len(q))])
+    sl = slice(50, -50)
+    mix = np.eye(6) + C
+    fast = np.all(np.abs((qd @ mix.T)[sl]) > 0.05, axis=1)
+
+    def rel(pred):
+        err = (pred - log.tau)[sl][fast]
+        return np.linalg.norm(err, axis=0) / np.linalg.norm(log.tau[sl][fast], axis=0)
+    coupled = rel(rnea + truth.friction(qd))
+    per_joint = rel(rnea + replace(truth, friction_coupling=None).friction(qd))
+    assert coupled.max() < 0.06, coupled
+    assert per_joint[3] > 3 * coupled[3], (per_joint, coupled)      # A4 feels motors 5 and 6
+
+
+def test_an_elastic_gear_lags_its_link_and_needs_a_fast_servo():
+    """A2's gear a spring (3e4 N·m/rad): at 1 kHz the velocity loop on the motor alone is refused;
+    at 5 kHz the robot holds still with its link hanging back by the gravity torque over the
+    stiffness (the encoder on the motor) and follows a trajectory, finite and near the rigid one."""
+    from dataclasses import replace
+
+    from kukaid.errors import SimConfigError
+
+    k = 3e4
+    K, D = np.zeros(6), np.zeros(6)
+    truth = draw_truth(ROBOT, load_model(ROBOT), seed=2)
+    K[1], D[1] = k, 2 * 0.1 * np.sqrt(k * truth.armature[1])
+    elastic = replace(truth, gear_stiffness=K, gear_damping=D)
+    with pytest.raises(SimConfigError, match="servo_rate"):
+        VirtualRobotKRC4(RobotSimConfig(robot=ROBOT), seed=0, truth=elastic)
+    cfg = RobotSimConfig(robot=ROBOT, servo_rate=5000.0, noise_rel=0.0)
+    sim = VirtualRobotKRC4(cfg, seed=0, truth=elastic)
+    q0 = np.array([0.2, -1.0, 0.9, 0.0, 0.5, 0.0])
+    sim.reset(q0)
+    out = sim.advance(1.0)
+    g = pin.computeGeneralizedGravity(sim.model, sim.model.createData(), sim._ql)
+    assert np.isfinite(out["tau"]).all() and abs(sim.q[1] - q0[1]) < 1e-3
+    assert sim._q[1] - sim._ql[1] == pytest.approx(g[1] / k, rel=0.02)
+    assert out["tau"][-50:, 1].mean() == pytest.approx(g[1] + truth.offset[1], abs=0.05)
+    rigid = VirtualRobotKRC4(cfg, seed=0, truth=truth).run(fourier_like(6, 6.0), settle=0.0)
+    log = sim.run(fourier_like(6, 6.0), settle=0.0)
+    diff = np.sqrt(np.mean((log.tau - rigid.tau) ** 2, axis=0))
+    assert 0.05 < diff[1] < 3.0 and np.all(np.abs(log.q - rigid.q) < 0.01), diff
+
+
 def test_one_axis_trajectory_keeps_the_other_axes_locked():
     sim = VirtualRobotKRC4(RobotSimConfig(robot=ROBOT), seed=1)
     t = np.arange(0, 4.0, 0.012)

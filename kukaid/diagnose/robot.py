@@ -21,8 +21,12 @@ this baseline at 1.2-2.7x (``docs/robot.md``).
 
 Candidates (:mod:`kukaid.diagnose.robot_candidates`): ``counterbalance@A<j>`` (a gas spring, on
 the joints that carry at least half of the largest gravity torque range), ``payload`` (the last
-link's mass and first moments), and per joint ``load_dependent_friction@A<j>``,
-``thermal_friction@A<j>`` (with a temperature channel) and ``position_ripple@A<j>``.
+link's mass and first moments), per joint ``load_dependent_friction@A<j>``,
+``thermal_friction@A<j>`` (with a temperature channel) and ``position_ripple@A<j>``, on a six-axis
+robot ``coupled_wrist_friction`` (the wrist motors' friction on their coupled velocities, its
+coefficients shared by A4-A6: its ratios chosen on their equations stacked, :class:`_Stacked`), and
+``gear_elasticity@A<j>`` on the main axes (the rigid body at the link's lagging state, per unit
+compliance).
 
 A candidate's nonlinear settings (the ripple order, the load or the thermal form, a friction
 term's own Coulomb transition, the gas spring's geometry: a grid, then a finer one about its pick,
@@ -211,8 +215,8 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     (gravity, payload columns, times, temperatures), the rigid body's correction columns and the
     noise floor."""
     from kukaid.identify.robot_fit import (DriveModel, RobotFitSettings, _blocks, _cutoff, _samples, effect_signals,
-                                           extra_names, extras, filtered_coulomb, log_temperatures, lowpassed,
-                                           sample_rows)
+                                           extra_names, extras, filtered_coulomb, fit_lowpass, log_temperatures,
+                                           lowpassed, lowpassed_values, rigid_at, sample_rows, wide_velocity)
     from kukaid.models import robot_effects
 
     s = params["settings"]
@@ -236,6 +240,7 @@ def _signals(params: dict, logs: Sequence[Any], robot):
         times.append(np.asarray(lg.time, float)[rows])
         temps.append(None if getattr(lg, "temp", None) is None else log_temperatures(lg, n)[rows])
     temp = None if any(t is None for t in temps) else np.concatenate(temps)
+    time_all = np.concatenate(times)
     rigid, gravity, sign, friction, fixed = (np.empty((N, n)) for _ in range(5))
     effects = params.get("effects") or {}
     # each joint's own terms as the file has them: ripple harmonics the fit held at 0 (not covered by
@@ -253,7 +258,8 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     for rows, mb in _blocks(m):
         Y = robot.regressor(mb.q, mb.qd, mb.qdd)
         F = extras(robot, mb, settings, drive, qd_range=fr.get("qd_range"))
-        es = effect_signals(robot, mb.q, Y, F, params, names, None if temp is None else temp[rows])
+        es = effect_signals(robot, mb.q, Y, F, params, names, None if temp is None else temp[rows], qd=mb.qd,
+                            qdd=mb.qdd, time=time_all[rows])
         rigid[rows], gravity[rows], payload[rows], sign[rows], friction[rows] = (
             es.rigid, es.gravity, es.payload, es.sign, es.friction)
         # the file's own effects and rotor inertias: held as it has them
@@ -301,14 +307,30 @@ def _signals(params: dict, logs: Sequence[Any], robot):
                                                  sample_rows(lg, settings)) for a in range(0, width, step)], axis=1))
         return np.concatenate(out)
 
-    pieces = dict(q=m.q, lowpass=lowpass, qd=m.qd, tau=m.tau, gravity=gravity, rigid=rigid, temp=temp, payload=payload,
+    wide = {}
+
+    def motor_coulomb(mix, v):
+        out = []
+        for k, lg in enumerate(logs):
+            if k not in wide:     # every joint's velocity from the wider band and the fit's filter, once per log
+                wide[k] = (wide_velocity(lg, n, settings, VELOCITY_BAND * _cutoff(settings, 1.0 / lg.sample_time)),
+                           fit_lowpass(lg, settings))
+            qd_w, sos = wide[k]
+            out.append(lowpassed_values(lg, settings, np.tanh(qd_w @ mix.T / v), sample_rows(lg, settings), sos))
+        return np.concatenate(out)
+
+    pieces = dict(q=m.q, lowpass=lowpass, motor_coulomb=motor_coulomb, qd=m.qd, tau=m.tau, gravity=gravity, rigid=rigid, temp=temp, payload=payload,
                   total_mass=float(np.sum(np.maximum(robot.pi_nominal[0::10], 0))), log_rows=m.log_rows or (N,),
                   cutoff=_cutoff(settings, min(fs)), time=np.concatenate(times), at_rest=sign == 0.0,
                   Fc=np.array([x[c] for c in coul]), Fv=np.array([x[c] for c in visc]))
     # what the file's effects read, its own Coulomb column and friction: a refined file's effects are
     # refitted on it (:func:`_refined`)
+    bp = params["base_parameters"]
+    at_state = rigid_at(robot, m.q, m.qd, m.qdd, np.asarray(bp["independent"], int), np.asarray(bp["values"], float))
+    pieces["rigid_at"] = at_state
     own_signals = robot_effects.EffectSignals(q=m.q, sign=sign, friction=friction, gravity=gravity, rigid=rigid,
-                                              payload=payload, temp=temp)
+                                              payload=payload, temp=temp, qd=m.qd, time=time_all, rigid_at=at_state,
+                                              log_rows=tuple(m.log_rows or (N,)))
     from kukaid.diagnose.noise import filtered_noise_floor
 
     floor = [filtered_noise_floor([lg.tau[:, lg.index(j + 1)] for lg in logs], fs, [_cutoff(settings, f) for f in fs],
@@ -601,6 +623,46 @@ class _Fixed(RobotCandidate):
         return self._cols
 
 
+class _Stacked(RobotCandidate):
+    """A candidate on several joints with shared coefficients seen as one equation: its joints'
+    rows stacked, each joint's weighted by ``sw`` (the square root of its weight), for choosing its
+    option (:func:`_pick`); its finer options and bounds the candidate's own."""
+
+    def __init__(self, cand: RobotCandidate, joints: Sequence[int], sw: np.ndarray) -> None:
+        self.cand, self.J, self.sw = cand, list(joints), np.asarray(sw, float)
+        self.name, self.joint = cand.name, None
+
+    def _stack(self, X: np.ndarray) -> np.ndarray:
+        """(N, n, ...) -> (len(J) N, ...): the joints' rows one after another, weighted."""
+        return np.concatenate([self.sw[j] * X[:, j] for j in self.J])
+
+    def batch(self, ctx, options):
+        return np.stack([self._stack(self.cand.columns(ctx, o)) for o in options], axis=1)
+
+    def refine(self, ctx, option):
+        return self.cand.refine(ctx, option)
+
+    def bounds(self, ctx, option):
+        return self.cand.bounds(ctx, option)
+
+    def equations(self, Fj: list, local: dict, shared: list | None, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The stacked equations' columns (each joint's own and local columns a block of their own,
+        the shared ones in common) and right-hand side."""
+        N = r.shape[0]
+        own = [np.concatenate([Fj[j]] + ([local[j]] if j in local else []), axis=1) for j in self.J]
+        width = sum(o.shape[1] for o in own)
+        ns = 0 if shared is None else shared[0].shape[1]
+        A = np.zeros((len(self.J) * N, width + ns))
+        at = 0
+        for k, (j, o) in enumerate(zip(self.J, own)):
+            rows = slice(k * N, (k + 1) * N)
+            A[rows, at:at + o.shape[1]] = self.sw[j] * o
+            if ns:
+                A[rows, width:] = self.sw[j] * shared[j]
+            at += o.shape[1]
+        return A, np.concatenate([self.sw[j] * r[:, j] for j in self.J])
+
+
 def _try(cand: RobotCandidate, ctx: Context, r, tau, Fjs: dict, shared, local, folds, K, w, held, prior, base=None):
     """:func:`_try_at` at each prior strength of ``Fjs`` {multiple of the raw ``prior``: the joints'
     own columns chosen at it}: the one with the smallest weighted held-out error, and that strength
@@ -634,14 +696,22 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
         B = B[:, None, :] if B.ndim == 2 else None
     else:
         j = cand.joint
-        B = cand.batch(ctx, opts)
-        # the option by least squares of the joint's own terms and the shared ones (the rigid body's
-        # correction among them) on the joint's equation
-        parts = [Fj[j]] + ([local[j]] if j in local else []) + ([shared[j]] if shared is not None else [])
-        A = np.concatenate(parts, axis=1)
+        if j is None:
+            # a term on several joints with shared coefficients: the option by least squares of their
+            # equations stacked (each weighted as the fit weighs it)
+            view = _Stacked(cand, cand.joints(ctx), np.sqrt(w))
+            A, y = view.equations(Fj, local, shared, r)
+            B = view.batch(ctx, opts)
+        else:
+            view = cand
+            B = cand.batch(ctx, opts)
+            # the option by least squares of the joint's own terms and the shared ones (the rigid body's
+            # correction among them) on the joint's equation
+            parts = [Fj[j]] + ([local[j]] if j in local else []) + ([shared[j]] if shared is not None else [])
+            A, y = np.concatenate(parts, axis=1), r[:, j]
 
         def pick_on(rows):
-            opt, cols = _pick(cand, ctx, A, r[:, j], rows, opts, B)
+            opt, cols = _pick(view, ctx, A, y, np.tile(rows, y.size // rows.size), opts, B)
             if cols is None:
                 return opts.index(opt)
             extra.append((opt, cols))
@@ -651,7 +721,10 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
         best_all = pick_on(np.ones(r.shape[0], bool))
         pick = [pick_on(folds != f) if f in held else -1 for f in range(K)]
         opts = opts + [e[0] for e in extra]
-        B = np.concatenate([B] + [e[1][:, None, :] for e in extra], axis=1) if extra else B
+        if j is None:       # the columns of the options picked, on every joint
+            B = None
+        else:
+            B = np.concatenate([B] + [e[1][:, None, :] for e in extra], axis=1) if extra else B
 
     def cols_of(o):
         return B[:, o, :] if B is not None else cand.columns(ctx, opts[o])
@@ -740,6 +813,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     tried: list[dict] = []
     replaced: list[int] = []
     named: list = []                        # (candidate, its option) in the order named
+    kept: dict = {}                         # named effects the refined file keeps at the diagnosis' coefficients
     residuals = [res0]                      # held-out residual (N, n) at the start and after each step
     for rnd in range(max(0, max_steps)):
         best = None
@@ -785,17 +859,19 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             else:
                 reason = cand.implausible(ctx, opt, coefs) or None
             if reason is None and (best is None or (mb - ma) / mb > best[0]):
-                best = ((mb - ma) / mb, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, c_scale, opt)
+                best = ((mb - ma) / mb, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, c_scale, opt, coefs)
             elif reason is not None:
                 rejected = [x_ for x_ in rejected if x_["name"] != name] + [{"name": name, "reason": reason}]
         if rnd == 0:
             tried = trials
         if best is None:
             break
-        _, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, scale, opt = best
+        _, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, scale, opt, coefs = best
         Fj = Fjs[scale]
         cand = remaining.pop(name)
         named.append((cand, opt))
+        if cand.held_in_refit:
+            kept[name] = np.asarray(coefs, float)
         rejected = [x_ for x_ in rejected if x_["name"] != name]
         local, shared = _with(local, shared, cand, col, n)
         if cand.replaces_angle_terms:
@@ -819,7 +895,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             "heldout_after": e.tolist(), "trials": trials, "option": opt})
         err, fold_err, res0 = e, fnum, fres
         residuals.append(fres)
-    refined = _refined(params, logs, base, own_signals, named, r, tau, corr, _scaled(prior, scale), w, replaced)
+    refined = _refined(params, logs, base, own_signals, named, r, tau, corr, _scaled(prior, scale), w, replaced, kept)
     return RobotDiagnosis(axes=axes, folds=how, before=before.tolist(), after=err.tolist(), steps=steps,
                           rejected=rejected, in_sample=in_sample, noise_floor=floor.tolist(), rms=rms.tolist(),
                           tried=tried, fitted_on=fitted_on, given=list(given), params=refined,
@@ -828,14 +904,17 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
 
 
 def _refined(params: dict, logs: Sequence[Any], base: _Baseline, own, named: list, r, tau, corr, prior, w,
-             replaced: Sequence[int]) -> dict:
+             replaced: Sequence[int], kept: dict | None = None) -> dict:
     """The parameter file with the named effects in it (``effects``: :mod:`kukaid.models.robot_effects`),
     as it predicts: its own terms (its Coulomb column and held viscous term, as the file has them)
     and the rigid body's correction (under the prior at the strength the diagnosis ended on: the
     file's uncertainty) refitted beside the effects' columns on every sample of the diagnosis (the
     file's effects held). A counterbalance's joint has its spring and ripple terms at 0 (it takes
     their place). The file as it was when nothing is named. ``own``: the file's signals
-    (:class:`~kukaid.models.robot_effects.EffectSignals`)."""
+    (:class:`~kukaid.models.robot_effects.EffectSignals`); ``kept``: {name: coefficients} of named
+    effects kept as the diagnosis found them, their torque taken from the data before the refit (a
+    gear elasticity: refitted with the file's own columns it is not determined and can come out
+    negative)."""
     import copy
 
     from kukaid.identify.robot_fit import log_fingerprint
@@ -849,8 +928,17 @@ def _refined(params: dict, logs: Sequence[Any], base: _Baseline, own, named: lis
     for j in replaced:
         Fj = base.without_angle_terms(j, r, Fj)[1]
     local, shared, cols = {}, corr, []
+    kept = kept or {}
+    r = r.copy()
     for cand, opt in named:
         col = robot_effects.columns(cand.name, opt, own)
+        if cand.name in kept:       # its torque taken out, its coefficients kept
+            if col.ndim == 3:
+                r -= col @ kept[cand.name]
+            else:
+                r[:, cand.joint] -= col @ kept[cand.name]
+            cols.append(0)
+            continue
         local, shared = _with(local, shared, cand, col, n)
         cols.append(col.shape[-1])
     x = _heldout(r, tau, Fj, shared, local, np.zeros(r.shape[0], int), 1, w, [], prior=prior)[2]
@@ -862,15 +950,16 @@ def _refined(params: dict, logs: Sequence[Any], base: _Baseline, own, named: lis
             vals[k] = float(v) + (vals[k] if angle and j not in replaced else 0.0)
         at += Fj[j].shape[1]
         for (cand, _), c in zip(named, cols):
-            if cand.joint == j:
+            if cand.joint == j and cand.name not in kept:
                 coefs[cand.name], at = x[at:at + c], at + c
     bp = out["base_parameters"]
     size = corr[0].shape[1]
     bp["values"] = (np.asarray(bp["values"], float) + x[at:at + size]).tolist()
     at += size
     for (cand, _), c in zip(named, cols):
-        if cand.joint is None:
+        if cand.joint is None and cand.name not in kept:
             coefs[cand.name], at = x[at:at + c], at + c
+    coefs.update(kept)
     out["effects"] = {**(params.get("effects") or {}),
                       **{cand.name: {**opt, "coefficients": coefs[cand.name].tolist()} for cand, opt in named}}
     prov = out.setdefault("provenance", {}) or {}

@@ -21,6 +21,13 @@ thermal_friction@A<j>          (c T_j + d) s_v or (c T_j + d) F_v(qd): friction 
                                motor temperature T_j (the log's ``temp`` channel), as
                                ``thermal_drift``, its Coulomb transition v its own
 position_ripple@A<j>           a sin(n q_j) + b cos(n q_j), n searched, as ``position_ripple``
+coupled_wrist_friction         the wrist motors 5 and 6's Coulomb and viscous friction on their own
+                               velocities qd5 + c54 qd4, qd6 + c64 qd4 + c65 qd5 (joint units), through
+                               the coupling's transpose on A4-A6 (4 coefficients shared by the three
+                               joints), the ratios c and a Coulomb transition v its own
+gear_elasticity@A<j>           c x d tau_rb / dc: the file's rigid body at the link's state, the
+                               measured (motor-side) position less c tau_j (velocity, acceleration
+                               less c times tau_j's derivatives), c = 1/k the compliance, on every joint
 =============================  =============================================================
 """
 from __future__ import annotations
@@ -46,6 +53,21 @@ MIN_PAYLOAD_SHARE = 0.02
 CB_ANGLES = np.linspace(-math.pi, math.pi, 49)[:-1]
 CB_RATIOS = (0.2, 0.3, 0.45, 0.6, 0.8)
 CB_KAPPAS = (1.0, 1.3, 1.6)
+#: the wrist's coupling ratios tried (joint units, each of c54, c64, c65), then a finer grid
+#: :data:`WRIST_FINE` about the pick and a continuous move within :data:`WRIST_MOVE`
+WRIST_COUPLINGS = (-0.8, -0.4, 0.0, 0.4, 0.8)
+WRIST_FINE = (-0.2, 0.0, 0.2)
+WRIST_MOVE = 0.15
+#: the largest coupling ratio a KUKA wrist plausibly has (|c|; a differential wrist's is near 1)
+MAX_COUPLING = 1.2
+#: a named coupling has at least one ratio this large (|c|): smaller, the motors' friction is the
+#: joints' own (KUKA machine data's $COUP_COMP of a KR C2 wrist: 0.005-0.013, below what this sees)
+MIN_COUPLING = 0.05
+#: a gear's deflection at the joint's largest torque is at most this, rad (0.57 deg: a gear's windup
+#: is arc-minutes; beyond this it is not a gear's spring)
+MAX_DEFLECTION = 0.01
+#: the main axes (0-based) a gear elasticity is tried on: they carry the largest torques
+ELASTIC_JOINTS = (0, 1, 2)
 
 
 @dataclass
@@ -61,7 +83,11 @@ class Context:
     (Coulomb, viscous, Stribeck; no offset).   transitions : Coulomb transition velocities rad/s,
     ``coulomb`` (N, n, V) the Coulomb column at each and ``friction_at`` (N, n, V) the file's
     friction with it (its viscous term as chosen; None: ``sign`` and ``friction`` only).
-    temp : motor temperature degC or None.   lowpass(j, fn, c) : ``fn(q, a, b)`` (columns a..b of c,
+    temp : motor temperature degC or None.   motor_coulomb(mix, v) : (N, k) ``tanh(mix qd / v)`` of
+    every joint's velocity from the wider band (``mix``: (k, n) motor velocities from joint
+    velocities), through the fit's low-pass; None: not given (``qd`` then).   rigid_at(j, dq, dqd,
+    dqdd) : the file's rigid-body torque (N, n) with joint j's state moved by (N,) each; None: not
+    given (no gear elasticity candidate).   lowpass(j, fn, c) : ``fn(q, a, b)`` (columns a..b of c,
     of joint j's raw positions (M,): (M, b - a)) through the fit's low-pass, at the fit's samples of
     every log (N, c); None: not given.
     payload : (N, n, 4) the last link's m, m c columns.   total_mass : kg, the URDF's moving links.
@@ -83,6 +109,8 @@ class Context:
     time: np.ndarray
     at_rest: np.ndarray | None = None
     lowpass: Any = None
+    motor_coulomb: Any = None
+    rigid_at: Any = None
     transitions: tuple[float, ...] = ()
     coulomb: np.ndarray | None = None
     friction_at: np.ndarray | None = None
@@ -139,6 +167,8 @@ class RobotCandidate:
     replaces_angle_terms: bool = False
     #: a torque the rigid body's correction can take in part of: judged at every prior strength
     rigid_body_like: bool = False
+    #: the refined file keeps the diagnosis' coefficients (not refitted beside the file's own terms)
+    held_in_refit: bool = False
 
     def joints(self, ctx: Context) -> list[int]:
         return list(range(ctx.n)) if self.joint is None else [self.joint]
@@ -405,10 +435,146 @@ class PositionRipple(RobotCandidate):
         return self._rule.rule(ctx, sigs, option, {"a": float(coefs[0]), "b": float(coefs[1])})
 
 
+class CoupledWristFriction(RobotCandidate):
+    """The friction of a KUKA wrist's motors 5 and 6 on their own velocities, A4's motion coupled
+    into them by the wrist's gearing: ``m5 = qd5 + c54 qd4``, ``m6 = qd6 + c64 qd4 + c65 qd5``
+    (joint units, :func:`kukaid.models.robot_effects.wrist_mix`), each motor's ``Fc tanh(m / v) +
+    Fv m`` seen at A4-A6 through the coupling's transpose: A4 feels part of motors 5 and 6's
+    friction, switching with their velocities, which no per-joint friction holds. Its 4
+    coefficients are shared by the three joints (judged on their equations together); the ratios
+    (a grid of :data:`WRIST_COUPLINGS` each, a finer one with the Coulomb transition, then moved
+    continuously) are chosen on the training folds. The joints' own friction is refitted beside it.
+    Only on a six-axis robot (A4-A6 the last three joints)."""
+
+    name = "coupled_wrist_friction"
+
+    @staticmethod
+    def applies(ctx: Context) -> bool:
+        return ctx.n == 6
+
+    def joints(self, ctx):
+        return [ctx.n - 3, ctx.n - 2, ctx.n - 1]
+
+    def _v0(self, ctx: Context) -> float:
+        """The coarse grid's Coulomb transition, rad/s: the middle of the context's."""
+        return float(ctx.transitions[len(ctx.transitions) // 2]) if ctx.transitions else 0.01
+
+    def options(self, ctx):
+        v = self._v0(ctx)
+        return [{"c54": float(a), "c64": float(b), "c65": float(c), "v_smooth": v}
+                for a in WRIST_COUPLINGS for b in WRIST_COUPLINGS for c in WRIST_COUPLINGS]
+
+    def refine(self, ctx, option):
+        """The finer ratios about the pick (:data:`WRIST_FINE` each way) at each Coulomb transition."""
+        vs = list(ctx.transitions) or [option["v_smooth"]]
+        return [{"c54": option["c54"] + a, "c64": option["c64"] + b, "c65": option["c65"] + c, "v_smooth": float(v)}
+                for a in WRIST_FINE for b in WRIST_FINE for c in WRIST_FINE for v in vs]
+
+    def bounds(self, ctx, option):
+        """The ratios moved continuously within :data:`WRIST_MOVE` of the finer grid's pick."""
+        return {k: (max(option[k] - WRIST_MOVE, -MAX_COUPLING), min(option[k] + WRIST_MOVE, MAX_COUPLING))
+                for k in ("c54", "c64", "c65")}
+
+    def columns(self, ctx, option):
+        """(N, n, 4): the motors' Coulomb column (through the fit's low-pass, as the filtered torque
+        shows it, when the context can) and viscous column, through the coupling's transpose."""
+        mix = RE.wrist_mix(ctx.n, option)
+        v = max(float(option["v_smooth"]), 1e-9)
+        vm = ctx.qd @ mix.T
+        coul = ctx.motor_coulomb(mix, v) if ctx.motor_coulomb is not None else np.tanh(vm / v)
+        return RE.wrist_columns(coul, vm, mix)
+
+    without_what = "the coupling (each motor's friction on its own joint's velocity)"
+
+    def without(self, ctx, option):
+        """The same motors' friction at its transition with every ratio 0: a second Coulomb column on
+        A5 and A6 alone (a transition of its own) must not be what predicts."""
+        return self.columns(ctx, {**option, "c54": 0.0, "c64": 0.0, "c65": 0.0})
+
+    def _motor_friction(self, ctx, option, coefs):
+        """(N, 2) the motors' friction torque N·m and (N, 2) their velocities rad/s, unfiltered."""
+        mix = RE.wrist_mix(ctx.n, option)
+        vm = ctx.qd @ mix.T
+        s = np.tanh(vm / max(float(option["v_smooth"]), 1e-9))
+        c = np.asarray(coefs, float)
+        return np.column_stack([c[0] * s[:, 0] + c[1] * vm[:, 0], c[2] * s[:, 1] + c[3] * vm[:, 1]]), vm
+
+    def describe(self, ctx, option, coefs):
+        f, vm = self._motor_friction(ctx, option, coefs)
+        a4 = f @ RE.wrist_mix(ctx.n, option)[:, ctx.n - 3]
+        return {**{k: float(option[k]) for k in ("c54", "c64", "c65", "v_smooth")},
+                "Fc5": float(coefs[0]), "Fv5": float(coefs[1]), "Fc6": float(coefs[2]), "Fv6": float(coefs[3]),
+                "a4_coupled_rms_Nm": float(np.sqrt(np.mean(a4 ** 2)))}
+
+    def implausible(self, ctx, option, coefs):
+        c = max(abs(float(option[k])) for k in ("c54", "c64", "c65"))
+        if c < MIN_COUPLING:
+            return f"coupling ratios at most {c:.3g}: under {MIN_COUPLING:g}, the joints' own friction"
+        if c > MAX_COUPLING:
+            return f"a coupling ratio of {c:.3g}, above {MAX_COUPLING:g}"
+        f, vm = self._motor_friction(ctx, option, coefs)
+        for k, m in enumerate((5, 6)):
+            if float(np.mean(f[:, k] * vm[:, k])) < 0.0:
+                return f"motor {m}'s friction would drive it (it takes power from the motion on average)"
+        return ""
+
+
+class GearElasticity(RobotCandidate):
+    """A torsional spring in joint j's gear (stiffness k), seen from the motor side as a KUKA
+    drive logs it: the encoder on the motor, the link lagging by ``tau_j / k``. To first order in the
+    compliance ``c = 1/k`` the motor's torque is the rigid body's at the link's state: the
+    measured position less ``c tau_j``, the velocity and acceleration less ``c`` times the spring
+    torque's first and second derivatives (``tau_j`` the file's rigid-body torque of the joint;
+    :func:`kukaid.models.robot_effects.elastic_columns`). One column per unit compliance, on every
+    joint (the link's lag moves the gravity and inertia torques of the others too), its coefficient
+    the compliance, rad/(N·m). Judged on the joint (the others' own errors, which a file's rigid
+    body leaves larger, would hide its gain; none may get worse). Tried on the main axes
+    (:data:`ELASTIC_JOINTS`)."""
+
+    def __init__(self, joint: int) -> None:
+        self.elastic, self.name = joint, f"gear_elasticity@A{joint + 1}"
+        self._cols = None
+
+    #: the refined file's refit, with the file's own Coulomb column and no rotor column of the
+    #: diagnosis' baseline, does not determine the compliance (six-axis virtual KR C4, A2 at 4e4
+    #: N·m/rad: 3.3e-5 rad/(N·m) diagnosed, -1.7e-5 refitted): kept as diagnosed
+    held_in_refit = True
+
+    @staticmethod
+    def applies(ctx: Context) -> bool:
+        return ctx.rigid_at is not None
+
+    def columns(self, ctx, option):
+        if self._cols is None:
+            self._cols = RE.elastic_columns(self.elastic, ctx.time, ctx.rigid, ctx.rigid_at, ctx.log_rows)
+        return self._cols
+
+    def joints(self, ctx):
+        return [self.elastic]
+
+    def _deflection(self, ctx, coefs) -> float:
+        return float(coefs[0]) * float(np.max(np.abs(ctx.rigid[:, self.elastic])))
+
+    def describe(self, ctx, option, coefs):
+        c = float(coefs[0])
+        return {"compliance_rad_per_Nm": c, "stiffness_Nm_per_rad": 1.0 / c if c > 0 else math.inf,
+                "peak_deflection_rad": self._deflection(ctx, coefs)}
+
+    def implausible(self, ctx, option, coefs):
+        c = float(coefs[0])
+        if c <= 0:
+            return f"compliance {c:.3g} rad/(N·m): a spring's is positive"
+        d = self._deflection(ctx, coefs)
+        if d > MAX_DEFLECTION:
+            return f"a deflection of {d:.3g} rad at the joint's largest torque, above {MAX_DEFLECTION:g}"
+        return ""
+
+
 def robot_candidates(ctx: Context, gravity_joints: Sequence[int]) -> list[RobotCandidate]:
     """Every candidate for these data: a counterbalance on the joints that carry gravity, a payload,
-    and per joint load-dependent friction, thermal friction (with a temperature channel) and a
-    position ripple."""
+    per joint load-dependent friction, thermal friction (with a temperature channel) and a
+    position ripple, on a six-axis robot the wrist's coupled friction, and a gear elasticity on each
+    main axis."""
     out: list[RobotCandidate] = [Counterbalance(j) for j in gravity_joints]
     out.append(Payload())
     for j in range(ctx.n):
@@ -416,4 +582,8 @@ def robot_candidates(ctx: Context, gravity_joints: Sequence[int]) -> list[RobotC
         if ThermalFriction.applies(ctx, j):
             out.append(ThermalFriction(j))
         out.append(PositionRipple(j))
+    if CoupledWristFriction.applies(ctx):
+        out.append(CoupledWristFriction())
+    if GearElasticity.applies(ctx):
+        out += [GearElasticity(j) for j in ELASTIC_JOINTS if j < ctx.n]
     return out

@@ -17,14 +17,15 @@ import numpy as np
 
 from kukaid.diagnose.plots import _binned, summary_pages, write_pages
 from kukaid.diagnose.robot import RobotDiagnosis
-from kukaid.models.robot_effects import parse
+from kukaid.models.robot_effects import parse, wrist_mix
 
 TITLE = "kukaid diagnose: a robot's gap and the effects found"
 
 
 def coordinate(result: RobotDiagnosis, step: dict, j: int) -> tuple[np.ndarray, str] | None:
     """The coordinate a step's effect acts along on joint ``j`` (0-based), and its label; None for
-    an effect without one (a payload)."""
+    an effect without one (a payload). A coupled wrist friction's: the velocity of the motor whose
+    friction the joint feels most; a gear elasticity's: its joint's rigid-body torque (its spring's)."""
     s = result.series.signals
     kind, _ = parse(step["name"])
     opt = step.get("option") or {}
@@ -35,6 +36,14 @@ def coordinate(result: RobotDiagnosis, step: dict, j: int) -> tuple[np.ndarray, 
     if kind == "load_dependent_friction":
         load = opt.get("load", "gravity")
         return (s.gravity if load == "gravity" else s.rigid)[:, j], f"A{j + 1} {load} load torque (N·m)"
+    if kind == "coupled_wrist_friction" and s.qd is not None:
+        # the motor whose friction the joint feels most: A4's and A5's motor 5, A6's motor 6
+        n = s.q.shape[1]
+        m = 1 if j == n - 1 else 0
+        return s.qd @ wrist_mix(n, opt)[m], f"motor {5 + m} velocity, joint units (rad/s)"
+    if kind == "gear_elasticity":
+        e = parse(step["name"])[1]
+        return s.rigid[:, e], f"A{e + 1} rigid-body torque (N·m; the gear's deflection times its stiffness)"
     return None
 
 

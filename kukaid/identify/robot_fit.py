@@ -395,6 +395,38 @@ def lowpassed(log: AxisLog, n: int, settings: RobotFitSettings, j: int, fn, rows
     return sosfiltfilt(sos, fn(np.asarray(log.q[:, _joint_columns(log, n)[j]], float)), axis=0)[rows]
 
 
+def wide_velocity(log: AxisLog, n: int, settings: RobotFitSettings, velocity_cutoff: float) -> np.ndarray:
+    """(M, n) rad/s: every joint's velocity on every sample of the log, differentiated from its
+    positions through a low-pass at ``velocity_cutoff`` Hz (at most 0.45 of the sample rate), the
+    velocity :func:`filtered_coulomb` switches on."""
+    from scipy.signal import butter, sosfiltfilt
+
+    cols = _joint_columns(log, n)
+    fs = 1.0 / log.sample_time
+    sv = butter(settings.order, min(float(velocity_cutoff), 0.45 * fs), fs=fs, output="sos")
+    t = sample_grid(log.time, log.q, cols)
+    return np.column_stack([np.gradient(sosfiltfilt(sv, log.q[:, c]), t) for c in cols])
+
+
+def lowpassed_values(log: AxisLog, settings: RobotFitSettings, values: np.ndarray, rows: slice = slice(None),
+                     sos: np.ndarray | None = None) -> np.ndarray:
+    """``values`` (M, ...) on every sample of the log through the fit's low-pass (along the
+    samples), at the rows ``rows``: a term nonlinear in the signals compared as the filtered torque
+    shows it. ``sos``: the filter (:func:`fit_lowpass`), when the caller keeps it (designing it
+    takes longer than filtering a 10 s log)."""
+    from scipy.signal import sosfiltfilt
+
+    return sosfiltfilt(fit_lowpass(log, settings) if sos is None else sos, values, axis=0)[rows]
+
+
+def fit_lowpass(log: AxisLog, settings: RobotFitSettings) -> np.ndarray:
+    """The fit's low-pass of the log's torques and positions (second-order sections)."""
+    from scipy.signal import butter
+
+    fs = 1.0 / log.sample_time
+    return butter(settings.order, _cutoff(settings, fs), fs=fs, output="sos")
+
+
 def position_noise(q: np.ndarray) -> float:
     """Standard deviation of the white noise on a position signal, from its fourth differences
     (robust: 1.4826 x their median absolute deviation / sqrt(70)); a smooth motion's fourth
@@ -1271,7 +1303,8 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     for rows, mb in _blocks(m):      # block by block: an hour's log never holds its (N, n, p) regressor
         F = extras(robot, mb, settings, drive, qd_range=params["friction"].get("qd_range"))
         s = effect_signals(robot, mb.q, robot.regressor(mb.q, mb.qd, mb.qdd), F, params, names,
-                           None if temp is None else temp[rows], gravity=bool(effects))
+                           None if temp is None else temp[rows], gravity=bool(effects), qd=mb.qd, qdd=mb.qdd,
+                           time=np.asarray(log.time, float)[rows] if m.q.shape[0] == log.n_samples else None)
         tau[rows] = s.rigid + F @ extra + robot_effects.torque(effects, s)
     if settings.torque_side == "motor":
         drive = DriveModel(np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
@@ -1289,11 +1322,14 @@ def log_temperatures(log: AxisLog, n: int) -> np.ndarray:
 
 def effect_signals(robot: RobotModel, q: np.ndarray, Y: np.ndarray, F: np.ndarray, params: dict,
                    names: Sequence[str], temp: np.ndarray | None = None,
-                   gravity: bool = True) -> robot_effects.EffectSignals:
+                   gravity: bool = True, qd: np.ndarray | None = None, qdd: np.ndarray | None = None,
+                   time: np.ndarray | None = None) -> robot_effects.EffectSignals:
     """What a robot file's effects read on one block of samples (:mod:`kukaid.models.robot_effects`):
     its rigid-body torque (from the standard regressor ``Y`` (B, n, 10 n)), gravity torque (zeros
     when ``gravity`` is false), the last link's m, m c columns, its Coulomb column and friction
-    torque (from its extra columns ``F`` named ``names``)."""
+    torque (from its extra columns ``F`` named ``names``), the velocities ``qd`` rad/s and sample
+    times as given, and with ``qd`` and ``qdd`` its rigid-body torque at a moved state
+    (:func:`rigid_at`)."""
     bp = params["base_parameters"]
     ind, beta = np.asarray(bp["independent"], int), np.asarray(bp["values"], float)
     vals = params["friction"]["values"]
@@ -1308,7 +1344,27 @@ def effect_signals(robot: RobotModel, q: np.ndarray, Y: np.ndarray, F: np.ndarra
     k0 = robot.n_std - 10
     return robot_effects.EffectSignals(q=q, sign=sign, friction=friction, rigid=Y[:, :, ind] @ beta,
                                        gravity=robot.regressor(q, z, z)[:, :, ind] @ beta if gravity else z,
-                                       payload=Y[:, :, k0:k0 + 4], temp=temp)
+                                       payload=Y[:, :, k0:k0 + 4], temp=temp, qd=qd, time=time,
+                                       rigid_at=None if qd is None or qdd is None else
+                                       rigid_at(robot, q, qd, qdd, ind, beta))
+
+
+def rigid_at(robot: RobotModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, independent: np.ndarray,
+             beta: np.ndarray):
+    """``fn(j, dq, dqd, dqdd)`` -> (N, n) N·m: the rigid-body torque (base parameters ``beta`` of the
+    standard regressor's columns ``independent``) with joint j's position, velocity and acceleration
+    moved by ``dq, dqd, dqdd`` (N,) from ``q, qd, qdd`` (N, n), block by block."""
+    def fn(j, dq, dqd, dqdd):
+        out = np.empty_like(q)
+        for a in range(0, q.shape[0], BLOCK):
+            r = slice(a, min(a + BLOCK, q.shape[0]))
+            Q, Qd, Qdd = q[r].copy(), qd[r].copy(), qdd[r].copy()
+            Q[:, j] += dq[r]
+            Qd[:, j] += dqd[r]
+            Qdd[:, j] += dqdd[r]
+            out[r] = robot.regressor(Q, Qd, Qdd)[:, :, independent] @ beta
+        return out
+    return fn
 
 
 def robot_predictor(params: dict, log: AxisLog, axis: int | None = None,

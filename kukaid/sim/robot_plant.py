@@ -10,7 +10,15 @@ built once; the plant, the servo's feedforward and the truth each own a data obj
 
 * friction per joint: ``F = (Fc + (Fs - Fc) exp(-(qd/vs)²)) tanh(qd/eps) + Fv qd + offset``
   (Coulomb-viscous when ``Fs = Fc``), integrated implicitly (its velocity slope is added to the
-  joint's inertia for the step), so the stiff Coulomb regularisation stays stable at 1 kHz;
+  joint's inertia for the step), so the stiff Coulomb regularisation stays stable at 1 kHz; a
+  truth with ``friction_coupling`` C has it on the motors' velocities ``(I + C) qd``, seen at the
+  joints through ``(I + C)^T`` (a KUKA wrist's), its slope ``h (I + C)^T diag(F') (I + C)`` in the
+  step's mass matrix;
+* an elastic gear (the truth's ``gear_stiffness``, ``gear_damping``): the joint's motor a body of
+  its own (its rotor inertia, friction and the servo's torque) on a spring to its link, in
+  substeps of the servo cycle with the link held; the encoder (the servo's feedback, the logged
+  position) on the motor. The velocity loop then acts on the motor alone above the spring's
+  resonance: a servo rate below ``Kv J_i / J_motor`` is refused (a KR 6's A2 needs about 4 kHz);
 * servo per axis, as the single-axis simulator's (:mod:`kukaid.sim.krc4`): ``v_ref = qd_ff +
   Kp (q_ref - q)``, ``tau_m = J_i qdd_ff + g_nom(q_ref) + J_i Kv (v_ref - qd) + integral``,
   limited to the joint's torque limit; ``J_i`` is the diagonal of the *nominal* mass matrix at the
@@ -172,6 +180,18 @@ def servo_step(qr, vr, ar, gff, q, v, I, te, P, h, ieps, tau, u, arm_eff):
         arm_eff[j] = P[_ARM, j] + h * (g * (1.0 - s * s) * ieps + P[_FV, j])
 
 
+def _coupled_friction(mix, v, fc, dfs, vs, fv, ieps, h, u, Mq):
+    """The motors' friction on their velocities ``mix @ v`` (rad/s, joint units) taken from the net
+    joint torque ``u`` through ``mix^T``, its velocity slope ``h mix^T diag(f') mix`` added to the
+    step's mass matrix ``Mq`` (implicit, as the kernel's per-joint friction); returns both."""
+    vm = mix @ v
+    s = np.tanh(vm * ieps)
+    g = fc + dfs * np.exp(-(vm / vs) ** 2)
+    f = g * s + fv * vm
+    slope = g * (1.0 - s * s) * ieps + fv
+    return u - mix.T @ f, Mq + h * (mix.T * slope) @ mix
+
+
 def integrate(q, v, a, h):
     """Semi-implicit Euler step in place: ``v += h a``, then ``q += h v``."""
     for j in range(q.shape[0]):
@@ -242,6 +262,15 @@ class VirtualRobotKRC4:
         self.rotor_inertia = self.truth.armature / ratio ** 2  # motor side, kg·m²
         self._coupled = bool(np.any(C != 0))
         self._M_rotor = self.G.T @ np.diag(self.rotor_inertia) @ self.G
+        # the truth's friction on coupled motor velocities (a KUKA wrist's): computed beside the
+        # kernel, its velocity slope (I + C)^T diag(f') (I + C) joining the mass matrix for the step
+        self._fmix = self.truth.friction_mix()
+        if self._fmix is not None and self._fmix.shape != (n, n):
+            raise KukaidError(f"robot sim: the truth's friction coupling must be {n} x {n}")
+        # elastic gears: the motor a body of its own (its rotor inertia, friction), a spring to its link
+        self._el = self.truth.elastic()
+        if self._el.size and (self._coupled or self._fmix is not None):
+            raise KukaidError("robot sim: elastic gears with coupled drives or coupled friction are not simulated")
         self._to_motor = np.linalg.inv(self.G)  # row vectors: tau_motor = tau_joint G^-1 (= G^-T tau_joint)
         self.model = self.truth.apply(self.model_nominal)
         self._data = self.model.createData()
@@ -259,6 +288,15 @@ class VirtualRobotKRC4:
         self.tau_max = np.where(np.isfinite(eff) & (eff > 0), eff, 1e4)
         self.noise_sigma = c.noise_rel * self._effort(eff)
         self._tau_ext: np.ndarray | Callable = np.zeros(n)
+        if self._el.size:
+            # the velocity loop, tuned for the joint's whole inertia, acts on the motor alone above the
+            # spring's resonance: per servo cycle its gain must stay under 1 (at 1 kHz a KR 6's A2
+            # with a 5e4 N·m/rad gear chatters at its torque limit)
+            J_m = np.maximum(self.truth.armature[self._el], 1e-9)
+            gain = c.Kv * self.ctrl_J[self._el] / J_m
+            if np.any(gain * self.dt >= 1.0):
+                raise SimConfigError(f"robot sim config: an elastic gear's motor alone under the velocity loop needs "
+                                     f"servo_rate above {float(np.max(gain)):.0f} Hz, got {c.servo_rate:g}")
         self.reset(np.zeros(n))
 
     @staticmethod
@@ -298,6 +336,14 @@ class VirtualRobotKRC4:
         q0 = self._vec(q0, "reset position")
         self._q, self._v = q0.copy(), np.zeros(self.n)
         hold = pin.computeGeneralizedGravity(self.model, self._data, q0) + self.truth.offset
+        # an elastic joint's link (``q0`` is its motor, where the encoder is) hangs back by its spring's
+        # deflection: the link's gravity torque over the stiffness (a few fixed-point steps)
+        self._ql, self._vl = q0.copy(), np.zeros(self.n)
+        if self._el.size:
+            k = np.asarray(self.truth.gear_stiffness, float)[self._el]
+            for _ in range(5):
+                g = pin.computeGeneralizedGravity(self.model, self._data, self._ql)
+                self._ql[self._el] = q0[self._el] - g[self._el] / k
         g_ff = pin.computeGeneralizedGravity(self.model_nominal, self._data_ff, q0)
         self._I = np.clip(hold - g_ff, -self.tau_max, self.tau_max)
         self._tau = hold.copy()
@@ -387,6 +433,32 @@ class VirtualRobotKRC4:
                     for k in ("time", "q", "tau", "q_cmd", "tau_ext_true")}
         return {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
 
+    def _elastic_step(self, u, te, q, v, ql, vl, P0, ieps, h, substeps):
+        """An elastic joint's motor and spring over one servo cycle, the link held: the motor
+        ``J_m dw = tau_m - F(w) - tau_s`` with ``tau_s = k (theta - q_l) + d (w - qd_l)`` (``q, v``
+        its motor's angle and velocity, joint units, the encoder's), in ``substeps`` semi-implicit
+        steps (friction implicit); returns the spring's mean torque per elastic joint, which the link
+        feels. ``u`` (the kernel's, friction left out) holds the motor torque plus ``te``."""
+        el, tr = self._el, self.truth
+        k, d = np.asarray(tr.gear_stiffness, float)[el], np.asarray(tr.gear_damping if tr.gear_damping is not None
+                                                                   else np.zeros(self.n), float)[el]
+        hs = h / substeps
+        um = u[el] - te[el]
+        J = P0[_ARM, el]
+        fc, dfs, vsm, fv = P0[_FC, el], P0[_DF, el], P0[_VS, el], P0[_FV, el]
+        th, om = q[el].copy(), v[el].copy()
+        ts_sum = np.zeros(el.size)
+        for _ in range(substeps):
+            ts = k * (th - ql[el]) + d * (om - vl[el])
+            s = np.tanh(om * ieps)
+            g = fc + dfs * np.exp(-(om / vsm) ** 2)
+            slope = g * (1.0 - s * s) * ieps + fv
+            om = om + hs * (um - g * s - fv * om - ts) / (J + hs * slope)
+            th = th + hs * om
+            ts_sum += ts
+        q[el], v[el] = th, om
+        return ts_sum / substeps
+
     def _run_ticks(self, m: int) -> dict[str, np.ndarray]:
         pin, c, tr = self._pin, self.cfg, self.truth
         t0 = self._tick
@@ -420,9 +492,20 @@ class VirtualRobotKRC4:
         nxt = rec[0] if rec.size else -1
         aba, grav = pin.aba, pin.computeGeneralizedGravity
         step, integrate = _get_kernels()
-        coupled, M_rot = self._coupled, self._M_rotor
+        coupled, M_rot, fmix = self._coupled or self._fmix is not None, self._M_rotor, self._fmix
         if carried is not None:
             P[_ARM] += carried
+        if fmix is not None:       # the kernel's friction off (the offset stays): the motors' below
+            fc, dfs, vsm, fv = P[_FC].copy(), P[_DF].copy(), P[_VS].copy(), P[_FV].copy()
+            P[_FC], P[_DF], P[_FV] = 0.0, 0.0, 0.0
+        el = self._el
+        if el.size:     # an elastic joint's friction and rotor on its motor (:meth:`_elastic_step`)
+            P0 = P.copy()
+            P[_FC, el], P[_DF, el], P[_FV, el], P[_ARM, el] = 0.0, 0.0, 0.0, 0.0
+            ql, vl = self._ql.copy(), self._vl.copy()
+            # substeps: the motor-spring mode resolved (h sqrt(k / J_m) <= 0.3 per substep)
+            wmax = float(np.max(np.sqrt(np.asarray(tr.gear_stiffness, float)[el] / np.maximum(P0[_ARM, el], 1e-6))))
+            sub = max(1, int(math.ceil(h * wmax / 0.3)))
         if coupled:  # the rotor inertia is a full matrix: mass matrix and solve instead of ABA
             P[_ARM] = 0.0 if carried is None else carried
             model.armature = np.zeros(self.n)
@@ -433,11 +516,24 @@ class VirtualRobotKRC4:
             if coupled:
                 Mq = crba(model, data, q)
                 Mq = np.triu(Mq) + np.triu(Mq, 1).T + M_rot + np.diag(arm_eff)
+                if fmix is not None:
+                    u, Mq = _coupled_friction(fmix, v, fc, dfs, vsm, fv, ieps, h, u, Mq)
                 a = solve(Mq, u - nle(model, data, q, v))
+            elif el.size:   # the link's dynamics on its own state, its elastic joints driven by their springs
+                tsm = self._elastic_step(u, te, q, v, ql, vl, P0, ieps, h, sub)
+                ul = u.copy()
+                ul[el] = tsm + te[el]
+                model.armature = arm_eff
+                a = aba(model, data, ql, vl, ul)
+                integrate(ql, vl, a, h)
+                rigid = np.ones(self.n, bool)
+                rigid[el] = False
+                q[rigid], v[rigid] = ql[rigid], vl[rigid]
             else:
                 model.armature = arm_eff  # implicit friction: its velocity slope joins the inertia for the step
                 a = aba(model, data, q, v, u)
-            integrate(q, v, a, h)
+            if not el.size:
+                integrate(q, v, a, h)
             if i == nxt:
                 out_q[k] = q
                 out_tau[k] = tau
@@ -447,6 +543,8 @@ class VirtualRobotKRC4:
                 nxt = rec[k] if k < rec.size else -1
         model.armature = arm
         self._q, self._v, self._I, self._tau = q, v, I, tau
+        if el.size:
+            self._ql, self._vl = ql, vl
         self._tick += m
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
             raise KukaidError(f"robot sim: the simulation diverged before t = {self.t:.3f} s")

@@ -84,6 +84,14 @@ class RobotTruth:
         velocity rad/s; ``Fs == Fc`` is pure Coulomb-viscous friction.
     armature : (n,) reflected rotor inertia, kg·m².
     offset : (n,) drive torque offset, N·m.
+    friction_coupling : (n, n) strictly lower-triangular C or None: the friction is the motors', on
+        their velocities ``(I + C) qd`` (joint units: a KUKA wrist's gearing couples A4's motion
+        into the A5 and A6 drives, ``C[4, 3] = c54``, ``C[5, 3] = c64``, ``C[5, 4] = c65``), seen at
+        the joints through ``(I + C)^T``; ``Fc, Fv, Fs, vs`` are then each motor's (None: per joint).
+    gear_stiffness : (n,) N·m/rad or None: a torsional spring between each joint's motor and its link
+        (0: rigid), the gear's elasticity; the encoder is on the motor side, the link lags by
+        ``tau / k``; the rotor inertia and friction on the motor side.
+    gear_damping : (n,) N·m·s/rad or None: the spring's damping (in parallel).
     """
 
     robot: str
@@ -94,6 +102,9 @@ class RobotTruth:
     vs: np.ndarray
     armature: np.ndarray
     offset: np.ndarray
+    friction_coupling: np.ndarray | None = None
+    gear_stiffness: np.ndarray | None = None
+    gear_damping: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -114,9 +125,18 @@ class RobotTruth:
 
         ``eps`` > 0 replaces sign(qd) by tanh(qd / eps) (the simulator's regularisation)."""
         qd = np.asarray(qd, dtype=float)
-        s = np.tanh(qd / eps) if eps > 0 else np.sign(qd)
-        g = self.Fc + (self.Fs - self.Fc) * np.exp(-(qd / self.vs) ** 2)
-        return g * s + self.Fv * qd + self.offset
+        mix = self.friction_mix()
+        v = qd if mix is None else qd @ mix.T          # the motors' velocities (joint units)
+        s = np.tanh(v / eps) if eps > 0 else np.sign(v)
+        g = self.Fc + (self.Fs - self.Fc) * np.exp(-(v / self.vs) ** 2)
+        f = g * s + self.Fv * v
+        return (f if mix is None else f @ mix) + self.offset
+
+    def friction_mix(self) -> np.ndarray | None:
+        """``I + C`` of :attr:`friction_coupling` (motor velocities ``mix @ qd``), None without one."""
+        if self.friction_coupling is None or not np.any(np.asarray(self.friction_coupling) != 0):
+            return None
+        return np.eye(self.n) + np.asarray(self.friction_coupling, dtype=float)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able dictionary (``"schema": "kukaid.robot-truth/1"``); :meth:`from_dict` reads it back."""
@@ -132,15 +152,26 @@ class RobotTruth:
                          "vs": self.vs.tolist()},
             "armature": self.armature.tolist(),
             "offset": self.offset.tolist(),
+            **({} if self.friction_coupling is None else
+               {"friction_coupling": np.asarray(self.friction_coupling, float).tolist()}),
+            **{k: np.asarray(getattr(self, k), float).tolist() for k in ("gear_stiffness", "gear_damping")
+               if getattr(self, k) is not None},
         }
+
+    def elastic(self) -> np.ndarray:
+        """Indices of the joints with an elastic gear (:attr:`gear_stiffness` > 0)."""
+        return np.zeros(0, int) if self.gear_stiffness is None else np.flatnonzero(np.asarray(self.gear_stiffness) > 0)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], where: str = "robot truth") -> "RobotTruth":
         try:
             f = d["friction"]
             arr = {k: np.asarray(f[k], dtype=float) for k in ("Fc", "Fv", "Fs", "vs")}
+            fc = d.get("friction_coupling")
             return cls(robot=str(d["robot"]), pi=np.asarray(d["pi"], dtype=float), armature=np.asarray(d["armature"], dtype=float),
-                       offset=np.asarray(d["offset"], dtype=float), **arr)
+                       offset=np.asarray(d["offset"], dtype=float), **arr,
+                       friction_coupling=None if fc is None else np.asarray(fc, dtype=float),
+                       **{k: np.asarray(d[k], dtype=float) for k in ("gear_stiffness", "gear_damping") if k in d})
         except (KeyError, TypeError, ValueError) as e:
             raise KukaidError(f"{where}: not a {TRUTH_SCHEMA} object ({e})") from None
 

@@ -1,0 +1,116 @@
+"""The robot diagnosis' coupled wrist friction (issue 23): the friction of a KUKA wrist's motors 5
+and 6 on their coupled velocities is named on logs that have it, its coupling ratios recovered;
+nothing named on clean logs of the same robot; the refined file predicts with it."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kukaid.diagnose.robot import diagnose_robot
+from kukaid.identify.robot_fit import fit_robot, predict_robot
+from kukaid.logs import AxisLog
+from kukaid.models.robot import RobotModel
+from kukaid.models import robot_effects as RE
+
+from robot_sim_helpers import multisine, true_friction, true_parameters
+
+#: the test's coupling ratios (joint units; off the candidate's grids) and the wrist motors' friction
+COUPLING = {"c54": 0.27, "c64": -0.33, "c65": 0.46}
+MOTOR_FC, MOTOR_FV = np.array([1.1, 0.7]), np.array([0.9, 0.5])
+
+
+@pytest.fixture(scope="module")
+def kr6() -> RobotModel:
+    return RobotModel("kr6-r700-sixx")
+
+
+def _logs(kr6, coupled: bool):
+    """Four recordings (each its own multi-sine, 10 s at 250 Hz); A5 and A6's friction is their
+    motors' on the coupled velocities (``coupled``) or on their own joints' (clean)."""
+    pi, fr = true_parameters(kr6, 1), true_friction(6, 2)
+    mix = RE.wrist_mix(6, COUPLING if coupled else {"c54": 0.0, "c64": 0.0, "c65": 0.0})
+    out = []
+    for k in range(4):
+        t, q, qd, qdd = multisine(kr6, 10.0, 250.0, seed=60 + k)
+        tau = np.einsum("sjk,k->sj", kr6.regressor(q, qd, qdd), pi) + fr["offset"]
+        tau[:, :4] += fr["Fc"][:4] * np.sign(qd[:, :4]) + fr["Fv"][:4] * qd[:, :4]
+        vm = qd @ mix.T
+        tau += (MOTOR_FC * np.tanh(vm / 0.002) + MOTOR_FV * vm) @ mix
+        rng = np.random.default_rng(k)
+        tau += 0.02 * rng.standard_normal(tau.shape)
+        out.append(AxisLog(time=t, q=q + 1e-5 * rng.standard_normal(q.shape), tau=tau, axes=tuple(range(1, 7)),
+                           attrs={"source_file": f"rec{k}.h5"}))
+    return out
+
+
+def test_coupled_wrist_friction_is_named_and_its_ratios_recovered(kr6):
+    logs = _logs(kr6, True)
+    d = diagnose_robot(fit_robot(logs[:1], kr6), logs, kr6, max_steps=1)
+    assert d.names == ["coupled_wrist_friction"], d.lines()
+    p = d.steps[0]["params"]
+    for k, v in COUPLING.items():           # within 0.05 of the truth
+        assert abs(p[k] - v) < 0.05, (k, p)
+    assert d.steps[0]["mean_after"] < 0.7 * d.steps[0]["mean_before"]
+    # the refined file carries it and predicts with it (kukaid validate's predictor)
+    eff = d.params["effects"]["coupled_wrist_friction"]
+    assert set(eff) >= {"c54", "c64", "c65", "v_smooth", "coefficients"} and len(eff["coefficients"]) == 4
+    tau = predict_robot(d.params, logs[1], kr6)
+    bare = predict_robot({**d.params, "effects": {}}, logs[1], kr6)
+    assert not np.allclose(tau[4], bare[4])
+
+
+def test_clean_wrist_names_nothing(kr6):
+    logs = _logs(kr6, False)
+    d = diagnose_robot(fit_robot(logs[:1], kr6), logs, kr6, max_steps=1)
+    assert "coupled_wrist_friction" in {t["name"] for t in d.tried}
+    assert d.names == [], d.lines()
+
+
+#: the elastic test's gear: A2's stiffness N·m/rad (a soft gear: its link lags by up to 0.006 rad)
+STIFFNESS = 1.2e4
+
+
+def _elastic_logs(kr6, k: float | None):
+    """Four recordings of the motor side of a robot whose A2 gear is a spring of stiffness ``k``
+    (None: rigid): the motors follow a multi-sine, A2's link lags by its spring's deflection, found
+    by fixed-point iteration of ``q_l = theta - tau_rb(q_l, qd_l, qdd_l) / k`` (the link's velocity and
+    acceleration differentiated from its positions), the measured torque the spring's plus the
+    motor's rotor inertia and friction (the quasi-static two-mass joint: no resonance)."""
+    pi, fr = true_parameters(kr6, 1), true_friction(6, 2)
+    rotor = np.array([0.15, 0.17, 0.14, 0.04, 0.04, 0.014])
+    out = []
+    for r in range(4):
+        t, q, qd, qdd = multisine(kr6, 10.0, 250.0, seed=80 + r)
+        ql, qdl, qddl = q.copy(), qd.copy(), qdd.copy()
+        for _ in range(6 if k else 0):
+            tau_s = np.einsum("sjk,k->sj", kr6.regressor(ql, qdl, qddl), pi)[:, 1]
+            ql[:, 1] = q[:, 1] - tau_s / k
+            qdl[:, 1] = np.gradient(ql[:, 1], t)
+            qddl[:, 1] = np.gradient(qdl[:, 1], t)
+        tau = np.einsum("sjk,k->sj", kr6.regressor(ql, qdl, qddl), pi) + rotor * qdd + \
+            fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
+        rng = np.random.default_rng(r)
+        tau += 0.05 * rng.standard_normal(tau.shape)
+        out.append(AxisLog(time=t, q=q + 1e-5 * rng.standard_normal(q.shape), tau=tau, axes=tuple(range(1, 7)),
+                           attrs={"source_file": f"rec{r}.h5"}))
+    return out
+
+
+def test_gear_elasticity_is_named_and_its_compliance_recovered(kr6):
+    logs = _elastic_logs(kr6, STIFFNESS)
+    d = diagnose_robot(fit_robot(logs[:1], kr6), logs, kr6, max_steps=1)
+    assert d.names == ["gear_elasticity@A2"], d.lines()
+    c = d.steps[0]["params"]["compliance_rad_per_Nm"]
+    assert abs(c * STIFFNESS - 1.0) < 0.25, c           # the compliance within 25 %
+    eff = d.params["effects"]["gear_elasticity@A2"]
+    assert eff["coefficients"] == pytest.approx([c])     # the refined file keeps the diagnosed compliance
+    tau = predict_robot(d.params, logs[1], kr6)
+    bare = predict_robot({**d.params, "effects": {}}, logs[1], kr6)
+    assert len(eff["coefficients"]) == 1 and not np.allclose(tau[2], bare[2])
+
+
+def test_rigid_gears_name_no_elasticity(kr6):
+    logs = _elastic_logs(kr6, None)
+    d = diagnose_robot(fit_robot(logs[:1], kr6), logs, kr6, max_steps=1)
+    assert {"gear_elasticity@A1", "gear_elasticity@A2", "gear_elasticity@A3"} <= {t["name"] for t in d.tried}
+    assert d.names == [], d.lines()
