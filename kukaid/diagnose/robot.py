@@ -216,7 +216,7 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     noise floor."""
     from kukaid.identify.robot_fit import (DriveModel, RobotFitSettings, _blocks, _cutoff, _samples, effect_signals,
                                            extra_names, extras, filtered_coulomb, fit_lowpass, log_temperatures,
-                                           lowpassed, lowpassed_values, rigid_at, sample_rows, wide_velocity)
+                                           lowpassed_values, rigid_at, sample_rows, wide_velocity)
     from kukaid.models import robot_effects
 
     s = params["settings"]
@@ -303,8 +303,10 @@ def _signals(params: dict, logs: Sequence[Any], robot):
         out = []
         for lg in logs:
             step = max(1, int(LOWPASS_VALUES // lg.n_samples))    # columns filtered at once
-            out.append(np.concatenate([lowpassed(lg, n, settings, j, lambda q, a=a: fn(q, a, min(a + step, width)),
-                                                 sample_rows(lg, settings)) for a in range(0, width, step)], axis=1))
+            q, rows = np.asarray(lg.q[:, lg.index(j + 1)], float), sample_rows(lg, settings)
+            sos = fit_lowpass(lg, settings)
+            out.append(np.concatenate([lowpassed_values(lg, settings, fn(q, a, min(a + step, width)), rows, sos)
+                                       for a in range(0, width, step)], axis=1))
         return np.concatenate(out)
 
     wide = {}
@@ -321,7 +323,7 @@ def _signals(params: dict, logs: Sequence[Any], robot):
 
     pieces = dict(q=m.q, lowpass=lowpass, motor_coulomb=motor_coulomb, qd=m.qd, tau=m.tau, gravity=gravity, rigid=rigid, temp=temp, payload=payload,
                   total_mass=float(np.sum(np.maximum(robot.pi_nominal[0::10], 0))), log_rows=m.log_rows or (N,),
-                  cutoff=_cutoff(settings, min(fs)), time=np.concatenate(times), at_rest=sign == 0.0,
+                  cutoff=_cutoff(settings, min(fs)), time=time_all, at_rest=sign == 0.0,
                   Fc=np.array([x[c] for c in coul]), Fv=np.array([x[c] for c in visc]))
     # what the file's effects read, its own Coulomb column and friction: a refined file's effects are
     # refitted on it (:func:`_refined`)

@@ -165,8 +165,9 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
             raise OptionError(f"{name}: holds axes {names}; choose one with --axis "
                               "(or fit them all together with --robot URDF)")
         check_not_held(lg, name)
-        role_warn.extend(pushed_log_warnings(lg, name))
-        if role is not None and not pushed_log_warnings(lg):
+        pushed = pushed_log_warnings(lg, name)
+        role_warn.extend(pushed)
+        if role is not None and not pushed:
             role_warn.extend(role_warnings(lg, role, name))
         raw_logs.append(lg)
         return preprocess(lg, **pre)

@@ -366,7 +366,7 @@ def filtered_coulomb(log: AxisLog, n: int, settings: RobotFitSettings, rows: sli
 
     cols = _joint_columns(log, n)
     fs = 1.0 / log.sample_time
-    sos = butter(settings.order, _cutoff(settings, fs), fs=fs, output="sos")
+    sos = fit_lowpass(log, settings)
     vc = _cutoff(settings, fs) if velocity_cutoff is None else min(float(velocity_cutoff), 0.45 * fs)
     sv = butter(settings.order, vc, fs=fs, output="sos")
     t = sample_grid(log.time, log.q, cols)
@@ -381,18 +381,6 @@ def filtered_coulomb(log: AxisLog, n: int, settings: RobotFitSettings, rows: sli
         for k in range(vs.shape[0]):
             out[:, j, k] = sosfiltfilt(sos, smooth_sign(qdj[:, None], vs[k, j:j + 1], d[j:j + 1])[:, 0])[rows]
     return out if many else out[:, :, 0]
-
-
-def lowpassed(log: AxisLog, n: int, settings: RobotFitSettings, j: int, fn, rows: slice = slice(None)) -> np.ndarray:
-    """``fn`` of joint j's raw positions (M,) -> (M, c), through the fit's low-pass as the torque
-    goes, at the rows ``rows``: a term nonlinear in the position compared as the filtered torque
-    shows it (a ripple whose frequency n |qd| / 2 pi nears the cut-off is attenuated in the torque,
-    not in ``fn`` of the filtered position)."""
-    from scipy.signal import butter, sosfiltfilt
-
-    fs = 1.0 / log.sample_time
-    sos = butter(settings.order, _cutoff(settings, fs), fs=fs, output="sos")
-    return sosfiltfilt(sos, fn(np.asarray(log.q[:, _joint_columns(log, n)[j]], float)), axis=0)[rows]
 
 
 def wide_velocity(log: AxisLog, n: int, settings: RobotFitSettings, velocity_cutoff: float) -> np.ndarray:
