@@ -183,15 +183,28 @@ def test_a_cutoff_that_trims_the_whole_log_names_the_log_and_the_option(kr6, tmp
     assert "short.csv: too few samples left (0)" in r.stderr and "--cutoff 0.001 Hz" in r.stderr
 
 
+def _refused_on_the_command_line(log, tmp_path, sim_fit, commands, text):
+    """Each command (``[name, option before the log]``) given ``log`` as a CSV and the simulated fit's
+    file: exit 1, one line on stderr holding ``text``."""
+    from click.testing import CliRunner
+
+    from kukaid.logs import write_csv
+    from kukaid_cli.main import cli
+
+    csv = tmp_path / log.attrs["source_file"]
+    write_csv(log, csv, angle_unit="rad")
+    pfile = tmp_path / "kr6.json"
+    save_robot_params(pfile, sim_fit[0])
+    for args in commands:
+        r = CliRunner().invoke(cli, [*args, str(csv), "--params", str(pfile)])
+        assert r.exit_code == 1 and len(r.stderr.splitlines()) == 1 and text in r.stderr, r.output
+
+
 def test_a_log_that_skips_many_samples_is_refused_by_fit_and_validate(kr6, tmp_path, sim_fit):
     """A poll capture of six axes misses about half of the controller's samples: filtered as if even,
     validate gave 138 % error on a model that scores 5.7 % on the same motion; now one line naming the
     log and ring mode. Jitter (the LWR4+'s) and a few gaps (a reconnect) still fit."""
-    from click.testing import CliRunner
-
     from kukaid.identify.robot_fit import check_even_samples
-    from kukaid.logs import write_csv
-    from kukaid_cli.main import cli
 
     log, _ = simulated_log(kr6, duration=8.0, seed=0)
     keep = np.ones(log.n_samples, bool)
@@ -200,12 +213,7 @@ def test_a_log_that_skips_many_samples_is_refused_by_fit_and_validate(kr6, tmp_p
                        attrs={"source_file": "polled.csv"})
     with pytest.raises(FitError, match=r"polled\.csv: 50 % of the steps between samples skip samples.*--mode ring"):
         fit_robot([polled], kr6)
-    csv = tmp_path / "polled.csv"
-    write_csv(polled, csv, angle_unit="rad")
-    pfile = tmp_path / "kr6.json"
-    save_robot_params(pfile, sim_fit[0])
-    r = CliRunner().invoke(cli, ["validate", str(csv), "--params", str(pfile)])
-    assert r.exit_code == 1 and len(r.stderr.splitlines()) == 1 and "--mode ring" in r.stderr, r.output
+    _refused_on_the_command_line(polled, tmp_path, sim_fit, [["validate"]], "--mode ring")
     # stamps with jitter of +-36 % of the step, and two gaps: not refused
     rng = np.random.default_rng(0)
     t = np.cumsum(0.005 * (1 + rng.uniform(-0.36, 0.36, 5000)))
@@ -216,22 +224,11 @@ def test_a_log_that_skips_many_samples_is_refused_by_fit_and_validate(kr6, tmp_p
 def test_torques_in_newton_millimetres_are_refused_by_fit_and_validate(kr6, tmp_path, sim_fit):
     """A CSV whose A<i>_Nm columns hold N·mm fitted without a word (a model 1000 times too strong,
     99.9 % error on the right data); now one line naming the joint, its effort limit and the unit."""
-    from click.testing import CliRunner
-
-    from kukaid.logs import write_csv
-    from kukaid_cli.main import cli
-
     log, _ = simulated_log(kr6, duration=5.0, seed=0)
     nmm = type(log)(time=log.time, q=log.q, tau=1000.0 * log.tau, axes=log.axes, attrs={"source_file": "nmm.csv"})
     with pytest.raises(FitError, match=r"nmm\.csv: the torque of A\d reaches .* x the effort limit .*wrong unit"):
         fit_robot([nmm], kr6)
-    csv = tmp_path / "nmm.csv"
-    write_csv(nmm, csv, angle_unit="rad")
-    pfile = tmp_path / "kr6.json"
-    save_robot_params(pfile, sim_fit[0])
-    for args in (["validate", str(csv)], ["diagnose", "--log", str(csv)]):
-        r = CliRunner().invoke(cli, [*args, "--params", str(pfile)])
-        assert r.exit_code == 1 and len(r.stderr.splitlines()) == 1 and "wrong unit (N·mm" in r.stderr, r.output
+    _refused_on_the_command_line(nmm, tmp_path, sim_fit, [["validate"], ["diagnose", "--log"]], "wrong unit (N·mm")
 
 
 def test_settings_are_checked():
