@@ -180,15 +180,19 @@ def servo_step(qr, vr, ar, gff, q, v, I, te, P, h, ieps, tau, u, arm_eff):
         arm_eff[j] = P[_ARM, j] + h * (g * (1.0 - s * s) * ieps + P[_FV, j])
 
 
+def _motor_friction(w, fc, dfs, vs, fv, ieps):
+    """The truth's friction law at the velocities ``w`` (the kernel's, vectorised) and the slope its
+    implicit step uses (the Stribeck term's own derivative left out, as the kernel does)."""
+    s = np.tanh(w * ieps)
+    g = fc + dfs * np.exp(-(w / vs) ** 2)
+    return g * s + fv * w, g * (1.0 - s * s) * ieps + fv
+
+
 def _coupled_friction(mix, v, fc, dfs, vs, fv, ieps, h, u, Mq):
     """The motors' friction on their velocities ``mix @ v`` (rad/s, joint units) taken from the net
     joint torque ``u`` through ``mix^T``, its velocity slope ``h mix^T diag(f') mix`` added to the
     step's mass matrix ``Mq`` (implicit, as the kernel's per-joint friction); returns both."""
-    vm = mix @ v
-    s = np.tanh(vm * ieps)
-    g = fc + dfs * np.exp(-(vm / vs) ** 2)
-    f = g * s + fv * vm
-    slope = g * (1.0 - s * s) * ieps + fv
+    f, slope = _motor_friction(mix @ v, fc, dfs, vs, fv, ieps)
     return u - mix.T @ f, Mq + h * (mix.T * slope) @ mix
 
 
@@ -450,10 +454,8 @@ class VirtualRobotKRC4:
         ts_sum = np.zeros(el.size)
         for _ in range(substeps):
             ts = k * (th - ql[el]) + d * (om - vl[el])
-            s = np.tanh(om * ieps)
-            g = fc + dfs * np.exp(-(om / vsm) ** 2)
-            slope = g * (1.0 - s * s) * ieps + fv
-            om = om + hs * (um - g * s - fv * om - ts) / (J + hs * slope)
+            f, slope = _motor_friction(om, fc, dfs, vsm, fv, ieps)
+            om = om + hs * (um - f - ts) / (J + hs * slope)
             th = th + hs * om
             ts_sum += ts
         q[el], v[el] = th, om
