@@ -145,7 +145,9 @@ def nominal_friction_fit(robot, fit_log, val_logs):
 
 
 def naive_fit(robot, fit_log, val_logs):
-    from kukaid.identify.robot_fit import RobotFitSettings, fit_robot, validate_robot
+    from kukaid.diagnose.validate import validate
+    from kukaid.identify.fitted import RobotFile
+    from kukaid.identify.robot_fit import RobotFitSettings, fit_robot
 
     p = fit_robot([fit_log], robot, RobotFitSettings(consistent=False, spring=False, ripple=0, v_smooth=0.0, deadband=0.0,
                                                      choose=False, mass_bounds=None, total_mass_bounds=None,
@@ -153,7 +155,7 @@ def naive_fit(robot, fit_log, val_logs):
                                                      viscous_beyond="linear"))
     p["base_parameters"]["values"] = p["base_parameters"]["least_squares"]
     p["friction"]["values"] = p["friction"]["least_squares"]
-    return _rel(validate_robot(p, val_logs, robot))
+    return _rel(validate(RobotFile(p, robot=robot), val_logs))
 
 
 def _pooled(robot, logs, s, predict):
@@ -170,8 +172,8 @@ def _pooled(robot, logs, s, predict):
     return np.sqrt(num / den).tolist()
 
 
-def _rel(res):
-    return [res["axes"][f"A{j}"]["relative_error"] for j in range(1, len(res["axes"]) + 1)]
+def _rel(scores):
+    return [scores[j].rel_error for j in sorted(scores)]
 
 
 def main() -> int:
@@ -187,7 +189,9 @@ def main() -> int:
     if a.quick:
         a.seeds, a.duration, a.rest = [0], 4.0, 0.5
 
-    from kukaid.identify.robot_fit import RobotFitSettings, fit_robot, validate_robot
+    from kukaid.diagnose.validate import validate
+    from kukaid.identify.fitted import RobotFile
+    from kukaid.identify.robot_fit import RobotFitSettings, fit_robot
     from kukaid.models.robot import RobotModel
 
     settings = RobotFitSettings(**json.loads(a.settings))
@@ -206,7 +210,7 @@ def main() -> int:
         for k, fit_log in enumerate(logs):
             val = [lg for i, lg in enumerate(logs) if i != k]
             p = fit_robot([fit_log], nominal, settings)
-            models["defaults"].append(_rel(validate_robot(p, val, nominal)))
+            models["defaults"].append(_rel(validate(RobotFile(p, robot=nominal), val)))
             sp = p["standard_parameters"]
             masses.append([sp[lk]["m"] / m for lk, m in zip(nominal.link_names, m0)])
             released.append(bool((p["metrics"]["choices"].get("mass_bounds") or {}).get("released")))

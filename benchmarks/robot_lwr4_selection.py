@@ -48,7 +48,9 @@ CANDIDATES = {
 
 
 def cv_score(log, robot, settings, blocks: int) -> float:
-    from kukaid.identify.robot_fit import fit_robot, validate_robot
+    from kukaid.diagnose.validate import to_json, validate
+    from kukaid.identify.fitted import RobotFile
+    from kukaid.identify.robot_fit import fit_robot
 
     n = log.n_samples
     edges = np.linspace(0, n, blocks + 1).astype(int)
@@ -57,7 +59,7 @@ def cv_score(log, robot, settings, blocks: int) -> float:
         train = [log.select(slice(edges[i], edges[i + 1])) for i in range(blocks) if i != k]
         test = log.select(slice(edges[k], edges[k + 1]))
         p = fit_robot(train, robot, settings)
-        scores.append(validate_robot(p, [test], robot)["mean_relative_error"])
+        scores.append(to_json(validate(RobotFile(p, robot=robot), [test]))["mean_relative_error"])
     return float(np.mean(scores))
 
 
@@ -71,7 +73,9 @@ def main() -> int:
     if not DATA.is_dir():
         print(f"{DATA}: not found", file=sys.stderr)
         return 1
-    from kukaid.identify.robot_fit import RobotFitSettings, fit_robot, validate_robot
+    from kukaid.diagnose.validate import to_json, validate
+    from kukaid.identify.fitted import RobotFile
+    from kukaid.identify.robot_fit import RobotFitSettings, fit_robot
     from kukaid.logs import read_log
     from kukaid.models.robot import RobotModel
 
@@ -81,8 +85,8 @@ def main() -> int:
         fits = {k: fit_robot([lg], robot, RobotFitSettings()) for k, lg in logs.items()}
         out = []
         for f, p in ((1, 3), (2, 3), (3, 1), (3, 2), (1, 2), (2, 1)):
-            v = validate_robot(fits[f], [logs[p]], robot)
-            e = [v["axes"][f"A{j}"]["relative_error"] for j in range(1, robot.n + 1)]
+            v = to_json(validate(RobotFile(fits[f], robot=robot), [logs[p]]))
+            e = [v["axes"][f"A{j}"]["rel_error"] for j in range(1, robot.n + 1)]
             out.append({"fit": f"lwr4_{f}", "predict": f"lwr4_{p}", "axes": e, "mean": v["mean_relative_error"]})
             if not a.json:
                 print(f"lwr4_{f} -> lwr4_{p}  " + " ".join(f"{100 * x:5.1f}" for x in e)
@@ -97,9 +101,9 @@ def main() -> int:
             continue
         s = RobotFitSettings(**kw)
         cv = cv_score(l1, robot, s, a.blocks)
-        v3 = validate_robot(fit_robot([l1], robot, s), [l3], robot)
+        v3 = to_json(validate(RobotFile(fit_robot([l1], robot, s), robot=robot), [l3]))
         rows.append({"setting": name, "cv_lwr4_1": cv, "lwr4_3": v3["mean_relative_error"],
-                     "lwr4_3_axes": [r["relative_error"] for r in v3["axes"].values()]})
+                     "lwr4_3_axes": [r["rel_error"] for r in v3["axes"].values()]})
         if not a.json:
             r = rows[-1]
             print(f"{name:<22} CV(lwr4_1) {100 * cv:6.1f} %   lwr4_3 {100 * r['lwr4_3']:6.1f} %  "

@@ -47,13 +47,12 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     after against time and each effect's coordinate, the noise floor drawn.  Effects already in the
     file are held and not named again.  --axis, --cutoff and --alpha do not apply to a robot file.
     """
-    from kukaid.errors import KukaidError
+    from kukaid.diagnose import diagnose_model
+    from kukaid.identify.fitted import load_model
     from kukaid.logs import read_log
-    from kukaid_cli._util import (check_outputs, check_suffix, option_in_data_error, refuse_other_kind,
+    from kukaid.params import ROBOT_SCHEMA, SCHEMA
+    from kukaid_cli._util import (check_outputs, check_suffix, given, option_in_data_error, refuse_other_kind,
                                   require_positive, stages)
-    from kukaid.params import ROBOT_SCHEMA, SCHEMA, is_robot_params, load_any_params, save_params, validate_params
-    from kukaid.diagnose.plots import write_report
-    from kukaid.diagnose.workflow import diagnose
 
     if not 0 < alpha < 1:
         raise click.BadParameter("must be in (0, 1)", param_hint="--alpha")
@@ -64,26 +63,15 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     check_suffix(report, ".pdf")
     check_outputs([output, report], [params_path, *logs])
     refuse_other_kind(output, force, SCHEMA, ROBOT_SCHEMA)
-    params = load_any_params(params_path)
+    model = load_model(params_path, axis)
     stage = stages("diagnose")
-    if is_robot_params(params):
-        _robot(click.get_current_context(), params, logs, as_json, max_steps, output, report, stage)
-        return
     stage("reading the logs")
     data = [read_log(p) for p in logs]
-    from kukaid.identify.adequacy import pushed_log_warnings
-
-    for p, lg in zip(logs, data):
-        for w in pushed_log_warnings(lg, str(p)):
-            click.echo(f"kukaid: warning: diagnose: {w}", err=True)
-    if axis is not None:
-        for p, lg in zip(logs, data):
-            if axis not in lg.axes:
-                raise KukaidError(f"{p}: axis A{axis} is not in the log (axes: {list(lg.axes)})")
     with option_in_data_error(("--cutoff", cutoff is not None, "filter cut-off")):  # its limit: the log's rate
-        result = diagnose(params, data, axis=axis, cutoff=cutoff, alpha=alpha, max_steps=max_steps,
-                          source=str(params_path), stage=stage)
-    _write(result, as_json, output, report, validate_params, save_params, write_report, stage)
+        result, draw = diagnose_model(model, data, axis=axis, cutoff=cutoff, alpha=alpha if given("alpha") else None,
+                                      max_steps=max_steps, stage=stage,
+                                      warn=lambda w: click.echo(f"kukaid: warning: diagnose: {w}", err=True))
+    _write(result, as_json, output, report, model.check_file, model.save, draw, stage)
 
 
 def _write(result, as_json: bool, output, report, check, save, draw, stage) -> None:
@@ -112,30 +100,3 @@ def _write(result, as_json: bool, output, report, check, save, draw, stage) -> N
     for path, what in ((output, "refined parameters"), (report, "report")):
         if path is not None:
             click.echo(f"{path}: {what} written", err=True)
-
-
-def _robot(ctx: click.Context, params: dict, logs, as_json: bool, max_steps: int, output, report, stage) -> None:
-    """``kukaid diagnose --params robot.json``: the robot's candidates (kukaid.diagnose.robot)."""
-    from kukaid.diagnose.robot import diagnose_robot
-    from kukaid.diagnose.robot_plots import write_robot_report
-    from kukaid.logs import read_log
-    from kukaid.params import save_robot_params, validate_robot_params
-    from kukaid_cli._util import given
-
-    for name, flag, why in (("axis", "--axis", "it tests the candidate effects of every axis together"),
-                            ("cutoff", "--cutoff", "it filters the logs as the robot fit did (the file's settings)"),
-                            ("alpha", "--alpha", "it names an effect by the drop of the held-out error it brings, "
-                                                 "not by a test at a false-alarm probability")):
-        if given(name, ctx):
-            raise click.UsageError(f"option {flag} does not apply to a robot parameter file (yet): {why}")
-    from kukaid.identify.robot_fit import check_torque_scale
-    from kukaid.models.robot import RobotModel
-
-    stage("reading the logs")
-    data = [read_log(p) for p in logs]
-    robot = RobotModel(params["robot"]["urdf"])
-    for lg in data:  # torques in another unit, as fit and validate refuse them
-        check_torque_scale(lg, robot)
-    stage("testing the candidate effects on held-out recordings")
-    result = diagnose_robot(params, data, robot, max_steps=max_steps)
-    _write(result, as_json, output, report, validate_robot_params, save_robot_params, write_robot_report, stage)

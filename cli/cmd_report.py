@@ -26,43 +26,16 @@ def command(params, friction, inertia, presliding, logs, axis, output) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
-    from kukaid.report import make_report
+    from kukaid.identify.fitted import load_model
+    from kukaid.report import report_model
     from kukaid_cli._util import check_outputs, check_suffix, stages
 
     check_suffix(output, ".pdf")
     check_outputs([output], [params, *friction, *inertia, presliding, *logs])
     stage = stages("report")
-    if _robot_report(params, friction, inertia, presliding, logs, axis, output, stage):
-        return
-
     warnings: list[str] = []
-    n = make_report(params, output, friction=list(friction), inertia=list(inertia), presliding=presliding,
-                    logs=list(logs), axis=axis, warnings=warnings, stage=stage)
+    n = report_model(load_model(params), output, friction=list(friction), inertia=list(inertia),
+                     presliding=presliding, logs=list(logs), axis=axis, warnings=warnings, stage=stage)
     for w in warnings:
         click.echo(f"kukaid: warning: report: {w}", err=True)
-    _written(output, n)
-
-
-def _robot_report(params, friction, inertia, presliding, logs, axis, output, stage) -> bool:
-    """A robot parameter file (kukaid.robot_params/1): its own report; False for any other file."""
-    from kukaid.errors import ParamFileError
-    from kukaid.jsonfile import read_json
-    from kukaid.params import is_robot_params, validate_robot_params
-
-    d = read_json(params, ParamFileError)
-    if not is_robot_params(d):
-        return False
-    if friction or inertia or presliding or axis is not None:
-        raise click.UsageError("a robot parameter file takes only --log (prediction pages)")
-    from kukaid.logs import read_log
-    from kukaid.report.robot import make_robot_report
-
-    validate_robot_params(d, str(params))
-    stage("reading the logs")
-    n = make_robot_report(d, output, [read_log(p) for p in logs], source=str(params), stage=stage)
-    _written(output, n)
-    return True
-
-
-def _written(output, n: int) -> None:
     click.echo(f"{output}: report written, {n} page{'s' if n != 1 else ''}", err=True)

@@ -11,7 +11,6 @@ import click
 def command(file: Path) -> None:
     """Print the parameters of FILE, a parameter file of `kukaid fit` (kukaid.params/1, one axis)
     or `kukaid fit --robot` (kukaid.robot_params/1): the same table fit prints, checked as it is read."""
-    from kukaid.identify import format_params
-    from kukaid.params import load_any_params
+    from kukaid.identify.fitted import load_model
 
-    click.echo(format_params(load_any_params(file)))
+    click.echo(load_model(file).table())

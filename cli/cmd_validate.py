@@ -17,35 +17,23 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     --params on LOGS (pooled), pre-processed as its fit was.  Give logs the model was not fitted on."""
     import json
 
-    from kukaid.diagnose.validate import in_sample, load_model_file, table, to_json, validate
+    from kukaid.diagnose.validate import in_sample, table, to_json, validate
+    from kukaid.identify.fitted import load_model
     from kukaid.jsonfile import jsonable
-    from kukaid.identify.adequacy import moving_axes, pushed_log_warnings
     from kukaid.logs import read_log
-    from kukaid.params import is_robot_params
 
-    params = load_model_file(params_path)
+    model = load_model(params_path, axis)
     data = [read_log(p) for p in logs]
-    scores = validate(params, data, axis=axis, source=str(params_path))
-    if not is_robot_params(params):  # a one-axis model on a log where other axes move: say why it fails
-        ax = int(params.get("axis", 3)) if axis is None else axis
-        for path, log in zip(logs, data):
-            others = moving_axes(log, ax)
-            if others:
-                moving = ", ".join(f"A{a}" for a in others)
-                click.echo(f"kukaid: warning: validate: {path}: other axes ({moving}) move, "
-                           f"so the gravity and inertia torque on A{ax} depend on their positions, which the "
-                           f"single-axis model of {params_path} does not see; fit all axes together (kukaid fit "
-                           f"--robot URDF)", err=True)
+    scores = validate(model, data)
     for path, log in zip(logs, data):
-        for w in pushed_log_warnings(log, str(path)):
+        for w in model.warnings(log, str(path)):
             click.echo(f"kukaid: warning: validate: {w}", err=True)
-    for path in in_sample(params, logs, params_path):
+    for path in in_sample(model.params, logs, params_path):
         click.echo(f"kukaid: warning: validate: {path}: the model of {params_path} was fitted on this log "
                    "(its provenance.logs): these figures are in-sample, not a validation; give a log it did not see",
                    err=True)
     if as_json:
         click.echo(json.dumps(jsonable(to_json(scores)), indent=2))
     else:
-        prismatic = (params.get("provenance") or {}).get("joint") == "prismatic"
-        for line in table(scores, "N" if prismatic else "N·m"):
+        for line in table(scores, model.unit):
             click.echo(line)

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from kukaid.errors import FitError, ParamFileError
-from kukaid.identify.robot_fit import RobotFitSettings, fit_robot, validate_robot, well_excited
+from kukaid.diagnose.validate import to_json, validate
+from kukaid.identify.fitted import RobotFile
+from kukaid.identify.robot_fit import RobotFitSettings, fit_robot, well_excited
 from kukaid.models.robot import DriveModel, RobotModel, consistency
 from kukaid.models.urdf import robot_urdf
 from kukaid.params import load_robot_params, save_robot_params, validate_robot_params
@@ -108,10 +110,10 @@ def test_fit_generalises_to_another_simulated_trajectory(kr6, sim_fit):
     # this trajectory is faster than the fitted one: by default the viscous term is held at the
     # fitted speeds (the safe side for friction compensation), which under-predicts this simulated
     # robot's linear viscous friction there; extrapolated linearly it matches
-    held = validate_robot(params, [log], kr6)
+    held = to_json(validate(RobotFile(params, robot=kr6), [log]))
     assert held["mean_relative_error"] < 0.2, held
     linear = {**params, "friction": {**params["friction"], "qd_range": None}}
-    res = validate_robot(linear, [log], kr6)
+    res = to_json(validate(RobotFile(linear, robot=kr6), [log]))
     assert res["mean_relative_error"] < 0.05, res
     assert res["mean_relative_error"] < held["mean_relative_error"]
 
@@ -125,7 +127,7 @@ def test_robot_params_file_round_trip_and_errors(tmp_path, sim_fit):
     assert back["base_parameters"]["values"] == pytest.approx(params["base_parameters"]["values"])
     other = dict(back, robot={**back["robot"], "sha256": "0" * 64})
     with pytest.raises(ParamFileError, match="not the one the parameters were fitted with"):
-        validate_robot(other, [simulated_log(RobotModel("kr6-r700-sixx"), duration=5.0)[0]])
+        validate(other, [simulated_log(RobotModel("kr6-r700-sixx"), duration=5.0)[0]])
     bad = json.loads(path.read_text())
     bad["axes"] = [1, 3]
     with pytest.raises(ParamFileError, match="'axes' must be"):
@@ -282,8 +284,8 @@ def test_lwr4_fit_generalises_to_the_other_trajectory():
     robot = RobotModel(LWR4 / "kuka_lwr4.urdf")
     params = fit_robot([read_log(LWR4 / "lwr4_1.csv")], robot)
     assert params["metrics"]["physically_consistent"]
-    res = validate_robot(params, [read_log(LWR4 / "lwr4_3.csv")], robot)
-    rel = [res["axes"][f"A{i}"]["relative_error"] for i in range(1, 8)]
+    res = validate(RobotFile(params, robot=robot), [read_log(LWR4 / "lwr4_3.csv")])
+    rel = [res[i].rel_error for i in range(1, 8)]
     assert np.mean(rel) <= 0.40, rel
     naive = [0.75, 0.066, 0.51, 0.127, 1.05, 1.14, 1.96]    # the data README's naive least squares
     # A1 stays about at the naive figure (0.759 against 0.75: README); the others are better
@@ -304,7 +306,7 @@ def test_motor_side_torques_with_coupled_wrist_and_rotors(kr6):
     motor = type(log)(time=log.time, q=log.q, tau=drive.motor_torque(tau_joint), axes=log.axes)
     params = fit_robot([motor], kr6, RobotFitSettings(torque_side="motor", rotor=True), coupling=cpl)
     assert params["drive"]["coupling"][5][4] == pytest.approx(0.15)
-    res = validate_robot(params, [motor], kr6)
+    res = to_json(validate(RobotFile(params, robot=kr6), [motor]))
     assert res["mean_relative_error"] < 0.05, res
 
 

@@ -11,7 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from kukaid.identify.robot_fit import RobotFitSettings, fit_robot, predict_robot, validate_robot
+from kukaid.diagnose.validate import validate
+from kukaid.identify.fitted import RobotFile
+from kukaid.identify.robot_fit import RobotFitSettings, fit_robot, predict_robot
 from kukaid.logs import AxisLog
 from kukaid.models.robot import RobotModel
 
@@ -123,8 +125,8 @@ def test_lwr4_defaults_beat_the_previous_defaults_on_every_joint():
 
     robot = RobotModel(LWR4 / "kuka_lwr4.urdf")
     p = fit_robot([read_log(LWR4 / "lwr4_1.csv")], robot)
-    rel = [validate_robot(p, [read_log(LWR4 / "lwr4_3.csv")], robot)["axes"][f"A{i}"]["relative_error"]
-           for i in range(1, 8)]
+    res = validate(RobotFile(p, robot=robot), [read_log(LWR4 / "lwr4_3.csv")])
+    rel = [res[i].rel_error for i in range(1, 8)]
     before = [0.4521, 0.0234, 0.1584, 0.0380, 0.3534, 0.1793, 0.2071]
     assert np.mean(rel) <= 0.17, rel
     assert all(r <= b + 5e-4 for r, b in zip(rel, before)), rel
@@ -185,7 +187,7 @@ def test_rotor_inertias_are_fitted_for_motor_current_torques_and_predict_other_r
     assert ch["fitted"] and "motor currents" in ch["why"] and p["settings"]["rotor"] is True
     assert sum(k.endswith(".rotor_inertia") for k in p["friction"]["values"]) == 6
     without = fit_robot(logs[:1], robot, RobotFitSettings(rotor=False))
-    err = [np.mean([a["relative_error"] for a in validate_robot(x, logs[1:], robot)["axes"].values()])
+    err = [np.mean([a.rel_error for a in validate(RobotFile(x, robot=robot), logs[1:]).values()])
            for x in (p, without)]
     assert err[0] < 0.95 * err[1], err
 

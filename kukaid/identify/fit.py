@@ -352,14 +352,9 @@ def format_table(params: dict) -> str:
 
 
 def format_params(params: dict) -> str:
-    """The text table of any parameter file: one axis (:func:`format_table`, with the effects
-    diagnose added) or a robot (:func:`kukaid.identify.robot_fit.format_robot_table`)."""
-    from kukaid.params import is_robot_params
-
-    if is_robot_params(params):
-        from kukaid.identify.robot_fit import format_robot_table
-
-        return format_robot_table(params)
+    """The text table of a one-axis parameter file: :func:`format_table`, with the effects diagnose
+    added (a robot's: :func:`kukaid.identify.robot_fit.format_robot_table`; either by
+    :meth:`kukaid.identify.fitted.FittedModel.table`)."""
     text = format_table(params)
     eff = params.get("effects") or {}
     if eff:

@@ -1266,7 +1266,7 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     """Predicted joint torques of a robot parameter file on ``log``: {axis: (N,) N·m}.
 
     The positions are filtered and differentiated as in the fit; the prediction is compared with
-    the raw measured torques by the caller (:func:`validate_robot`)."""
+    the raw measured torques by the caller (:meth:`kukaid.identify.fitted.RobotFile.predict`)."""
     validate_robot_params(params)
     robot = robot or RobotModel(params["robot"]["urdf"])
     sha = params["robot"].get("sha256")
@@ -1353,46 +1353,6 @@ def rigid_at(robot: RobotModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, 
             out[r] = robot.regressor(Q, Qd, Qdd)[:, :, independent] @ beta
         return out
     return fn
-
-
-def robot_predictor(params: dict, log: AxisLog, axis: int | None = None,
-                    robot: RobotModel | None = None) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """Measured (raw) and predicted torque per axis, ``{axis: (tau, tau_hat)}``, away from the
-    filter's edges (two cut-off periods): the validation seam's predictor for
-    ``kukaid.robot_params/1`` (``axis``: only that axis; the file is validated here)."""
-    pred = predict_robot(params, log, robot)
-    fs = 1.0 / log.sample_time
-    s = params["settings"]
-    fc = _cutoff(RobotFitSettings(cutoff=s.get("cutoff")), fs)
-    edge = int(math.ceil(2.0 * fs / fc))
-    rows = slice(edge, log.n_samples - edge)
-    axes = [axis] if axis is not None else list(pred)
-    out = {}
-    for a in axes:
-        if a not in pred:
-            raise FitError(f"axis A{a} is not in the robot parameter file (axes: {list(pred)})")
-        out[a] = (log.channel("tau", a)[rows], pred[a][rows])
-    return out
-
-
-def validate_robot(params: dict, logs: Sequence[AxisLog], robot: RobotModel | None = None) -> dict:
-    """Per-axis relative error ``||tau - tau_hat|| / ||tau||`` and RMS error of ``params`` on
-    ``logs`` (raw measured torques, pooled), and the mean relative error over the axes."""
-    robot = robot or RobotModel(params["robot"]["urdf"])
-    pairs: dict[int, list] = {}
-    for log in logs:
-        for a, (t, th) in robot_predictor(params, log, robot=robot).items():
-            pairs.setdefault(a, []).append((t, th))
-    rows = {}
-    for a, lst in pairs.items():
-        t = np.concatenate([x[0] for x in lst])
-        th = np.concatenate([x[1] for x in lst])
-        rows[f"A{a}"] = {"relative_error": float(np.linalg.norm(t - th) / max(np.linalg.norm(t), 1e-12)),
-                         "rms_error": float(np.sqrt(np.mean((t - th) ** 2))),
-                         "rms_torque": float(np.sqrt(np.mean(t ** 2))), "samples": int(t.size)}
-    mean = float(np.mean([r["relative_error"] for r in rows.values()]))
-    return {"axes": rows, "mean_relative_error": mean,
-            "logs": [str(lg.attrs.get("source_file", "")) for lg in logs]}
 
 
 #: a base parameter is shown as determined by the data when its corrected standard deviation is

@@ -1,6 +1,34 @@
-"""Reports: the identification report (:mod:`kukaid.report.fit_report`), a multi-page PDF."""
+"""Reports: the identification report of a fitted model, a multi-page PDF (:func:`report_model`:
+one axis, :mod:`kukaid.report.fit_report`; a robot, :mod:`kukaid.report.robot`)."""
+from __future__ import annotations
+
+from typing import Any, Callable, Sequence
+
 from kukaid.report.data import ReportData, ReportError, load_report_data
 from kukaid.report.fit_report import build_report, make_report
 from kukaid.report.layout import write_report
 
-__all__ = ["ReportData", "ReportError", "build_report", "load_report_data", "make_report", "write_report"]
+
+def report_model(model: Any, output: Any, friction: Sequence[Any] = (), inertia: Sequence[Any] = (),
+                 presliding: Any = None, logs: Sequence[Any] = (), axis: int | None = None,
+                 warnings: list[str] | None = None, stage: Callable[[str], None] | None = None) -> int:
+    """The report of a :class:`~kukaid.identify.fitted.FittedModel` (:func:`kukaid.identify.fitted.
+    load_model`) and the logs given (paths); returns the page count.  A robot file's report takes
+    only general ``logs`` (a prediction page each): the experiment roles are one axis's."""
+    from kukaid.errors import OptionError
+    from kukaid.identify.fitted import RobotFile
+
+    if isinstance(model, RobotFile):
+        if friction or inertia or presliding or axis is not None:
+            raise OptionError("a robot parameter file takes only --log (prediction pages)")
+        from kukaid.logs import read_log
+        from kukaid.report.robot import make_robot_report
+
+        (stage or (lambda text: None))("reading the logs")
+        return make_robot_report(model, output, [read_log(p) for p in logs], stage=stage)
+    return make_report(model.params, output, friction=friction, inertia=inertia, presliding=presliding, logs=logs,
+                       axis=axis, warnings=warnings, stage=stage, source=model.source)
+
+
+__all__ = ["ReportData", "ReportError", "build_report", "load_report_data", "make_report", "report_model",
+           "write_report"]

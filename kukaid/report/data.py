@@ -108,7 +108,8 @@ def _load_one(x: Any, axis: int, params: dict) -> tuple[Any, Any]:
 
 
 def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), inertia: Sequence[Any] = (),
-                     presliding: Any = None, logs: Sequence[Any] = (), axis: int | None = None) -> ReportData:
+                     presliding: Any = None, logs: Sequence[Any] = (), axis: int | None = None,
+                     source: str | None = None) -> ReportData:
     """Read the parameter file and the logs, and prepare the logs as the fit did.
 
     Parameters
@@ -117,6 +118,7 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
     friction, inertia, logs : axis logs (paths or :class:`~kukaid.logs.core.AxisLog`).
     presliding : pre-sliding log, optional.
     axis : axis to report (default: the parameter file's ``axis``, else 3).
+    source : where a dictionary ``params`` was read from (a path names itself).
 
     Raises
     ------
@@ -126,7 +128,8 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
     from kukaid.params import SCHEMA, check_model_of, load_params, validate_params
 
     if isinstance(params, dict):
-        par, source = validate_params(params), "parameters"
+        par = validate_params(params) if source is None else validate_params(params, source)
+        source = source or "parameters"
     else:
         par, source = load_params(params), str(params)
     if axis is None:

@@ -58,8 +58,9 @@ def build_report(data: ReportData) -> list:
 def make_report(params: dict | str | Path, output: str | Path, friction: Sequence[Any] = (),
                 inertia: Sequence[Any] = (), presliding: Any = None, logs: Sequence[Any] = (),
                 axis: int | None = None, warnings: list[str] | None = None,
-                stage: Callable[[str], None] | None = None) -> int:
-    """Load, build and write the report (see :func:`load_report_data`); returns the page count.
+                stage: Callable[[str], None] | None = None, source: str | None = None) -> int:
+    """Load, build and write the report (see :func:`load_report_data`; ``source`` names a
+    dictionary ``params``); returns the page count.
     ``warnings`` (a list) gets the lines the user should read (:attr:`ReportData.warnings`);
     ``stage(text)`` is told what is being done (progress).
 
@@ -68,7 +69,7 @@ def make_report(params: dict | str | Path, output: str | Path, friction: Sequenc
     """
     stage = stage or (lambda text: None)
     stage("reading the logs and pre-processing them as the fit did")
-    data = load_report_data(params, friction, inertia, presliding, logs, axis)
+    data = load_report_data(params, friction, inertia, presliding, logs, axis, source)
     if warnings is not None:
         warnings.extend(data.warnings)
     stage("drawing the pages")

@@ -83,11 +83,10 @@ def page_friction_consistency(params: dict, source: str):
     return fig
 
 
-def page_prediction(params: dict, log: Any, source: str, robot: Any):
-    """Measured and predicted torque of every axis on one log."""
-    from kukaid.identify.robot_fit import robot_predictor
-
-    pairs = robot_predictor(params, log, robot=robot)
+def page_prediction(model: Any, log: Any, source: str):
+    """Measured and predicted torque of every axis on one log (``model.predict``: a
+    :class:`~kukaid.identify.fitted.FittedModel` of the robot file)."""
+    pairs = model.predict(log)
     fig = _figure(f"Torque prediction: {Path(str(log.attrs.get('source_file', 'log'))).name}", source)
     n = len(pairs)
     for i, (a, (t, th)) in enumerate(pairs.items()):
@@ -107,19 +106,17 @@ def page_prediction(params: dict, log: Any, source: str, robot: Any):
     return fig
 
 
-def make_robot_report(params: dict, output: str | Path, logs: Sequence[Any] = (), source: str = "",
+def make_robot_report(model: Any, output: str | Path, logs: Sequence[Any] = (),
                       stage: Callable[[str], None] | None = None) -> int:
-    """Draw every page (before any file is created) and write the PDF atomically; returns pages.
-    ``stage(text)`` is told what is being done (progress)."""
-    from kukaid.models.robot import RobotModel
-
+    """Draw every page of the robot file's ``model`` (:class:`~kukaid.identify.fitted.RobotFile`)
+    before any file is created and write the PDF atomically; returns pages.  ``stage(text)`` is
+    told what is being done (progress)."""
+    params, source = model.params, model.source
     stage = stage or (lambda text: None)
     stage("drawing the parameter pages")
     figs = [page_base_parameters(params, source), page_friction_consistency(params, source)]
-    if logs:
-        robot = RobotModel(params["robot"]["urdf"])
-        for i, log in enumerate(logs):
-            stage(f"predicting every axis on log {i + 1} of {len(logs)}")
-            figs.append(page_prediction(params, log, source, robot))
+    for i, log in enumerate(logs):
+        stage(f"predicting every axis on log {i + 1} of {len(logs)}")
+        figs.append(page_prediction(model, log, source))
     stage(f"writing {len(figs)} pages")
     return write_report(output, figs, title="kukaid robot identification report")

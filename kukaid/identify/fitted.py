@@ -1,0 +1,204 @@
+"""A fitted model, one axis or a whole robot, behind one protocol (:class:`FittedModel`).
+
+A parameter file of either kind becomes a :class:`FittedModel` in one place, :func:`model_for`
+(the only branch on the file's ``schema``): :class:`AxisFile` (``kukaid.params/1``, a robot of one
+joint) and :class:`RobotFile` (``kukaid.robot_params/1``, fit --robot) are thin adapters over the
+code each file kind already has.  ``validate``, ``show``, the report's and the diagnosis' entries
+ask the protocol, not the schema:
+
+- ``joints``: the KUKA axis numbers it models ((3,) for an A3 file);
+- ``check(log)``: refuse a log it cannot be compared with (another joint type; torques in
+  another unit than the URDF's limits), before anything is computed;
+- ``predict(log) -> {axis: (tau, tau_hat)}``: measured and predicted torque on the samples the
+  fit would compare, pre-processed with the fit's own settings;
+- ``warnings(log, where)``: what the user should read about a log (a one-axis model on a log
+  where other axes move; a log pushed by hand);
+- ``table()``: the text ``kukaid fit`` printed; ``check_file`` / ``save``: the file's own schema
+  check and atomic writer (for a refined file ``kukaid diagnose -o`` writes).
+
+The one-axis predictor evaluates exactly the model ``kukaid fit`` fits: the log pre-processed with
+the fit's own settings (filter, mode threshold, reversal window from the file's provenance;
+:func:`kukaid.identify.preprocess`), Γ̂ = Izz qdd + Mx cos q (+ My sin q) + offset + F(qd)
+(:meth:`kukaid.models.torque.JointTorqueModel.predict_dynamic`) plus the diagnosed effects
+(:meth:`~kukaid.models.torque.JointTorqueModel.effects_torque`), on the dynamic-mode samples away
+from the filter's edges; the robot's is :func:`kukaid.identify.robot_fit.predict_robot` against
+the raw torques, two cut-off periods from either end.
+"""
+from __future__ import annotations
+
+import math
+from functools import cached_property
+from typing import Any, Protocol
+
+import numpy as np
+
+from kukaid.errors import FitError, KukaidError, ParamFileError
+from kukaid.params import (ROBOT_SCHEMA, SCHEMA, check_model_of, save_params, save_robot_params, validate_params,
+                           validate_robot_params)
+
+Pairs = dict[int, tuple[np.ndarray, np.ndarray]]
+
+
+class FittedModel(Protocol):
+    """What every stage asks of a fitted model (see the module docstring)."""
+
+    params: dict
+    joints: tuple[int, ...]
+    unit: str
+
+    def check(self, log: Any) -> None: ...
+
+    def predict(self, log: Any) -> Pairs: ...
+
+    def warnings(self, log: Any, where: str) -> list[str]: ...
+
+    def table(self) -> str: ...
+
+    def check_file(self, d: dict, where: str) -> dict: ...
+
+    def save(self, path: Any, d: dict) -> None: ...
+
+
+def model_for(params: dict, axis: int | None = None, source: str = "parameters") -> FittedModel:
+    """The :class:`FittedModel` of a parameter dictionary; ``axis``: compare only that axis (default:
+    the file's axis, or every axis of a robot file; refused when the file does not model it)."""
+    schema = params.get("schema", SCHEMA)
+    if schema == ROBOT_SCHEMA:
+        return RobotFile(params, axis, source)
+    if schema == SCHEMA:
+        return AxisFile(params, axis, source)
+    raise ParamFileError(f"schema '{schema}': no model evaluator for it (known: {SCHEMA}, {ROBOT_SCHEMA})")
+
+
+def load_model(path: Any, axis: int | None = None) -> FittedModel:
+    """Read and validate a parameter file of either kind (:func:`kukaid.params.load_any_params`)."""
+    from kukaid.params import load_any_params
+
+    return model_for(load_any_params(path), axis, str(path))
+
+
+def fit_settings(params: dict) -> dict[str, Any]:
+    """Pre-processing options of the fit that wrote ``params`` (its provenance), for
+    :func:`kukaid.identify.preprocess`; empty when the file does not say (defaults by sample rate)."""
+    pre = (params.get("provenance") or {}).get("preprocess")
+    pre = pre if isinstance(pre, dict) else {}
+    out: dict[str, Any] = {}
+    for k, typ in (("cutoff", float), ("order", int), ("reversal_window", float), ("diff", str)):
+        if pre.get(k) is not None:
+            out[k] = typ(pre[k])
+    qd_thr = (params.get("mode_switch") or {}).get("qd_thr", pre.get("qd_thr"))
+    if qd_thr is not None:
+        out["qd_thr"] = float(qd_thr)
+    return out
+
+
+class AxisFile:
+    """A ``kukaid.params/1`` file as a :class:`FittedModel`: a robot of one joint."""
+
+    check_file = staticmethod(validate_params)
+    save = staticmethod(save_params)
+
+    def __init__(self, params: dict, axis: int | None = None, source: str = "parameters") -> None:
+        check_model_of(params, source, axis=axis)
+        self.params, self.source = params, source
+        self.axis = int(params.get("axis", 3)) if axis is None else int(axis)
+        self.joints = (self.axis,)
+        self.unit = "N" if (params.get("provenance") or {}).get("joint") == "prismatic" else "N·m"
+
+    def check(self, log: Any) -> None:
+        if self.axis in log.axes:
+            check_model_of(self.params, self.source, joint=log.joint[log.index(self.axis)])
+
+    def predict(self, log: Any) -> Pairs:
+        """Effects are evaluated on the whole log (their time and energy coordinates start with it)."""
+        from kukaid.identify.filtering import preprocess
+        from kukaid.params import model_from_params
+
+        ax, params = self.axis, self.params
+        if ax not in log.axes:
+            raise KukaidError(f"{log.attrs.get('source_file', 'log')}: axis A{ax} of the parameter file is not in "
+                              f"the log (axes: {list(log.axes)})")
+        st = fit_settings(params)
+        pr = preprocess(log, ax, edge=0, **st)  # the whole grid: effects start with the log
+        edge = int(math.ceil(5.0 * pr.fs / pr.settings["cutoff"]))
+        keep = pr.dynamic.copy()
+        keep[:edge] = False
+        keep[pr.n - edge:] = False
+        model = model_from_params(params)
+        tau_hat = model.predict_dynamic(pr.q, pr.qd, pr.qdd)
+        if params.get("effects"):
+            temp = None if log.temp is None else np.asarray(log.temp[:, log.index(ax)], dtype=float)
+            others = ({a: preprocess(log, a, edge=0, **st).q for a in log.axes if a != ax}
+                      if "coupling" in params["effects"] else None)
+            tau_hat = tau_hat + model.effects_torque(pr.time, pr.q, pr.qd, temp, others)
+        return {ax: (pr.tau[keep], tau_hat[keep])}
+
+    def warnings(self, log: Any, where: str) -> list[str]:
+        from kukaid.identify.adequacy import moving_axes, pushed_log_warnings
+
+        others = moving_axes(log, self.axis)
+        out = []
+        if others:  # a one-axis model on a log where other axes move: say why it fails
+            moving = ", ".join(f"A{a}" for a in others)
+            out.append(f"{where}: other axes ({moving}) move, so the gravity and inertia torque on A{self.axis} "
+                       f"depend on their positions, which the single-axis model of {self.source} does not see; "
+                       "fit all axes together (kukaid fit --robot URDF)")
+        return out + pushed_log_warnings(log, where)
+
+    def table(self) -> str:
+        from kukaid.identify.fit import format_params
+
+        return format_params(self.params)
+
+
+class RobotFile:
+    """A ``kukaid.robot_params/1`` file (fit --robot) as a :class:`FittedModel`."""
+
+    check_file = staticmethod(validate_robot_params)
+    save = staticmethod(save_robot_params)
+    unit = "N·m"
+
+    def __init__(self, params: dict, axis: int | None = None, source: str = "parameters", robot: Any = None) -> None:
+        self.params, self.source = validate_robot_params(params, source), source
+        if robot is not None:  # a RobotModel of the file's URDF the caller has built already
+            self.robot = robot
+        axes = tuple(range(1, len(params["axes"]) + 1))
+        if axis is not None and axis not in axes:
+            raise FitError(f"axis A{axis} is not in the robot parameter file (axes: {list(axes)})")
+        self.joints = axes if axis is None else (int(axis),)
+
+    @cached_property
+    def robot(self):
+        """The robot model of the file's URDF, built once (when first asked)."""
+        from kukaid.models.robot import RobotModel
+
+        return RobotModel(self.params["robot"]["urdf"])
+
+    def check(self, log: Any) -> None:
+        from kukaid.identify.robot_fit import check_torque_scale
+
+        check_torque_scale(log, self.robot)
+
+    def predict(self, log: Any) -> Pairs:
+        """The raw measured torques against the prediction, two cut-off periods from either end."""
+        from kukaid.identify.robot_fit import RobotFitSettings, _cutoff, predict_robot
+
+        pred = predict_robot(self.params, log, self.robot)
+        fs = 1.0 / log.sample_time
+        fc = _cutoff(RobotFitSettings(cutoff=self.params["settings"].get("cutoff")), fs)
+        edge = int(math.ceil(2.0 * fs / fc))
+        rows = slice(edge, log.n_samples - edge)
+        return {a: (log.channel("tau", a)[rows], pred[a][rows]) for a in self.joints}
+
+    def warnings(self, log: Any, where: str) -> list[str]:
+        from kukaid.identify.adequacy import pushed_log_warnings
+
+        return pushed_log_warnings(log, where)
+
+    def table(self) -> str:
+        from kukaid.identify.robot_fit import format_robot_table
+
+        return format_robot_table(self.params)
+
+
+__all__ = ["AxisFile", "FittedModel", "RobotFile", "fit_settings", "load_model", "model_for"]

@@ -1,0 +1,87 @@
+"""One protocol for both parameter files (kukaid.identify.fitted): a one-axis file is a robot of one
+joint, and validate, show, report and diagnose ask the protocol, not the schema."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from kukaid.diagnose.validate import score, validate
+from kukaid.errors import FitError, ParamFileError
+from kukaid.identify.fitted import AxisFile, RobotFile, load_model, model_for
+from kukaid_cli.main import cli
+
+from test_validate import TRUE, sine_log
+
+
+@pytest.fixture(scope="module")
+def robot_case():
+    from kukaid.identify.robot_fit import fit_robot
+    from kukaid.models.robot import RobotModel
+    from robot_sim_helpers import simulated_log
+
+    kr6 = RobotModel("kr6-r700-sixx")
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    return fit_robot([log], kr6), log
+
+
+def axis_case():
+    params = {"schema": "kukaid.params/1", "axis": 3,
+              "friction": {"model": "coulomb-viscous", "Fc": TRUE["Fc"], "Fv": TRUE["Fv"]},
+              "inertial": {"Izz": TRUE["Izz"], "Mx": TRUE["Mx"]}}
+    return params, sine_log(3, 0.2)
+
+
+@pytest.mark.parametrize("kind", ["axis", "robot"])
+def test_both_files_answer_one_protocol(kind, robot_case, tmp_path):
+    params, log = axis_case() if kind == "axis" else robot_case
+    model = model_for(params)
+    assert type(model) is (AxisFile if kind == "axis" else RobotFile)
+    assert model.joints == ((3,) if kind == "axis" else (1, 2, 3, 4, 5, 6))
+    model.check(log)
+    pairs = model.predict(log)
+    assert tuple(pairs) == model.joints
+    for tau, hat in pairs.values():
+        assert tau.shape == hat.shape and tau.size > 100
+        assert np.linalg.norm(tau - hat) < 0.2 * np.linalg.norm(tau)
+    scores = validate(model, [log])  # one code path: validate scores what predict gives
+    assert scores == {a: score(*pairs[a]) for a in model.joints}
+    assert validate(params, [log]) == scores
+    one = model_for(params, axis=model.joints[-1])
+    assert tuple(one.predict(log)) == (model.joints[-1],)
+    np.testing.assert_array_equal(one.predict(log)[model.joints[-1]][1], pairs[model.joints[-1]][1])
+    assert model.table().splitlines()[0]
+    path = tmp_path / "p.json"
+    model.save(path, model.check_file(json.loads(json.dumps(params)), "p.json"))
+    back = load_model(path)
+    assert type(back) is type(model) and back.joints == model.joints and back.source == str(path)
+
+
+def test_the_robot_predicts_against_the_raw_torques_away_from_the_filter_edges(robot_case):
+    params, log = robot_case
+    tau, _ = model_for(params).predict(log)[2]
+    edge = (log.n_samples - tau.size) // 2
+    assert edge > 0 and tau.size == log.n_samples - 2 * edge
+    np.testing.assert_array_equal(tau, log.channel("tau", 2)[edge:log.n_samples - edge])
+
+
+def test_a_file_of_no_model_and_an_axis_it_does_not_model_are_refused(robot_case):
+    with pytest.raises(ParamFileError, match="no model evaluator"):
+        model_for({"schema": "other/1"})
+    with pytest.raises(ParamFileError, match="axis A3, not A2"):
+        model_for(axis_case()[0], axis=2)
+    with pytest.raises(FitError, match="A7 is not in the robot parameter file"):
+        model_for(robot_case[0], axis=7)
+
+
+def test_a_robot_report_takes_only_logs(robot_case, tmp_path):
+    from kukaid.params import save_robot_params
+
+    save_robot_params(tmp_path / "robot.json", robot_case[0])
+    for opt in (["--axis", "2"], ["--friction", str(tmp_path / "robot.json")]):
+        r = CliRunner().invoke(cli, ["report", "--params", str(tmp_path / "robot.json"), *opt,
+                                     "-o", str(tmp_path / "r.pdf")])
+        assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1, r.output
+        assert "a robot parameter file takes only --log" in r.output and not (tmp_path / "r.pdf").exists()
