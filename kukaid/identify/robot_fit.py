@@ -453,12 +453,19 @@ def _velocity_noise_gain(sos: np.ndarray, dt: float, n: int) -> float:
 
 def sample_rows(log: AxisLog, settings: RobotFitSettings) -> slice:
     """The rows of ``log`` the fit uses: two cut-off periods trimmed at each end, then every
-    ``decimate``-th sample (default: about 10 samples per cut-off period)."""
+    ``decimate``-th sample (default: about 10 samples per cut-off period, and at most 10 x
+    :data:`CUTOFF` = 100 equations per second: above a 10 Hz cut-off the equations stay more than 5
+    per cut-off period, 2.5 x the filtered signals' Nyquist rate, and the fit costs what the 10 Hz
+    default does; at 20 Hz and 250 Hz every second sample, not every one)."""
     fs = 1.0 / log.sample_time
     fc = _cutoff(settings, fs)
     edge = int(math.ceil(2.0 * fs / fc))                     # two cut-off periods at each end
-    step = settings.decimate or max(1, int(round(fs / (10.0 * fc))))
-    return slice(edge, max(log.n_samples - edge, edge), step)
+    return slice(edge, max(log.n_samples - edge, edge), _step(settings, fs))
+
+
+def _step(settings: RobotFitSettings, fs: float) -> int:
+    """Every how many samples of a log at ``fs`` Hz the fit takes an equation (:func:`sample_rows`)."""
+    return settings.decimate or max(1, int(round(fs / (10.0 * min(_cutoff(settings, fs), CUTOFF)))))
 
 
 def log_fingerprint(log: AxisLog) -> str:
@@ -1174,9 +1181,7 @@ def _choice_settings(logs: Sequence[AxisLog], settings: RobotFitSettings) -> tup
     k = max(1, math.ceil(_fitted_rows(logs, settings) / CHOICE_SAMPLES))
     if k == 1:
         return settings, 1
-    step = settings.decimate or max(max(1, int(round(1.0 / lg.sample_time / (10.0 * _cutoff(settings, 1.0 / lg.sample_time)))))
-                                    for lg in logs)
-    return replace(settings, decimate=step * k), k
+    return replace(settings, decimate=k * max(_step(settings, 1.0 / lg.sample_time) for lg in logs)), k
 
 
 def choose_cutoff(err_raw: dict[float, np.ndarray], default: float) -> tuple[float, list[float]]:
@@ -1186,6 +1191,8 @@ def choose_cutoff(err_raw: dict[float, np.ndarray], default: float) -> tuple[flo
     cands = sorted(err_raw)
     mean = [float(np.mean(err_raw[c])) for c in cands]
     best = cands[int(np.argmin(mean))]
+    if default not in err_raw:     # the default could not be fitted (see _cutoff_terms)
+        return best, mean
     return (best if min(mean) * SIMPLER_WITHIN < mean[cands.index(default)] else default), mean
 
 
@@ -1208,10 +1215,15 @@ def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFit
         t.choices["cutoff"] = {"chosen": _cutoff(settings, fs), "how": "given" if settings.cutoff is not None
                                else f"the default {CUTOFF:g} Hz (at most fs/10)"}
         return t
-    trials, thin = {}, {}
+    trials, thin, failed = {}, {}, {}
     for fc in cutoff_candidates(logs):
         s_fc, thin[fc] = _choice_settings(logs, replace(settings, cutoff=fc))
-        trials[fc] = _terms(logs, robot, s_fc, drive, base, raw=True)
+        try:
+            trials[fc] = _terms(logs, robot, s_fc, drive, base, raw=True)
+        except FitError as e:   # e.g. a slow cut-off's reversal window leaves too few samples of a fast motion
+            failed[fc] = str(e)
+    if not trials:
+        raise FitError(next(iter(failed.values())))
     fs = min(1.0 / lg.sample_time for lg in logs)
     default = _cutoff(settings, fs)
     chosen, mean = choose_cutoff({fc: t.err_raw for fc, t in trials.items()}, default)
@@ -1226,7 +1238,7 @@ def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFit
                 f"is lower by more than {100 * (SIMPLER_WITHIN - 1):.0f} %",
         "relative_error": [trials[fc].err_raw.tolist() for fc in sorted(trials)], "mean_relative_error": mean,
         "samples": [int(trials[fc].m.q.shape[0]) for fc in sorted(trials)],
-        "thinned": [thin[fc] for fc in sorted(trials)]}
+        "thinned": [thin[fc] for fc in sorted(trials)], "not_possible": {f"{fc:g}": e for fc, e in failed.items()}}
     return t
 
 

@@ -1,0 +1,93 @@
+"""The robot fit's low-pass cut-off chosen by held-out error, on the six-axis virtual KR C4 (known truth).
+
+Per seed: three recordings of the KR 6 R700 sixx (the simulator's truth seed = the seed: links
+perturbed 15 % from the URDF's, its friction, torque noise ``--noise-rel`` of the torque scale),
+each a different Fourier trajectory; the fit on the first with the cut-off chosen (the default) and
+with it fixed at 10 Hz (``--cutoff 10``, the default before the choice); both validated on the other
+two against the same target: the raw measured torques on the same samples (two periods of the
+lowest candidate cut-off trimmed at each end), per joint ``||tau - tau_hat|| / ||tau||``.
+
+Run: python benchmarks/robot_cutoff_choice.py [--seeds 0 1 2] [--duration 20] [--noise-rel 0.002] [--json] [--quick]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+import numpy as np
+
+
+def recordings(seed: int, duration: float, noise_rel: float, n: int = 3):
+    """``n`` recordings of the virtual KR C4 (truth seed ``seed``), each its own trajectory."""
+    from kukaid.excite.fourier import fourier
+    from kukaid.sim.robot_plant import RobotSimConfig, VirtualRobotKRC4
+
+    cfg = RobotSimConfig(truth_seed=seed, noise_rel=noise_rel)
+    out = []
+    for k in range(n):
+        traj = fourier("kr6-r700-sixx", harmonics=4, period=duration / 2.0, periods=2, seed=100 * seed + k + 1,
+                       iterations=0, starts=2, span=0.6)
+        out.append(VirtualRobotKRC4(cfg, seed=1000 * seed + k).run(traj, settle=0.5))
+    return out
+
+
+def heldout_error(params: dict, logs, edge_s: float) -> np.ndarray:
+    """(n,) relative error against the raw torques of ``logs``, pooled, on samples ``edge_s`` from the ends."""
+    from kukaid.identify.robot_fit import predict_robot
+
+    num, den = 0.0, 0.0
+    for lg in logs:
+        pred = predict_robot(params, lg)
+        e = int(math.ceil(edge_s / lg.sample_time))
+        rows = slice(e, lg.n_samples - e)
+        tau = np.column_stack([lg.channel("tau", a)[rows] for a in sorted(pred)])
+        th = np.column_stack([pred[a][rows] for a in sorted(pred)])
+        num, den = num + np.sum((tau - th) ** 2, axis=0), den + np.sum(tau ** 2, axis=0)
+    return np.sqrt(num / den)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seeds", type=int, nargs="*", default=[0, 1, 2])
+    ap.add_argument("--duration", type=float, default=20.0, help="s of excitation per recording")
+    ap.add_argument("--noise-rel", type=float, default=0.002, help="the simulator's torque noise (its default)")
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--quick", action="store_true", help="one seed, 8 s recordings (what the test suite runs)")
+    a = ap.parse_args()
+    if a.quick:
+        a.seeds, a.duration = a.seeds[:1], 8.0
+    from kukaid.identify.robot_fit import CUTOFF_GRID, RobotFitSettings, fit_robot
+    from kukaid.models.robot import RobotModel
+
+    robot = RobotModel("kr6-r700-sixx")
+    edge = 2.0 / min(CUTOFF_GRID)
+    rows = []
+    for seed in a.seeds:
+        logs = recordings(seed, a.duration, a.noise_rel)
+        chosen = fit_robot(logs[:1], robot, RobotFitSettings())
+        fixed = fit_robot(logs[:1], robot, RobotFitSettings(cutoff=10.0))
+        co = chosen["metrics"]["choices"]["cutoff"]
+        rows.append({"seed": seed, "chosen_hz": co["chosen"], "candidates_hz": co["candidates"],
+                     "fold_error_mean": co["mean_relative_error"],
+                     "heldout_chosen": heldout_error(chosen, logs[1:], edge).tolist(),
+                     "heldout_10hz": heldout_error(fixed, logs[1:], edge).tolist()})
+    if a.json:
+        print(json.dumps({"noise_rel": a.noise_rel, "duration_s": a.duration, "rows": rows}, indent=1))
+        return 0
+    print(f"{'seed':>4} {'chosen':>7} {'blocks of the fit recording (mean %)':>38} {'other recordings: chosen':>25} "
+          f"{'10 Hz':>7}")
+    for r in rows:
+        blk = " / ".join(f"{c:g} Hz {100 * e:.2f}" for c, e in zip(r["candidates_hz"], r["fold_error_mean"]))
+        print(f"{r['seed']:>4} {r['chosen_hz']:>5g}Hz {blk:>38} {100 * np.mean(r['heldout_chosen']):>24.2f}% "
+              f"{100 * np.mean(r['heldout_10hz']):>6.2f}%")
+    ch = np.mean([np.mean(r["heldout_chosen"]) for r in rows])
+    fx = np.mean([np.mean(r["heldout_10hz"]) for r in rows])
+    print(f"mean over seeds: chosen {100 * ch:.2f} %, 10 Hz {100 * fx:.2f} % (raw torques of the other two "
+          f"recordings, {edge:g} s trimmed at each end; noise_rel {a.noise_rel:g})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
