@@ -7,7 +7,8 @@ with it fixed at 10 Hz (``--cutoff 10``, the default before the choice); both va
 two against the same target: the raw measured torques on the same samples (two periods of the
 lowest candidate cut-off trimmed at each end), per joint ``||tau - tau_hat|| / ||tau||``.
 
-Run: python benchmarks/robot_cutoff_choice.py [--seeds 0 1 2] [--duration 20] [--noise-rel 0.002] [--json] [--quick]
+Run: python benchmarks/robot_cutoff_choice.py [--seeds 0 1 2] [--duration 20] [--noise-rel 0.002] [--quant-deg 1e-4]
+     [--json] [--quick]
 """
 from __future__ import annotations
 
@@ -19,12 +20,12 @@ import sys
 import numpy as np
 
 
-def recordings(seed: int, duration: float, noise_rel: float, n: int = 3):
+def recordings(seed: int, duration: float, noise_rel: float, quant_deg: float, n: int = 3):
     """``n`` recordings of the virtual KR C4 (truth seed ``seed``), each its own trajectory."""
     from kukaid.excite.fourier import fourier
     from kukaid.sim.robot_plant import RobotSimConfig, VirtualRobotKRC4
 
-    cfg = RobotSimConfig(truth_seed=seed, noise_rel=noise_rel)
+    cfg = RobotSimConfig(truth_seed=seed, noise_rel=noise_rel, quant_deg=quant_deg)
     out = []
     for k in range(n):
         traj = fourier("kr6-r700-sixx", harmonics=4, period=duration / 2.0, periods=2, seed=100 * seed + k + 1,
@@ -53,6 +54,7 @@ def main() -> int:
     ap.add_argument("--seeds", type=int, nargs="*", default=[0, 1, 2])
     ap.add_argument("--duration", type=float, default=20.0, help="s of excitation per recording")
     ap.add_argument("--noise-rel", type=float, default=0.002, help="the simulator's torque noise (its default)")
+    ap.add_argument("--quant-deg", type=float, default=1e-4, help="the encoders' quantum, deg (the simulator's default)")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--quick", action="store_true", help="one seed, 8 s recordings (what the test suite runs)")
     a = ap.parse_args()
@@ -65,7 +67,7 @@ def main() -> int:
     edge = 2.0 / min(CUTOFF_GRID)
     rows = []
     for seed in a.seeds:
-        logs = recordings(seed, a.duration, a.noise_rel)
+        logs = recordings(seed, a.duration, a.noise_rel, a.quant_deg)
         chosen = fit_robot(logs[:1], robot, RobotFitSettings())
         fixed = fit_robot(logs[:1], robot, RobotFitSettings(cutoff=10.0))
         co = chosen["metrics"]["choices"]["cutoff"]
@@ -74,7 +76,7 @@ def main() -> int:
                      "heldout_chosen": heldout_error(chosen, logs[1:], edge).tolist(),
                      "heldout_10hz": heldout_error(fixed, logs[1:], edge).tolist()})
     if a.json:
-        print(json.dumps({"noise_rel": a.noise_rel, "duration_s": a.duration, "rows": rows}, indent=1))
+        print(json.dumps({"noise_rel": a.noise_rel, "quant_deg": a.quant_deg, "duration_s": a.duration, "rows": rows}, indent=1))
         return 0
     print(f"{'seed':>4} {'chosen':>7} {'blocks of the fit recording (mean %)':>38} {'other recordings: chosen':>25} "
           f"{'10 Hz':>7}")
@@ -85,7 +87,7 @@ def main() -> int:
     ch = np.mean([np.mean(r["heldout_chosen"]) for r in rows])
     fx = np.mean([np.mean(r["heldout_10hz"]) for r in rows])
     print(f"mean over seeds: chosen {100 * ch:.2f} %, 10 Hz {100 * fx:.2f} % (raw torques of the other two "
-          f"recordings, {edge:g} s trimmed at each end; noise_rel {a.noise_rel:g})")
+          f"recordings, {edge:g} s trimmed at each end; noise_rel {a.noise_rel:g}, quant_deg {a.quant_deg:g})")
     return 0
 
 

@@ -60,7 +60,7 @@ CUTOFF = 10.0
 CUTOFF_GRID = (5.0, 10.0, 20.0)
 #: at most this many samples per candidate cut-off in its choice (every k-th fitted sample of a long
 #: log): ranking three cut-offs needs far fewer than the fit (:func:`_choice_settings`)
-CHOICE_SAMPLES = 20_000
+CHOICE_SAMPLES = 10_000
 #: default harmonics of the position ripple per joint (see ``RobotFitSettings.ripple``): the LWR4+'s
 #: blocked cross-validation within the fit recording falls from 19.9 % (none) to 19.3, 14.5, 12.0 %
 #: (2, 3, 4) and then flattens (11.7 % at 6, 11.6 % at 8): the smallest where it flattens. The most
@@ -1168,7 +1168,7 @@ def cutoff_candidates(logs: Sequence[AxisLog]) -> list[float]:
     """The cut-offs :func:`choose_cutoff` tries on ``logs``, Hz: :data:`CUTOFF_GRID`, each at most a
     tenth of the slowest log's sample rate (the default's cap), without repeats."""
     fs = min(1.0 / lg.sample_time for lg in logs)
-    return sorted({min(float(c), 0.1 * fs) for c in CUTOFF_GRID})
+    return sorted({round(min(float(c), 0.1 * fs), 6) for c in CUTOFF_GRID})     # 1e-6 Hz: fs's rounding
 
 
 def _fitted_rows(logs: Sequence[AxisLog], settings: RobotFitSettings) -> int:
@@ -1225,7 +1225,7 @@ def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFit
     if not trials:
         raise FitError(next(iter(failed.values())))
     fs = min(1.0 / lg.sample_time for lg in logs)
-    default = _cutoff(settings, fs)
+    default = round(_cutoff(settings, fs), 6)
     chosen, mean = choose_cutoff({fc: t.err_raw for fc, t in trials.items()}, default)
     t = trials[chosen]
     if thin[chosen] > 1:

@@ -1,0 +1,114 @@
+"""The robot fit's low-pass cut-off: chosen by held-out error against the raw torques when none is given."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from kukaid.identify.robot_fit import (CUTOFF, SIMPLER_WITHIN, RobotFitSettings, choose_cutoff, cutoff_candidates,
+                                       fit_robot, predict_robot, robot_predictor)
+from kukaid.models.robot import RobotModel
+
+from robot_sim_helpers import simulated_log
+
+
+@pytest.fixture(scope="module")
+def kr6() -> RobotModel:
+    return RobotModel("kr6-r700-sixx")
+
+
+def _raw_error(params: dict, log, edge_s: float = 0.4) -> float:
+    """Mean over the joints of ``||tau - tau_hat|| / ||tau||`` against the raw torques, on the same
+    samples for every file (``edge_s`` from the ends: two periods of the lowest candidate)."""
+    pred = predict_robot(params, log)
+    e = int(math.ceil(edge_s / log.sample_time))
+    r = slice(e, log.n_samples - e)
+    return float(np.mean([np.linalg.norm(log.channel("tau", a)[r] - pred[a][r]) / np.linalg.norm(log.channel("tau", a)[r])
+                          for a in pred]))
+
+
+@pytest.fixture(scope="module")
+def noisy_positions(kr6):
+    """Encoder noise of 3e-4 rad (a coarse joint-side encoder): differentiated twice through a 10 Hz
+    filter it is tens of times the motion's acceleration noise at 5 Hz. A fit recording and another
+    trajectory of the same robot."""
+    fit, _ = simulated_log(kr6, duration=20.0, fs=250.0, seed=0, q_noise=3e-4)
+    other, _ = simulated_log(kr6, duration=20.0, fs=250.0, seed=0, q_noise=3e-4, trajectory=11)
+    return fit, other
+
+
+def test_noisy_positions_choose_a_lower_cutoff_that_predicts_another_trajectory_better(kr6, noisy_positions):
+    fit, other = noisy_positions
+    chosen = fit_robot([fit], kr6)
+    fixed = fit_robot([fit], kr6, RobotFitSettings(cutoff=CUTOFF))
+    co = chosen["metrics"]["choices"]["cutoff"]
+    assert co["how"] == "held-out error" and co["candidates"] == [5.0, 10.0, 20.0]
+    assert co["chosen"] == 5.0 != CUTOFF
+    assert np.asarray(co["relative_error"]).shape == (3, 6) and len(co["mean_relative_error"]) == 3
+    assert co["folds"] == "5 contiguous blocks of the recording"
+    # the file carries the choice: every reader filters new logs at 5 Hz
+    assert chosen["settings"]["cutoff"] == 5.0
+    assert chosen["provenance"]["preprocess"] == {"cutoff": 5.0, "order": 4, "cutoff_from": "held-out error"}
+    # judged on another trajectory against the same target (raw torques, the same samples): better
+    e_chosen, e_fixed = _raw_error(chosen, other), _raw_error(fixed, other)
+    assert e_chosen < e_fixed / 1.04, (e_chosen, e_fixed)
+
+
+def test_validate_filters_with_the_files_cutoff(kr6, noisy_positions):
+    """robot_predictor trims two periods of the file's cut-off, not of the default's."""
+    fit, other = noisy_positions
+    p = fit_robot([fit], kr6)
+    assert p["settings"]["cutoff"] == 5.0
+    t, _ = robot_predictor(p, other, axis=1)[1]
+    assert t.size == other.n_samples - 2 * math.ceil(2 * 250.0 / 5.0)
+    q5 = predict_robot(p, other)[1]
+    q10 = predict_robot({**p, "settings": {**p["settings"], "cutoff": None}}, other)[1]
+    assert not np.allclose(q5, q10)
+
+
+def test_choose_cutoff_keeps_the_default_unless_another_is_clearly_better():
+    e = {5.0: np.array([0.100, 0.100]), 10.0: np.array([0.104, 0.104]), 20.0: np.array([0.2, 0.2])}
+    assert choose_cutoff(e, 10.0)[0] == 10.0                      # 4 % better: within SIMPLER_WITHIN
+    e[5.0] = e[10.0] / (SIMPLER_WITHIN * 1.01)
+    assert choose_cutoff(e, 10.0)[0] == 5.0
+    del e[10.0]                                                   # the default could not be fitted
+    assert choose_cutoff(e, 10.0)[0] == 5.0
+
+
+def test_candidates_stay_at_most_a_tenth_of_the_sample_rate(kr6):
+    log100, _ = simulated_log(kr6, duration=2.0, fs=100.0, seed=0)
+    log250, _ = simulated_log(kr6, duration=2.0, fs=250.0, seed=0)
+    assert cutoff_candidates([log250]) == [5.0, 10.0, 20.0]
+    assert cutoff_candidates([log100]) == [5.0, 10.0]
+    assert cutoff_candidates([log250, log100]) == [5.0, 10.0]
+
+
+def test_cli_given_cutoff_makes_no_choice_and_the_choice_is_in_json_and_table(kr6, tmp_path):
+    from click.testing import CliRunner
+
+    from kukaid.logs import write_hdf5
+    from kukaid_cli.main import cli
+
+    log, _ = simulated_log(kr6, duration=10.0, fs=250.0, seed=1)
+    h5 = tmp_path / "log.h5"
+    write_hdf5(log, h5)
+    r = CliRunner().invoke(cli, ["fit", str(h5), "--robot", "kr6-r700-sixx", "--cutoff", "8", "-o",
+                                 str(tmp_path / "given.json"), "--json"])
+    assert r.exit_code == 0, r.output
+    p = json.loads(r.stdout)
+    assert p["metrics"]["choices"]["cutoff"] == {"chosen": 8.0, "how": "given"}
+    assert p["settings"]["cutoff"] == 8.0
+    assert p["provenance"]["preprocess"]["cutoff_from"] == "given"
+    r = CliRunner().invoke(cli, ["fit", str(h5), "--robot", "kr6-r700-sixx", "-o", str(tmp_path / "chosen.json"),
+                                 "--json"])
+    assert r.exit_code == 0, r.output
+    co = json.loads(r.stdout)["metrics"]["choices"]["cutoff"]
+    assert co["how"] == "held-out error" and co["chosen"] in co["candidates"]
+    r = CliRunner().invoke(cli, ["show", str(tmp_path / "chosen.json")])
+    assert r.exit_code == 0, r.output
+    line = [x for x in r.stdout.splitlines() if x.startswith("low-pass ")]
+    assert len(line) == 1 and "chosen by held-out error against the raw torques (5 / 10 / 20 Hz: mean" in line[0]
+    r = CliRunner().invoke(cli, ["show", str(tmp_path / "given.json")])
+    assert "low-pass 8 Hz: given" in r.stdout.splitlines()
