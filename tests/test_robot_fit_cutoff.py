@@ -112,3 +112,16 @@ def test_cli_given_cutoff_makes_no_choice_and_the_choice_is_in_json_and_table(kr
     assert len(line) == 1 and "chosen by held-out error against the raw torques (5 / 10 / 20 Hz: mean" in line[0]
     r = CliRunner().invoke(cli, ["show", str(tmp_path / "given.json")])
     assert "low-pass 8 Hz: given" in r.stdout.splitlines()
+
+
+def test_cutoff_benchmark_quick_runs():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parent.parent / "benchmarks" / "robot_cutoff_choice.py"
+    r = subprocess.run([sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    row = json.loads(r.stdout)["rows"][0]
+    assert row["chosen_hz"] in row["candidates_hz"] and set(row["heldout"]) == {"5", "10", "20"}
+    assert all(len(e) == 6 and 0 < min(e) and max(e) < 1 for e in row["heldout"].values())
