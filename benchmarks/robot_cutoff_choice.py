@@ -54,7 +54,7 @@ def main() -> int:
     ap.add_argument("--seeds", type=int, nargs="*", default=[0, 1, 2])
     ap.add_argument("--duration", type=float, default=20.0, help="s of excitation per recording")
     ap.add_argument("--noise-rel", type=float, default=0.002, help="the simulator's torque noise (its default)")
-    ap.add_argument("--quant-deg", type=float, default=1e-4, help="the encoders' quantum, deg (the simulator's default)")
+    ap.add_argument("--quant-deg", type=float, default=1e-4, help="encoder quantum, deg (the simulator's)")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--quick", action="store_true", help="one seed, 8 s recordings (what the test suite runs)")
     a = ap.parse_args()

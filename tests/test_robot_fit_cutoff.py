@@ -25,8 +25,8 @@ def _raw_error(params: dict, log, edge_s: float = 0.4) -> float:
     pred = predict_robot(params, log)
     e = int(math.ceil(edge_s / log.sample_time))
     r = slice(e, log.n_samples - e)
-    return float(np.mean([np.linalg.norm(log.channel("tau", a)[r] - pred[a][r]) / np.linalg.norm(log.channel("tau", a)[r])
-                          for a in pred]))
+    tau = {a: log.channel("tau", a)[r] for a in pred}
+    return float(np.mean([np.linalg.norm(tau[a] - pred[a][r]) / np.linalg.norm(tau[a]) for a in pred]))
 
 
 @pytest.fixture(scope="module")
