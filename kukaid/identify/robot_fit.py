@@ -5,7 +5,9 @@ Steps (:func:`fit_robot`):
 1. *Motion*: each log's positions are low-pass filtered (zero-phase Butterworth, scipy.signal)
    and differentiated twice (central differences); the measured torques go through the same
    filter ("parallel filtering", so both sides of ``tau = Y pi`` see the same gain and phase).
-   Edges are trimmed and the samples decimated to about ten per cut-off period.
+   Edges are trimmed and the samples decimated to about ten per cut-off period. Unless given, the
+   cut-off is chosen among :data:`CUTOFF_GRID` by held-out error against the raw torques
+   (:func:`choose_cutoff`).
 2. *Regressor*: Pinocchio's joint-torque regressor (ten inertial parameters per link) plus
    per-joint friction (Coulomb-viscous or Stribeck with a fixed Stribeck velocity) and offset.
 3. *Base parameters* (numerical QR, :meth:`RobotModel.base_parameters`): weighted least squares
@@ -99,7 +101,9 @@ MOTOR_TORQUE_SOURCES = ("kuka-trace", "kukavarproxy", "virtual-krc4", "virtual-k
 class RobotFitSettings:
     """Settings of :func:`fit_robot` (all stored in the parameter file).
 
-    cutoff : low-pass cut-off of positions and torques, Hz (None: :data:`CUTOFF`, at most fs/10).
+    cutoff : low-pass cut-off of positions and torques, Hz (None: with ``choose`` one of
+        :data:`CUTOFF_GRID` by held-out error against the raw torques, :func:`choose_cutoff`; without,
+        :data:`CUTOFF`; each at most fs/10; the file holds the value used).
     order : Butterworth order.
     decimate : keep every n-th sample after filtering (None: about 10 samples per cut-off period).
     friction : "coulomb-viscous" or "stribeck".
@@ -1212,7 +1216,7 @@ def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFit
     if settings.cutoff is not None or not settings.choose:
         t = _terms(logs, robot, settings, drive, base)
         fs = min(1.0 / lg.sample_time for lg in logs)
-        t.choices["cutoff"] = {"chosen": _cutoff(settings, fs), "how": "given" if settings.cutoff is not None
+        t.choices["cutoff"] = {"chosen": round(_cutoff(settings, fs), 6), "how": "given" if settings.cutoff is not None
                                else f"the default {CUTOFF:g} Hz (at most fs/10)"}
         return t
     trials, thin, failed = {}, {}, {}
