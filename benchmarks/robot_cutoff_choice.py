@@ -2,9 +2,9 @@
 
 Per seed: three recordings of the KR 6 R700 sixx (the simulator's truth seed = the seed: links
 perturbed 15 % from the URDF's, its friction, torque noise ``--noise-rel`` of the torque scale),
-each a different Fourier trajectory; the fit on the first with the cut-off chosen (the default) and
-with it fixed at each candidate (10 Hz: the default before the choice); all validated on the other
-two against the same target: the raw measured torques on the same samples (two periods of the
+each a different Fourier trajectory; the fit on the first two with the cut-off chosen (the default:
+each recording left out in turn; one recording keeps 10 Hz) and with it fixed at each candidate
+(10 Hz: the default before the choice); all validated on the third against the same target: the raw measured torques on the same samples (two periods of the
 lowest candidate cut-off trimmed at each end), per joint ``||tau - tau_hat|| / ||tau||``.
 
 Run: python benchmarks/robot_cutoff_choice.py [--seeds 0 1 2] [--duration 20] [--noise-rel 0.002] [--quant-deg 1e-4]
@@ -68,27 +68,27 @@ def main() -> int:
     rows = []
     for seed in a.seeds:
         logs = recordings(seed, a.duration, a.noise_rel, a.quant_deg)
-        chosen = fit_robot(logs[:1], robot, RobotFitSettings())
+        chosen = fit_robot(logs[:2], robot, RobotFitSettings())
         co = chosen["metrics"]["choices"]["cutoff"]
         # every candidate fitted at that cut-off (the chosen one is the default fit itself)
-        fits = {fc: chosen if fc == co["chosen"] else fit_robot(logs[:1], robot, RobotFitSettings(cutoff=fc))
+        fits = {fc: chosen if fc == co["chosen"] else fit_robot(logs[:2], robot, RobotFitSettings(cutoff=fc))
                 for fc in co["candidates"]}
         rows.append({"seed": seed, "chosen_hz": co["chosen"], "candidates_hz": co["candidates"],
                      "fold_error_mean": co["mean_relative_error"],
-                     "heldout": {f"{fc:g}": heldout_error(p, logs[1:], edge).tolist() for fc, p in fits.items()}})
+                     "heldout": {f"{fc:g}": heldout_error(p, logs[2:], edge).tolist() for fc, p in fits.items()}})
     if a.json:
         print(json.dumps({"noise_rel": a.noise_rel, "quant_deg": a.quant_deg, "duration_s": a.duration, "rows": rows},
                          indent=1))
         return 0
-    print("mean relative error over the joints, %: blocks of the fit recording (the choice's evidence) | the other "
-          "two recordings")
+    print("mean relative error over the joints, %: the two fit recordings, each left out in turn (the choice's "
+          "evidence) | the third recording")
     for r in rows:
         blk = " ".join(f"{c:g}Hz {100 * e:.2f}" for c, e in zip(r["candidates_hz"], r["fold_error_mean"]))
         oth = " ".join(f"{c}Hz {100 * np.mean(e):.2f}" for c, e in r["heldout"].items())
         print(f"seed {r['seed']}: chosen {r['chosen_hz']:g} Hz | {blk} | {oth}")
     ch = np.mean([np.mean(r["heldout"][f"{r['chosen_hz']:g}"]) for r in rows])
     fx = np.mean([np.mean(r["heldout"]["10"]) for r in rows if "10" in r["heldout"]])
-    print(f"mean over seeds on the other recordings: chosen {100 * ch:.2f} %, 10 Hz {100 * fx:.2f} % (raw torques, "
+    print(f"mean over seeds on the third recording: chosen {100 * ch:.2f} %, 10 Hz {100 * fx:.2f} % (raw torques, "
           f"{edge:g} s trimmed at each end; noise_rel {a.noise_rel:g}, quant_deg {a.quant_deg:g})")
     return 0
 

@@ -32,40 +32,39 @@ def _raw_error(params: dict, log, edge_s: float = 0.4) -> float:
 @pytest.fixture(scope="module")
 def noisy_positions(kr6):
     """Encoder noise of 3e-4 rad (a coarse joint-side encoder): differentiated twice through a 10 Hz
-    filter it is tens of times the motion's acceleration noise at 5 Hz. A fit recording and another
-    trajectory of the same robot."""
-    fit, _ = simulated_log(kr6, duration=20.0, fs=250.0, seed=0, q_noise=3e-4)
-    other, _ = simulated_log(kr6, duration=20.0, fs=250.0, seed=0, q_noise=3e-4, trajectory=11)
-    return fit, other
+    filter it is several times what it is at 5 Hz. Two recordings to fit and a third trajectory of
+    the same robot to judge on."""
+    return [simulated_log(kr6, duration=15.0, fs=250.0, seed=0, q_noise=3e-4, trajectory=tr)[0] for tr in (3, 11, 12)]
 
 
 def test_noisy_positions_choose_a_lower_cutoff_that_predicts_another_trajectory_better(kr6, noisy_positions):
-    fit, other = noisy_positions
-    chosen = fit_robot([fit], kr6)
-    fixed = fit_robot([fit], kr6, RobotFitSettings(cutoff=CUTOFF))
+    fit, other = noisy_positions[:2], noisy_positions[2]
+    chosen = fit_robot(fit, kr6)
+    fixed = fit_robot(fit, kr6, RobotFitSettings(cutoff=CUTOFF))
     co = chosen["metrics"]["choices"]["cutoff"]
     assert co["how"] == "held-out error" and co["candidates"] == [5.0, 10.0, 20.0]
     assert co["chosen"] == 5.0 != CUTOFF
     assert np.asarray(co["relative_error"]).shape == (3, 6) and len(co["mean_relative_error"]) == 3
-    assert co["folds"] == "5 contiguous blocks of the recording"
+    assert co["folds"] == "each recording left out in turn"
     # the file carries the choice: every reader filters new logs at 5 Hz
     assert chosen["settings"]["cutoff"] == 5.0
     assert chosen["provenance"]["preprocess"] == {"cutoff": 5.0, "order": 4, "cutoff_from": "held-out error"}
     # judged on another trajectory against the same target (raw torques, the same samples): better
     e_chosen, e_fixed = _raw_error(chosen, other), _raw_error(fixed, other)
     assert e_chosen < e_fixed / 1.04, (e_chosen, e_fixed)
-
-
-def test_validate_filters_with_the_files_cutoff(kr6, noisy_positions):
-    """robot_predictor trims two periods of the file's cut-off, not of the default's."""
-    fit, other = noisy_positions
-    p = fit_robot([fit], kr6)
-    assert p["settings"]["cutoff"] == 5.0
-    t, _ = robot_predictor(p, other, axis=1)[1]
+    # validate filters with the file's cut-off: two periods of 5 Hz trimmed, and another prediction
+    t, _ = robot_predictor(chosen, other, axis=1)[1]
     assert t.size == other.n_samples - 2 * math.ceil(2 * 250.0 / 5.0)
-    q5 = predict_robot(p, other)[1]
-    q10 = predict_robot({**p, "settings": {**p["settings"], "cutoff": None}}, other)[1]
-    assert not np.allclose(q5, q10)
+    q10 = predict_robot({**chosen, "settings": {**chosen["settings"], "cutoff": None}}, other)[1]
+    assert not np.allclose(predict_robot(chosen, other)[1], q10)
+
+
+def test_one_recording_keeps_the_default_cutoff(kr6, noisy_positions):
+    """Blocks of one recording share its trajectory: they do not choose the cut-off."""
+    p = fit_robot(noisy_positions[:1], kr6)
+    co = p["metrics"]["choices"]["cutoff"]
+    assert co["chosen"] == CUTOFF and "one recording: its blocks do not choose it" in co["how"]
+    assert p["settings"]["cutoff"] is None and p["provenance"]["preprocess"]["cutoff"] == CUTOFF
 
 
 def test_choose_cutoff_keeps_the_default_unless_another_is_clearly_better():
@@ -91,17 +90,17 @@ def test_cli_given_cutoff_makes_no_choice_and_the_choice_is_in_json_and_table(kr
     from kukaid.logs import write_hdf5
     from kukaid_cli.main import cli
 
-    log, _ = simulated_log(kr6, duration=10.0, fs=250.0, seed=1)
-    h5 = tmp_path / "log.h5"
-    write_hdf5(log, h5)
-    r = CliRunner().invoke(cli, ["fit", str(h5), "--robot", "kr6-r700-sixx", "--cutoff", "8", "-o",
+    h5 = [tmp_path / f"log{k}.h5" for k in range(2)]
+    for k, path in enumerate(h5):
+        write_hdf5(simulated_log(kr6, duration=8.0, fs=250.0, seed=1, trajectory=20 + k)[0], path)
+    r = CliRunner().invoke(cli, ["fit", *map(str, h5), "--robot", "kr6-r700-sixx", "--cutoff", "8", "-o",
                                  str(tmp_path / "given.json"), "--json"])
     assert r.exit_code == 0, r.output
     p = json.loads(r.stdout)
     assert p["metrics"]["choices"]["cutoff"] == {"chosen": 8.0, "how": "given"}
     assert p["settings"]["cutoff"] == 8.0
     assert p["provenance"]["preprocess"]["cutoff_from"] == "given"
-    r = CliRunner().invoke(cli, ["fit", str(h5), "--robot", "kr6-r700-sixx", "-o", str(tmp_path / "chosen.json"),
+    r = CliRunner().invoke(cli, ["fit", *map(str, h5), "--robot", "kr6-r700-sixx", "-o", str(tmp_path / "chosen.json"),
                                  "--json"])
     assert r.exit_code == 0, r.output
     co = json.loads(r.stdout)["metrics"]["choices"]["cutoff"]

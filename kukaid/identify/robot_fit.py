@@ -53,8 +53,8 @@ PRIOR_WEIGHT = 1e-3
 #: fs/10); on the real LWR4+ the blocked cross-validation within the fit recording ranks it first
 #: (``benchmarks/robot_lwr4_selection.py``), on the simulated KR 6 R700 sixx 5 and 10 Hz are alike.
 CUTOFF = 10.0
-#: candidate cut-offs, Hz, when none is given: chosen by held-out error against the raw torques
-#: (:func:`choose_cutoff`), each at most fs/10 (ten samples per cut-off period: the central
+#: candidate cut-offs, Hz, when none is given and there are several recordings: chosen by held-out
+#: error against the raw torques (:func:`choose_cutoff`), each at most fs/10 (ten samples per cut-off period: the central
 #: differences' gain is then within 7 % at the cut-off, and the fit's decimation keeps every sample).
 #: An octave each side of the default: below 5 Hz the filter cuts into an identification
 #: trajectory's band (a few Hz) and parallel filtering's bias on the nonlinear terms grows; above
@@ -1202,8 +1202,15 @@ def choose_cutoff(err_raw: dict[float, np.ndarray], default: float) -> tuple[flo
 
 def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings, drive: DriveModel,
                   base) -> _Terms:
-    """:func:`_terms` at the given cut-off, or, when none is given (and ``settings.choose``), at the
-    one of :func:`cutoff_candidates` with the lowest held-out error against the common target.
+    """:func:`_terms` at the given cut-off, or, when none is given (and ``settings.choose``) and there
+    are several recordings, at the one of :func:`cutoff_candidates` with the lowest held-out error
+    against the common target, each recording left out in turn.
+
+    Why not on blocks of one recording: they share its trajectory, and what a cut-off gains on one
+    block carries to the next but not to another motion (the LWR4+'s fast lwr4_3: its blocks rank
+    5 Hz 6 % and 20 Hz 17 % better than 10 Hz; on lwr4_1 and lwr4_2 those files predict 17.0 / 15.9
+    and 13.6 / 12.8 % against 13.3 / 12.6 % at 10 Hz): one recording keeps the default, as the
+    rotor inertias are not chosen by its blocks either.
 
     Why a common target: each candidate is fitted to the torques filtered at its own cut-off
     ("parallel filtering"); scored against those too, a lower cut-off wins by its smoother target
@@ -1213,11 +1220,12 @@ def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFit
     sees, the same for every candidate; its noise adds the same to each candidate's squared error
     and so does not rank them. A long log is thinned for the choice (:func:`_choice_settings`);
     the chosen cut-off is then fitted on all its samples."""
-    if settings.cutoff is not None or not settings.choose:
+    if settings.cutoff is not None or not settings.choose or len(logs) < 2:
         t = _terms(logs, robot, settings, drive, base)
         fs = min(1.0 / lg.sample_time for lg in logs)
-        t.choices["cutoff"] = {"chosen": round(_cutoff(settings, fs), 6), "how": "given" if settings.cutoff is not None
-                               else f"the default {CUTOFF:g} Hz (at most fs/10)"}
+        how = "given" if settings.cutoff is not None else f"the default {CUTOFF:g} Hz (at most fs/10)" + (
+            "; one recording: its blocks do not choose it" if settings.choose else "")
+        t.choices["cutoff"] = {"chosen": round(_cutoff(settings, fs), 6), "how": how}
         return t
     trials, thin, failed = {}, {}, {}
     for fc in cutoff_candidates(logs):
