@@ -5,9 +5,9 @@ Steps (:func:`fit_robot`):
 1. *Motion*: each log's positions are low-pass filtered (zero-phase Butterworth, scipy.signal)
    and differentiated twice (central differences); the measured torques go through the same
    filter ("parallel filtering", so both sides of ``tau = Y pi`` see the same gain and phase).
-   Edges are trimmed and the samples decimated to about ten per cut-off period. Unless given, the
-   cut-off is chosen among :data:`CUTOFF_GRID` by held-out error against the raw torques
-   (:func:`choose_cutoff`).
+   Edges are trimmed and the samples decimated to about ten per cut-off period. Unless given, and
+   with several logs, the cut-off is chosen among :data:`CUTOFF_GRID` by held-out error against
+   the raw torques (:func:`choose_cutoff`).
 2. *Regressor*: Pinocchio's joint-torque regressor (ten inertial parameters per link) plus
    per-joint friction (Coulomb-viscous or Stribeck with a fixed Stribeck velocity) and offset.
 3. *Base parameters* (numerical QR, :meth:`RobotModel.base_parameters`): weighted least squares
@@ -101,8 +101,8 @@ MOTOR_TORQUE_SOURCES = ("kuka-trace", "kukavarproxy", "virtual-krc4", "virtual-k
 class RobotFitSettings:
     """Settings of :func:`fit_robot` (all stored in the parameter file).
 
-    cutoff : low-pass cut-off of positions and torques, Hz (None: with ``choose`` one of
-        :data:`CUTOFF_GRID` by held-out error against the raw torques, :func:`choose_cutoff`; without,
+    cutoff : low-pass cut-off of positions and torques, Hz (None: with ``choose`` and several logs one
+        of :data:`CUTOFF_GRID` by held-out error against the raw torques, :func:`choose_cutoff`; else
         :data:`CUTOFF`; each at most fs/10; the file holds the value used).
     order : Butterworth order.
     decimate : keep every n-th sample after filtering (None: about 10 samples per cut-off period).
