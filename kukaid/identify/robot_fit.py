@@ -54,9 +54,9 @@ PRIOR_WEIGHT = 1e-3
 #: (``benchmarks/robot_lwr4_selection.py``), on the simulated KR 6 R700 sixx 5 and 10 Hz are alike.
 CUTOFF = 10.0
 #: candidate cut-offs, Hz, when none is given and there are several recordings: chosen by held-out
-#: error against the raw torques (:func:`choose_cutoff`), each at most fs/10 (ten samples per cut-off period: the central
-#: differences' gain is then within 7 % at the cut-off, and the fit's decimation keeps every sample).
-#: An octave each side of the default: below 5 Hz the filter cuts into an identification
+#: error against the raw torques (:func:`choose_cutoff`), each at most fs/10 (ten samples per cut-off
+#: period: the central differences' gain is then within 7 % at the cut-off; one recording keeps the
+#: default, :func:`_cutoff_terms`). An octave each side of the default: below 5 Hz the filter cuts into an identification
 #: trajectory's band (a few Hz) and parallel filtering's bias on the nonlinear terms grows; above
 #: 20 Hz the torque noise and the drives' and the structure's resonances come through
 CUTOFF_GRID = (5.0, 10.0, 20.0)
