@@ -204,6 +204,7 @@ def main() -> int:
     models = {"defaults": [], "nominal+friction": [], "naive": []}
     masses = []
     released = []
+    cutoffs = []
     rest_share = []
     for seed in a.seeds:
         logs, cb = recordings(urdf_true, seed, a.duration, a.rest)
@@ -214,6 +215,7 @@ def main() -> int:
             sp = p["standard_parameters"]
             masses.append([sp[lk]["m"] / m for lk, m in zip(nominal.link_names, m0)])
             released.append(bool((p["metrics"]["choices"].get("mass_bounds") or {}).get("released")))
+            cutoffs.append(p["metrics"]["choices"]["cutoff"]["chosen"])
             models["nominal+friction"].append(nominal_friction_fit(nominal, fit_log, val))
             models["naive"].append(naive_fit(nominal, fit_log, val))
             qd = np.gradient(fit_log.q, fit_log.time, axis=0)
@@ -222,7 +224,7 @@ def main() -> int:
     out = {"settings": json.loads(a.settings), "seeds": a.seeds, "duration_s": a.duration, "rest_s": a.rest, "models": rows,
            "mass_ratio": {"min": float(np.min(masses)), "max": float(np.max(masses)),
                           "per_fit": np.round(masses, 3).tolist(), "bounds_released": int(sum(released))},
-           "rest_share": float(np.mean(rest_share)),
+           "rest_share": float(np.mean(rest_share)), "cutoff_hz": cutoffs,
            "counterbalance_peak_Nm": float(np.abs(cb.torque(np.linspace(-2.6, 0.5, 50))).max())}
     if a.json:
         print(json.dumps(out, indent=1))
@@ -237,6 +239,7 @@ def main() -> int:
     print(f"fitted link masses / nominal (defaults): {out['mass_ratio']['min']:.2f} to {out['mass_ratio']['max']:.2f}"
           f" (plausible: 0.4-2.5); bounds released by held-out error in {out['mass_ratio']['bounds_released']} of "
           f"{len(released)} fits")
+    print(f"low-pass cut-off of the defaults' fits, Hz: {' '.join(f'{c:g}' for c in cutoffs)}")
     return 0
 
 

@@ -33,7 +33,8 @@ import click
               help="Fit a constant torque offset [default: no; yes for a prismatic axis, whose gravity is constant].")
 @click.option("--elements", type=click.IntRange(1, 10), default=3, show_default=True,
               help="Maxwell-slip elements (with --presliding).")
-@click.option("--cutoff", type=float, default=None, help="Low-pass cut-off, Hz (default 5 Hz at KRC rates; --robot: 10 Hz, at most fs/10).")
+@click.option("--cutoff", type=float, default=None, help="Low-pass cut-off, Hz (default 5 Hz at KRC rates; --robot: 10 Hz, at most fs/10; with "
+                   "several logs 5, 10 or 20 Hz chosen by held-out error).")
 @click.option("--order", type=click.IntRange(1, 8), default=None, help="Butterworth order (default 3 at KRC rates).")
 @click.option("--qd-thr", type=float, default=None, help="Dynamic-mode velocity threshold, rad/s (0.0017).")
 @click.option("--edge", type=int, default=None, help="Samples trimmed at both ends (default 5 fs/cutoff).")

@@ -64,17 +64,20 @@ def multisine(robot: RobotModel, duration: float, fs: float, seed: int = 3, f0: 
 
 
 def simulated_log(robot: RobotModel, duration: float = 60.0, fs: float = 250.0, seed: int = 0,
-                  noise: float = 0.05, q_noise: float = 1e-5) -> tuple[AxisLog, dict]:
-    """A whole-robot log (q, tau for A1..An) and its truth {pi, Fc, Fv, offset}."""
+                  noise: float = 0.05, q_noise: float = 1e-5, trajectory: int | None = None,
+                  f0: float = 0.1) -> tuple[AxisLog, dict]:
+    """A whole-robot log (q, tau for A1..An) and its truth {pi, Fc, Fv, offset}; ``trajectory``: the
+    multi-sine's seed (default ``seed + 3``: another trajectory of the same robot), ``f0`` its
+    fundamental, Hz (harmonics up to 5 ``f0``)."""
     pi = true_parameters(robot, seed + 1)
     fr = true_friction(robot.n, seed + 2)
-    t, q, qd, qdd = multisine(robot, duration, fs, seed + 3)
+    t, q, qd, qdd = multisine(robot, duration, fs, seed + 3 if trajectory is None else trajectory, f0)
     tau = np.empty_like(q)
     for a in range(0, t.size, 20000):   # blocks: an hour's (N, n, 10 n) regressor would not fit in memory
         b = slice(a, a + 20000)
         tau[b] = np.einsum("sjk,k->sj", robot.regressor(q[b], qd[b], qdd[b]), pi)
     tau += fr["Fc"] * np.sign(qd) + fr["Fv"] * qd + fr["offset"]
-    rng = np.random.default_rng(seed + 4)
+    rng = np.random.default_rng(seed + 4 if trajectory is None else 7919 * trajectory + seed + 4)
     tau += noise * rng.standard_normal(tau.shape)
     qm = q + q_noise * rng.standard_normal(q.shape)
     log = AxisLog(time=t, q=qm, tau=tau, axes=tuple(range(1, robot.n + 1)),

@@ -5,7 +5,9 @@ Steps (:func:`fit_robot`):
 1. *Motion*: each log's positions are low-pass filtered (zero-phase Butterworth, scipy.signal)
    and differentiated twice (central differences); the measured torques go through the same
    filter ("parallel filtering", so both sides of ``tau = Y pi`` see the same gain and phase).
-   Edges are trimmed and the samples decimated to about ten per cut-off period.
+   Edges are trimmed and the samples decimated to about ten per cut-off period. Unless given, and
+   with several logs, the cut-off is chosen among :data:`CUTOFF_GRID` by held-out error against
+   the raw torques (:func:`choose_cutoff`).
 2. *Regressor*: Pinocchio's joint-torque regressor (ten inertial parameters per link) plus
    per-joint friction (Coulomb-viscous or Stribeck with a fixed Stribeck velocity) and offset.
 3. *Base parameters* (numerical QR, :meth:`RobotModel.base_parameters`): weighted least squares
@@ -51,6 +53,16 @@ PRIOR_WEIGHT = 1e-3
 #: fs/10); on the real LWR4+ the blocked cross-validation within the fit recording ranks it first
 #: (``benchmarks/robot_lwr4_selection.py``), on the simulated KR 6 R700 sixx 5 and 10 Hz are alike.
 CUTOFF = 10.0
+#: candidate cut-offs, Hz, when none is given and there are several recordings: chosen by held-out
+#: error against the raw torques (:func:`choose_cutoff`), each at most fs/10 (ten samples per cut-off
+#: period: the central differences' gain is then within 7 % at the cut-off; one recording keeps the
+#: default, :func:`_cutoff_terms`). An octave each side of the default: below 5 Hz the filter cuts into an identification
+#: trajectory's band (a few Hz) and parallel filtering's bias on the nonlinear terms grows; above
+#: 20 Hz the torque noise and the drives' and the structure's resonances come through
+CUTOFF_GRID = (5.0, 10.0, 20.0)
+#: at most this many samples per candidate cut-off in its choice (every k-th fitted sample of a long
+#: log): ranking three cut-offs needs far fewer than the fit (:func:`_choice_settings`)
+CHOICE_SAMPLES = 10_000
 #: default harmonics of the position ripple per joint (see ``RobotFitSettings.ripple``): the LWR4+'s
 #: blocked cross-validation within the fit recording falls from 19.9 % (none) to 19.3, 14.5, 12.0 %
 #: (2, 3, 4) and then flattens (11.7 % at 6, 11.6 % at 8): the smallest where it flattens. The most
@@ -89,7 +101,9 @@ MOTOR_TORQUE_SOURCES = ("kuka-trace", "kukavarproxy", "virtual-krc4", "virtual-k
 class RobotFitSettings:
     """Settings of :func:`fit_robot` (all stored in the parameter file).
 
-    cutoff : low-pass cut-off of positions and torques, Hz (None: :data:`CUTOFF`, at most fs/10).
+    cutoff : low-pass cut-off of positions and torques, Hz (None: with ``choose`` and several logs one
+        of :data:`CUTOFF_GRID` by held-out error against the raw torques, :func:`choose_cutoff`; else
+        :data:`CUTOFF`; each at most fs/10; the file holds the value used).
     order : Butterworth order.
     decimate : keep every n-th sample after filtering (None: about 10 samples per cut-off period).
     friction : "coulomb-viscous" or "stribeck".
@@ -211,6 +225,7 @@ class Motion:
     keep: np.ndarray | None = None      # (N, n) bool: the joint's equation is fitted at that sample
     log_rows: tuple[int, ...] | None = None    # rows of each log, in order
     qd_noise: np.ndarray | None = None  # (n,) standard deviation of the velocity's noise, rad/s
+    tau_raw: np.ndarray | None = None   # (N, n) the joint torques unfiltered (the cut-off's common target)
 
 
 def away_from_reversals(qd: np.ndarray, time: np.ndarray, window: float) -> np.ndarray:
@@ -303,13 +318,15 @@ def sample_grid(time: np.ndarray, q: np.ndarray, cols: Sequence[int] | None = No
 
 
 def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel | None = None,
-           filter_tau: bool = True, rows: slice = slice(None), reversal_window: float | None = None) -> Motion:
+           filter_tau: bool = True, rows: slice = slice(None), reversal_window: float | None = None,
+           raw: bool = False) -> Motion:
     """Filtered positions, their derivatives and the (filtered) joint torques of axes A1..An.
 
     ``rows``: the samples to return (after filtering and differentiating the whole log);
     ``reversal_window`` (s): also mark the samples away from the joint's velocity reversals
     (:func:`away_from_reversals`) in ``keep``. The log is processed one joint at a time, so the
-    memory beyond the returned rows is a few single-column arrays whatever the log's length."""
+    memory beyond the returned rows is a few single-column arrays whatever the log's length.
+    ``raw``: also the unfiltered joint torques at those rows (``tau_raw``)."""
     from scipy.signal import butter, sosfiltfilt
 
     cols = _joint_columns(log, n)
@@ -326,7 +343,7 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
         raise FitError(f"{where}: {log.n_samples} samples are too few to filter (need more than {need})")
     t = sample_grid(log.time, log.q, cols)
     idx = np.arange(log.n_samples)[rows]
-    out = {k: np.empty((idx.size, n)) for k in ("q", "qd", "qdd", "tau")}
+    out = {k: np.empty((idx.size, n)) for k in ("q", "qd", "qdd", "tau") + (("tau_raw",) if raw else ())}
     keep = np.ones((idx.size, n), bool) if reversal_window is not None else None
     G = drive.G if settings.torque_side == "motor" and drive is not None else None
     gain = _velocity_noise_gain(sos, float(np.median(np.diff(t))), log.n_samples)
@@ -347,7 +364,9 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
             tj = sum(log.tau[:, ck] * G[k, j] for k, ck in enumerate(cols) if G[k, j] != 0.0)
             tj = tj if isinstance(tj, np.ndarray) else np.zeros(log.n_samples)
         out["tau"][:, j] = (sosfiltfilt(sos, tj) if filter_tau else tj)[rows]
-    return Motion(out["q"], out["qd"], out["qdd"], out["tau"], keep, (idx.size,), qd_noise)
+        if raw:
+            out["tau_raw"][:, j] = tj[rows]
+    return Motion(out["q"], out["qd"], out["qdd"], out["tau"], keep, (idx.size,), qd_noise, out.get("tau_raw"))
 
 
 def filtered_coulomb(log: AxisLog, n: int, settings: RobotFitSettings, rows: slice = slice(None),
@@ -438,12 +457,19 @@ def _velocity_noise_gain(sos: np.ndarray, dt: float, n: int) -> float:
 
 def sample_rows(log: AxisLog, settings: RobotFitSettings) -> slice:
     """The rows of ``log`` the fit uses: two cut-off periods trimmed at each end, then every
-    ``decimate``-th sample (default: about 10 samples per cut-off period)."""
+    ``decimate``-th sample (default: about 10 samples per cut-off period, and at most 10 x
+    :data:`CUTOFF` = 100 equations per second: above a 10 Hz cut-off the equations stay more than 5
+    per cut-off period, 2.5 x the filtered signals' Nyquist rate, and the fit costs what the 10 Hz
+    default does; at 20 Hz and 250 Hz every second sample, not every one)."""
     fs = 1.0 / log.sample_time
     fc = _cutoff(settings, fs)
     edge = int(math.ceil(2.0 * fs / fc))                     # two cut-off periods at each end
-    step = settings.decimate or max(1, int(round(fs / (10.0 * fc))))
-    return slice(edge, max(log.n_samples - edge, edge), step)
+    return slice(edge, max(log.n_samples - edge, edge), _step(settings, fs))
+
+
+def _step(settings: RobotFitSettings, fs: float) -> int:
+    """Every how many samples of a log at ``fs`` Hz the fit takes an equation (:func:`sample_rows`)."""
+    return settings.decimate or max(1, int(round(fs / (10.0 * min(_cutoff(settings, fs), CUTOFF)))))
 
 
 def log_fingerprint(log: AxisLog) -> str:
@@ -457,17 +483,20 @@ def log_fingerprint(log: AxisLog) -> str:
     return h.hexdigest()[:16]
 
 
-def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive: DriveModel) -> Motion:
+def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive: DriveModel,
+             raw: bool = False) -> Motion:
     parts = []
     for log in logs:
         fc = _cutoff(settings, 1.0 / log.sample_time)
         rows = sample_rows(log, settings)
-        parts.append(motion(log, n, settings, drive, rows=rows, reversal_window=settings.reversal_window * 1.0 / fc))
+        parts.append(motion(log, n, settings, drive, rows=rows, reversal_window=settings.reversal_window * 1.0 / fc,
+                            raw=raw))
     if len(parts) == 1:
         out = parts[0]
     else:
         out = Motion(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("q", "qd", "qdd", "tau", "keep")),
-                     tuple(p.q.shape[0] for p in parts), np.max([p.qd_noise for p in parts], axis=0))
+                     tuple(p.q.shape[0] for p in parts), np.max([p.qd_noise for p in parts], axis=0),
+                     np.concatenate([p.tau_raw for p in parts]) if raw else None)
     if out.q.shape[0] < 10:
         names = ", ".join(str(log.attrs.get("source_file", "axis log")) for log in logs)
         fcs = sorted({f"{_cutoff(settings, 1.0 / log.sample_time):g}" for log in logs})
@@ -717,6 +746,9 @@ class FoldEquations:
     tc, rc : (K, n) sums of the squared torques, fitted and not fitted.
     used : (k,) the extra columns that are nonzero somewhere.
     tn, rn : (K, n) numbers of samples fitted and not fitted.
+    xg[j] : (V, K, a_j), xc : (K, n) the columns against the raw (unfiltered) torques and the raw
+    torques' sums of squares, over every sample (when the motion carries ``tau_raw``; else None):
+    the common target the cut-offs are compared on (:func:`choose_cutoff`).
     """
 
     act: list
@@ -729,6 +761,8 @@ class FoldEquations:
     used: np.ndarray
     tn: np.ndarray
     rn: np.ndarray
+    xg: list | None = None
+    xc: np.ndarray | None = None
 
     def full(self, p: int, v: Sequence[int] | None = None, folds: Sequence[int] | None = None,
              evaluate: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -766,6 +800,9 @@ def fold_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, dri
     rg = [np.zeros((V, K, a.size)) for a in act]
     tc, rc = np.zeros((K, n)), np.zeros((K, n))
     tn, rn = np.zeros((K, n)), np.zeros((K, n))
+    raw = m.tau_raw is not None
+    xg = [np.zeros((V, K, a.size)) for a in act] if raw else None
+    xc = np.zeros((K, n)) if raw else None
     used = None
     # blocks that do not straddle a fold boundary
     edges = np.flatnonzero(np.diff(folds)) + 1
@@ -808,7 +845,14 @@ def fold_equations(robot: RobotModel, m: Motion, settings: RobotFitSettings, dri
                             Gv[ny:, ny:] += (Fj * wt[:, None]).T @ Fj
                             g[j][v, f, :ny] += Yt
                             g[j][v, f, ny:] += Fj.T @ (t * wt)
-    return FoldEquations(act, train, tg, rest, rg, tc, rc, used, tn, rn)
+                    if raw:
+                        r = m.tau_raw[rows, j]
+                        xc[f, j] += float(r @ r)
+                        Yr = Y[:, j, ay[j]].T @ r
+                        for v in range(V):
+                            xg[j][v, f, :ay[j].size] += Yr
+                            xg[j][v, f, ay[j].size:] += Fs[v][:, j, af[j]].T @ r
+    return FoldEquations(act, train, tg, rest, rg, tc, rc, used, tn, rn, xg, xc)
 
 
 def _with_coulomb(F: np.ndarray, qd: np.ndarray, settings: RobotFitSettings, v_smooth) -> np.ndarray:
@@ -862,17 +906,21 @@ def _solve_quick(A: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def choose_terms(fe: "FoldEquations", ib: np.ndarray, p: int, w: np.ndarray, harmonic: np.ndarray,
                  K_grid: Sequence[int], rw_grid: Sequence[bool], spring_col: np.ndarray | None = None,
-                 sp_grid: Sequence[bool] = (True,)) -> tuple[list, np.ndarray]:
+                 sp_grid: Sequence[bool] = (True,)) -> tuple[list, np.ndarray, np.ndarray | None]:
     """Held-out relative error of each joint (pooled over the folds; every sample of the held-out
     fold) of the weighted least-squares fit on the other folds, for each combination (all joints
     alike) of transition velocity (``fe``'s candidates), ripple harmonics up to K and reversal
     window (True: the equations near reversals left out of the fit). Returns the combinations,
-    simplest first, and the errors (C, n)."""
+    simplest first, the errors (C, n) against the filtered torque the fit is fitted to and, when
+    ``fe`` carries the raw torques (``fe.xg``), the same predictions' errors against the raw
+    torques (C, n; else None)."""
     V, Kf = fe.train[0].shape[:2]
     n = len(fe.act)
     spring_col = np.zeros(p, bool) if spring_col is None else spring_col
     combos = [(v, Kh, rw, sp) for sp in sp_grid for Kh in K_grid for rw in rw_grid for v in range(V)]
     err = np.zeros((len(combos), n))
+    raw = fe.xg is not None
+    err_raw = np.zeros((len(combos), n)) if raw else None
     den = fe.tc.sum(0) + fe.rc.sum(0)
     for v in range(V):
         At, Ar, bt, br = [], [], [], []
@@ -885,7 +933,7 @@ def choose_terms(fe: "FoldEquations", ib: np.ndarray, p: int, w: np.ndarray, har
         for Kh, sp in ((Kh, sp) for Kh in K_grid for sp in sp_grid):
             cols = ib[(harmonic[ib] <= Kh) & (sp | ~spring_col[ib])]
             for rw in rw_grid:
-                num = np.zeros(n)
+                num, num_raw = np.zeros(n), np.zeros(n)
                 for f in range(Kf):
                     A, b = sAt - At[f], sbt - bt[f]
                     if not rw:
@@ -896,9 +944,15 @@ def choose_terms(fe: "FoldEquations", ib: np.ndarray, p: int, w: np.ndarray, har
                         xa = x[a]
                         E = fe.train[j][v, f] + fe.rest[j][v, f]
                         e = fe.tg[j][v, f] + fe.rg[j][v, f]
-                        num[j] += max(fe.tc[f, j] + fe.rc[f, j] - 2 * e @ xa + xa @ E @ xa, 0.0)
-                err[combos.index((v, Kh, rw, sp))] = np.sqrt(num / np.maximum(den, 1e-300))
-    return combos, err
+                        xEx = xa @ E @ xa
+                        num[j] += max(fe.tc[f, j] + fe.rc[f, j] - 2 * e @ xa + xEx, 0.0)
+                        if raw:
+                            num_raw[j] += max(fe.xc[f, j] - 2 * fe.xg[j][v, f] @ xa + xEx, 0.0)
+                c = combos.index((v, Kh, rw, sp))
+                err[c] = np.sqrt(num / np.maximum(den, 1e-300))
+                if raw:
+                    err_raw[c] = np.sqrt(num_raw / np.maximum(fe.xc.sum(0), 1e-300))
+    return combos, err, err_raw
 
 
 def _chosen(fe: "FoldEquations", pick: Sequence[tuple], harmonic: np.ndarray, p: int,
@@ -1021,6 +1075,185 @@ def predictions(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive:
     return out
 
 
+@dataclass
+class _Terms:
+    """One cut-off's samples, fold equations and per-joint held-out choices (:func:`_terms`)."""
+
+    settings: RobotFitSettings      # the dead-band and each joint's chosen transition velocity set
+    m: Motion
+    fe: FoldEquations
+    K: int                          # folds
+    p: int                          # standard parameters + extras
+    ib: np.ndarray                  # the base parameters' and extras' columns
+    harmonic: np.ndarray            # (p,) ripple harmonic of each column (0: none)
+    spring_col: np.ndarray          # (p,) bool: a spring column
+    pick: list                      # per joint (transition velocity index, ripple, reversal window, spring)
+    choices: dict
+    err_raw: np.ndarray | None      # (n,) held-out error of each joint's pick against the raw torques
+
+
+def _terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings, drive: DriveModel,
+           base, raw: bool = False) -> _Terms:
+    """The samples of ``logs`` at the settings' cut-off, their per-fold normal equations and each
+    joint's transition velocity, ripple harmonics and spring chosen by held-out error (``raw``: the
+    same held-out predictions also scored against the unfiltered torques, :func:`choose_cutoff`)."""
+    n = robot.n
+    m = _samples(logs, n, settings, drive, raw=raw)
+    N = m.q.shape[0]
+    kw = m.keep.astype(float)
+    if np.any(kw.sum(axis=0) < 10):
+        raise FitError("too few samples away from velocity reversals; lower the reversal window")
+    counts = kw.sum(axis=0)
+    # per-joint normal equations of all columns (standard parameters + extras), accumulated over
+    # blocks of samples (never the (N, n, p) regressor), per candidate Coulomb transition velocity
+    # and per fold when one is to be chosen: everything below works on these small matrices,
+    # whatever the number of samples
+    if settings.deadband is None:
+        settings = replace(settings, deadband=tuple(float(x) for x in NOISE_DEADBAND * m.qd_noise))
+    deadband = np.broadcast_to(np.asarray(settings.deadband, float), (n,))
+    if settings.v_smooth is None and settings.choose:
+        grid = np.broadcast_to(np.asarray(SMOOTH_GRID, float)[:, None], (len(SMOOTH_GRID), n))     # (V, n)
+    elif settings.v_smooth is None:
+        grid = np.zeros((1, n))
+    else:
+        grid = np.broadcast_to(np.asarray(settings.v_smooth, float), (n,))[None, :]
+    K_grid = sorted({0, settings.ripple // 2, settings.ripple}) if settings.choose else [settings.ripple]
+    # fitting the equations near reversals too (a window of 0) can be chosen the same way
+    # (choose_terms), but blocks of one recording favour it and it loses on other recordings (the
+    # LWR4+'s A6: 12.9 -> 21.8 % on lwr4_3): the window stays as set
+    rw_grid = [True]
+    sp_grid = [False, True] if settings.choose and settings.spring else [settings.spring]
+    choose = len(grid) * len(K_grid) * len(rw_grid) * len(sp_grid) > 1 or raw
+    folds, K, how = _folds(m, logs) if choose else (np.zeros(N, int), 1, None)
+    fe = fold_equations(robot, m, settings, drive, grid, folds, K)
+    n_extra = fe.used.size
+    p = robot.n_std + n_extra
+    ib = np.concatenate([base.independent, robot.n_std + np.arange(n_extra)])
+    harmonic = np.zeros(p, int)           # the ripple harmonic of each column (0: not a ripple column)
+    if settings.ripple:
+        for k, nm in enumerate(extra_names(robot, settings)):
+            if ".ripple_" in nm:
+                harmonic[robot.n_std + k] = int(nm.rsplit("_", 1)[1][3:])
+    spring_col = np.zeros(p, bool)
+    if settings.spring:
+        for k, nm in enumerate(extra_names(robot, settings)):
+            spring_col[robot.n_std + k] = nm.endswith(".k")
+    pick = [(0, settings.ripple, True, settings.spring)] * n
+    choices: dict = {}
+    err_raw = None
+    if choose:
+        G0, g0, c0 = fe.full(p)
+        combos, err, err_raw = choose_terms(fe, ib, p, 1.0 / _weights(G0, g0, c0, ib, counts, settings) ** 2, harmonic,
+                                   K_grid, rw_grid, spring_col, sp_grid)
+        # per joint the simplest combination (no spring, fewer harmonics, the smaller transition velocity)
+        # within SIMPLER_WITHIN of its lowest held-out error
+        best = [int(np.flatnonzero(err[:, j] <= SIMPLER_WITHIN * err[:, j].min())[0]) for j in range(n)]
+        pick = [combos[i] for i in best]
+        err_raw = None if err_raw is None else err_raw[best, np.arange(n)]
+        choices["held_out"] = {
+            "folds": how, "rule": f"per joint the simplest combination within {100 * (SIMPLER_WITHIN - 1):.0f} % of its "
+                                  "lowest held-out relative error",
+            "combinations": [{"v_smooth": [float(x) for x in grid[v]], "ripple": Kh,
+                              "reversal_window": settings.reversal_window if rw else 0.0, "spring": sp}
+                             for v, Kh, rw, sp in combos],
+            "relative_error": err.T.tolist(),
+            "chosen": best}
+    settings = replace(settings, v_smooth=tuple(float(grid[v, j]) for j, (v, _, _, _) in enumerate(pick)))
+    choices["v_smooth"] = {"chosen": list(settings.v_smooth), "candidates": [float(x) for x in SMOOTH_GRID]
+                           if len(grid) > 1 else None, "velocity_noise": m.qd_noise.tolist(),
+                           "deadband": deadband.tolist()}
+    choices["ripple"] = {"chosen": [Kh for _, Kh, _, _ in pick], "candidates": K_grid}
+    choices["spring"] = {"chosen": [bool(sp) for _, _, _, sp in pick], "candidates": sp_grid}
+    choices["reversal_window"] = {"chosen": [settings.reversal_window if rw else 0.0 for _, _, rw, _ in pick]}
+    return _Terms(settings, m, fe, K, p, ib, harmonic, spring_col, pick, choices, err_raw)
+
+
+def cutoff_candidates(logs: Sequence[AxisLog]) -> list[float]:
+    """The cut-offs :func:`choose_cutoff` tries on ``logs``, Hz: :data:`CUTOFF_GRID`, each at most a
+    tenth of the slowest log's sample rate (the default's cap), without repeats."""
+    fs = min(1.0 / lg.sample_time for lg in logs)
+    return sorted({round(min(float(c), 0.1 * fs), 6) for c in CUTOFF_GRID})     # 1e-6 Hz: fs's rounding
+
+
+def _fitted_rows(logs: Sequence[AxisLog], settings: RobotFitSettings) -> int:
+    return sum(len(range(*sample_rows(lg, settings).indices(lg.n_samples))) for lg in logs)
+
+
+def _choice_settings(logs: Sequence[AxisLog], settings: RobotFitSettings) -> tuple[RobotFitSettings, int]:
+    """A candidate cut-off's settings for the choice: every k-th of its fitted samples, k such that
+    at most :data:`CHOICE_SAMPLES` remain (k = 1 for a short log); and k."""
+    k = max(1, math.ceil(_fitted_rows(logs, settings) / CHOICE_SAMPLES))
+    if k == 1:
+        return settings, 1
+    return replace(settings, decimate=k * max(_step(settings, 1.0 / lg.sample_time) for lg in logs)), k
+
+
+def choose_cutoff(err_raw: dict[float, np.ndarray], default: float) -> tuple[float, list[float]]:
+    """The cut-off (Hz) of the lowest mean held-out error over the joints, ``err_raw`` {cut-off:
+    (n,) relative errors against the raw torques}; ``default`` unless another's is lower by more than
+    :data:`SIMPLER_WITHIN` (the rule of the other held-out choices). Returns it and the means."""
+    cands = sorted(err_raw)
+    mean = [float(np.mean(err_raw[c])) for c in cands]
+    best = cands[int(np.argmin(mean))]
+    if default not in err_raw:     # the default could not be fitted (see _cutoff_terms)
+        return best, mean
+    return (best if min(mean) * SIMPLER_WITHIN < mean[cands.index(default)] else default), mean
+
+
+def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings, drive: DriveModel,
+                  base) -> _Terms:
+    """:func:`_terms` at the given cut-off, or, when none is given (and ``settings.choose``) and there
+    are several recordings, at the one of :func:`cutoff_candidates` with the lowest held-out error
+    against the common target, each recording left out in turn.
+
+    Why not on blocks of one recording: they share its trajectory, and what a cut-off gains on one
+    block carries to the next but not to another motion (the LWR4+'s fast lwr4_3: its blocks rank
+    5 Hz 6 % and 20 Hz 17 % better than 10 Hz; on lwr4_1 and lwr4_2 those files predict 17.0 / 15.9
+    and 13.6 / 12.8 % against 13.3 / 12.6 % at 10 Hz): one recording keeps the default, as the
+    rotor inertias are not chosen by its blocks either.
+
+    Why a common target: each candidate is fitted to the torques filtered at its own cut-off
+    ("parallel filtering"); scored against those too, a lower cut-off wins by its smoother target
+    alone. Every candidate's held-out prediction (the same folds, each joint's own transition
+    velocity, ripple and spring chosen at that cut-off) is scored against the raw, unfiltered
+    torques: what ``kukaid validate`` compares with and what the admittance control's residual
+    sees, the same for every candidate; its noise adds the same to each candidate's squared error
+    and so does not rank them. A long log is thinned for the choice (:func:`_choice_settings`);
+    the chosen cut-off is then fitted on all its samples."""
+    if settings.cutoff is not None or not settings.choose or len(logs) < 2:
+        t = _terms(logs, robot, settings, drive, base)
+        fs = min(1.0 / lg.sample_time for lg in logs)
+        how = "given" if settings.cutoff is not None else f"the default {CUTOFF:g} Hz (at most fs/10)" + (
+            "; one recording: its blocks do not choose it" if settings.choose else "")
+        t.choices["cutoff"] = {"chosen": round(_cutoff(settings, fs), 6), "how": how}
+        return t
+    trials, thin, failed = {}, {}, {}
+    for fc in cutoff_candidates(logs):
+        s_fc, thin[fc] = _choice_settings(logs, replace(settings, cutoff=fc))
+        try:
+            trials[fc] = _terms(logs, robot, s_fc, drive, base, raw=True)
+        except FitError as e:   # e.g. a slow cut-off's reversal window leaves too few samples of a fast motion
+            failed[fc] = str(e)
+    if not trials:
+        raise FitError(next(iter(failed.values())))
+    fs = min(1.0 / lg.sample_time for lg in logs)
+    default = round(_cutoff(settings, fs), 6)
+    chosen, mean = choose_cutoff({fc: t.err_raw for fc, t in trials.items()}, default)
+    t = trials[chosen]
+    if thin[chosen] > 1:
+        t = _terms(logs, robot, replace(settings, cutoff=chosen), drive, base)
+    t.choices["cutoff"] = {
+        "chosen": chosen, "how": "held-out error", "candidates": sorted(trials), "default": default,
+        "folds": trials[chosen].choices["held_out"]["folds"],
+        "target": "the raw (unfiltered) measured torques, the same for every candidate",
+        "rule": f"the lowest mean held-out relative error over the joints; the default {default:g} Hz unless another "
+                f"is lower by more than {100 * (SIMPLER_WITHIN - 1):.0f} %",
+        "relative_error": [trials[fc].err_raw.tolist() for fc in sorted(trials)], "mean_relative_error": mean,
+        "samples": [int(trials[fc].m.q.shape[0]) for fc in sorted(trials)],
+        "thinned": [thin[fc] for fc in sorted(trials)], "not_possible": {f"{fc:g}": e for fc, e in failed.items()}}
+    return t
+
+
 def fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings | None = None,
               coupling: np.ndarray | None = None) -> dict:
     """Identify base parameters, a physically consistent estimate and per-joint friction.
@@ -1061,74 +1294,13 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
                  "torque sensor does not see the rotors")
     settings = replace(settings, rotor=motor_currents if settings.rotor is None else settings.rotor)
     drive = _drive(robot, settings, coupling)
-    m = _samples(logs, n, settings, drive)
     base = robot.base_parameters()
+    t = _cutoff_terms(logs, robot, settings, drive, base)
+    settings, m, fe, K, p, ib, harmonic, spring_col, pick, choices = (
+        t.settings, t.m, t.fe, t.K, t.p, t.ib, t.harmonic, t.spring_col, t.pick, t.choices)
     N = m.q.shape[0]
-    kw = m.keep.astype(float)
-    if np.any(kw.sum(axis=0) < 10):
-        raise FitError("too few samples away from velocity reversals; lower the reversal window")
-    counts = kw.sum(axis=0)
-    # per-joint normal equations of all columns (standard parameters + extras), accumulated over
-    # blocks of samples (never the (N, n, p) regressor), per candidate Coulomb transition velocity
-    # and per fold when one is to be chosen: everything below works on these small matrices,
-    # whatever the number of samples
-    if settings.deadband is None:
-        settings = replace(settings, deadband=tuple(float(x) for x in NOISE_DEADBAND * m.qd_noise))
-    deadband = np.broadcast_to(np.asarray(settings.deadband, float), (n,))
-    if settings.v_smooth is None and settings.choose:
-        grid = np.broadcast_to(np.asarray(SMOOTH_GRID, float)[:, None], (len(SMOOTH_GRID), n))     # (V, n)
-    elif settings.v_smooth is None:
-        grid = np.zeros((1, n))
-    else:
-        grid = np.broadcast_to(np.asarray(settings.v_smooth, float), (n,))[None, :]
-    K_grid = sorted({0, settings.ripple // 2, settings.ripple}) if settings.choose else [settings.ripple]
-    # fitting the equations near reversals too (a window of 0) can be chosen the same way
-    # (choose_terms), but blocks of one recording favour it and it loses on other recordings (the
-    # LWR4+'s A6: 12.9 -> 21.8 % on lwr4_3): the window stays as set
-    rw_grid = [True]
-    sp_grid = [False, True] if settings.choose and settings.spring else [settings.spring]
-    choose = len(grid) * len(K_grid) * len(rw_grid) * len(sp_grid) > 1
-    folds, K, how = _folds(m, logs) if choose else (np.zeros(N, int), 1, None)
-    fe = fold_equations(robot, m, settings, drive, grid, folds, K)
     nb = base.size
-    n_extra = fe.used.size
-    p = robot.n_std + n_extra
-    ib = np.concatenate([base.independent, robot.n_std + np.arange(n_extra)])
-    harmonic = np.zeros(p, int)           # the ripple harmonic of each column (0: not a ripple column)
-    if settings.ripple:
-        for k, nm in enumerate(extra_names(robot, settings)):
-            if ".ripple_" in nm:
-                harmonic[robot.n_std + k] = int(nm.rsplit("_", 1)[1][3:])
-    spring_col = np.zeros(p, bool)
-    if settings.spring:
-        for k, nm in enumerate(extra_names(robot, settings)):
-            spring_col[robot.n_std + k] = nm.endswith(".k")
-    pick = [(0, settings.ripple, True, settings.spring)] * n
-    choices: dict = {}
-    if choose:
-        G0, g0, c0 = fe.full(p)
-        combos, err = choose_terms(fe, ib, p, 1.0 / _weights(G0, g0, c0, ib, counts, settings) ** 2, harmonic,
-                                   K_grid, rw_grid, spring_col, sp_grid)
-        # per joint the simplest combination (no spring, fewer harmonics, the smaller transition velocity)
-        # within SIMPLER_WITHIN of its lowest held-out error
-        best = [int(np.flatnonzero(err[:, j] <= SIMPLER_WITHIN * err[:, j].min())[0]) for j in range(n)]
-        pick = [combos[i] for i in best]
-        choices["held_out"] = {
-            "folds": how, "rule": f"per joint the simplest combination within {100 * (SIMPLER_WITHIN - 1):.0f} % of its "
-                                  "lowest held-out relative error",
-            "combinations": [{"v_smooth": [float(x) for x in grid[v]], "ripple": Kh,
-                              "reversal_window": settings.reversal_window if rw else 0.0, "spring": sp}
-                             for v, Kh, rw, sp in combos],
-            "relative_error": err.T.tolist(),
-            "chosen": best}
-    settings = replace(settings, v_smooth=tuple(float(grid[v, j]) for j, (v, _, _, _) in enumerate(pick)))
-    choices["v_smooth"] = {"chosen": list(settings.v_smooth), "candidates": [float(x) for x in SMOOTH_GRID]
-                           if len(grid) > 1 else None, "velocity_noise": m.qd_noise.tolist(),
-                           "deadband": deadband.tolist()}
-    choices["ripple"] = {"chosen": [Kh for _, Kh, _, _ in pick], "candidates": K_grid}
-    choices["spring"] = {"chosen": [bool(sp) for _, _, _, sp in pick], "candidates": sp_grid}
     choices["rotor"] = {"fitted": settings.rotor, "motor_current_logs": motor_currents, "why": rotor_why}
-    choices["reversal_window"] = {"chosen": [settings.reversal_window if rw else 0.0 for _, _, rw, _ in pick]}
     # the chosen equations: joint j at its transition velocity, its ripple harmonics, its samples
     G, gb, cc, used = _chosen(fe, pick, harmonic, p, spring_col=spring_col)
     used &= fe.used
@@ -1229,7 +1401,11 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
                     "at_bound": at_bound,
                     "solver": solver_info},
         "provenance": {"logs": [str(lg.attrs.get("source_file", "")) for lg in logs],
-                       "log_fingerprints": [log_fingerprint(lg) for lg in logs]},
+                       "log_fingerprints": [log_fingerprint(lg) for lg in logs],
+                       # the low-pass every reader of the file filters new logs with (settings.cutoff;
+                       # None: the default, at most fs/10 of each log), and where it came from
+                       "preprocess": {"cutoff": choices["cutoff"]["chosen"], "order": settings.order,
+                                      "cutoff_from": choices["cutoff"]["how"]}},
     }
 
 
@@ -1392,6 +1568,17 @@ def _pct(r: float) -> str:
     return f"{p:.2g}%" if p < 100 else f"{p:.0f}%"
 
 
+def _cutoff_line(co: dict) -> str:
+    """The table's line on the low-pass cut-off and its evidence (``metrics.choices.cutoff``)."""
+    line = f"low-pass {_g(co.get('chosen'), 3)} Hz"
+    if co.get("how") != "held-out error":
+        return f"{line}: {co.get('how')}"
+    errs = " / ".join(f"{100 * e:.1f}" for e in co.get("mean_relative_error") or [])
+    cands = " / ".join(_g(c, 3) for c in co.get("candidates") or [])
+    return (f"{line} chosen by held-out error against the raw torques ({cands} Hz: mean {errs} %; the default "
+            f"{_g(co.get('default'), 3)} Hz unless another is {100 * (SIMPLER_WITHIN - 1):.0f} % better)")
+
+
 def format_robot_table(params: dict) -> str:
     """Plain-text summary of a robot fit (at most 40 lines): per-joint friction and the choices made
     for it, link masses against the URDF, the base parameters the data determine (corrected
@@ -1439,6 +1626,9 @@ def format_robot_table(params: dict) -> str:
     if ho:
         lines.append(f"v, ripple and spring chosen per joint by held-out error ({ho.get('folds')}): the simplest within "
                      f"{100 * (SIMPLER_WITHIN - 1):.0f} % of the best")
+    co = ch.get("cutoff")
+    if co:
+        lines.append(_cutoff_line(co))
     vn = (ch.get("v_smooth") or {}).get("velocity_noise")
     if vn:
         lines.append(f"dead-band {NOISE_DEADBAND:g} x the velocity noise of the positions ({min(vn):.2g} to "
