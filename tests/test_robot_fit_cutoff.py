@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from kukaid.identify.fitted import model_for
 from kukaid.identify.robot_fit import (CUTOFF, SIMPLER_WITHIN, RobotFitSettings, choose_cutoff, cutoff_candidates,
-                                       fit_robot, predict_robot, robot_predictor)
+                                       fit_robot, predict_robot)
 from kukaid.models.robot import RobotModel
 
 from robot_sim_helpers import simulated_log
@@ -53,7 +54,7 @@ def test_noisy_positions_choose_a_lower_cutoff_that_predicts_another_trajectory_
     e_chosen, e_fixed = _raw_error(chosen, other), _raw_error(fixed, other)
     assert e_chosen < e_fixed / 1.04, (e_chosen, e_fixed)
     # validate filters with the file's cut-off: two periods of 5 Hz trimmed, and another prediction
-    t, _ = robot_predictor(chosen, other, axis=1)[1]
+    t, _ = model_for(chosen, axis=1).predict(other)[1]
     assert t.size == other.n_samples - 2 * math.ceil(2 * 250.0 / 5.0)
     q10 = predict_robot({**chosen, "settings": {**chosen["settings"], "cutoff": None}}, other)[1]
     assert not np.allclose(predict_robot(chosen, other)[1], q10)
