@@ -23,10 +23,14 @@ Online, causal version (what a controller can do):
   threshold a drift no faster than ``DRIFT_RATE`` (a servo's integral action winding up against
   stiction ramps the torque at rest by about 1 N·m/s; a push builds up faster).  In contact Γu is
   frozen, so a push that is still there when the axis stops is never absorbed;
-* at rest, out of contact, the RMS of Γr is tracked (forgetting ``floor_tau``): the start threshold
-  at rest is at least ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model
-  whose friction at rest does not match the axis needs a firmer push instead of moving the axis
-  by itself (``rest_threshold_max`` says how far it had to rise);
+* at rest, out of contact, the RMS of Γr is tracked: the start threshold at rest is at least
+  ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model whose friction at rest
+  does not match the axis needs a firmer push instead of moving the axis by itself
+  (``rest_threshold_max`` says how far it had to rise).  The mean square is the mean over the
+  rest seen so far, the starting level (Γr's RMS at ``threshold / floor_k``) counted as
+  ``FLOOR_PRIOR`` s of it, forgetting over ``floor_tau`` once that much has been seen: an average
+  forgetting over ``floor_tau`` from the start held the starting level for seconds, and a plant's
+  own sway at rest crossed the threshold before the floor had learnt it;
 * friction is continuous across the mode switch: up to ``qd_thr`` the Maxwell-slip torque, from
   ``3 qd_thr`` on the Stribeck curve, linearly blended in between (on the differenced speed,
   ``BLEND``); and every change of mode
@@ -93,6 +97,9 @@ MOVING_MARGIN = 2.0
 DYN_MEMORY = 0.1
 #: at rest, out of contact, the fastest drift (N·m/s) Γu follows beyond half the start threshold
 DRIFT_RATE = 1.0
+#: s of rest the threshold floor's starting level counts as (the floor then learns a plant's level at
+#: rest as a mean over the rest seen so far, not as an average forgetting over floor_tau from the start)
+FLOOR_PRIOR = 2.0
 #: effects of a parameter file that the online residual evaluates
 SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
 
@@ -244,6 +251,7 @@ class TorqueResidual:
         # mean square of Γr at rest out of contact, N²m², from the level where the start threshold
         # is ``threshold``
         self._rest_ms = (self.threshold / self.floor_k) ** 2 if self.floor_k > 0 else 0.0
+        self._rest_t = FLOOR_PRIOR  # s of rest in that mean square (the starting level counts as FLOOR_PRIOR)
         self._dyn_ms, self._dyn_n = 0.0, 0  # mean square of Γr moving out of contact, N²m²
         self.rest_threshold_max = self.threshold
         self.standing_max = 0.0  # the largest torque held as a possible hand when the threshold fell under one, N·m
@@ -437,7 +445,8 @@ class TorqueResidual:
                 if (learning and self._u_n >= self._u_need and self._since_switch >= self.switch_quiet
                         and abs(r1) < self.rest_threshold):  # what is not taken for a push (gated at half
                     # of it, as Γu, the floor stayed low on LuGre plants: 179/192 no-person runs held)
-                    self._rest_ms += min(h / self.floor_tau, 1.0) * (r1 * r1 - self._rest_ms)
+                    self._rest_t += h
+                    self._rest_ms += min(max(h / self.floor_tau, h / self._rest_t), 1.0) * (r1 * r1 - self._rest_ms)
                 start = self.rest_threshold
                 self.rest_threshold_max = max(self.rest_threshold_max, start)
             if self._since_stop < self.switch_quiet:  # a stop: friction settles, the servo overshoots
