@@ -408,6 +408,22 @@ def test_after_a_guided_move_the_plants_own_sway_at_rest_does_not_start_the_axis
     assert drift < 0.05 and n_det == 0, (drift, n_det)
 
 
+def test_a_pushs_breakaway_at_rest_is_no_stop_and_the_push_is_not_taken_in():
+    """gms-gravity seed 40 (the estimator's own friction law, a gravity error; found on held-out seeds
+    40-49), a 15 N·m push down at rest: its breakaway (150 µrad, within the elements' pre-sliding range of
+    320 µrad) took the filtered speed over qd_thr for two samples, and the return to quasi-static mode was
+    taken for a stop: a new rest, whose Γu took the push in under the stop's doubled threshold; the push
+    moved nothing and its release read as a push up that moved the axis 2.1 degrees with nobody there."""
+    p = plant("gms-gravity", seed=40)
+    op = PushOperator(amplitude=-15.0, t_start=2.0, duration=2.0, ramp=0.3)
+    run = _quiet_run(p, "constant", 0.024, -1.0, 30.0, op)
+    d = run.data
+    assert d["detected"][(d["time"] > 2.0) & (d["time"] < 2.5)].any()  # the push is seen within 0.5 s
+    assert math.degrees(d["q"][-1] - d["q"][0]) < -0.5  # and guides the axis down
+    drift, n_det = _drift_and_detections(run, t_from=-op.t_end)
+    assert drift < 0.05 and n_det == 0, (drift, n_det)
+
+
 def test_the_threshold_floor_at_rest_learns_the_residuals_level_from_the_rest_seen_so_far():
     """The floor at rest is floor_k x the RMS of Γr at rest: a mean over the rest seen so far (its
     starting level weighted as FLOOR_PRIOR s of rest), forgetting over floor_tau once longer.  A residual

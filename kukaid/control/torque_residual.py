@@ -15,7 +15,9 @@ Online, causal version (what a controller can do):
   through the same causal 3rd-order Butterworth low-pass (5 Hz), so they stay aligned in time;
 * Γu, the unmodelled quasi-static torque, is taken anew at the start of every rest (the paper's
   eq. 13; a rest begins when the axis stops with nobody in contact: no detection and |Γr| below
-  the threshold for the last ``QUIET_BEFORE_REST`` s, so not a hand braking the axis): the
+  the threshold for the last ``QUIET_BEFORE_REST`` s, so not a hand braking the axis; and it
+  moved: a dynamic episode that stayed within the model's pre-sliding range, the largest W_i/k_i
+  of its elements, is a push's breakaway deflecting a standing axis, and ends in no stop): the
   mean raw residual over its first ``u_window`` s, then, while the axis settles (``switch_quiet``
   s), a close follower (time constant ``u_window``), then, only while nobody is in contact
   (quasi-static, no detection, the innovation below half the start threshold at rest, so a push
@@ -192,6 +194,9 @@ class TorqueResidual:
             raise KukaidError(f"torque residual: zeta0 has {z0.size} values, the Maxwell-slip model {self._k.size} elements")
         self._zeta0 = z0
         self._k_lim = [(float(k), float(w) / float(k)) for k, w in zip(self._k, self._W)]
+        # the travel within which a "move" is the pre-sliding deflection of a push (every element not yet
+        # broken away), not a move that ends in a new rest
+        self._presliding_range = max((lim for _, lim in self._k_lim), default=0.0)
         # effects a diagnosis stored in the rigid body (inertial.My, offset; marked stored_as) are
         # already in the model
         eff = {k: v for k, v in model.stored_effects.items() if "stored_as" not in v}
@@ -263,6 +268,8 @@ class TorqueResidual:
         self._rest_age = math.inf  # s of close following since the present rest began
         self._hand = 0.0  # at rest: the part of the residual that may be a hand still on the axis, N·m
         self._u_span = (0.0, 0.0)  # at rest: the lowest and highest Γu held since the rest's first window, N·m
+        self._q_move0 = q  # where the present dynamic episode began, rad
+        self._travel = 0.0  # the farthest the axis has been from there, rad
         self._dyn_r = 0.0  # Γr while moving, averaged over DYN_MEMORY s, N·m
         self._start_prev = math.inf  # the start threshold at the previous sample, N·m
         self._moving = False
@@ -389,11 +396,18 @@ class TorqueResidual:
             # wrong way (a 36 N·m jump of Γp, a self-sustained cycle on a LuGre plant)
             self._mode = QUASI_STATIC
         quasi = self._mode == QUASI_STATIC
+        if not quasi and old_mode == QUASI_STATIC:
+            self._q_move0, self._travel = q, 0.0
+        if not quasi:
+            self._travel = max(self._travel, abs(q - self._q_move0))
+        # a dynamic episode that stayed within the pre-sliding range was a push's deflection of a standing
+        # axis (its breakaway crossing qd_thr for a few samples), not a move: it ends in no stop
+        moved = self._travel > self._presliding_range
         if not quasi and old_mode == QUASI_STATIC:  # moving: Γu is kept without the hand
             self._gamma_u, self._hand = self._gamma_u + self._hand, 0.0
         if not quasi or self._u_n < self._u_need:
             self._u_span = (self._gamma_u, self._gamma_u)
-        if quasi and old_mode == DYNAMIC and not self._detected:
+        if quasi and old_mode == DYNAMIC and not self._detected and moved:
             if self._quiet >= QUIET_BEFORE_REST:
                 self._new_rest()  # stopped with nobody in contact (no detection, nor a braking hand)
             else:  # the old Γu, read from here relative to what the moving model last saw
@@ -418,7 +432,7 @@ class TorqueResidual:
             self._since_switch += h
         # a stop: to quasi-static mode, or the raw speed falling below qd_thr while still dynamic (a
         # push's own deflection of a standing axis is not one)
-        stopped = old_mode == DYNAMIC and (quasi or (self._moving and not moving))
+        stopped = old_mode == DYNAMIC and moved and (quasi or (self._moving and not moving))
         self._since_stop = 0.0 if stopped else self._since_stop + h
         self._moving = moving
         self._bump *= math.exp(-h / self.switch_tau)
