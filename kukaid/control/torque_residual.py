@@ -396,15 +396,14 @@ class TorqueResidual:
             # wrong way (a 36 N·m jump of Γp, a self-sustained cycle on a LuGre plant)
             self._mode = QUASI_STATIC
         quasi = self._mode == QUASI_STATIC
-        if not quasi and old_mode == QUASI_STATIC:
+        if not quasi and old_mode == QUASI_STATIC:  # moving: Γu is kept without the hand
+            self._gamma_u, self._hand = self._gamma_u + self._hand, 0.0
             self._q_move0, self._travel = q, 0.0
         if not quasi:
             self._travel = max(self._travel, abs(q - self._q_move0))
         # a dynamic episode that stayed within the pre-sliding range was a push's deflection of a standing
         # axis (its breakaway crossing qd_thr for a few samples), not a move: it ends in no stop
         moved = self._travel > self._presliding_range
-        if not quasi and old_mode == QUASI_STATIC:  # moving: Γu is kept without the hand
-            self._gamma_u, self._hand = self._gamma_u + self._hand, 0.0
         if not quasi or self._u_n < self._u_need:
             self._u_span = (self._gamma_u, self._gamma_u)
         if quasi and old_mode == DYNAMIC and not self._detected and moved:
