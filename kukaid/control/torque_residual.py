@@ -15,7 +15,9 @@ Online, causal version (what a controller can do):
   through the same causal 3rd-order Butterworth low-pass (5 Hz), so they stay aligned in time;
 * Γu, the unmodelled quasi-static torque, is taken anew at the start of every rest (the paper's
   eq. 13; a rest begins when the axis stops with nobody in contact: no detection and |Γr| below
-  the threshold for the last ``QUIET_BEFORE_REST`` s, so not a hand braking the axis): the
+  the threshold for the last ``QUIET_BEFORE_REST`` s, so not a hand braking the axis; and it
+  moved: a dynamic episode that stayed within the model's pre-sliding range, the largest W_i/k_i
+  of its elements, is a push's breakaway deflecting a standing axis, and ends in no stop): the
   mean raw residual over its first ``u_window`` s, then, while the axis settles (``switch_quiet``
   s), a close follower (time constant ``u_window``), then, only while nobody is in contact
   (quasi-static, no detection, the innovation below half the start threshold at rest, so a push
@@ -23,10 +25,14 @@ Online, causal version (what a controller can do):
   threshold a drift no faster than ``DRIFT_RATE`` (a servo's integral action winding up against
   stiction ramps the torque at rest by about 1 N·m/s; a push builds up faster).  In contact Γu is
   frozen, so a push that is still there when the axis stops is never absorbed;
-* at rest, out of contact, the RMS of Γr is tracked (forgetting ``floor_tau``): the start threshold
-  at rest is at least ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model
-  whose friction at rest does not match the axis needs a firmer push instead of moving the axis
-  by itself (``rest_threshold_max`` says how far it had to rise);
+* at rest, out of contact, the RMS of Γr is tracked: the start threshold at rest is at least
+  ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model whose friction at rest
+  does not match the axis needs a firmer push instead of moving the axis by itself
+  (``rest_threshold_max`` says how far it had to rise).  The mean square is the mean over the
+  rest seen so far, the starting level (Γr's RMS at ``threshold / floor_k``) counted as
+  ``FLOOR_PRIOR`` s of it, forgetting over ``floor_tau`` once that much has been seen: an average
+  forgetting over ``floor_tau`` from the start held the starting level for seconds, and a plant's
+  own sway at rest crossed the threshold before the floor had learnt it;
 * friction is continuous across the mode switch: up to ``qd_thr`` the Maxwell-slip torque, from
   ``3 qd_thr`` on the Stribeck curve, linearly blended in between (on the differenced speed,
   ``BLEND``); and every change of mode
@@ -93,6 +99,9 @@ MOVING_MARGIN = 2.0
 DYN_MEMORY = 0.1
 #: at rest, out of contact, the fastest drift (N·m/s) Γu follows beyond half the start threshold
 DRIFT_RATE = 1.0
+#: s of rest the threshold floor's starting level counts as (the floor then learns a plant's level at
+#: rest as a mean over the rest seen so far, not as an average forgetting over floor_tau from the start)
+FLOOR_PRIOR = 2.0
 #: effects of a parameter file that the online residual evaluates
 SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
 
@@ -185,6 +194,9 @@ class TorqueResidual:
             raise KukaidError(f"torque residual: zeta0 has {z0.size} values, the Maxwell-slip model {self._k.size} elements")
         self._zeta0 = z0
         self._k_lim = [(float(k), float(w) / float(k)) for k, w in zip(self._k, self._W)]
+        # the travel within which a "move" is the pre-sliding deflection of a push (every element not yet
+        # broken away), not a move that ends in a new rest
+        self._presliding_range = max((lim for _, lim in self._k_lim), default=0.0)
         # effects a diagnosis stored in the rigid body (inertial.My, offset; marked stored_as) are
         # already in the model
         eff = {k: v for k, v in model.stored_effects.items() if "stored_as" not in v}
@@ -244,6 +256,7 @@ class TorqueResidual:
         # mean square of Γr at rest out of contact, N²m², from the level where the start threshold
         # is ``threshold``
         self._rest_ms = (self.threshold / self.floor_k) ** 2 if self.floor_k > 0 else 0.0
+        self._rest_t = FLOOR_PRIOR  # s of rest in that mean square (the starting level counts as FLOOR_PRIOR)
         self._dyn_ms, self._dyn_n = 0.0, 0  # mean square of Γr moving out of contact, N²m²
         self.rest_threshold_max = self.threshold
         self.standing_max = 0.0  # the largest torque held as a possible hand when the threshold fell under one, N·m
@@ -255,6 +268,8 @@ class TorqueResidual:
         self._rest_age = math.inf  # s of close following since the present rest began
         self._hand = 0.0  # at rest: the part of the residual that may be a hand still on the axis, N·m
         self._u_span = (0.0, 0.0)  # at rest: the lowest and highest Γu held since the rest's first window, N·m
+        self._q_move0 = q  # where the present dynamic episode began, rad
+        self._travel = 0.0  # the farthest the axis has been from there, rad
         self._dyn_r = 0.0  # Γr while moving, averaged over DYN_MEMORY s, N·m
         self._start_prev = math.inf  # the start threshold at the previous sample, N·m
         self._moving = False
@@ -383,9 +398,15 @@ class TorqueResidual:
         quasi = self._mode == QUASI_STATIC
         if not quasi and old_mode == QUASI_STATIC:  # moving: Γu is kept without the hand
             self._gamma_u, self._hand = self._gamma_u + self._hand, 0.0
+            self._q_move0, self._travel = q, 0.0
+        if not quasi:
+            self._travel = max(self._travel, abs(q - self._q_move0))
+        # a dynamic episode that stayed within the pre-sliding range was a push's deflection of a standing
+        # axis (its breakaway crossing qd_thr for a few samples), not a move: it ends in no stop
+        moved = self._travel > self._presliding_range
         if not quasi or self._u_n < self._u_need:
             self._u_span = (self._gamma_u, self._gamma_u)
-        if quasi and old_mode == DYNAMIC and not self._detected:
+        if quasi and old_mode == DYNAMIC and not self._detected and moved:
             if self._quiet >= QUIET_BEFORE_REST:
                 self._new_rest()  # stopped with nobody in contact (no detection, nor a braking hand)
             else:  # the old Γu, read from here relative to what the moving model last saw
@@ -410,7 +431,7 @@ class TorqueResidual:
             self._since_switch += h
         # a stop: to quasi-static mode, or the raw speed falling below qd_thr while still dynamic (a
         # push's own deflection of a standing axis is not one)
-        stopped = old_mode == DYNAMIC and (quasi or (self._moving and not moving))
+        stopped = old_mode == DYNAMIC and moved and (quasi or (self._moving and not moving))
         self._since_stop = 0.0 if stopped else self._since_stop + h
         self._moving = moving
         self._bump *= math.exp(-h / self.switch_tau)
@@ -437,7 +458,8 @@ class TorqueResidual:
                 if (learning and self._u_n >= self._u_need and self._since_switch >= self.switch_quiet
                         and abs(r1) < self.rest_threshold):  # what is not taken for a push (gated at half
                     # of it, as Γu, the floor stayed low on LuGre plants: 179/192 no-person runs held)
-                    self._rest_ms += min(h / self.floor_tau, 1.0) * (r1 * r1 - self._rest_ms)
+                    self._rest_t += h
+                    self._rest_ms += min(max(h / self.floor_tau, h / self._rest_t), 1.0) * (r1 * r1 - self._rest_ms)
                 start = self.rest_threshold
                 self.rest_threshold_max = max(self.rest_threshold_max, start)
             if self._since_stop < self.switch_quiet:  # a stop: friction settles, the servo overshoots
