@@ -1172,7 +1172,12 @@ def cutoff_candidates(logs: Sequence[AxisLog]) -> list[float]:
     """The cut-offs :func:`choose_cutoff` tries on ``logs``, Hz: :data:`CUTOFF_GRID`, each at most a
     tenth of the slowest log's sample rate (the default's cap), without repeats."""
     fs = min(1.0 / lg.sample_time for lg in logs)
-    return sorted({round(min(float(c), 0.1 * fs), 6) for c in CUTOFF_GRID})     # 1e-6 Hz: fs's rounding
+    return sorted({_cut(min(float(c), 0.1 * fs)) for c in CUTOFF_GRID})
+
+
+def _cut(fc: float) -> float:
+    """A cut-off to three significant digits: a log at 100.01 Hz caps a candidate at 10.0, not 10.001."""
+    return float(f"{fc:.3g}")
 
 
 def _fitted_rows(logs: Sequence[AxisLog], settings: RobotFitSettings) -> int:
@@ -1237,13 +1242,16 @@ def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFit
     if not trials:
         raise FitError(next(iter(failed.values())))
     fs = min(1.0 / lg.sample_time for lg in logs)
-    default = round(_cutoff(settings, fs), 6)
+    default = _cut(_cutoff(settings, fs))
     chosen, mean = choose_cutoff({fc: t.err_raw for fc, t in trials.items()}, default)
+    how = "held-out error"
+    if min(mean) > 1.0 and default in trials:  # no candidate predicts the held-out recording: no ranking
+        chosen, how = default, "the default: no candidate predicts the held-out recordings (mean error above 100 %)"
     t = trials[chosen]
     if thin[chosen] > 1:
         t = _terms(logs, robot, replace(settings, cutoff=chosen), drive, base)
     t.choices["cutoff"] = {
-        "chosen": chosen, "how": "held-out error", "candidates": sorted(trials), "default": default,
+        "chosen": chosen, "how": how, "candidates": sorted(trials), "default": default,
         "folds": trials[chosen].choices["held_out"]["folds"],
         "target": "the raw (unfiltered) measured torques, the same for every candidate",
         "rule": f"the lowest mean held-out relative error over the joints; the default {default:g} Hz unless another "
@@ -1285,6 +1293,12 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     for lg in logs:
         check_not_held(lg)
         check_torque_scale(lg, robot)
+    seen: dict[str, int] = {}
+    for i, lg in enumerate(logs):  # one recording twice would be its own held-out check
+        first = seen.setdefault(log_fingerprint(lg), i)
+        if first != i:
+            raise FitError(f"{lg.attrs.get('source_file', 'log')}: the same recording as "
+                           f"{logs[first].attrs.get('source_file', 'another log')}; give each recording once")
     n = robot.n
     motor_currents = all(lg.attrs.get("source") in MOTOR_TORQUE_SOURCES for lg in logs)
     rotor_why = ("as given" if settings.rotor is not None else
