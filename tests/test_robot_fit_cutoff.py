@@ -75,6 +75,8 @@ def test_choose_cutoff_keeps_the_default_unless_another_is_clearly_better():
     assert choose_cutoff(e, 10.0)[0] == 5.0
     del e[10.0]                                                   # the default could not be fitted
     assert choose_cutoff(e, 10.0)[0] == 5.0
+    nothing = {5.0: np.array([4.9, 4.9]), 10.0: np.array([14.1, 14.1]), 20.0: np.array([5.8, 5.8])}
+    assert choose_cutoff(nothing, 10.0)[0] == 10.0                 # held-out errors of 490-1410 %: no ranking
 
 
 def test_candidates_stay_at_most_a_tenth_of_the_sample_rate(kr6):

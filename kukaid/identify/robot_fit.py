@@ -63,6 +63,9 @@ CUTOFF_GRID = (5.0, 10.0, 20.0)
 #: at most this many samples per candidate cut-off in its choice (every k-th fitted sample of a long
 #: log): ranking three cut-offs needs far fewer than the fit (:func:`_choice_settings`)
 CHOICE_SAMPLES = 10_000
+#: held-out mean relative error above which the recordings cannot rank the cut-offs (a 2 s recording
+#: beside a long one gave 488 / 1413 / 577 %): the default is kept
+NO_RANKING = 1.0
 #: default harmonics of the position ripple per joint (see ``RobotFitSettings.ripple``): the LWR4+'s
 #: blocked cross-validation within the fit recording falls from 19.9 % (none) to 19.3, 14.5, 12.0 %
 #: (2, 3, 4) and then flattens (11.7 % at 6, 11.6 % at 8): the smallest where it flattens. The most
@@ -1196,13 +1199,15 @@ def _choice_settings(logs: Sequence[AxisLog], settings: RobotFitSettings) -> tup
 def choose_cutoff(err_raw: dict[float, np.ndarray], default: float) -> tuple[float, list[float]]:
     """The cut-off (Hz) of the lowest mean held-out error over the joints, ``err_raw`` {cut-off:
     (n,) relative errors against the raw torques}; ``default`` unless another's is lower by more than
-    :data:`SIMPLER_WITHIN` (the rule of the other held-out choices). Returns it and the means."""
+    :data:`SIMPLER_WITHIN` (the rule of the other held-out choices), and when no candidate predicts the
+    held-out recordings (every mean above :data:`NO_RANKING`: they cannot rank). Returns it and the means."""
     cands = sorted(err_raw)
     mean = [float(np.mean(err_raw[c])) for c in cands]
     best = cands[int(np.argmin(mean))]
     if default not in err_raw:     # the default could not be fitted (see _cutoff_terms)
         return best, mean
-    return (best if min(mean) * SIMPLER_WITHIN < mean[cands.index(default)] else default), mean
+    ranks = min(mean) <= NO_RANKING
+    return (best if ranks and min(mean) * SIMPLER_WITHIN < mean[cands.index(default)] else default), mean
 
 
 def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings, drive: DriveModel,
@@ -1244,9 +1249,8 @@ def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFit
     fs = min(1.0 / lg.sample_time for lg in logs)
     default = _cut(_cutoff(settings, fs))
     chosen, mean = choose_cutoff({fc: t.err_raw for fc, t in trials.items()}, default)
-    how = "held-out error"
-    if min(mean) > 1.0 and default in trials:  # no candidate predicts the held-out recording: no ranking
-        chosen, how = default, "the default: no candidate predicts the held-out recordings (mean error above 100 %)"
+    how = "held-out error" if min(mean) <= NO_RANKING or default not in trials else (
+        f"the default: no candidate predicts the held-out recordings (mean error above {100 * NO_RANKING:.0f} %)")
     t = trials[chosen]
     if thin[chosen] > 1:
         t = _terms(logs, robot, replace(settings, cutoff=chosen), drive, base)
