@@ -39,7 +39,8 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
 
     With a robot parameter file (fit --robot): candidates an A2-style counterbalance (a gas spring,
     one per joint that carries gravity), a payload at the flange, and per joint load-dependent
-    friction, thermal friction (with a temperature channel) and a position ripple; each joint's own
+    friction, thermal friction (with a temperature channel) and a position ripple, the coupled wrist
+    drives' friction (six axes) and gear elasticity of A1-A3; each joint's own
     terms are refitted with the candidate on the other logs (or blocks) and judged on the held-out
     one (logs the file was fitted on are left out when two others remain).  -o writes the robot file
     with the named effects in 'effects' (validate, show, report and diagnose read them), its terms

@@ -17,7 +17,7 @@ import click
 @click.option("--axis", type=int, default=None,
               help="Axis number (default: the logs' only axis; required for a log of several; not with --robot).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Parameter file to write (JSON, kukaid.params/1); an existing parameter file of the same kind "
+              help="Parameter file to write (JSON: kukaid.params/1, with --robot kukaid.robot_params/1); an existing parameter file of the same kind "
                    "is replaced (fitted parameters are derived from the logs), any other file only with --force.")
 @click.option("--force", is_flag=True, help="Replace an existing file that is not a parameter file of this kind.")
 @click.option("--json", "as_json", is_flag=True,
@@ -34,7 +34,7 @@ import click
 @click.option("--elements", type=click.IntRange(1, 10), default=3, show_default=True,
               help="Maxwell-slip elements (with --presliding).")
 @click.option("--cutoff", type=float, default=None, help="Low-pass cut-off, Hz (default 5 Hz at KRC rates; --robot: 10 Hz, at most fs/10; with "
-                   "several logs 5, 10 or 20 Hz chosen by held-out error).")
+                   "--robot and several recordings 5, 10 or 20 Hz chosen by held-out error).")
 @click.option("--order", type=click.IntRange(1, 8), default=None, help="Butterworth order (default 3 at KRC rates).")
 @click.option("--qd-thr", type=float, default=None, help="Dynamic-mode velocity threshold, rad/s (0.0017).")
 @click.option("--edge", type=int, default=None, help="Samples trimmed at both ends (default 5 fs/cutoff).")

@@ -9,7 +9,7 @@ _LOG = click.Path(dir_okay=False, path_type=Path)
 
 
 @click.command("report")
-@click.option("--params", "params", type=_LOG, required=True, help="Parameter file (kukaid.params/1 JSON).")
+@click.option("--params", "params", type=_LOG, required=True, help="Parameter file (JSON: kukaid.params/1, or kukaid.robot_params/1 from fit --robot).")
 @click.option("--friction", "friction", multiple=True, type=_LOG,
               help="Friction experiment log (constant-velocity sweeps): friction page; repeatable.")
 @click.option("--inertia", "inertia", multiple=True, type=_LOG,

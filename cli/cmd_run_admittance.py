@@ -103,7 +103,7 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
               show_default=True,
               help="sim: human (a person's arm: impedance around an intended minimum-jerk move, co-contraction, "
                    "reflex and reaction delays, tremor, lets go on target), push (open-loop 12-18 N·m push) or "
-                   "pull/hand (open-loop spring dragging the joint); drawn from --seed.")
+                   "pull/hand (open-loop spring dragging the joint) or none (nobody touches the axis); drawn from --seed.")
 @click.option("--grip", type=click.Choice(["soft", "ordinary", "firm"]),
               help="sim, --operator human: the person's grip [drawn from --seed].")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,

@@ -85,3 +85,13 @@ def test_a_robot_report_takes_only_logs(robot_case, tmp_path):
                                      "-o", str(tmp_path / "r.pdf")])
         assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1, r.output
         assert "a robot parameter file takes only --log" in r.output and not (tmp_path / "r.pdf").exists()
+
+
+def test_a_one_axis_file_refuses_a_log_without_its_axis_before_anything_else():
+    """check() refuses the log (diagnose's 'other axes move' warning came first, about the wrong axis)."""
+    from kukaid.errors import KukaidError
+
+    params, _ = axis_case()
+    log = sine_log(1, 0.2, axes=(1,))  # A1 only
+    with pytest.raises(KukaidError, match="axis A3 of the parameter file is not in the log"):
+        AxisFile(params).check(log)

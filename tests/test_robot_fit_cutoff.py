@@ -75,6 +75,8 @@ def test_choose_cutoff_keeps_the_default_unless_another_is_clearly_better():
     assert choose_cutoff(e, 10.0)[0] == 5.0
     del e[10.0]                                                   # the default could not be fitted
     assert choose_cutoff(e, 10.0)[0] == 5.0
+    nothing = {5.0: np.array([4.9, 4.9]), 10.0: np.array([14.1, 14.1]), 20.0: np.array([5.8, 5.8])}
+    assert choose_cutoff(nothing, 10.0)[0] == 10.0                 # held-out errors of 490-1410 %: no ranking
 
 
 def test_candidates_stay_at_most_a_tenth_of_the_sample_rate(kr6):
@@ -125,3 +127,12 @@ def test_cutoff_benchmark_quick_runs():
     row = json.loads(r.stdout)["rows"][0]
     assert row["chosen_hz"] in row["candidates_hz"] and set(row["heldout"]) == {"5", "10", "20"}
     assert all(len(e) == 6 and 0 < min(e) and max(e) < 1 for e in row["heldout"].values())
+
+
+def test_one_recording_given_twice_is_refused_and_a_rate_a_hair_over_100_hz_caps_at_10(kr6, noisy_positions):
+    from kukaid.errors import FitError
+
+    with pytest.raises(FitError, match="the same recording as"):
+        fit_robot([noisy_positions[0], noisy_positions[0]], kr6)
+    log, _ = simulated_log(kr6, duration=2.0, fs=100.01, seed=0)
+    assert cutoff_candidates([log]) == [5.0, 10.0]

@@ -183,7 +183,8 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
             f"at rest, with nothing detected, Γr wandered so far ({rest_thr / est.floor_k:.3g} N·m RMS) that the "
             f"threshold at rest rose from {cfg.threshold:g} to {rest_thr:.3g} N·m (a push there needs that much): "
             "a hand that leaned on the axis before it was taken for a push, or the parameter file's friction at "
-            "rest off (then refit its Maxwell-slip elements: kukaid fit --presliding)")
+            "rest off (then refit its Maxwell-slip elements: kukaid fit --presliding; a drive whose friction at rest "
+            "is not Maxwell-slip, e.g. LuGre bristles, keeps the threshold raised after a refit)")
     standing = float(getattr(est, "standing_max", 0.0))
     metrics["standing_max"] = standing
     if standing > 0.0:  # not a push, but the run should say it happened

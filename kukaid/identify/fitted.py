@@ -106,18 +106,18 @@ class AxisFile:
         self.unit = "N" if (params.get("provenance") or {}).get("joint") == "prismatic" else "N·m"
 
     def check(self, log: Any) -> None:
-        if self.axis in log.axes:
-            check_model_of(self.params, self.source, joint=log.joint[log.index(self.axis)])
+        if self.axis not in log.axes:
+            raise KukaidError(f"{log.attrs.get('source_file', 'log')}: axis A{self.axis} of the parameter file is not "
+                              f"in the log (axes: {list(log.axes)})")
+        check_model_of(self.params, self.source, joint=log.joint[log.index(self.axis)])
 
     def predict(self, log: Any) -> Pairs:
         """Effects are evaluated on the whole log (their time and energy coordinates start with it)."""
         from kukaid.identify.filtering import preprocess
         from kukaid.params import model_from_params
 
+        self.check(log)
         ax, params = self.axis, self.params
-        if ax not in log.axes:
-            raise KukaidError(f"{log.attrs.get('source_file', 'log')}: axis A{ax} of the parameter file is not in "
-                              f"the log (axes: {list(log.axes)})")
         st = fit_settings(params)
         pr = preprocess(log, ax, edge=0, **st)  # the whole grid: effects start with the log
         edge = int(math.ceil(5.0 * pr.fs / pr.settings["cutoff"]))

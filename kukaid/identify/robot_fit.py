@@ -63,6 +63,9 @@ CUTOFF_GRID = (5.0, 10.0, 20.0)
 #: at most this many samples per candidate cut-off in its choice (every k-th fitted sample of a long
 #: log): ranking three cut-offs needs far fewer than the fit (:func:`_choice_settings`)
 CHOICE_SAMPLES = 10_000
+#: held-out mean relative error above which the recordings cannot rank the cut-offs (a 2 s recording
+#: beside a long one gave 488 / 1413 / 577 %): the default is kept
+NO_RANKING = 1.0
 #: default harmonics of the position ripple per joint (see ``RobotFitSettings.ripple``): the LWR4+'s
 #: blocked cross-validation within the fit recording falls from 19.9 % (none) to 19.3, 14.5, 12.0 %
 #: (2, 3, 4) and then flattens (11.7 % at 6, 11.6 % at 8): the smallest where it flattens. The most
@@ -1172,7 +1175,12 @@ def cutoff_candidates(logs: Sequence[AxisLog]) -> list[float]:
     """The cut-offs :func:`choose_cutoff` tries on ``logs``, Hz: :data:`CUTOFF_GRID`, each at most a
     tenth of the slowest log's sample rate (the default's cap), without repeats."""
     fs = min(1.0 / lg.sample_time for lg in logs)
-    return sorted({round(min(float(c), 0.1 * fs), 6) for c in CUTOFF_GRID})     # 1e-6 Hz: fs's rounding
+    return sorted({_cut(min(float(c), 0.1 * fs)) for c in CUTOFF_GRID})
+
+
+def _cut(fc: float) -> float:
+    """A cut-off to three significant digits: a log at 100.01 Hz caps a candidate at 10.0, not 10.001."""
+    return float(f"{fc:.3g}")
 
 
 def _fitted_rows(logs: Sequence[AxisLog], settings: RobotFitSettings) -> int:
@@ -1191,13 +1199,15 @@ def _choice_settings(logs: Sequence[AxisLog], settings: RobotFitSettings) -> tup
 def choose_cutoff(err_raw: dict[float, np.ndarray], default: float) -> tuple[float, list[float]]:
     """The cut-off (Hz) of the lowest mean held-out error over the joints, ``err_raw`` {cut-off:
     (n,) relative errors against the raw torques}; ``default`` unless another's is lower by more than
-    :data:`SIMPLER_WITHIN` (the rule of the other held-out choices). Returns it and the means."""
+    :data:`SIMPLER_WITHIN` (the rule of the other held-out choices), and when no candidate predicts the
+    held-out recordings (every mean above :data:`NO_RANKING`: they cannot rank). Returns it and the means."""
     cands = sorted(err_raw)
     mean = [float(np.mean(err_raw[c])) for c in cands]
     best = cands[int(np.argmin(mean))]
     if default not in err_raw:     # the default could not be fitted (see _cutoff_terms)
         return best, mean
-    return (best if min(mean) * SIMPLER_WITHIN < mean[cands.index(default)] else default), mean
+    ranks = min(mean) <= NO_RANKING
+    return (best if ranks and min(mean) * SIMPLER_WITHIN < mean[cands.index(default)] else default), mean
 
 
 def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings, drive: DriveModel,
@@ -1237,13 +1247,15 @@ def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFit
     if not trials:
         raise FitError(next(iter(failed.values())))
     fs = min(1.0 / lg.sample_time for lg in logs)
-    default = round(_cutoff(settings, fs), 6)
+    default = _cut(_cutoff(settings, fs))
     chosen, mean = choose_cutoff({fc: t.err_raw for fc, t in trials.items()}, default)
+    how = "held-out error" if min(mean) <= NO_RANKING or default not in trials else (
+        f"the default: no candidate predicts the held-out recordings (mean error above {100 * NO_RANKING:.0f} %)")
     t = trials[chosen]
     if thin[chosen] > 1:
         t = _terms(logs, robot, replace(settings, cutoff=chosen), drive, base)
     t.choices["cutoff"] = {
-        "chosen": chosen, "how": "held-out error", "candidates": sorted(trials), "default": default,
+        "chosen": chosen, "how": how, "candidates": sorted(trials), "default": default,
         "folds": trials[chosen].choices["held_out"]["folds"],
         "target": "the raw (unfiltered) measured torques, the same for every candidate",
         "rule": f"the lowest mean held-out relative error over the joints; the default {default:g} Hz unless another "
@@ -1285,6 +1297,12 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     for lg in logs:
         check_not_held(lg)
         check_torque_scale(lg, robot)
+    seen: dict[str, int] = {}
+    for i, lg in enumerate(logs):  # one recording twice would be its own held-out check
+        first = seen.setdefault(log_fingerprint(lg), i)
+        if first != i:
+            raise FitError(f"{lg.attrs.get('source_file', 'log')}: the same recording as "
+                           f"{logs[first].attrs.get('source_file', 'another log')}; give each recording once")
     n = robot.n
     motor_currents = all(lg.attrs.get("source") in MOTOR_TORQUE_SOURCES for lg in logs)
     rotor_why = ("as given" if settings.rotor is not None else
