@@ -28,7 +28,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     for path, log in zip(logs, data):
         for w in model.warnings(log, str(path)):
             click.echo(f"kukaid: warning: validate: {w}", err=True)
-    for path in in_sample(model.params, logs, params_path):
+    for path in in_sample(model.params, logs, params_path, data):
         click.echo(f"kukaid: warning: validate: {path}: the model of {params_path} was fitted on this log "
                    "(its provenance.logs): these figures are in-sample, not a validation; give a log it did not see",
                    err=True)

@@ -95,3 +95,16 @@ def test_a_one_axis_file_refuses_a_log_without_its_axis_before_anything_else():
     log = sine_log(1, 0.2, axes=(1,))  # A1 only
     with pytest.raises(KukaidError, match="axis A3 of the parameter file is not in the log"):
         AxisFile(params).check(log)
+
+
+def test_a_robot_files_recording_is_in_sample_wherever_it_is_and_whatever_its_name(robot_case, tmp_path):
+    """fit --robot keeps its logs' fingerprints: validate's in-sample warning does not depend on the
+    working folder or the file's name (the provenance's paths were typed relative to another folder)."""
+    from kukaid.diagnose.validate import in_sample
+    from kukaid.models.robot import RobotModel
+    from robot_sim_helpers import simulated_log
+
+    params, log = robot_case
+    other, _ = simulated_log(RobotModel("kr6-r700-sixx"), duration=5.0, seed=1)
+    paths = [tmp_path / "renamed copy.h5", tmp_path / "another.h5"]
+    assert in_sample(params, paths, None, [log, other]) == [paths[0]]

@@ -91,18 +91,24 @@ def fitted_logs(params: dict) -> list[str]:
     return [str(x) for x in logs or () if x]
 
 
-def in_sample(params: dict, logs: Sequence[Any], params_path: Any = None) -> list[Any]:
+def in_sample(params: dict, logs: Sequence[Any], params_path: Any = None, loaded: Sequence[Any] = ()) -> list[Any]:
     """The ``logs`` (paths) that the model of ``params`` was fitted on (:func:`fitted_logs`): the
-    same file, the provenance's path taken from the working folder or from the parameter file's."""
+    same file, the provenance's path taken from the working folder or from the parameter file's;
+    or, given the ``loaded`` logs and a file that keeps its logs' fingerprints (fit --robot), the
+    same recording wherever it is now and whatever its name."""
     import os
     from pathlib import Path
 
+    from kukaid.identify.robot_fit import log_fingerprint
+
     bases = [Path.cwd()] + ([Path(params_path).resolve().parent] if params_path is not None else [])
     fitted = {(b / f).resolve() for f in fitted_logs(params) for b in bases}
+    prints = set((params.get("provenance") or {}).get("log_fingerprints") or ())
     out = []
-    for p in logs:
+    for i, p in enumerate(logs):
         here = Path(p).resolve()
-        if here in fitted or any(f.exists() and here.exists() and os.path.samefile(here, f) for f in fitted):
+        if (here in fitted or any(f.exists() and here.exists() and os.path.samefile(here, f) for f in fitted)
+                or (prints and i < len(loaded) and log_fingerprint(loaded[i]) in prints)):
             out.append(p)
     return out
 
