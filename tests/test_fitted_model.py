@@ -108,3 +108,19 @@ def test_a_robot_files_recording_is_in_sample_wherever_it_is_and_whatever_its_na
     other, _ = simulated_log(RobotModel("kr6-r700-sixx"), duration=5.0, seed=1)
     paths = [tmp_path / "renamed copy.h5", tmp_path / "another.h5"]
     assert in_sample(params, paths, None, [log, other]) == [paths[0]]
+
+
+def test_report_and_validate_refuse_a_log_without_the_files_axis_with_one_line(tmp_path, monkeypatch):
+    """report hinted "choose it with --axis", and --axis then was refused as another axis than the file's."""
+    from kukaid.logs import write_hdf5
+
+    params, _ = axis_case()
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.json").write_text(json.dumps(params))
+    write_hdf5(sine_log(1, 0.2, axes=(1,)), tmp_path / "a1.h5")
+    lines = []
+    for args in (["report", "--params", "p.json", "--log", "a1.h5", "-o", "r.pdf"], ["validate", "a1.h5", "--params", "p.json"]):
+        r = CliRunner().invoke(cli, args)
+        assert r.exit_code == 1 and not (tmp_path / "r.pdf").exists()
+        lines.append(r.stderr.strip())
+    assert lines[0] == lines[1] == "kukaid: error: a1.h5: axis A3 of the parameter file is not in the log (axes: [1])"

@@ -98,7 +98,7 @@ def _load_one(x: Any, axis: int, params: dict) -> tuple[Any, Any]:
         log = read_log(p)
     where = log.attrs.get("source_file", str(x) if not hasattr(x, "tau") else "axis log")
     if int(axis) not in tuple(int(a) for a in log.axes):
-        raise ReportError(f"{where}: axis A{axis} is not in the log (axes: {list(log.axes)}); choose it with --axis")
+        raise ReportError(f"{where}: axis A{axis} of the parameter file is not in the log (axes: {list(log.axes)})")
     fs = 1.0 / float(np.median(np.diff(np.asarray(log.time, dtype=float)))) if log.time.size > 1 else 1.0
     try:
         pr = preprocess(log, axis=axis, **_prep_options(params, fs))
