@@ -1556,7 +1556,7 @@ DETERMINED = 0.1
 TABLE_BASE_ROWS = 14
 
 
-def _g(x: float | None, digits: int = 4, zero: float = 1e-7) -> str:
+def table_number(x: float | None, digits: int = 4, zero: float = 1e-7) -> str:
     """A number for the table: '-' for none, 0 for a value that is zero up to the solver's tolerance
     (a parameter on its bound: not -6.3e-09)."""
     if x is None or not math.isfinite(float(x)):
@@ -1588,13 +1588,13 @@ def _pct(r: float) -> str:
 
 def _cutoff_line(co: dict) -> str:
     """The table's line on the low-pass cut-off and its evidence (``metrics.choices.cutoff``)."""
-    line = f"low-pass {_g(co.get('chosen'), 3)} Hz"
+    line = f"low-pass {table_number(co.get('chosen'), 3)} Hz"
     if co.get("how") != "held-out error":
         return f"{line}: {co.get('how')}"
     errs = " / ".join(f"{100 * e:.1f}" for e in co.get("mean_relative_error") or [])
-    cands = " / ".join(_g(c, 3) for c in co.get("candidates") or [])
+    cands = " / ".join(table_number(c, 3) for c in co.get("candidates") or [])
     return (f"{line} chosen by held-out error against the raw torques ({cands} Hz: mean {errs} %; the default "
-            f"{_g(co.get('default'), 3)} Hz unless another is {100 * (SIMPLER_WITHIN - 1):.0f} % better)")
+            f"{table_number(co.get('default'), 3)} Hz unless another is {100 * (SIMPLER_WITHIN - 1):.0f} % better)")
 
 
 def format_robot_table(params: dict) -> str:
@@ -1626,16 +1626,16 @@ def format_robot_table(params: dict) -> str:
               "speeds); offset; spring k q; position ripple harmonics", head]
     for j, a in enumerate(axes):
         held = "-" if not rng else f"{rng[j][0]:+.2g}/{rng[j][1]:+.2g}"
-        lines.append(f"A{a:<5}{_g(vals.get(f'A{a}.Fc')):>9}{_g(vals.get(f'A{a}.Fv')):>13}"
-                     f"{_g(vals.get(f'A{a}.offset')):>11}{_g(vals.get(f'A{a}.k')):>10}{_g(v[j], 2):>9}"
-                     f"{_g(d[j], 2, 1e-12):>10}{K[j]:>7}{held:>16}")
+        lines.append(f"A{a:<5}{table_number(vals.get(f'A{a}.Fc')):>9}{table_number(vals.get(f'A{a}.Fv')):>13}"
+                     f"{table_number(vals.get(f'A{a}.offset')):>11}{table_number(vals.get(f'A{a}.k')):>10}{table_number(v[j], 2):>9}"
+                     f"{table_number(d[j], 2, 1e-12):>10}{K[j]:>7}{held:>16}")
     if fr.get("model") == "stribeck":
-        lines.append("Stribeck excess Fs-Fc: " + " ".join(f"A{a} {_g(vals.get(f'A{a}.Fs-Fc'))}" for a in axes)
+        lines.append("Stribeck excess Fs-Fc: " + " ".join(f"A{a} {table_number(vals.get(f'A{a}.Fs-Fc'))}" for a in axes)
                      + f" (vs {fr.get('vs')} rad/s)")
     ch = mt.get("choices") or {}
     rot = [(k, x) for k, x in vals.items() if k.endswith(".rotor_inertia")]
     if rot:
-        lines.append("rotor inertia kg·m²: " + " ".join(f"{k.split('.')[0]} {_g(x)}" for k, x in rot))
+        lines.append("rotor inertia kg·m²: " + " ".join(f"{k.split('.')[0]} {table_number(x)}" for k, x in rot))
     elif (ch.get("rotor") or {}).get("motor_current_logs") is False:
         lines.append("no rotor inertias: the logs do not say their torques come from the motor currents "
                      "(--rotor-inertia if they do)")
@@ -1662,7 +1662,7 @@ def format_robot_table(params: dict) -> str:
             lines.append("link masses / URDF: " + " ".join(f"{r:.2f}{flag(r)}" for r in ratio)
                          + (f" (bounds {mb[0]:g}-{mb[1]:g}x, * on a bound)" if mb else " (no bounds)"))
         except Exception:  # noqa: BLE001 (the URDF moved: the masses alone)
-            lines.append("link masses kg: " + " ".join(_g(std[lk]["m"]) for lk in std))
+            lines.append("link masses kg: " + " ".join(table_number(std[lk]["m"]) for lk in std))
     mcheck = ch.get("mass_bounds")
     if mcheck and mcheck.get("why"):
         lines.append(f"masses on a bound ({', '.join(mcheck.get('links_on_bound') or [])}): {mcheck['why']}")
@@ -1677,7 +1677,7 @@ def format_robot_table(params: dict) -> str:
     lines.append(f"base parameters, best determined first ({ndet} of {val.size} with sigma < {100 * DETERMINED:g} %):")
     lines.append(f"  {'parameter':<52}{'estimate':>11}{'sigma %':>9}")
     for i in order[:TABLE_BASE_ROWS]:
-        lines.append(f"  {_short(bp['names'][i], 52):<52}{_g(val[i]):>11}{_pct(relsd[i]):>9}")
+        lines.append(f"  {_short(bp['names'][i], 52):<52}{table_number(val[i]):>11}{_pct(relsd[i]):>9}")
     undet = val.size - ndet
     if undet:
         nosd = int(val.size - has.size)
@@ -1685,7 +1685,7 @@ def format_robot_table(params: dict) -> str:
                      f"{100 * DETERMINED:g} %{f' or none: {nosd}' if nosd else ''}); they lean on the URDF's links")
     at = mt.get("at_bound") or []
     lines.append(f"sigma: least squares x the residual correlation factor {cf:.2f}; condition number "
-                 f"{_g(mt.get('condition_number'))}; physically consistent: {'yes' if mt.get('physically_consistent') else 'no'}")
+                 f"{table_number(mt.get('condition_number'))}; physically consistent: {'yes' if mt.get('physically_consistent') else 'no'}")
     lines.append(f"on a bound: {', '.join(at) or 'none'}")
     eff = params.get("effects") or {}
     if eff:

@@ -53,13 +53,15 @@ def page_base_parameters(params: dict, source: str):
 
 def page_friction_consistency(params: dict, source: str):
     """Friction/offset/spring per joint and the consistency check per link."""
+    from kukaid.identify.robot_fit import table_number  # a parameter on its bound is 0, as `show` prints it
+
     fr, mt = params["friction"], params.get("metrics") or {}
     fig = _figure("Robot fit: friction per joint, physical consistency per link", source)
     joints: dict[str, dict[str, str]] = {}
     for k, v in fr["values"].items():
         j, p = k.split(".", 1)
         s = (fr.get("sigma") or {}).get(k)
-        joints.setdefault(j, {})[p] = f"{v:.4g}\n± {s:.2g}" if s is not None else f"{v:.4g}"
+        joints.setdefault(j, {})[p] = table_number(v) + (f"\n± {s:.2g}" if s is not None else "")
     names = sorted({p for d in joints.values() for p in d})
     ax = fig.add_axes([0.05, 0.55, 0.9, 0.38])  # a row per parameter: a column each would overflow the cells
     _add_table(ax, [[p] + [d.get(p, "-") for d in joints.values()] for p in names], ["parameter"] + list(joints),
