@@ -33,7 +33,7 @@ def diagnose_model(model: Any, logs: Sequence[Any], *, axis: int | None = None, 
     each checked by ``model.check`` first, then its ``model.warnings`` told to ``warn``); ``axis``,
     ``cutoff``, ``alpha`` (None: the default) as :func:`~kukaid.diagnose.workflow.diagnose` takes
     them.  Returns (result, draw(result, path))."""
-    from kukaid.errors import KukaidError, OptionError
+    from kukaid.errors import OptionError
     from kukaid.identify.fitted import RobotFile
 
     stage = stage or (lambda text: None)
@@ -41,11 +41,7 @@ def diagnose_model(model: Any, logs: Sequence[Any], *, axis: int | None = None, 
     for name, value in (("axis", axis), ("cutoff", cutoff), ("alpha", alpha)) if robot else ():
         if value is not None:
             raise OptionError(f"option --{name} does not apply to a robot parameter file (yet): {ROBOT_FIXED[name]}")
-    for lg in logs if axis is not None else ():
-        if axis not in lg.axes:
-            raise KukaidError(f"{lg.attrs.get('source_file', 'log')}: axis A{axis} is not in the log (axes: "
-                              f"{list(lg.axes)})")
-    for lg in logs:
+    for lg in logs:  # a one-axis model refuses a log without its axis (the --axis given, or the file's)
         model.check(lg)
     for lg in logs:
         for w in model.warnings(lg, str(lg.attrs.get("source_file", "log"))):
