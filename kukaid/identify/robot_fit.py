@@ -1196,18 +1196,19 @@ def _choice_settings(logs: Sequence[AxisLog], settings: RobotFitSettings) -> tup
     return replace(settings, decimate=k * max(_step(settings, 1.0 / lg.sample_time) for lg in logs)), k
 
 
-def choose_cutoff(err_raw: dict[float, np.ndarray], default: float) -> tuple[float, list[float]]:
+def choose_cutoff(err_raw: dict[float, np.ndarray], default: float) -> tuple[float, list[float], bool]:
     """The cut-off (Hz) of the lowest mean held-out error over the joints, ``err_raw`` {cut-off:
     (n,) relative errors against the raw torques}; ``default`` unless another's is lower by more than
     :data:`SIMPLER_WITHIN` (the rule of the other held-out choices), and when no candidate predicts the
-    held-out recordings (every mean above :data:`NO_RANKING`: they cannot rank). Returns it and the means."""
+    held-out recordings (every mean above :data:`NO_RANKING`: they cannot rank). Returns it, the means
+    and whether the held-out errors ranked the candidates."""
     cands = sorted(err_raw)
     mean = [float(np.mean(err_raw[c])) for c in cands]
     best = cands[int(np.argmin(mean))]
     if default not in err_raw:     # the default could not be fitted (see _cutoff_terms)
-        return best, mean
-    ranks = min(mean) <= NO_RANKING
-    return (best if ranks and min(mean) * SIMPLER_WITHIN < mean[cands.index(default)] else default), mean
+        return best, mean, True
+    ranked = min(mean) <= NO_RANKING
+    return (best if ranked and min(mean) * SIMPLER_WITHIN < mean[cands.index(default)] else default), mean, ranked
 
 
 def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSettings, drive: DriveModel,
@@ -1230,9 +1231,9 @@ def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFit
     sees, the same for every candidate; its noise adds the same to each candidate's squared error
     and so does not rank them. A long log is thinned for the choice (:func:`_choice_settings`);
     the chosen cut-off is then fitted on all its samples."""
+    fs = min(1.0 / lg.sample_time for lg in logs)
     if settings.cutoff is not None or not settings.choose or len(logs) < 2:
         t = _terms(logs, robot, settings, drive, base)
-        fs = min(1.0 / lg.sample_time for lg in logs)
         how = "given" if settings.cutoff is not None else f"the default {CUTOFF:g} Hz (at most fs/10)" + (
             "; one recording: its blocks do not choose it" if settings.choose else "")
         t.choices["cutoff"] = {"chosen": round(_cutoff(settings, fs), 6), "how": how}
@@ -1246,10 +1247,9 @@ def _cutoff_terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFit
             failed[fc] = str(e)
     if not trials:
         raise FitError(next(iter(failed.values())))
-    fs = min(1.0 / lg.sample_time for lg in logs)
     default = _cut(_cutoff(settings, fs))
-    chosen, mean = choose_cutoff({fc: t.err_raw for fc, t in trials.items()}, default)
-    how = "held-out error" if min(mean) <= NO_RANKING or default not in trials else (
+    chosen, mean, ranked = choose_cutoff({fc: t.err_raw for fc, t in trials.items()}, default)
+    how = "held-out error" if ranked else (
         f"the default: no candidate predicts the held-out recordings (mean error above {100 * NO_RANKING:.0f} %)")
     t = trials[chosen]
     if thin[chosen] > 1:
