@@ -74,6 +74,31 @@ def test_validate_on_the_fitted_log_says_the_figures_are_in_sample(fitted):
     assert r.exit_code == 0 and _warnings(r) == [] and json.loads(r.stdout)["axes"]["A3"], r.output
 
 
+def test_a_one_axis_files_recording_is_in_sample_wherever_it_is_and_another_of_its_name_is_not(tmp_path,
+                                                                                                  monkeypatch):
+    """fit keeps its logs' fingerprints (as fit --robot does): the in-sample warning no longer depends
+    on the working folder (new-user trial 6)."""
+    import shutil
+
+    fit_dir, elsewhere = tmp_path / "fit", tmp_path / "elsewhere"
+    fit_dir.mkdir()
+    elsewhere.mkdir()
+    write_hdf5(sine_log(1, 0.25), fit_dir / "a.h5")
+    write_hdf5(sine_log(2, 0.18, amp=0.7), elsewhere / "a.h5")       # another recording, the same name
+    monkeypatch.chdir(fit_dir)
+    assert _run("fit", "a.h5", "--friction-model", "coulomb-viscous", "-o", "p.json").exit_code == 0
+    shutil.copy(fit_dir / "a.h5", elsewhere / "renamed.h5")          # the fitted recording, moved and renamed
+    monkeypatch.chdir(elsewhere)
+    r = _run("validate", "--params", fit_dir / "p.json", "a.h5", "renamed.h5")
+    assert r.exit_code == 0, r.output
+    assert [w.split(": ")[3] for w in _warnings(r) if "in-sample" in w] == ["renamed.h5"], r.stderr
+    old = json.loads((fit_dir / "p.json").read_text())                # a file written before: paths only
+    del old["provenance"]["log_fingerprints"]
+    (fit_dir / "p.json").write_text(json.dumps(old))
+    r = _run("validate", "--params", fit_dir / "p.json", fit_dir / "a.h5", "renamed.h5")
+    assert [w.split(": ")[3] for w in _warnings(r) if "in-sample" in w] == [str(fit_dir / "a.h5")], r.stderr
+
+
 def test_report_warns_of_a_log_given_in_another_role_as_fit_does(fitted, tmp_path):
     """The issue's case: a friction capture given as --presliding draws a hysteresis page from a
     short quasi-static stretch; now with the role warning `fit` gives."""

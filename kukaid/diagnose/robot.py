@@ -603,7 +603,7 @@ def _unseen(params: dict, logs: Sequence[Any]) -> tuple[list[Any], list[str]]:
     in-sample: small where the others' is not, and a candidate that tells that recording from the
     others, as a temperature that differs per recording does, would seem to predict the others);
     all of them otherwise. Returns the recordings and the names of those left out."""
-    from kukaid.identify.robot_fit import log_fingerprint
+    from kukaid.logs import log_fingerprint
 
     fps = set((params.get("provenance") or {}).get("log_fingerprints") or [])
     if len(logs) < 3 or not fps:
@@ -919,7 +919,7 @@ def _refined(params: dict, logs: Sequence[Any], base: _Baseline, own, named: lis
     negative)."""
     import copy
 
-    from kukaid.identify.robot_fit import log_fingerprint
+    from kukaid.logs import log_fingerprint
     from kukaid.models import robot_effects
 
     out = copy.deepcopy(params)

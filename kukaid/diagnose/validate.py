@@ -92,23 +92,24 @@ def fitted_logs(params: dict) -> list[str]:
 
 
 def in_sample(params: dict, logs: Sequence[Any], params_path: Any = None, loaded: Sequence[Any] = ()) -> list[Any]:
-    """The ``logs`` (paths) that the model of ``params`` was fitted on (:func:`fitted_logs`): the
-    same file, the provenance's path taken from the working folder or from the parameter file's;
-    or, given the ``loaded`` logs and a file that keeps its logs' fingerprints (fit --robot), the
-    same recording wherever it is now and whatever its name."""
+    """The ``logs`` (paths) that the model of ``params`` was fitted on.  Given the ``loaded`` logs and
+    a file that keeps its logs' fingerprints (``provenance.log_fingerprints``: fit and fit --robot),
+    the same recording wherever it is now and whatever its name; else (an older file) the same file
+    as a path of :func:`fitted_logs`, taken from the working folder or from the parameter file's."""
     import os
     from pathlib import Path
 
-    from kukaid.identify.robot_fit import log_fingerprint
+    from kukaid.logs import log_fingerprint
 
+    prints = set((params.get("provenance") or {}).get("log_fingerprints") or ())
+    if prints and len(loaded) == len(logs):
+        return [p for p, lg in zip(logs, loaded) if log_fingerprint(lg) in prints]
     bases = [Path.cwd()] + ([Path(params_path).resolve().parent] if params_path is not None else [])
     fitted = {(b / f).resolve() for f in fitted_logs(params) for b in bases}
-    prints = set((params.get("provenance") or {}).get("log_fingerprints") or ())
     out = []
-    for i, p in enumerate(logs):
+    for p in logs:
         here = Path(p).resolve()
-        if (here in fitted or any(f.exists() and here.exists() and os.path.samefile(here, f) for f in fitted)
-                or (prints and i < len(loaded) and log_fingerprint(loaded[i]) in prints)):
+        if here in fitted or any(f.exists() and here.exists() and os.path.samefile(here, f) for f in fitted):
             out.append(p)
     return out
 

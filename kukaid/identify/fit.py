@@ -28,6 +28,7 @@ from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
 from kukaid.identify.stribeck_fit import extract_friction, natural_uncertainty, solve_separable
 from kukaid.identify.uncertainty import correlation_factor, covariance
 from kukaid.jsonfile import jsonable
+from kukaid.logs import log_fingerprint
 from kukaid.models.friction import MaxwellSlip
 from kukaid.models.torque import JointTorqueModel
 from kukaid.params.axis import IZZ_MIN, model_sections
@@ -264,6 +265,8 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         "offset": bool(offset), "joint": all_preps[0].joint,
         "logs": {"general": [p.source for p in general], "friction": [p.source for p in fr],
                  "inertia": [p.source for p in ine], "presliding": psl.source if psl is not None else None},
+        # which recordings these are wherever they are later (validate's in-sample warning)
+        "log_fingerprints": [log_fingerprint(lg) for lg in raw_logs],
         "preprocess": jsonable({**all_preps[0].settings, "why": settings_reason(
             all_preps[0].settings, [k for k in ("cutoff", "order", "edge", "reversal_window") if pre.get(k) is not None])}),
     }

@@ -37,7 +37,7 @@ from kukaid.errors import FitError, ParamFileError
 from kukaid.identify.filtering import check_even_samples
 from kukaid.identify.solve_interrupt import interruptible_solve
 from kukaid.identify.uncertainty import correlation_factor
-from kukaid.logs import AxisLog
+from kukaid.logs import AxisLog, log_fingerprint
 from kukaid.params.robot import SCHEMA as ROBOT_SCHEMA
 from kukaid.params.robot import validate_robot_params
 from kukaid.models import robot_effects
@@ -473,17 +473,6 @@ def sample_rows(log: AxisLog, settings: RobotFitSettings) -> slice:
 def _step(settings: RobotFitSettings, fs: float) -> int:
     """Every how many samples of a log at ``fs`` Hz the fit takes an equation (:func:`sample_rows`)."""
     return settings.decimate or max(1, int(round(fs / (10.0 * min(_cutoff(settings, fs), CUTOFF)))))
-
-
-def log_fingerprint(log: AxisLog) -> str:
-    """A short hash of a log's samples (time, positions, torques): which logs a fit saw, whatever
-    their file names (``kukaid diagnose`` holds those out of nothing: their error is in-sample)."""
-    import hashlib
-
-    h = hashlib.sha256()
-    for x in (log.time, log.q, log.tau):
-        h.update(np.ascontiguousarray(np.asarray(x, float)).tobytes())
-    return h.hexdigest()[:16]
 
 
 def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive: DriveModel,

@@ -48,6 +48,18 @@ def channel_unit(channel: str, joint: str) -> str:
     raise KeyError(channel)
 
 
+def log_fingerprint(log: "AxisLog") -> str:
+    """A short hash of a log's samples (time, positions, torques): which logs a fit saw, whatever
+    their file names or folders (``kukaid validate`` calls a recording the file keeps in its
+    ``provenance.log_fingerprints`` in-sample; ``kukaid diagnose`` holds it out of nothing)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for x in (log.time, log.q, log.tau):
+        h.update(np.ascontiguousarray(np.asarray(x, float)).tobytes())
+    return h.hexdigest()[:16]
+
+
 @dataclass(frozen=True, eq=False)
 class AxisLog:
     """Measured signals of the axes ``axes``, sampled at the instants ``time``.
