@@ -12,6 +12,11 @@ import click
 from kukaid.errors import KukaidError
 
 
+#: ``--axis``: a KUKA axis number, 1 to 12 as in a parameter file (which axes a file models is checked
+#: with it: :func:`kukaid.identify.fitted.axis_option`)
+AXIS = click.IntRange(1, 12)
+
+
 def given(name: str, ctx: click.Context | None = None) -> bool:
     """Whether the option (parameter ``name``) was given, on the command line or from the environment,
     not left at its default (the current command's, or ``ctx``'s)."""

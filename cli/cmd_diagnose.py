@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+from kukaid_cli._util import AXIS
+
 
 @click.command("diagnose")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
@@ -12,7 +14,7 @@ import click
                    "(kukaid.robot_params/1, fit --robot).")
 @click.option("--log", "logs", type=click.Path(dir_okay=False, path_type=Path), multiple=True, required=True,
               help="Axis log (HDF5 or CSV); repeat for several experiments.")
-@click.option("--axis", type=int, default=None, help="KUKA axis number (default: the parameter file's).")
+@click.option("--axis", type=AXIS, default=None, help="KUKA axis number (default: the parameter file's).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
 @click.option("--report", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write PDF pages: the table of steps, the residual before and after each effect against its "

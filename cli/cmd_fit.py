@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+from kukaid_cli._util import AXIS
+
 
 @click.command("fit")
 @click.argument("logs", nargs=-1, type=click.Path(dir_okay=False, path_type=Path))
@@ -14,7 +16,7 @@ import click
               help="Inertia experiment log (sine); repeatable.")
 @click.option("--presliding", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Pre-sliding experiment log (Maxwell-slip elements).")
-@click.option("--axis", type=int, default=None,
+@click.option("--axis", type=AXIS, default=None,
               help="Axis number (default: the logs' only axis; required for a log of several; not with --robot).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Parameter file to write (JSON: kukaid.params/1, with --robot kukaid.robot_params/1); an existing parameter file of the same kind "

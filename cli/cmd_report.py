@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+from kukaid_cli._util import AXIS
+
 _LOG = click.Path(dir_okay=False, path_type=Path)
 
 
@@ -17,7 +19,7 @@ _LOG = click.Path(dir_okay=False, path_type=Path)
 @click.option("--presliding", type=_LOG, default=None, help="Pre-sliding log: hysteresis / Maxwell-slip page.")
 @click.option("--log", "logs", multiple=True, type=_LOG,
               help="General log: torque-prediction (validation) page; repeatable.")
-@click.option("--axis", type=int, default=None, help="Axis number (default: the parameter file's axis).")
+@click.option("--axis", type=AXIS, default=None, help="Axis number (default: the parameter file's axis).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="PDF file to write.")
 def command(params, friction, inertia, presliding, logs, axis, output) -> None:
@@ -34,7 +36,7 @@ def command(params, friction, inertia, presliding, logs, axis, output) -> None:
     check_outputs([output], [params, *friction, *inertia, presliding, *logs])
     stage = stages("report")
     warnings: list[str] = []
-    n = report_model(load_model(params), output, friction=list(friction), inertia=list(inertia),
+    n = report_model(load_model(params, axis), output, friction=list(friction), inertia=list(inertia),
                      presliding=presliding, logs=list(logs), axis=axis, warnings=warnings, stage=stage)
     for w in warnings:
         click.echo(f"kukaid: warning: report: {w}", err=True)

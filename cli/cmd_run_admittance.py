@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+from kukaid_cli._util import AXIS
+
 
 def _fmt(v):
     if isinstance(v, float):
@@ -126,7 +128,7 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--enable-motion", is_flag=True, help="kvp: really move the robot (required with --backend kvp).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
 @click.option("--port", type=int, default=7000, show_default=True, help="kvp: KUKAVARPROXY port.")
-@click.option("--axis", type=click.IntRange(1, 12), default=3, show_default=True,
+@click.option("--axis", type=AXIS, default=3, show_default=True,
               help="kvp (A1..A6), or a robot parameter file (any of its axes): axis to control.")
 def command(params_path: Path, output: Path, report: Path | None, as_json: bool, force: bool, damping: str,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
@@ -160,6 +162,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.control.recorder import RunRecorder, check_no_partial
     from kukaid.control.safety import SafetyLimits, check_motion_allowed
     from kukaid.errors import KukaidError, OptionError, ParamFileError
+    from kukaid.identify.fitted import axis_option
     from kukaid.jsonfile import jsonable
     from kukaid.jsonfile import read_json
     from kukaid.params import is_robot_params, load_params, model_from_params, validate_robot_params
@@ -191,11 +194,12 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         from kukaid.control.robot_residual import RobotTorqueModel
 
         params = validate_robot_params(raw, str(params_path))
+        axis_option(str(params_path), tuple(params["axes"]), axis)
         model = RobotTorqueModel.from_params(params, str(params_path))
-        if not 1 <= axis <= model.n:
-            raise click.BadParameter(f"{axis}: the robot of {params_path} has axes A1..A{model.n}", param_hint="--axis")
     else:
         params = load_params(params_path)
+        if given("axis") and params.get("axis") is not None:  # the file's axis, before the robot's or simulator's
+            axis_option(str(params_path), (int(params["axis"]),), axis)
         if backend == "kvp":  # A1..A6 of a KR C4, read in degrees: revolute
             _check_axis_kind(params, params_path, axis, f"A{axis} of the KR C4 (--axis {axis})",
                              f"; pass --axis {params.get('axis')} for that axis", error=OptionError)

@@ -5,12 +5,14 @@ from pathlib import Path
 
 import click
 
+from kukaid_cli._util import AXIS
+
 
 @click.command("validate")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Parameter file whose model is evaluated.")
 @click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--axis", type=int, default=None, help="KUKA axis number (default: the parameter file's).")
+@click.option("--axis", type=AXIS, default=None, help="KUKA axis number (default: the parameter file's).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
 def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json: bool) -> None:
     """Per axis RMSE, relative error ||tau - tau_hat|| / ||tau||, R² and samples of the model of

@@ -190,7 +190,7 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
      ["release 8.0 N·m must be in [0, threshold 3.0]"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--duration", "0"], ["--duration", "0.0<x<=3600.0"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--noise", "-1"], ["--noise", "-1.0 N·m is not"]),
-    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--axis", "5"], ["--axis", "simulates A3"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--axis", "5"], ["the parameters are of axis A3, not A5 (--axis 5)"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--tau-max", "-1"], ["--tau-max"]),
     (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--qd-max", "0"], ["--qd-max"]),
     (["excite", "friction", "-o", "x.json", "--plateau", "-1"], ["option --plateau: must be > 0"]),

@@ -102,7 +102,7 @@ def test_bad_inputs_give_one_line_errors(case, tmp_path):
     r = CliRunner().invoke(cli, args(params, [tmp_path / "missing.h5"]))
     assert r.exit_code == 1 and "missing.h5" in r.output
     r = CliRunner().invoke(cli, args(params, paths, "--axis", "5"))
-    assert r.exit_code == 1 and "A5" in r.output
+    assert r.exit_code == 2 and "not A5 (--axis 5)" in r.output  # a usage error (new-user trial 6)
     out = tmp_path / "never.json"
     r = CliRunner().invoke(cli, args(params, paths, "--alpha", "2", "-o", str(out)))
     assert r.exit_code != 0 and not out.exists()

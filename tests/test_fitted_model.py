@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from kukaid.diagnose.validate import score, validate
-from kukaid.errors import FitError, ParamFileError
+from kukaid.errors import OptionError, ParamFileError
 from kukaid.identify.fitted import AxisFile, RobotFile, load_model, model_for
 from kukaid_cli.main import cli
 
@@ -70,10 +70,28 @@ def test_the_robot_predicts_against_the_raw_torques_away_from_the_filter_edges(r
 def test_a_file_of_no_model_and_an_axis_it_does_not_model_are_refused(robot_case):
     with pytest.raises(ParamFileError, match="no model evaluator"):
         model_for({"schema": "other/1"})
-    with pytest.raises(ParamFileError, match="axis A3, not A2"):
+    with pytest.raises(OptionError, match=r"parameters: the parameters are of axis A3, not A2 \(--axis 2\)"):
         model_for(axis_case()[0], axis=2)
-    with pytest.raises(FitError, match="A7 is not in the robot parameter file"):
+    with pytest.raises(OptionError, match=r"parameters: the parameters are of axes A1..A6, not A7 \(--axis 7\)"):
         model_for(robot_case[0], axis=7)
+
+
+@pytest.mark.parametrize("command", ["validate", "report", "diagnose", "run-admittance"])
+def test_a_robot_file_refuses_an_axis_it_does_not_have_with_the_one_axis_files_line(robot_case, command, tmp_path):
+    """validate said 'axis A7 is not in the robot parameter file' (exit 1), run-admittance 'Invalid value
+    for --axis: 7: the robot of ... has axes A1..A6', report and diagnose that --axis does not apply."""
+    from kukaid.logs import write_hdf5
+    from kukaid.params import save_robot_params
+
+    save_robot_params(tmp_path / "robot.json", robot_case[0])
+    write_hdf5(robot_case[1], tmp_path / "log.h5")
+    par, log = str(tmp_path / "robot.json"), str(tmp_path / "log.h5")
+    args = {"validate": [log], "report": ["--log", log, "-o", str(tmp_path / "r.pdf")],
+            "diagnose": ["--log", log], "run-admittance": ["-o", str(tmp_path / "run.h5")]}[command]
+    r = CliRunner().invoke(cli, [command, "--params", par, "--axis", "7", *args])
+    assert r.exit_code == 2 and r.stderr.strip().splitlines() == [
+        f"kukaid: error: {par}: the parameters are of axes A1..A6, not A7 (--axis 7)"], r.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.h5", "robot.json"]
 
 
 def test_a_robot_report_takes_only_logs(robot_case, tmp_path):

@@ -32,8 +32,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from kukaid.errors import FitError, KukaidError, ParamFileError
-from kukaid.params import (ROBOT_SCHEMA, SCHEMA, check_model_of, save_params, save_robot_params, validate_params,
+from kukaid.errors import KukaidError, OptionError, ParamFileError
+from kukaid.params import (ROBOT_SCHEMA, SCHEMA, check_axis, check_model_of, save_params, save_robot_params, validate_params,
                            validate_robot_params)
 
 Pairs = dict[int, tuple[np.ndarray, np.ndarray]]
@@ -92,6 +92,20 @@ def fit_settings(params: dict) -> dict[str, Any]:
     return out
 
 
+def axis_option(source: str, axes: tuple[int, ...], axis: int | None) -> None:
+    """An ``axis`` asked for (``--axis``) that the file does not model: a usage error (exit status 2),
+    one line for both file kinds and every command (:func:`kukaid.params.check_axis`)."""
+    check_axis(source, axes, axis, f" (--axis {axis})", OptionError)
+
+
+def require_axis(log: Any, axis: int, where: str | None = None) -> None:
+    """A log without the parameter file's axis: one line for every command (a problem of the data,
+    exit status 1); ``where``: the log's name (default its ``source_file``)."""
+    if int(axis) not in tuple(int(a) for a in log.axes):
+        raise KukaidError(f"{where or log.attrs.get('source_file', 'log')}: axis A{axis} of the parameter file is "
+                          f"not in the log (axes: {list(log.axes)})")
+
+
 class AxisFile:
     """A ``kukaid.params/1`` file as a :class:`FittedModel`: a robot of one joint."""
 
@@ -99,16 +113,15 @@ class AxisFile:
     save = staticmethod(save_params)
 
     def __init__(self, params: dict, axis: int | None = None, source: str = "parameters") -> None:
-        check_model_of(params, source, axis=axis)
+        if params.get("axis") is not None:  # a file without its axis fits any
+            axis_option(source, (int(params["axis"]),), axis)
         self.params, self.source = params, source
         self.axis = int(params.get("axis", 3)) if axis is None else int(axis)
         self.joints = (self.axis,)
         self.unit = "N" if (params.get("provenance") or {}).get("joint") == "prismatic" else "N·m"
 
     def check(self, log: Any) -> None:
-        if self.axis not in log.axes:
-            raise KukaidError(f"{log.attrs.get('source_file', 'log')}: axis A{self.axis} of the parameter file is not "
-                              f"in the log (axes: {list(log.axes)})")
+        require_axis(log, self.axis)
         check_model_of(self.params, self.source, joint=log.joint[log.index(self.axis)])
 
     def predict(self, log: Any) -> Pairs:
@@ -163,8 +176,7 @@ class RobotFile:
         if robot is not None:  # a RobotModel of the file's URDF the caller has built already
             self.robot = robot
         axes = tuple(range(1, len(params["axes"]) + 1))
-        if axis is not None and axis not in axes:
-            raise FitError(f"axis A{axis} is not in the robot parameter file (axes: {list(axes)})")
+        axis_option(source, axes, axis)
         self.joints = axes if axis is None else (int(axis),)
 
     @cached_property
@@ -201,4 +213,4 @@ class RobotFile:
         return format_robot_table(self.params)
 
 
-__all__ = ["AxisFile", "FittedModel", "RobotFile", "fit_settings", "load_model", "model_for"]
+__all__ = ["AxisFile", "FittedModel", "RobotFile", "axis_option", "fit_settings", "load_model", "model_for", "require_axis"]

@@ -270,8 +270,24 @@ def check_model_of(d: dict, source: str, axis: int | None = None, joint: str | N
         units = JOINT_UNITS.get(file_joint, f"joint type {file_joint!r}")
         raise ParamFileError(f"{source}: the parameters are of a {file_joint} axis ({name}{units}), not of a {joint} "
                              f"one{tail}")
-    if axis is not None and file_axis is not None and int(file_axis) != int(axis):
-        raise (error or ParamFileError)(f"{source}: the parameters are of axis A{file_axis}, not A{axis}{tail}")
+    if file_axis is not None:
+        check_axis(source, (int(file_axis),), axis, tail, error)
+
+
+def check_axis(source: str, axes: Sequence[int], axis: int | None, tail: str = "",
+               error: type[ParamFileError] | None = None) -> None:
+    """Refuse an ``axis`` that a parameter file does not model (``axes``: a one-axis file's axis, a
+    robot file's A1..An), with the one line every command gives::
+
+        params.json: the parameters are of axis A2, not A4 (--axis 4)
+        robot.json: the parameters are of axes A1..A6, not A9 (--axis 9)
+
+    ``tail`` is appended (what the axis was for, or the option that asked for it); ``error`` as
+    :func:`check_model_of`'s."""
+    if axis is None or int(axis) in axes:
+        return
+    what = f"axis A{axes[0]}" if len(axes) == 1 else f"axes A{min(axes)}..A{max(axes)}"
+    raise (error or ParamFileError)(f"{source}: the parameters are of {what}, not A{axis}{tail}")
 
 
 def model_from_params(d: dict, joint: str = "revolute") -> JointTorqueModel:

@@ -87,6 +87,7 @@ def _prep_options(params: dict, fs: float) -> dict:
 
 def _load_one(x: Any, axis: int, params: dict) -> tuple[Any, Any]:
     from kukaid.identify import preprocess
+    from kukaid.identify.fitted import require_axis
     from kukaid.logs import read_log
 
     if hasattr(x, "tau") and hasattr(x, "time"):
@@ -97,8 +98,7 @@ def _load_one(x: Any, axis: int, params: dict) -> tuple[Any, Any]:
             raise ReportError(f"{p}: no such file")
         log = read_log(p)
     where = log.attrs.get("source_file", str(x) if not hasattr(x, "tau") else "axis log")
-    if int(axis) not in tuple(int(a) for a in log.axes):
-        raise ReportError(f"{where}: axis A{axis} of the parameter file is not in the log (axes: {list(log.axes)})")
+    require_axis(log, axis, where)
     fs = 1.0 / float(np.median(np.diff(np.asarray(log.time, dtype=float)))) if log.time.size > 1 else 1.0
     try:
         pr = preprocess(log, axis=axis, **_prep_options(params, fs))
