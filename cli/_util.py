@@ -17,6 +17,12 @@ from kukaid.errors import KukaidError
 AXIS = click.IntRange(1, 12)
 
 
+#: ``--urdf`` of the commands that read a robot parameter file: where its URDF is now
+URDF = click.option("--urdf", type=click.Path(dir_okay=False, path_type=Path), default=None,
+                    help="A robot parameter file's URDF, when it is neither where the file says (robot.urdf) nor "
+                         "beside the file (a moved project); it must be the URDF the file was fitted with (sha256).")
+
+
 def given(name: str, ctx: click.Context | None = None) -> bool:
     """Whether the option (parameter ``name``) was given, on the command line or from the environment,
     not left at its default (the current command's, or ``ctx``'s)."""

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import AXIS
+from kukaid_cli._util import AXIS, URDF
 
 
 @click.command("diagnose")
@@ -28,8 +28,10 @@ from kukaid_cli._util import AXIS
 @click.option("--alpha", type=float, default=0.01, show_default=True,
               help="False-alarm probability per round (over all candidates).")
 @click.option("--max-steps", type=int, default=4, show_default=True, help="At most this many effects are added.")
+@URDF
 def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json: bool, report: Path | None,
-            output: Path | None, force: bool, cutoff: float | None, alpha: float, max_steps: int) -> None:
+            output: Path | None, force: bool, cutoff: float | None, alpha: float, max_steps: int,
+            urdf: Path | None) -> None:
     """Find the physical effects the model of --params misses in the --log data, add them, refit.
 
     Candidates: gravity_sine, torque_offset, position_ripple, thermal_drift,
@@ -66,7 +68,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     check_suffix(report, ".pdf")
     check_outputs([output, report], [params_path, *logs])
     refuse_other_kind(output, force, SCHEMA, ROBOT_SCHEMA)
-    model = load_model(params_path, axis)
+    model = load_model(params_path, axis, urdf)
     stage = stages("diagnose")
     stage("reading the logs")
     data = [read_log(p) for p in logs]

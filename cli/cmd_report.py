@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import AXIS
+from kukaid_cli._util import AXIS, URDF
 
 _LOG = click.Path(dir_okay=False, path_type=Path)
 
@@ -22,7 +22,8 @@ _LOG = click.Path(dir_okay=False, path_type=Path)
 @click.option("--axis", type=AXIS, default=None, help="Axis number (default: the parameter file's axis).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="PDF file to write.")
-def command(params, friction, inertia, presliding, logs, axis, output) -> None:
+@URDF
+def command(params, friction, inertia, presliding, logs, axis, output, urdf) -> None:
     """Write a multi-page PDF: parameters with uncertainties, friction, torque prediction,
     pre-sliding hysteresis, parameter correlation and residuals (pages for the data given)."""
     import matplotlib
@@ -36,7 +37,7 @@ def command(params, friction, inertia, presliding, logs, axis, output) -> None:
     check_outputs([output], [params, *friction, *inertia, presliding, *logs])
     stage = stages("report")
     warnings: list[str] = []
-    n = report_model(load_model(params, axis), output, friction=list(friction), inertia=list(inertia),
+    n = report_model(load_model(params, axis, urdf), output, friction=list(friction), inertia=list(inertia),
                      presliding=presliding, logs=list(logs), axis=axis, warnings=warnings, stage=stage)
     for w in warnings:
         click.echo(f"kukaid: warning: report: {w}", err=True)

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import AXIS
+from kukaid_cli._util import AXIS, URDF
 
 
 def _fmt(v):
@@ -130,12 +130,14 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--port", type=int, default=7000, show_default=True, help="kvp: KUKAVARPROXY port.")
 @click.option("--axis", type=AXIS, default=3, show_default=True,
               help="kvp (A1..A6), or a robot parameter file (any of its axes): axis to control.")
+@URDF
 def command(params_path: Path, output: Path, report: Path | None, as_json: bool, force: bool, damping: str,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
             duration: float, cycle: float, cutoff: float, init_move: float, q_min: float | None, q_max: float | None,
             qd_max: float, qdd_max: float, tau_max: float, max_age: float, backend: str, operator: str, seed: int,
             q0: float, grip: str | None, sim_config: Path | None, noise: float | None, plant_friction: str | None,
-            strict: bool, program: Path | None, enable_motion: bool, host: str, port: int, axis: int) -> None:
+            strict: bool, program: Path | None, enable_motion: bool, host: str, port: int, axis: int,
+            urdf: Path | None) -> None:
     """Push the axis by hand without a force sensor: estimate the external torque Γr from the
     identified model (eqs. 12-14) and let an admittance (eqs. 15-16) with constant or adaptive
     damping (eqs. 17-22) move the reference, bounded and watched (position window, speed,
@@ -164,8 +166,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.errors import KukaidError, OptionError, ParamFileError
     from kukaid.identify.fitted import axis_option
     from kukaid.jsonfile import jsonable
-    from kukaid.jsonfile import read_json
-    from kukaid.params import is_robot_params, load_params, model_from_params, validate_robot_params
+    from kukaid.params import is_robot_params, load_any_params, model_from_params
     from kukaid.atomic import check_writable
     from kukaid_cli._util import (check_noise, check_outputs, check_suffix, given, progress, refuse_overwrite,
                                   require_positive, usage_errors)
@@ -188,16 +189,14 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if sim_only:
             raise click.UsageError(f"{', '.join(sim_only)} {'is' if len(sim_only) == 1 else 'are'} for --backend sim "
                                    "(the simulator and its simulated person): a real robot starts where it stands")
-    raw = read_json(params_path, ParamFileError)
-    robot_file = is_robot_params(raw)  # a whole robot (`kukaid fit --robot`): Γr of the axis from every axis
+    params = load_any_params(params_path, urdf)
+    robot_file = is_robot_params(params)  # a whole robot (`kukaid fit --robot`): Γr of the axis from every axis
     if robot_file:
         from kukaid.control.robot_residual import RobotTorqueModel
 
-        params = validate_robot_params(raw, str(params_path))
         axis_option(str(params_path), tuple(params["axes"]), axis)
         model = RobotTorqueModel.from_params(params, str(params_path))
     else:
-        params = load_params(params_path)
         if given("axis") and params.get("axis") is not None:  # the file's axis, before the robot's or simulator's
             axis_option(str(params_path), (int(params["axis"]),), axis)
         if backend == "kvp":  # A1..A6 of a KR C4, read in degrees: revolute

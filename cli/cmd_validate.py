@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import AXIS
+from kukaid_cli._util import AXIS, URDF
 
 
 @click.command("validate")
@@ -14,7 +14,8 @@ from kukaid_cli._util import AXIS
 @click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--axis", type=AXIS, default=None, help="KUKA axis number (default: the parameter file's).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
-def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json: bool) -> None:
+@URDF
+def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json: bool, urdf: Path | None) -> None:
     """Per axis RMSE, relative error ||tau - tau_hat|| / ||tau||, R² and samples of the model of
     --params on LOGS (pooled), pre-processed as its fit was.  Give logs the model was not fitted on."""
     import json
@@ -24,7 +25,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     from kukaid.jsonfile import jsonable
     from kukaid.logs import read_log
 
-    model = load_model(params_path, axis)
+    model = load_model(params_path, axis, urdf)
     data = [read_log(p) for p in logs]
     scores = validate(model, data)
     for path, log in zip(logs, data):

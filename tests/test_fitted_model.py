@@ -142,3 +142,51 @@ def test_report_and_validate_refuse_a_log_without_the_files_axis_with_one_line(t
         assert r.exit_code == 1 and not (tmp_path / "r.pdf").exists()
         lines.append(r.stderr.strip())
     assert lines[0] == lines[1] == "kukaid: error: a1.h5: axis A3 of the parameter file is not in the log (axes: [1])"
+
+
+def test_a_robot_file_finds_its_urdf_after_the_project_moved_or_says_how_to_give_it(robot_case, tmp_path):
+    """The file kept only the URDF's absolute path: a moved project failed with "robot '...': no such
+    robot" (new-user trial 6).  Now the URDF is also looked for from the file's folder (robot.urdf_relative,
+    or its name beside the file), the same URDF by its sha256; else one line naming it and --urdf."""
+    import shutil
+    from pathlib import Path
+
+    from kukaid.logs import write_hdf5
+    from kukaid.models.urdf import robot_urdf
+    from kukaid.params import save_robot_params
+
+    params, log = robot_case
+    proj = tmp_path / "proj"
+    (proj / "robot").mkdir(parents=True)
+    (proj / "fits").mkdir()
+    shutil.copy(robot_urdf("kr6-r700-sixx"), proj / "robot" / "kr6.urdf")
+    save_robot_params(proj / "fits" / "p.json", {**params, "robot": {**params["robot"],
+                                                                      "urdf": str(proj / "robot" / "kr6.urdf")}})
+    assert json.loads((proj / "fits" / "p.json").read_text())["robot"]["urdf_relative"] == "../robot/kr6.urdf"
+    write_hdf5(log, tmp_path / "log.h5")
+    moved = tmp_path / "moved"
+    proj.rename(moved)
+    par = str(moved / "fits" / "p.json")
+
+    def validate_cli(*more):
+        return CliRunner().invoke(cli, ["validate", "--params", par, str(tmp_path / "log.h5"), *more])
+
+    assert validate_cli().exit_code == 0                                   # ../robot/kr6.urdf from the file
+    (moved / "robot" / "kr6.urdf").rename(moved / "fits" / "kr6.urdf")
+    assert validate_cli().exit_code == 0                                   # its name beside the file
+    (moved / "fits" / "kr6.urdf").rename(tmp_path / "kr6.urdf")
+    r = validate_cli()
+    assert r.exit_code == 1 and r.stderr.strip().splitlines() == [
+        f"kukaid: error: {par}: its URDF {proj / 'robot' / 'kr6.urdf'} (robot.urdf) is not there, nor the same file "
+        "beside the parameter file; give its new place with --urdf PATH"], r.output
+    assert validate_cli("--urdf", str(tmp_path / "kr6.urdf")).exit_code == 0
+    other = tmp_path / "other.urdf"
+    other.write_text((tmp_path / "kr6.urdf").read_text().replace("<robot ", "<robot  ", 1))   # another file
+    r = validate_cli("--urdf", str(other))
+    assert r.exit_code == 1 and "not the URDF" in r.stderr and "robot.sha256" in r.stderr, r.output
+    (moved / "fits" / "kr6.urdf").write_text(other.read_text())            # another URDF of its name: not taken
+    assert "is not there, nor the same file" in validate_cli().stderr
+    r = CliRunner().invoke(cli, ["run-admittance", "--params", par, "-o", str(tmp_path / "run.h5")])
+    assert r.exit_code == 1 and "(robot.urdf) is not there" in r.stderr and not (tmp_path / "run.h5").exists()
+    r = CliRunner().invoke(cli, ["show", par])                             # the table needs no URDF
+    assert r.exit_code == 0 and Path(par).name not in r.stderr, r.output

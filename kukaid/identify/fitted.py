@@ -70,11 +70,12 @@ def model_for(params: dict, axis: int | None = None, source: str = "parameters")
     raise ParamFileError(f"schema '{schema}': no model evaluator for it (known: {SCHEMA}, {ROBOT_SCHEMA})")
 
 
-def load_model(path: Any, axis: int | None = None) -> FittedModel:
-    """Read and validate a parameter file of either kind (:func:`kukaid.params.load_any_params`)."""
+def load_model(path: Any, axis: int | None = None, urdf: Any = None, need_urdf: bool = True) -> FittedModel:
+    """Read and validate a parameter file of either kind (:func:`kukaid.params.load_any_params`: a
+    robot file's URDF found, or ``urdf``, ``--urdf``)."""
     from kukaid.params import load_any_params
 
-    return model_for(load_any_params(path), axis, str(path))
+    return model_for(load_any_params(path, urdf, need_urdf), axis, str(path))
 
 
 def fit_settings(params: dict) -> dict[str, Any]:

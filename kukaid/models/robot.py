@@ -12,13 +12,12 @@ As in Pinocchio, the model is built once (:class:`RobotModel`) and every computa
 """
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from kukaid.models.urdf import gear_ratios, load_model, robot_urdf
+from kukaid.models.urdf import gear_ratios, load_model, robot_urdf, urdf_sha256
 
 #: names of the ten inertial parameters of a link, Pinocchio's order
 LINK_PARAMS = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
@@ -117,7 +116,7 @@ class RobotModel:
     def __init__(self, urdf: str | Path):
         self.path = robot_urdf(urdf)
         self.source = str(urdf)
-        self.sha256 = hashlib.sha256(self.path.read_bytes()).hexdigest()
+        self.sha256 = urdf_sha256(self.path)
         self.model = load_model(self.path)
         m = self.model
         self.n = int(m.nv)

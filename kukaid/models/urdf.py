@@ -34,6 +34,13 @@ def robot_urdf(robot: str | Path) -> Path:
     return p
 
 
+def urdf_sha256(path: str | Path) -> str:
+    """The SHA-256 of a URDF file's bytes (a robot parameter file's ``robot.sha256``)."""
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def load_model(robot: str | Path):
     """A Pinocchio model (fixed base, one coordinate per joint) built once from the robot's URDF.
 

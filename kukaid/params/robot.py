@@ -3,7 +3,9 @@ from its URDF (``kukaid fit LOG... --robot``), validated on read and write.
 
 Fields
 ------
-robot : {name, urdf (bundled name or absolute path), sha256 of the URDF, joints, links}.
+robot : {name, urdf (bundled name or absolute path), urdf_relative (the same URDF from the parameter
+    file's folder, written beside an absolute path: the file still finds it when the project moves),
+    sha256 of the URDF, joints, links}.
 axes : [1..n], KUKA numbering of the URDF's joints in order.
 torque_side : "joint" or "motor".
 base_parameters : {names, values (the estimate used to predict), least_squares (weighted least
@@ -68,6 +70,8 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
     rob = _object(where, "robot", d["robot"])
     if not isinstance(rob.get("urdf"), str) or not rob["urdf"]:
         _fail(where, "'robot.urdf' must be a bundled robot name or the path of a URDF")
+    if not isinstance(rob.get("urdf_relative", ""), str):
+        _fail(where, "'robot.urdf_relative' must be a path (relative to the parameter file's folder)")
     axes = d["axes"]
     if not isinstance(axes, list) or not axes or axes != list(range(1, len(axes) + 1)):
         _fail(where, f"'axes' must be [1, 2, ..., n], got {json.dumps(axes)[:60]}")
@@ -205,8 +209,54 @@ def load_robot_params(path: str | Path) -> dict:
     return validate_robot_params(read_json(path, ParamFileError), str(path))
 
 
+def find_urdf(d: dict, path: str | Path, urdf: str | Path | None = None, required: bool = True) -> dict:
+    """``d``, a robot parameter file read from ``path``, with ``robot.urdf`` a URDF that is there:
+    ``urdf`` when given (``--urdf``); else the stored one (a bundled robot, or a path that exists);
+    else, the project having moved, ``robot.urdf_relative`` or a file of the stored one's name taken
+    from the parameter file's folder, if it is the same URDF (its sha256 the stored one).
+
+    Raises
+    ------
+    ParamFileError : none is there (naming the URDF and ``--urdf``; not ``required``: ``d`` as it
+        is), or ``urdf`` is another URDF than the one the parameters were fitted with.
+    """
+    from kukaid.models.urdf import BUNDLED, urdf_sha256
+
+    rob = d["robot"]
+    stored, sha = rob["urdf"], rob.get("sha256")
+    if urdf is None and (stored in BUNDLED or Path(stored).is_file()):
+        return d
+    here = Path(path).resolve().parent
+    if urdf is not None:
+        found = Path(urdf)
+        if not found.is_file():
+            raise ParamFileError(f"--urdf {urdf}: no such file")
+        if sha and urdf_sha256(found) != sha:
+            raise ParamFileError(f"--urdf {urdf}: not the URDF {path} was fitted with (its robot.sha256 is "
+                                 f"{sha[:12]}..., this file's {urdf_sha256(found)[:12]}...)")
+    else:
+        near = [here / rob["urdf_relative"]] if rob.get("urdf_relative") else []
+        near.append(here / Path(stored).name)
+        found = next((c for c in near if c.is_file() and (not sha or urdf_sha256(c) == sha)), None)
+        if found is None and not required:
+            return d
+        if found is None:
+            raise ParamFileError(f"{path}: its URDF {stored} (robot.urdf) is not there, nor the same file beside the "
+                                 "parameter file; give its new place with --urdf PATH")
+    return {**d, "robot": {**rob, "urdf": str(found.resolve())}}
+
+
 def save_robot_params(path: str | Path, d: dict) -> None:
-    """Validate and write a robot parameter file atomically."""
+    """Validate and write a robot parameter file atomically (with ``robot.urdf_relative``, the URDF
+    from the file's folder, beside an absolute ``robot.urdf``)."""
+    import os
+
     d = jsonable({"schema": SCHEMA, **{k: v for k, v in d.items() if k != "schema"}})
+    rob = d.get("robot")
+    if isinstance(rob, dict) and isinstance(rob.get("urdf"), str) and Path(rob["urdf"]).is_absolute():
+        try:
+            d["robot"] = {**rob, "urdf_relative": os.path.relpath(rob["urdf"], Path(path).resolve().parent)}
+        except ValueError:  # another drive (Windows): no relative path
+            pass
     validate_robot_params(d, str(path))
     write_text_atomic(path, json.dumps(d, indent=1) + "\n")
