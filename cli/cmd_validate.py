@@ -20,21 +20,16 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     --params on LOGS (pooled), pre-processed as its fit was.  Give logs the model was not fitted on."""
     import json
 
-    from kukaid.diagnose.validate import in_sample, table, to_json, validate
-    from kukaid.identify.fitted import load_model
+    from kukaid.diagnose.validate import table, to_json, validate
+    from kukaid.identify.fitted import load_model, use_warnings
     from kukaid.jsonfile import jsonable
     from kukaid.logs import read_log
 
     model = load_model(params_path, axis, urdf)
     data = [read_log(p) for p in logs]
     scores = validate(model, data)
-    for path, log in zip(logs, data):
-        for w in model.warnings(log, str(path)):
-            click.echo(f"kukaid: warning: validate: {w}", err=True)
-    for path in in_sample(model.params, logs, params_path, data):
-        click.echo(f"kukaid: warning: validate: {path}: the model of {params_path} was fitted on this log "
-                   "(its provenance.logs): these figures are in-sample, not a validation; give a log it did not see",
-                   err=True)
+    for w in use_warnings(model, logs, data):
+        click.echo(f"kukaid: warning: validate: {w}", err=True)
     if as_json:
         click.echo(json.dumps(jsonable(to_json(scores)), indent=2))
     else:

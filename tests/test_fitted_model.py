@@ -118,7 +118,7 @@ def test_a_one_axis_file_refuses_a_log_without_its_axis_before_anything_else():
 def test_a_robot_files_recording_is_in_sample_wherever_it_is_and_whatever_its_name(robot_case, tmp_path):
     """fit --robot keeps its logs' fingerprints: validate's in-sample warning does not depend on the
     working folder or the file's name (the provenance's paths were typed relative to another folder)."""
-    from kukaid.diagnose.validate import in_sample
+    from kukaid.identify.fitted import in_sample
     from kukaid.models.robot import RobotModel
     from robot_sim_helpers import simulated_log
 
@@ -190,3 +190,18 @@ def test_a_robot_file_finds_its_urdf_after_the_project_moved_or_says_how_to_give
     assert r.exit_code == 1 and "(robot.urdf) is not there" in r.stderr and not (tmp_path / "run.h5").exists()
     r = CliRunner().invoke(cli, ["show", par])                             # the table needs no URDF
     assert r.exit_code == 0 and Path(par).name not in r.stderr, r.output
+
+
+def test_the_robot_report_says_the_cut_off_and_how_it_was_chosen(robot_case):
+    """settings.cutoff and metrics.choices.cutoff were in the table of `show`, not in the report (trial 6)."""
+    from kukaid.report.robot import page_base_parameters
+    from pdf_layout import layout_problems
+
+    params, _ = robot_case
+    text = lambda p: " ".join(t.get_text() for t in page_base_parameters(p, "p.json").texts).replace("\n", " ")  # noqa: E731
+    fig = page_base_parameters(params, "p.json")
+    assert "low-pass 10 Hz: the default 10 Hz" in text(params) and layout_problems(fig) == []
+    older = json.loads(json.dumps(params))
+    del older["metrics"]["choices"]["cutoff"]
+    older["settings"]["cutoff"] = 20.0
+    assert "low-pass 20 Hz: settings.cutoff" in text(older)

@@ -68,7 +68,7 @@ def test_validate_on_the_fitted_log_says_the_figures_are_in_sample(fitted):
     r = _run("validate", "--params", fitted / "p.json", fitted / "a.h5", fitted / "b.h5")
     assert r.exit_code == 0, r.output
     assert _warnings(r) == [f"kukaid: warning: validate: {fitted / 'a.h5'}: the model of {fitted / 'p.json'} was "
-                            "fitted on this log (its provenance.logs): these figures are in-sample, not a validation; "
+                            "fitted on this log (its provenance): these figures are in-sample, not a validation; "
                             "give a log it did not see"]
     r = _run("validate", "--params", fitted / "p.json", fitted / "b.h5", "--json")
     assert r.exit_code == 0 and _warnings(r) == [] and json.loads(r.stdout)["axes"]["A3"], r.output
@@ -109,6 +109,19 @@ def test_report_warns_of_a_log_given_in_another_role_as_fit_does(fitted, tmp_pat
     assert _warnings(r) == [f"kukaid: warning: report: {tmp_path / 'f.h5'} was given as --presliding but records the "
                             "'friction' experiment (attribute 'experiment'): the pre-sliding page is drawn from the "
                             "wrong data; give it as --friction"]
+
+
+def test_report_gives_validates_warnings(fitted):
+    """report printed none of them (new-user trial 6): in-sample, other axes moving (and a pushed log)."""
+    write_hdf5(sine_log(4, 0.2, axes=(3, 2)), fitted / "two.h5")     # A2 moves too
+    logs = [fitted / "a.h5", fitted / "two.h5"]
+    v = _run("validate", "--params", fitted / "p.json", *logs)
+    r = _run("report", "--params", fitted / "p.json", *[x for lg in logs for x in ("--log", lg)],
+             "-o", fitted / "r.pdf")
+    assert v.exit_code == 0 and r.exit_code == 0, r.output
+    said = [[w.split(": ", 3)[3] for w in _warnings(x)] for x in (v, r)]
+    assert said[0] == said[1] and len(said[0]) == 2, said
+    assert "in-sample" in said[0][1] and "other axes (A2) move" in said[0][0]
 
 
 # -- 3. misleading text ------------------------------------------------------------------------

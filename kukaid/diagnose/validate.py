@@ -82,38 +82,6 @@ def validate(params: Any, logs: Sequence[Any], axis: int | None = None,
     return out
 
 
-def fitted_logs(params: dict) -> list[str]:
-    """The logs the model of ``params`` was fitted on, as its provenance names them (one axis:
-    ``{"friction": [...], "inertia": [...], "presliding": ..., "general": [...]}``; a robot: a list)."""
-    logs = (params.get("provenance") or {}).get("logs")
-    if isinstance(logs, dict):
-        logs = [x for v in logs.values() for x in (v if isinstance(v, list) else [v])]
-    return [str(x) for x in logs or () if x]
-
-
-def in_sample(params: dict, logs: Sequence[Any], params_path: Any = None, loaded: Sequence[Any] = ()) -> list[Any]:
-    """The ``logs`` (paths) that the model of ``params`` was fitted on.  Given the ``loaded`` logs and
-    a file that keeps its logs' fingerprints (``provenance.log_fingerprints``: fit and fit --robot),
-    the same recording wherever it is now and whatever its name; else (an older file) the same file
-    as a path of :func:`fitted_logs`, taken from the working folder or from the parameter file's."""
-    import os
-    from pathlib import Path
-
-    from kukaid.logs import log_fingerprint
-
-    prints = set((params.get("provenance") or {}).get("log_fingerprints") or ())
-    if prints and len(loaded) == len(logs):
-        return [p for p, lg in zip(logs, loaded) if log_fingerprint(lg) in prints]
-    bases = [Path.cwd()] + ([Path(params_path).resolve().parent] if params_path is not None else [])
-    fitted = {(b / f).resolve() for f in fitted_logs(params) for b in bases}
-    out = []
-    for p in logs:
-        here = Path(p).resolve()
-        if here in fitted or any(f.exists() and here.exists() and os.path.samefile(here, f) for f in fitted):
-            out.append(p)
-    return out
-
-
 def to_json(scores: dict[int, AxisScore]) -> dict[str, Any]:
     """``{"axes": {"A3": {"rmse": ..., "rel_error": ..., "r2": ..., "samples": ...}},
     "mean_relative_error": ...}`` (the mean of the axes' relative errors)."""

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from functools import cached_property
-from typing import Any, Protocol
+from typing import Any, Protocol, Sequence
 
 import numpy as np
 
@@ -105,6 +105,48 @@ def require_axis(log: Any, axis: int, where: str | None = None) -> None:
     if int(axis) not in tuple(int(a) for a in log.axes):
         raise KukaidError(f"{where or log.attrs.get('source_file', 'log')}: axis A{axis} of the parameter file is "
                           f"not in the log (axes: {list(log.axes)})")
+
+
+def fitted_logs(params: dict) -> list[str]:
+    """The logs the model of ``params`` was fitted on, as its provenance names them (one axis:
+    ``{"friction": [...], "inertia": [...], "presliding": ..., "general": [...]}``; a robot: a list)."""
+    logs = (params.get("provenance") or {}).get("logs")
+    if isinstance(logs, dict):
+        logs = [x for v in logs.values() for x in (v if isinstance(v, list) else [v])]
+    return [str(x) for x in logs or () if x]
+
+
+def in_sample(params: dict, logs: Sequence[Any], params_path: Any = None, loaded: Sequence[Any] = ()) -> list[Any]:
+    """The ``logs`` (paths) that the model of ``params`` was fitted on.  Given the ``loaded`` logs and
+    a file that keeps its logs' fingerprints (``provenance.log_fingerprints``: fit and fit --robot),
+    the same recording wherever it is now and whatever its name; else (an older file) the same file
+    as a path of :func:`fitted_logs`, taken from the working folder or from the parameter file's."""
+    import os
+    from pathlib import Path
+
+    from kukaid.logs import log_fingerprint
+
+    prints = set((params.get("provenance") or {}).get("log_fingerprints") or ())
+    if prints and len(loaded) == len(logs):
+        return [p for p, lg in zip(logs, loaded) if log_fingerprint(lg) in prints]
+    bases = [Path.cwd()] + ([Path(params_path).resolve().parent] if params_path is not None else [])
+    fitted = {(b / f).resolve() for f in fitted_logs(params) for b in bases}
+    out = []
+    for p in logs:
+        here = Path(p).resolve()
+        if here in fitted or any(f.exists() and here.exists() and os.path.samefile(here, f) for f in fitted):
+            out.append(p)
+    return out
+
+
+def use_warnings(model: FittedModel, paths: Sequence[Any], logs: Sequence[Any]) -> list[str]:
+    """What ``validate`` and ``report`` say about ``model`` compared with ``logs`` (read from ``paths``):
+    each log's ``model.warnings`` (other axes move; a log pushed by hand), then the logs it was fitted
+    on (:func:`in_sample`)."""
+    out = [w for p, lg in zip(paths, logs) for w in model.warnings(lg, str(p))]
+    return out + [f"{p}: the model of {model.source} was fitted on this log (its provenance): these figures are "
+                  "in-sample, not a validation; give a log it did not see" for p in in_sample(model.params, paths,
+                                                                                               model.source, logs)]
 
 
 class AxisFile:
@@ -214,4 +256,5 @@ class RobotFile:
         return format_robot_table(self.params)
 
 
-__all__ = ["AxisFile", "FittedModel", "RobotFile", "axis_option", "fit_settings", "load_model", "model_for", "require_axis"]
+__all__ = ["AxisFile", "FittedModel", "RobotFile", "axis_option", "fit_settings", "fitted_logs", "in_sample", "load_model", "model_for", "require_axis",
+           "use_warnings"]

@@ -1575,8 +1575,8 @@ def _pct(r: float) -> str:
     return f"{p:.2g}%" if p < 100 else f"{p:.0f}%"
 
 
-def _cutoff_line(co: dict) -> str:
-    """The table's line on the low-pass cut-off and its evidence (``metrics.choices.cutoff``)."""
+def cutoff_line(co: dict) -> str:
+    """The line of the table and the report on the low-pass cut-off and its evidence (``metrics.choices.cutoff``)."""
     line = f"low-pass {table_number(co.get('chosen'), 3)} Hz"
     if co.get("how") != "held-out error":
         return f"{line}: {co.get('how')}"
@@ -1635,7 +1635,7 @@ def format_robot_table(params: dict) -> str:
                      f"{100 * (SIMPLER_WITHIN - 1):.0f} % of the best")
     co = ch.get("cutoff")
     if co:
-        lines.append(_cutoff_line(co))
+        lines.append(cutoff_line(co))
     vn = (ch.get("v_smooth") or {}).get("velocity_noise")
     if vn:
         lines.append(f"dead-band {NOISE_DEADBAND:g} x the velocity noise of the positions ({min(vn):.2g} to "

@@ -16,7 +16,7 @@ def report_model(model: Any, output: Any, friction: Sequence[Any] = (), inertia:
     load_model`) and the logs given (paths); returns the page count.  A robot file's report takes
     only general ``logs`` (a prediction page each): the experiment roles are one axis's."""
     from kukaid.errors import OptionError
-    from kukaid.identify.fitted import RobotFile
+    from kukaid.identify.fitted import RobotFile, use_warnings
 
     if isinstance(model, RobotFile):
         if friction or inertia or presliding or axis is not None:
@@ -25,7 +25,12 @@ def report_model(model: Any, output: Any, friction: Sequence[Any] = (), inertia:
         from kukaid.report.robot import make_robot_report
 
         (stage or (lambda text: None))("reading the logs")
-        return make_robot_report(model, output, [read_log(p) for p in logs], stage=stage)
+        data = [read_log(p) for p in logs]
+        for lg in data:
+            model.check(lg)
+        if warnings is not None:
+            warnings.extend(use_warnings(model, logs, data))  # validate's
+        return make_robot_report(model, output, data, stage=stage)
     return make_report(model.params, output, friction=friction, inertia=inertia, presliding=presliding, logs=logs,
                        axis=axis, warnings=warnings, stage=stage, source=model.source)
 

@@ -151,6 +151,11 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
     every = data.friction + data.inertia + data.general + ([data.presliding] if data.presliding else [])
     for log, _ in every:
         check_model_of(par, source, joint=log.joint[log.index(axis)])
+    from kukaid.identify.fitted import AxisFile, use_warnings
+
+    given = [*friction, *inertia, *logs] + ([presliding] if presliding is not None else [])  # the order of every
+    names = [x if isinstance(x, (str, Path)) else log.attrs.get("source_file", "log") for x, (log, _) in zip(given, every)]
+    data.warnings.extend(use_warnings(AxisFile(par, axis, source), names, [log for log, _ in every]))  # validate's
     for log, _ in every:
         t = log.attrs.get("truth")
         if isinstance(t, dict) and t.get("schema") == SCHEMA and int(t.get("axis", axis)) == int(axis):

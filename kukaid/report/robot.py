@@ -29,14 +29,18 @@ def _pct(x: float) -> str:
 
 
 def page_base_parameters(params: dict, source: str):
-    """Base-parameter table and the fit's metrics."""
+    """Base-parameter table and the fit's metrics, the low-pass cut-off and how it was chosen."""
+    from kukaid.identify.robot_fit import cutoff_line
+
     bp, mt = params["base_parameters"], params.get("metrics") or {}
     cf = mt.get("residual_correlation_factor") or 1.0
     fig = _figure(f"Robot fit: base parameters ({params['robot'].get('name', '')})", source)
     cons = "yes" if mt.get("physically_consistent") else "no"
     sub = (f"URDF {params['robot']['urdf']}; {len(bp['values'])} base parameters; condition number "
            f"{_g(mt.get('condition_number'))}; physically consistent: {cons}; at a bound: "
-           f"{', '.join(mt.get('at_bound') or []) or 'none'}; {mt.get('samples', '?')} samples fitted")
+           f"{', '.join(mt.get('at_bound') or []) or 'none'}; {mt.get('samples', '?')} samples fitted; "
+           + cutoff_line((mt.get("choices") or {}).get("cutoff")  # a file without the choice: settings.cutoff
+                         or {"chosen": params["settings"].get("cutoff"), "how": "settings.cutoff"}))
     # wrapped within the page, from below the title down (not up into it)
     fig.text(0.05, 0.963, textwrap.fill(sub, 130), fontsize=7, va="top")
     cells = []
@@ -45,7 +49,7 @@ def page_base_parameters(params: dict, source: str):
         short = name if len(name) <= 70 else name[:67] + "..."
         cells.append([short, _g(v), _g(ls), _g(s, 3), _g(None if s is None else s * cf, 3),
                       "-" if s is None or not ls else _pct(100 * s / abs(ls))])
-    ax = fig.add_axes([0.03, 0.06, 0.94, 0.87])
+    ax = fig.add_axes([0.03, 0.06, 0.94, 0.85])  # below the subtitle's four lines
     _add_table(ax, cells, ["base parameter (kg, kg·m, kg·m²)", "estimate", "least sq.", "σ", f"σ × {cf:.2f}",
                            "rel. σ"], fontsize=5.5, col_widths=[0.55, 0.09, 0.09, 0.08, 0.09, 0.08])
     return fig
