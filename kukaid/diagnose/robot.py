@@ -67,6 +67,7 @@ import numpy as np
 
 from kukaid.diagnose.robot_candidates import Context, RobotCandidate, robot_candidates
 from kukaid.errors import KukaidError
+from kukaid.identify.adequacy import smooth_at_source
 
 #: a candidate must lower the held-out relative error of the joints it acts on by this share
 MARGIN = 0.05
@@ -107,6 +108,7 @@ class RobotDiagnosis:
     rejected: list[dict] = field(default_factory=list)
     in_sample: list[float] = field(default_factory=list)   # the file as it is, relative error per joint
     noise_floor: list[float] = field(default_factory=list)  # N·m per joint: the RMSE of a perfect model
+    smooth: list[bool] = field(default_factory=list)        # per joint: torque smoothed at the source, floor unknown
     rms: list[float] = field(default_factory=list)          # N·m per joint: RMS of the compared torque
     tried: list[dict] = field(default_factory=list)         # every candidate of the first round, its evidence
     fitted_on: list[str] = field(default_factory=list)      # recordings the file was fitted on: not used
@@ -118,6 +120,11 @@ class RobotDiagnosis:
     def names(self) -> list[str]:
         return [s["name"] for s in self.steps]
 
+    @property
+    def floor_unknown(self) -> list[bool]:
+        """Per joint: its noise floor is not known (its torque was smoothed at the source)."""
+        return self.smooth or [False] * len(self.noise_floor)
+
     def rmse(self, rel: Sequence[float]) -> np.ndarray:
         """Relative errors per joint -> RMSE per joint, N·m."""
         return np.asarray(rel, float) * np.asarray(self.rms, float)
@@ -125,7 +132,8 @@ class RobotDiagnosis:
     def to_json(self) -> dict[str, Any]:
         return {"schema": "kukaid.robot_diagnosis/1", "axes": self.axes, "folds": self.folds,
                 "relative_error_given": self.in_sample, "heldout_relative_error_before": self.before,
-                "heldout_relative_error_after": self.after, "noise_floor_Nm": self.noise_floor,
+                "heldout_relative_error_after": self.after,
+                "noise_floor_Nm": [None if k else f for f, k in zip(self.noise_floor, self.floor_unknown)],
                 "heldout_rmse_before_Nm": self.rmse(self.before).tolist() if self.rms else [],
                 "heldout_rmse_after_Nm": self.rmse(self.after).tolist() if self.rms else [],
                 "steps": self.steps, "rejected": self.rejected, "tried": self.tried,
@@ -145,8 +153,14 @@ class RobotDiagnosis:
             label = "  + " + st["name"]
             out.append(f"{label:<34}" + " ".join(f"{100 * x:6.1f}%" for x in st["heldout_after"]))
         if self.noise_floor and self.rms:
-            fl = np.asarray(self.noise_floor) / np.maximum(np.asarray(self.rms), 1e-300)
-            out.append(f"{'  noise floor (a perfect model)':<34}" + " ".join(f"{100 * x:6.1f}%" for x in fl))
+            fl = 100 * np.asarray(self.noise_floor) / np.maximum(np.asarray(self.rms), 1e-300)
+            out.append(f"{'  noise floor (a perfect model)':<34}" + " ".join(
+                f"{'n/a':>7}" if k else f"{x:6.1f}%" if x >= 0.05 or x == 0 else f"{'<0.1':>6}%"
+                for x, k in zip(fl, self.floor_unknown)))
+            smooth = [f"A{a}" for a, k in zip(self.axes, self.floor_unknown) if k]
+            if smooth:
+                out.append(f"  noise floor n/a on {', '.join(smooth)}: the torques are smooth sample to sample (filtered "
+                           "before they were recorded), so their noise cannot be told from them")
         if self.steps:
             for k, st in enumerate(self.steps, 1):
                 par = ", ".join(f"{k2} {v:.4g}" if isinstance(v, float) else f"{k2} {v}" for k2, v in st["params"].items())
@@ -900,6 +914,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     refined = _refined(params, logs, base, own_signals, named, r, tau, corr, _scaled(prior, scale), w, replaced, kept)
     return RobotDiagnosis(axes=axes, folds=how, before=before.tolist(), after=err.tolist(), steps=steps,
                           rejected=rejected, in_sample=in_sample, noise_floor=floor.tolist(), rms=rms.tolist(),
+                          smooth=[any(smooth_at_source(lg.tau[:, lg.index(a)]) for lg in logs) for a in axes],
                           tried=tried, fitted_on=fitted_on, given=list(given), params=refined,
                           series=Series(time=pieces["time"], log_rows=tuple(pieces["log_rows"]), signals=own_signals,
                                         residuals=residuals))

@@ -48,8 +48,10 @@ def coordinate(result: RobotDiagnosis, step: dict, j: int) -> tuple[np.ndarray, 
 
 
 def _x_floor(result: RobotDiagnosis, rel, j: int) -> str:
-    """Joint ``j``'s RMSE (``rel`` of its RMS) in multiples of its noise floor; over 999 "> 999" (a log
-    whose torque was smoothed at the source, as the LWR4+'s, has a floor near 0)."""
+    """Joint ``j``'s RMSE (``rel`` of its RMS) in multiples of its noise floor; over 999 "> 999"; "n/a"
+    where the torque was smoothed at the source, as the LWR4+'s (its floor is not known)."""
+    if result.floor_unknown[j]:
+        return "n/a"
     x = float(rel[j]) * result.rms[j] / max(result.noise_floor[j], 1e-300)
     return f"{x:.1f}" if x <= 999 else "> 999"
 
@@ -71,9 +73,9 @@ def tables(result: RobotDiagnosis) -> list[tuple[list[str], list[list[str]]]]:
                     [0.24, 0.09, 0.09, 0.07, 0.51])] if tried else [])
 
 
-def _plot(ax, x, before, after, floor: float, label: str, points: bool) -> None:
+def _plot(ax, x, before, after, floor: float | None, label: str, points: bool) -> None:
     """Residual before and after (None: the one residual) against ``x``: points (when ``points``)
-    or lines, binned means, the noise floor."""
+    or lines, binned means, the noise floor (None: not known, not drawn)."""
     for r, name, c in ((before, "before" if after is not None else "residual", "C0"), (after, "after", "C3")):
         if r is None:
             continue
@@ -84,7 +86,7 @@ def _plot(ax, x, before, after, floor: float, label: str, points: bool) -> None:
             ax.plot(bx, by, "-", lw=1.8, color=c)
         else:
             ax.plot(x, r, "-", lw=0.5, color=c, label=f"{name}: RMSE {rms:.3g} N·m", rasterized=True)
-    for y in (floor, -floor):
+    for y in (floor, -floor) if floor is not None else ():
         ax.axhline(y, color="k", ls="--", lw=0.7, label="noise floor (±RMS)" if y > 0 else None)
     ax.axhline(0, color="k", lw=0.4)
     ax.set_xlabel(label, fontsize=8)
@@ -114,7 +116,7 @@ def page_joint(result: RobotDiagnosis, j: int):
     import matplotlib.pyplot as plt
 
     res = result.series.residuals
-    floor = result.noise_floor[j]
+    floor = None if result.floor_unknown[j] else result.noise_floor[j]
     mine = [(k, st) for k, st in enumerate(result.steps) if f"A{j + 1}" in st["joints"]]
     coords = [(k, st, coordinate(result, st, j)) for k, st in mine]
     coords = [c for c in coords if c[2] is not None]
@@ -129,9 +131,10 @@ def page_joint(result: RobotDiagnosis, j: int):
         _plot(ax, x, res[k][:, j], res[k + 1][:, j], floor, label, points=True)
         ax.set_title(f"step {k + 1}: before and after {st['name']}", fontsize=9)
     rel = result.before[j], result.after[j]
-    fig.suptitle(textwrap.fill(f"A{j + 1}: held-out residual, measured - predicted (filtered as compared); RMSE "
-                               f"{_x_floor(result, result.before, j)} -> {_x_floor(result, result.after, j)} x "
-                               f"the noise floor ({100 * rel[0]:.1f} -> {100 * rel[1]:.1f} %)"
+    gap = (f"{100 * rel[0]:.1f} -> {100 * rel[1]:.1f} % (the noise floor is not known: the torque is smoothed at "
+           "the source)" if floor is None else f"{_x_floor(result, result.before, j)} -> "
+           f"{_x_floor(result, result.after, j)} x the noise floor ({100 * rel[0]:.1f} -> {100 * rel[1]:.1f} %)")
+    fig.suptitle(textwrap.fill(f"A{j + 1}: held-out residual, measured - predicted (filtered as compared); RMSE {gap}"
                                + ("" if mine else "; no effect named"), 90), fontsize=10)
     fig.tight_layout(rect=(0, 0, 1, 0.95))
     return fig
