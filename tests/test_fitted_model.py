@@ -205,3 +205,22 @@ def test_the_robot_report_says_the_cut_off_and_how_it_was_chosen(robot_case):
     del older["metrics"]["choices"]["cutoff"]
     older["settings"]["cutoff"] = 20.0
     assert "low-pass 20 Hz: settings.cutoff" in text(older)
+
+
+@pytest.mark.parametrize("command", ["validate", "report", "diagnose"])
+def test_a_files_cut_off_above_the_logs_nyquist_names_the_files_setting(robot_case, command, tmp_path):
+    """A robot file's settings.cutoff of 500 Hz on a 250 Hz log: the error blamed the log alone
+    (new-user trial 6); now it names the parameter file's setting."""
+    from kukaid.logs import write_hdf5
+    from kukaid.params import save_robot_params
+
+    params, log = robot_case
+    save_robot_params(tmp_path / "p.json", {**params, "settings": {**params["settings"], "cutoff": 500.0}})
+    write_hdf5(log, tmp_path / "log.h5")
+    par, lg = str(tmp_path / "p.json"), str(tmp_path / "log.h5")
+    args = {"validate": [lg], "report": ["--log", lg, "-o", str(tmp_path / "r.pdf")], "diagnose": ["--log", lg]}
+    r = CliRunner().invoke(cli, [command, "--params", par, *args[command]])
+    lines = r.stderr.strip().splitlines()
+    assert r.exit_code == 1 and len(lines) == 1 and not (tmp_path / "r.pdf").exists(), r.output
+    assert lines[0].startswith(f"kukaid: error: {par}: its low-pass cut-off (settings.cutoff) does not suit this "
+                               f"log: {lg}: filter cut-off 500 Hz must be in (0, "), lines

@@ -33,8 +33,10 @@ def diagnose_model(model: Any, logs: Sequence[Any], *, axis: int | None = None, 
     each checked by ``model.check`` first, then its ``model.warnings`` told to ``warn``); ``axis``,
     ``cutoff``, ``alpha`` (None: the default) as :func:`~kukaid.diagnose.workflow.diagnose` takes
     them.  Returns (result, draw(result, path))."""
+    from contextlib import nullcontext
+
     from kukaid.errors import OptionError
-    from kukaid.identify.fitted import RobotFile
+    from kukaid.identify.fitted import RobotFile, file_cutoff
 
     stage = stage or (lambda text: None)
     robot = isinstance(model, RobotFile)
@@ -46,16 +48,17 @@ def diagnose_model(model: Any, logs: Sequence[Any], *, axis: int | None = None, 
     for lg in logs:
         for w in model.warnings(lg, str(lg.attrs.get("source_file", "log"))):
             (warn or (lambda text: None))(w)
-    if robot:
-        from kukaid.diagnose.robot import diagnose_robot
-        from kukaid.diagnose.robot_plots import write_robot_report
+    with file_cutoff(model) if cutoff is None else nullcontext():  # the file's cut-off, unless --cutoff
+        if robot:
+            from kukaid.diagnose.robot import diagnose_robot
+            from kukaid.diagnose.robot_plots import write_robot_report
 
-        stage("testing the candidate effects on held-out recordings")
-        return diagnose_robot(model.params, logs, model.robot, max_steps=max_steps), write_robot_report
-    from kukaid.diagnose.plots import write_report
+            stage("testing the candidate effects on held-out recordings")
+            return diagnose_robot(model.params, logs, model.robot, max_steps=max_steps), write_robot_report
+        from kukaid.diagnose.plots import write_report
 
-    return diagnose(model.params, logs, axis=axis, cutoff=cutoff, alpha=0.01 if alpha is None else alpha,
-                    max_steps=max_steps, source=model.source, stage=stage), write_report
+        return diagnose(model.params, logs, axis=axis, cutoff=cutoff, alpha=0.01 if alpha is None else alpha,
+                        max_steps=max_steps, source=model.source, stage=stage), write_report
 
 
 __all__ = ["diagnose", "diagnose_model", "diagnose_signals", "Diagnosis", "Step", "CANDIDATES", "NAMES"]

@@ -58,7 +58,7 @@ def validate(params: Any, logs: Sequence[Any], axis: int | None = None,
     ParamFileError : a one-axis file of another axis than ``axis``, or of another joint type than the
         logs'; a schema of no model.
     """
-    from kukaid.identify.fitted import model_for
+    from kukaid.identify.fitted import file_cutoff, model_for
 
     if not logs:
         raise KukaidError("validate needs at least one log")
@@ -68,7 +68,9 @@ def validate(params: Any, logs: Sequence[Any], axis: int | None = None,
     parts: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
     names: dict[int, list[str]] = {}
     for log in logs:
-        for ax, pair in model.predict(log).items():
+        with file_cutoff(model):
+            pairs = model.predict(log)
+        for ax, pair in pairs.items():
             parts.setdefault(int(ax), []).append(pair)
             names.setdefault(int(ax), []).append(str(log.attrs.get("source_file", "log")))
     out = {}

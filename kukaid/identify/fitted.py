@@ -27,8 +27,9 @@ the raw torques, two cut-off periods from either end.
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from functools import cached_property
-from typing import Any, Protocol, Sequence
+from typing import Any, Iterator, Protocol, Sequence
 
 import numpy as np
 
@@ -43,8 +44,10 @@ class FittedModel(Protocol):
     """What every stage asks of a fitted model (see the module docstring)."""
 
     params: dict
+    source: str
     joints: tuple[int, ...]
     unit: str
+    cutoff_field: str  # where the file keeps the low-pass cut-off it filters new logs with
 
     def check(self, log: Any) -> None: ...
 
@@ -107,6 +110,20 @@ def require_axis(log: Any, axis: int, where: str | None = None) -> None:
                           f"not in the log (axes: {list(log.axes)})")
 
 
+@contextmanager
+def file_cutoff(model: FittedModel) -> Iterator[None]:
+    """A low-pass cut-off a log's rate cannot take that comes from the parameter file (the fit's,
+    ``model.cutoff_field``) is the file's setting, named as such: the log's own error alone blamed
+    the log.  Around validate's, report's and diagnose's use of the model (not with their --cutoff)."""
+    try:
+        yield
+    except KukaidError as e:
+        if "filter cut-off" not in str(e):
+            raise
+        raise ParamFileError(f"{model.source}: its low-pass cut-off ({model.cutoff_field}) does not suit this log: "
+                             f"{e}; refit the model at this log's rate") from None
+
+
 def fitted_logs(params: dict) -> list[str]:
     """The logs the model of ``params`` was fitted on, as its provenance names them (one axis:
     ``{"friction": [...], "inertia": [...], "presliding": ..., "general": [...]}``; a robot: a list)."""
@@ -154,6 +171,7 @@ class AxisFile:
 
     check_file = staticmethod(validate_params)
     save = staticmethod(save_params)
+    cutoff_field = "provenance.preprocess.cutoff"
 
     def __init__(self, params: dict, axis: int | None = None, source: str = "parameters") -> None:
         if params.get("axis") is not None:  # a file without its axis fits any
@@ -213,6 +231,7 @@ class RobotFile:
     check_file = staticmethod(validate_robot_params)
     save = staticmethod(save_robot_params)
     unit = "N·m"
+    cutoff_field = "settings.cutoff"
 
     def __init__(self, params: dict, axis: int | None = None, source: str = "parameters", robot: Any = None) -> None:
         self.params, self.source = validate_robot_params(params, source), source
@@ -256,5 +275,5 @@ class RobotFile:
         return format_robot_table(self.params)
 
 
-__all__ = ["AxisFile", "FittedModel", "RobotFile", "axis_option", "fit_settings", "fitted_logs", "in_sample", "load_model", "model_for", "require_axis",
+__all__ = ["AxisFile", "FittedModel", "RobotFile", "axis_option", "file_cutoff", "fit_settings", "fitted_logs", "in_sample", "load_model", "model_for", "require_axis",
            "use_warnings"]

@@ -16,7 +16,7 @@ def report_model(model: Any, output: Any, friction: Sequence[Any] = (), inertia:
     load_model`) and the logs given (paths); returns the page count.  A robot file's report takes
     only general ``logs`` (a prediction page each): the experiment roles are one axis's."""
     from kukaid.errors import OptionError
-    from kukaid.identify.fitted import RobotFile, use_warnings
+    from kukaid.identify.fitted import RobotFile, file_cutoff, use_warnings
 
     if isinstance(model, RobotFile):
         if friction or inertia or presliding or axis is not None:
@@ -30,9 +30,11 @@ def report_model(model: Any, output: Any, friction: Sequence[Any] = (), inertia:
             model.check(lg)
         if warnings is not None:
             warnings.extend(use_warnings(model, logs, data))  # validate's
-        return make_robot_report(model, output, data, stage=stage)
-    return make_report(model.params, output, friction=friction, inertia=inertia, presliding=presliding, logs=logs,
-                       axis=axis, warnings=warnings, stage=stage, source=model.source)
+        with file_cutoff(model):
+            return make_robot_report(model, output, data, stage=stage)
+    with file_cutoff(model):
+        return make_report(model.params, output, friction=friction, inertia=inertia, presliding=presliding, logs=logs,
+                           axis=axis, warnings=warnings, stage=stage, source=model.source)
 
 
 __all__ = ["ReportData", "ReportError", "build_report", "load_report_data", "make_report", "report_model",
