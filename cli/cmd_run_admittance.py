@@ -174,11 +174,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     check_suffix(output, ".h5", ".hdf5")
     check_suffix(report, ".pdf")
     check_outputs([output, report], [params_path, sim_config])
-    for p in (output, report):
-        if p is not None:
-            refuse_overwrite(p, force)
-            check_writable(p)  # before the robot moves: the record of the run must be writable
-    check_no_partial(output)  # a run that was killed or failed: recorded data, never replaced
+    check_noise(noise)
+    if grip is not None and operator != "human":
+        raise click.UsageError("--grip is for --operator human")
     if backend == "kvp" and axis > 6:
         raise click.BadParameter(f"{axis}: a KR C4 over KUKAVARPROXY moves A1..A6", param_hint="--axis")
     if backend == "kvp":  # the simulator's and the simulated person's options do nothing on a robot
@@ -233,6 +231,12 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                          sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf,
                          cutoff=cutoff, limits=limits)
 
+    for p in (output, report):  # after the options' checks: a wrong option is said first
+        if p is not None:
+            refuse_overwrite(p, force)
+            check_writable(p)  # before the robot moves: the record of the run must be writable
+    check_no_partial(output)  # a run that was killed or failed: recorded data, never replaced
+
     def guidable() -> None:  # after the options and the file's axis and kind, before anything moves
         from kukaid.control.loop import check_guidable
 
@@ -249,15 +253,12 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
 
         scfg = load_sim_config(sim_config) if sim_config else SimConfig()
         if noise is not None:
-            check_noise(noise)
             scfg = scfg.replace(noise_sigma=noise)
         if plant_friction is not None:
             scfg = scfg.replace(friction_law=plant_friction)
         if abs(scfg.sample_time - 0.012) > 1e-9:
             cfg = dataclasses.replace(cfg, sample_time=scfg.sample_time)
         q0r = math.radians(q0)
-        if grip is not None and operator != "human":
-            raise click.UsageError("--grip is for --operator human")
 
         if robot_file:  # the six-axis virtual KR C4 of that robot, the other axes standing at their mid range
             from kukaid.sim.robot_plant import RobotSimConfig, VirtualRobotKRC4

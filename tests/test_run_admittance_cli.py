@@ -37,6 +37,20 @@ def _run(args):
     return CliRunner().invoke(cli, ["run-admittance", *map(str, args)])
 
 
+@pytest.mark.parametrize("bad, said", [(["--qd-max", "0"], "--qd-max"), (["--noise", "-1"], "--noise"),
+                                       (["--release", "8", "--threshold", "3"], "release 8.0 N·m"),
+                                       (["--grip", "firm", "--operator", "push"], "--grip is for --operator human"),
+                                       (["--D-min", "60"], "--D-min/--D-max are for --damping adaptive")])
+def test_a_wrong_option_is_said_before_an_existing_output(files, tmp_path, bad, said):
+    """run-admittance said "already exists" (the output) before checking the options' ranges, so a
+    user who passed --force next met the option's error (new-user trial 6)."""
+    out = tmp_path / "run.h5"
+    out.write_bytes(b"an earlier run")
+    r = _run(["--params", files / "params.json", "--duration", "1", "-o", out, *bad])
+    assert r.exit_code == 2 and said in r.stderr and "already exists" not in r.stderr, r.output
+    assert len(r.stderr.strip().splitlines()) == 1 and out.read_bytes() == b"an earlier run"
+
+
 def test_sim_run_writes_log_report_and_metrics(files, tmp_path, monkeypatch):
     out, pdf = tmp_path / "run.h5", tmp_path / "run.pdf"
     problems = capture_pages(monkeypatch)
