@@ -123,6 +123,17 @@ def option_in_data_error(*options: tuple[str, bool, str]) -> Iterator[None]:
         raise OptionError(msg) from None
 
 
+#: exit status of a command that completed with warnings under --strict (validate, run-admittance)
+EXIT_WARNED = 4
+
+
+def strict_exit(command: str, warnings: list[str], done: str = "completed") -> None:
+    """``--strict``: exit with :data:`EXIT_WARNED` when there were ``warnings`` (after the output)."""
+    if warnings:
+        click.echo(f"kukaid: error: {command}: {done} with {len(warnings)} warning(s) (--strict)", err=True)
+        raise SystemExit(EXIT_WARNED)
+
+
 def require_positive(*options: tuple[str, float | None], zero_ok: bool = False) -> None:
     """Usage error unless every option given as ``(flag, value)`` is a finite number > 0 (``zero_ok``:
     >= 0; None: not given)."""

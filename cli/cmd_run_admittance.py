@@ -169,7 +169,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.params import is_robot_params, load_any_params, model_from_params
     from kukaid.atomic import check_writable
     from kukaid_cli._util import (check_noise, check_outputs, check_suffix, given, progress, refuse_overwrite,
-                                  require_positive, usage_errors)
+                                  require_positive, strict_exit, usage_errors)
 
     check_suffix(output, ".h5", ".hdf5")
     check_suffix(report, ".pdf")
@@ -386,10 +386,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             click.echo(f"kukaid: error: run-admittance: {run.status} (the run log {output} holds every cycle until "
                        f"then){slow}", err=True)
             raise SystemExit(3)
-        if strict and run.metrics.get("warnings"):
-            click.echo(f"kukaid: error: run-admittance: completed with {len(run.metrics['warnings'])} warning(s) "
-                       "(--strict)", err=True)
-            raise SystemExit(4)
+        if strict:
+            strict_exit("run-admittance", run.metrics.get("warnings") or [])
         if rec.interrupts.count > 0 and run.status.startswith("completed"):  # Ctrl-C/SIGTERM after the run had ended
             click.echo(f"kukaid: error: run-admittance: interrupted after the run had completed (the run log {output} "
                        "is complete)", err=True)

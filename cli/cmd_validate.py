@@ -14,24 +14,38 @@ from kukaid_cli._util import AXIS, URDF
 @click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--axis", type=AXIS, default=None, help="KUKA axis number (default: the parameter file's).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
+@click.option("--strict", is_flag=True,
+              help="Exit with status 4 after the figures when there were warnings: above all a model that does not "
+                   "describe the logs (an axis's relative error 100 % or more: another robot or axis, or another "
+                   "unit), also a log it was fitted on, other axes moving, a log pushed by hand.")
 @URDF
-def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json: bool, urdf: Path | None) -> None:
+def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json: bool, strict: bool,
+            urdf: Path | None) -> None:
     """Per axis RMSE, relative error ||tau - tau_hat|| / ||tau||, R² and samples of the model of
-    --params on LOGS (pooled), pre-processed as its fit was.  Give logs the model was not fitted on."""
+    --params on LOGS (pooled), pre-processed as its fit was.  Give logs the model was not fitted on.
+
+    An axis whose relative error is 100 % or more (the model's error as large as the torque itself:
+    a model of another robot or axis, or torques in another unit) is warned about first; with
+    --strict that, and any other warning, is exit status 4."""
     import json
 
-    from kukaid.diagnose.validate import table, to_json, validate
+    from kukaid.diagnose.validate import mismatch_warnings, table, to_json, validate
     from kukaid.identify.fitted import load_model, use_warnings
     from kukaid.jsonfile import jsonable
     from kukaid.logs import read_log
+    from kukaid_cli._util import strict_exit
 
     model = load_model(params_path, axis, urdf)
     data = [read_log(p) for p in logs]
-    scores = validate(model, data)
-    for w in use_warnings(model, logs, data):
+    per_log: list = []
+    scores = validate(model, data, per_log=per_log)
+    warnings = mismatch_warnings(per_log, logs, params_path, model.unit) + use_warnings(model, logs, data)
+    for w in warnings:
         click.echo(f"kukaid: warning: validate: {w}", err=True)
     if as_json:
         click.echo(json.dumps(jsonable(to_json(scores)), indent=2))
     else:
         for line in table(scores, model.unit):
             click.echo(line)
+    if strict:
+        strict_exit("validate", warnings)

@@ -1,7 +1,8 @@
 """Errors the toolkit raises on bad input; the CLI prints them as one line, without a traceback."""
 
 #: exit status of an internal error (a bug, not bad input): sysexits' EX_SOFTWARE, apart from 1 (the
-#: data), 2 (usage), 3 and 4 (a stopped or, with --strict, warned admittance run), 130 and 141 (signals)
+#: data), 2 (usage), 3 (a stopped admittance run), 4 (with --strict, a run-admittance or validate that
+#: warned), 130 and 141 (signals)
 EXIT_INTERNAL = 70
 
 

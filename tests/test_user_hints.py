@@ -124,6 +124,27 @@ def test_report_gives_validates_warnings(fitted):
     assert "in-sample" in said[0][1] and "other axes (A2) move" in said[0][0]
 
 
+def test_a_model_that_does_not_describe_the_log_is_warned_about_first_and_strict_fails(fitted, tmp_path):
+    """A one-axis file validated on another robot's log scored 2226 % with no word (new-user trial 6):
+    now an axis whose error is at least its measured torque is the first warning, --strict exits 4."""
+    from kukaid.logs import AxisLog
+
+    lg = sine_log(5, 0.2)
+    small = AxisLog(lg.time, lg.q, 0.05 * lg.tau, axes=lg.axes, attrs={"source_file": "small"})  # a 20x weaker axis
+    write_hdf5(small, tmp_path / "small.h5")
+    for strict in ([], ["--strict"]):
+        r = _run("validate", "--params", fitted / "p.json", tmp_path / "small.h5", fitted / "a.h5", *strict)
+        assert r.exit_code == (4 if strict else 0) and "A3" in r.stdout, r.output
+        w = _warnings(r)
+        assert len(w) == 2 and w[0].startswith(f"kukaid: warning: validate: {tmp_path / 'small.h5'}: the model of "
+                                               f"{fitted / 'p.json'} does not describe this log on A3: its error "), w
+        assert "worse than predicting none; is it of another robot or axis, or in another unit?" in w[0]
+        assert r.stderr.strip().splitlines()[-1] == ("kukaid: error: validate: completed with 2 warning(s) (--strict)"
+                                                     if strict else w[-1])
+    r = _run("validate", "--params", fitted / "p.json", fitted / "b.h5", "--strict")
+    assert r.exit_code == 0 and r.stderr == "", r.output
+
+
 # -- 3. misleading text ------------------------------------------------------------------------
 def test_the_preprocessing_note_says_which_values_the_user_set(fitted, tmp_path):
     r = _run("fit", fitted / "a.h5", "--friction-model", "coulomb-viscous", "--cutoff", "3", "--edge", "10",

@@ -47,10 +47,11 @@ def score(tau: np.ndarray, tau_hat: np.ndarray) -> AxisScore:
                      1.0 - ss_res / ss_tot if ss_tot > 0 else math.nan, n)
 
 
-def validate(params: Any, logs: Sequence[Any], axis: int | None = None,
-             source: str = "parameters") -> dict[int, AxisScore]:
+def validate(params: Any, logs: Sequence[Any], axis: int | None = None, source: str = "parameters",
+             per_log: list[dict[int, AxisScore]] | None = None) -> dict[int, AxisScore]:
     """Per-axis out-of-sample figures of the model of ``params`` (a parameter dictionary read from
-    ``source``, or its :class:`~kukaid.identify.fitted.FittedModel`) on ``logs`` (pooled).
+    ``source``, or its :class:`~kukaid.identify.fitted.FittedModel`) on ``logs`` (pooled);
+    ``per_log`` (a list) gets each log's own figures, in order.
 
     Raises
     ------
@@ -73,6 +74,8 @@ def validate(params: Any, logs: Sequence[Any], axis: int | None = None,
         for ax, pair in pairs.items():
             parts.setdefault(int(ax), []).append(pair)
             names.setdefault(int(ax), []).append(str(log.attrs.get("source_file", "log")))
+        if per_log is not None:
+            per_log.append({int(ax): score(*pair) for ax, pair in sorted(pairs.items())})
     out = {}
     for ax in sorted(parts):
         tau = np.concatenate([p[0] for p in parts[ax]])
@@ -82,6 +85,24 @@ def validate(params: Any, logs: Sequence[Any], axis: int | None = None,
                               "not move, or only where the filter trims the log's ends)")
         out[ax] = score(tau, hat)
     return out
+
+
+#: relative error at or above which a model does not describe a log: its error is as large as the
+#: measured torque itself, worse than predicting no torque at all (a model of another robot or axis,
+#: or torques in another unit: EMPS's model, read as revolute, on a 1 kHz capture of the virtual KR C4's A1
+#: scores 603 %)
+MISMATCH = 1.0
+
+
+def mismatch_warnings(per_log: Sequence[dict[int, AxisScore]], paths: Sequence[Any], source: Any,
+                      unit: str = "N·m") -> list[str]:
+    """One line per log and axis (``per_log``: :func:`validate`'s, the logs read from ``paths``) whose
+    relative error is at least :data:`MISMATCH`, naming the model's error and the measured torque (RMS,
+    ``unit``)."""
+    return [f"{path}: the model of {source} does not describe this log on A{ax}: its error (RMS {s.rmse:.4g} {unit}) "
+            f"is {s.rel_error:.3g} x the measured torque (RMS {s.rmse / s.rel_error:.4g} {unit}), worse than "
+            "predicting none; is it of another robot or axis, or in another unit?"
+            for path, scores in zip(paths, per_log) for ax, s in scores.items() if s.rel_error >= MISMATCH]
 
 
 def to_json(scores: dict[int, AxisScore]) -> dict[str, Any]:
