@@ -14,7 +14,13 @@ ask the protocol, not the schema:
 - ``warnings(log, where)``: what the user should read about a log (a one-axis model on a log
   where other axes move; a log pushed by hand);
 - ``table()``: the text ``kukaid fit`` printed; ``check_file`` / ``save``: the file's own schema
-  check and atomic writer (for a refined file ``kukaid diagnose -o`` writes).
+  check and atomic writer (for a refined file ``kukaid diagnose -o`` writes);
+- ``source`` (where the file was read) and ``cutoff_field`` (where it keeps its low-pass cut-off).
+
+Around the protocol, one line for every command and both kinds: :func:`axis_option` (an ``--axis``
+the file does not model), :func:`require_axis` (a log without the file's axis), :func:`file_cutoff`
+(the file's cut-off a log's rate cannot take), :func:`use_warnings` (validate's and report's
+warnings, :func:`in_sample` among them).
 
 The one-axis predictor evaluates exactly the model ``kukaid fit`` fits: the log pre-processed with
 the fit's own settings (filter, mode threshold, reversal window from the file's provenance;
