@@ -27,7 +27,7 @@ the raw torques, two cut-off periods from either end.
 from __future__ import annotations
 
 import math
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import Any, Protocol
 
 import numpy as np
@@ -61,7 +61,8 @@ class FittedModel(Protocol):
 
 def model_for(params: dict, axis: int | None = None, source: str = "parameters") -> FittedModel:
     """The :class:`FittedModel` of a parameter dictionary; ``axis``: compare only that axis (default:
-    the file's axis, or every axis of a robot file; refused when the file does not model it)."""
+    the file's axis, or every axis of a robot file; refused when the file does not model it).  A
+    robot file's URDF is read once per process (:func:`robot_of`)."""
     schema = params.get("schema", SCHEMA)
     if schema == ROBOT_SCHEMA:
         return RobotFile(params, axis, source)
@@ -90,6 +91,15 @@ def fit_settings(params: dict) -> dict[str, Any]:
     if qd_thr is not None:
         out["qd_thr"] = float(qd_thr)
     return out
+
+
+@lru_cache(maxsize=4)
+def robot_of(urdf: str):
+    """The :class:`~kukaid.models.robot.RobotModel` of a URDF, built once per process (a fleet's
+    worker meets the same arm in every log)."""
+    from kukaid.models.robot import RobotModel
+
+    return RobotModel(urdf)
 
 
 class AxisFile:
@@ -169,10 +179,8 @@ class RobotFile:
 
     @cached_property
     def robot(self):
-        """The robot model of the file's URDF, built once (when first asked)."""
-        from kukaid.models.robot import RobotModel
-
-        return RobotModel(self.params["robot"]["urdf"])
+        """The robot model of the file's URDF (when first asked; :func:`robot_of`)."""
+        return robot_of(self.params["robot"]["urdf"])
 
     def check(self, log: Any) -> None:
         from kukaid.identify.robot_fit import check_torque_scale
@@ -201,4 +209,4 @@ class RobotFile:
         return format_robot_table(self.params)
 
 
-__all__ = ["AxisFile", "FittedModel", "RobotFile", "fit_settings", "load_model", "model_for"]
+__all__ = ["AxisFile", "FittedModel", "RobotFile", "fit_settings", "load_model", "model_for", "robot_of"]
