@@ -220,23 +220,19 @@ def _check(kind: str, source, table, output, pattern, workers, scheduler) -> Non
     from kukaid_cli._util import check_outputs
 
     check_outputs([output], [table])
-    run_robot = None
     if kind == "validate":
         from kukaid.diagnose.validate import validate as run
     else:
         import functools
 
-        from kukaid.diagnose.robot import diagnose_robot
-        from kukaid.diagnose.workflow import diagnose as run
+        from kukaid.diagnose import diagnose_model
 
-        # whole-arm fits: what kukaid diagnose runs on a robot parameter file, at its default --max-steps 4
-        # (the one-axis diagnose's default too)
-        run_robot = functools.partial(diagnose_robot, max_steps=4)
+        run = functools.partial(diagnose_model, max_steps=4)  # what kukaid diagnose runs, its default --max-steps
     from kukaid.fleet.tasks import _fits
 
     _fits(str(table.resolve()), table.stat().st_mtime)  # a table that is not a fit table: one line, before any work
     entries = read_input(source, pattern)
-    opts = CheckOptions(table=str(table.resolve()), kind=kind, run=run, run_robot=run_robot)
+    opts = CheckOptions(table=str(table.resolve()), kind=kind, run=run)
     bar = _Progress(f"fleet {kind}")
     try:
         s = run_tasks(entries, output, check_task, opts, opts.settings(), kind=kind, workers=workers,

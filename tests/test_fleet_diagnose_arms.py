@@ -89,8 +89,7 @@ def test_a_whole_arm_log_whose_diagnosis_fails_is_an_error_row(arms, tmp_path):
     diagnosis raises; that log is one error row, the others are diagnosed."""
     import functools
 
-    from kukaid.diagnose.robot import diagnose_robot
-    from kukaid.diagnose.workflow import diagnose
+    from kukaid.diagnose import diagnose_model
     from kukaid.fleet.manifest import read_input
     from kukaid.fleet.run import plan
     from kukaid.fleet.tasks import CheckOptions, check_task
@@ -105,14 +104,9 @@ def test_a_whole_arm_log_whose_diagnosis_fails_is_an_error_row(arms, tmp_path):
     table = tmp_path / "fit.parquet"
     write_table(table, rows, settings)
     jobs, _, _ = plan(read_input(man), [], "diagnose")
-    opts = CheckOptions(table=str(table), kind="diagnose", run=diagnose,
-                        run_robot=functools.partial(diagnose_robot, max_steps=4))
+    opts = CheckOptions(table=str(table), kind="diagnose", run=functools.partial(diagnose_model, max_steps=4))
     got = {j.name: check_task(j, opts) for j in jobs}
     cb = got.pop(CB_LOG)
     assert [r["status"] for r in cb] == ["error"] and "not the one the parameters were fitted with" in cb[0]["error"]
     assert [r["status"] for r in got.pop(BAD_LOG)] == ["error"]
     assert len(got) == 3 and all([r["status"] for r in rs] == ["ok"] * 6 for rs in got.values())
-    # a caller that gives no robot diagnosis gets an error row, not a crash
-    no_robot = CheckOptions(table=str(table), kind="diagnose", run=diagnose)
-    r = check_task(next(j for j in jobs if j.name not in (CB_LOG, BAD_LOG)), no_robot)
-    assert [x["status"] for x in r] == ["error"] and "no robot diagnosis" in r[0]["error"]

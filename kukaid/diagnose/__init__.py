@@ -30,9 +30,10 @@ def diagnose_model(model: Any, logs: Sequence[Any], *, axis: int | None = None, 
                    alpha: float | None = None, max_steps: int = 4, stage: Callable[[str], None] | None = None,
                    warn: Callable[[str], None] | None = None) -> tuple[Any, Callable[[Any, Any], Any]]:
     """Diagnose ``model`` (:func:`kukaid.identify.fitted.load_model`) on ``logs`` (AxisLog objects,
-    each checked by ``model.check`` first, then its ``model.warnings`` told to ``warn``); ``axis``,
-    ``cutoff``, ``alpha`` (None: the default) as :func:`~kukaid.diagnose.workflow.diagnose` takes
-    them.  Returns (result, draw(result, path))."""
+    each checked by ``model.check`` first, then its ``model.warnings`` told to ``warn``); ``cutoff``,
+    ``alpha`` (None: the default) as :func:`~kukaid.diagnose.workflow.diagnose` takes them; the
+    axis is the model's (``axis`` only says one was asked for: a robot file refuses it).  Returns
+    (result, draw(result, path)); the result's ``joints()`` gives each joint's figures."""
     from contextlib import nullcontext
 
     from kukaid.errors import OptionError
@@ -57,7 +58,7 @@ def diagnose_model(model: Any, logs: Sequence[Any], *, axis: int | None = None, 
             return diagnose_robot(model.params, logs, model.robot, max_steps=max_steps), write_robot_report
         from kukaid.diagnose.plots import write_report
 
-        return diagnose(model.params, logs, axis=axis, cutoff=cutoff, alpha=0.01 if alpha is None else alpha,
+        return diagnose(model.params, logs, axis=model.axis, cutoff=cutoff, alpha=0.01 if alpha is None else alpha,
                         max_steps=max_steps, source=model.source, stage=stage), write_report
 
 

@@ -68,6 +68,12 @@ class Diagnosis:
     def __iter__(self):  # unpacks as ``steps, params = diagnose(...)``
         return iter((self.steps, self.params))
 
+    def joints(self) -> list[dict[str, Any]]:
+        """Per joint diagnosed (one here): ``axis``, after the effects found the ``rmse`` (N·m) and
+        ``rel_error`` (RMS error over RMS torque), and the ``effects`` acting on it (as the robot's)."""
+        return [{"axis": int(self.params.get("axis", 3)), "rmse": float(self.rmse_after),
+                 "rel_error": float(self.rel_after), "effects": self.names}]
+
     def to_json(self) -> dict[str, Any]:
         return jsonable({"effects": [s.to_json() for s in self.steps], "rmse_before": float(self.rmse_before),
                         "rmse_after": float(self.rmse_after), "noise_floor": float(self.noise_floor),

@@ -129,6 +129,13 @@ class RobotDiagnosis:
         """Relative errors per joint -> RMSE per joint, N·m."""
         return np.asarray(rel, float) * np.asarray(self.rms, float)
 
+    def joints(self) -> list[dict[str, Any]]:
+        """Per joint, as :meth:`kukaid.diagnose.result.Diagnosis.joints`: held out, after the effects."""
+        rmse = self.rmse(self.after) if self.rms else [None] * len(self.axes)
+        return [{"axis": int(a), "rmse": None if e is None else float(e), "rel_error": float(self.after[k]),
+                 "effects": [s["name"] for s in self.steps if f"A{a}" in s["joints"]]}
+                for k, (a, e) in enumerate(zip(self.axes, rmse))]
+
     def to_json(self) -> dict[str, Any]:
         return {"schema": "kukaid.robot_diagnosis/1", "axes": self.axes, "folds": self.folds,
                 "relative_error_given": self.in_sample, "heldout_relative_error_before": self.before,

@@ -39,10 +39,10 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "Fv_std": ("float64", "standard deviation of Fv, N·m·s/rad"),
     "Izz_std": ("float64", "standard deviation of Izz, kg·m²"),
     "Mx_std": ("float64", "standard deviation of Mx, N·m"),
-    "rmse": ("float64", "torque prediction RMS error of the fit (or of the validation, or after a one-axis "
-                        "diagnosis), N·m"),
-    "rel_error": ("float64", "validation: RMS error over RMS torque; whole-arm diagnose: the joint's held-out "
-                             "RMS error over RMS torque after the effects found"),
+    "rmse": ("float64", "torque prediction RMS error of the fit (or of the validation, or after a diagnosis: "
+                        "the joint's, after the effects found), N·m"),
+    "rel_error": ("float64", "validation: RMS error over RMS torque; diagnose: the joint's RMS error over RMS "
+                             "torque after the effects found (a whole arm's: held out)"),
     "n_samples": ("int64", "samples in the log"),
     "log_duration": ("float64", "log duration, s"),
     "temp_mean": ("float64", "mean motor temperature in the log, °C (null: not logged)"),

@@ -119,15 +119,6 @@ def _temp(log, axis: int) -> dict:
     return {"temp_mean": float(np.mean(x)), "temp_min": float(np.min(x)), "temp_max": float(np.max(x))}
 
 
-@functools.lru_cache(maxsize=4)
-def _robot_model(robot: str):
-    from kukaid.models.robot import RobotModel
-
-    m = RobotModel(robot)
-    m.base_parameters()
-    return m
-
-
 def _fit_body(job: Job, opts: FitOptions) -> list[dict]:
     log = read_job_log(job)
     if opts.robot is not None:
@@ -151,9 +142,10 @@ def _fit_body(job: Job, opts: FitOptions) -> list[dict]:
 
 
 def _fit_robot(job: Job, opts: FitOptions, log) -> list[dict]:
+    from kukaid.identify.fitted import robot_of
     from kukaid.identify.robot_fit import RobotFitSettings, fit_robot
 
-    model = _robot_model(opts.robot)
+    model = robot_of(opts.robot)  # the URDF read once per worker
     fm = "coulomb-viscous" if opts.friction_model == "auto" else opts.friction_model
     p = fit_robot([log], model, RobotFitSettings(friction=fm))
     fr = p["friction"]
@@ -191,19 +183,14 @@ class CheckOptions:
     kind : "validate" (each log predicted by the latest earlier fit of its robot and axis) or
         "diagnose" (each log against its own fit).
     run : the stage's function, passed in by the caller (a strategy: ``validate(params, logs, axis)``
-        returning {axis: score}, or ``diagnose(params, logs, axis)`` returning a diagnosis with
-        ``to_json()``, ``rmse_after`` and ``steps``); sent to the workers by reference.
-    run_robot : "diagnose" of a whole-arm fit (``kukaid.robot_params/1``, ``fleet fit --robot``): the
-        function ``kukaid diagnose`` runs on a robot parameter file, ``run_robot(params, logs,
-        robot=model)`` returning a diagnosis with ``to_json()``, ``axes``, ``after`` (held-out
-        relative error per joint) and ``steps`` (each with ``name`` and ``joints``); None: whole-arm
-        fits give error rows.
+        returning {axis: score}, or what ``kukaid diagnose`` runs on a fitted model of either kind,
+        ``run(model, logs)`` (:func:`kukaid.diagnose.diagnose_model`) returning (diagnosis, draw), the
+        diagnosis with ``to_json()`` and ``joints()``); sent to the workers by reference.
     """
 
     table: str
     kind: str
     run: Callable[..., Any]
-    run_robot: Callable[..., Any] | None = None
 
     def settings(self) -> dict:
         return {"task": self.kind, "table": self.table}
@@ -259,41 +246,19 @@ def _check_body(job: Job, opts: CheckOptions) -> list[dict]:
                      result=json.dumps({"axis": int(ax), **sc.to_json(), "model_date": model_date}), **_temp(log, ax))
             rows.append(r)
         return rows
-    from kukaid.params import is_robot_params
-
-    if is_robot_params(params):
-        return _diagnose_robot(job, opts, log, params)
-    if params.get("schema") != "kukaid.params/1":
-        raise KukaidError(f"{job.name}: fleet diagnose takes fits of one axis (kukaid.params/1) or of a whole arm "
-                          f"(kukaid.robot_params/1), not {params.get('schema')}")
-    d = opts.run(params, [log], axis=axis)
-    r = _base(job, "diagnose")
-    r.update(status="ok", axis=int(params["axis"]), rmse=float(d.rmse_after), n_samples=log.n_samples,
-             log_duration=log.duration, effects=",".join(s.name for s in d.steps), result=json.dumps(d.to_json()),
-             **_temp(log, int(params["axis"])))
-    return [r]
-
-
-def _diagnose_robot(job: Job, opts: CheckOptions, log, params: dict) -> list[dict]:
-    """A whole-arm log against its own fit, as ``kukaid diagnose --params robot.json`` does: one row
-    per joint (its held-out relative error after the effects found, the effects acting on it); the
-    log's first row holds the whole diagnosis."""
+    from kukaid.identify.fitted import model_for
     from kukaid.jsonfile import jsonable
-    from kukaid.params import validate_robot_params
 
-    if opts.run_robot is None:
-        raise KukaidError(f"{job.name}: a whole-arm fit (kukaid.robot_params/1), and this run was given no "
-                          "robot diagnosis (CheckOptions.run_robot)")
-    params = validate_robot_params(params, f"{job.name}: its fit in {os.path.basename(opts.table)}")
-    d = opts.run_robot(params, [log], robot=_robot_model(params["robot"]["urdf"]))
+    # as kukaid diagnose: one entry for a fit of one axis or of a whole arm
+    model = model_for(params, axis, f"{job.name}: its fit in {os.path.basename(opts.table)}")
+    d, _ = opts.run(model, [log])
     text = json.dumps(jsonable(d.to_json()))
     rows = []
-    for k, a in enumerate(d.axes):
+    for k, j in enumerate(d.joints()):
         r = _base(job, "diagnose")
-        found = [s["name"] for s in d.steps if f"A{a}" in s["joints"]]
-        r.update(status="ok", axis=int(a), rel_error=float(d.after[k]), n_samples=log.n_samples,
-                 log_duration=log.duration, effects=",".join(found), result=text if k == 0 else None,
-                 **(_temp(log, a) if a in log.axes else {}))
+        r.update(status="ok", axis=j["axis"], rmse=j["rmse"], rel_error=j["rel_error"], n_samples=log.n_samples,
+                 log_duration=log.duration, effects=",".join(j["effects"]), result=text if k == 0 else None,
+                 **(_temp(log, j["axis"]) if j["axis"] in log.axes else {}))
         rows.append(r)
     return rows
 

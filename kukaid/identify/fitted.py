@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from contextlib import contextmanager
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import Any, Iterator, Protocol, Sequence
 
 import numpy as np
@@ -70,7 +70,8 @@ class FittedModel(Protocol):
 
 def model_for(params: dict, axis: int | None = None, source: str = "parameters") -> FittedModel:
     """The :class:`FittedModel` of a parameter dictionary; ``axis``: compare only that axis (default:
-    the file's axis, or every axis of a robot file; refused when the file does not model it)."""
+    the file's axis, or every axis of a robot file; refused when the file does not model it).  A
+    robot file's URDF is read once per process (:func:`robot_of`)."""
     schema = params.get("schema", SCHEMA)
     if schema == ROBOT_SCHEMA:
         return RobotFile(params, axis, source)
@@ -172,6 +173,15 @@ def use_warnings(model: FittedModel, paths: Sequence[Any], logs: Sequence[Any]) 
                                                                                                model.source, logs)]
 
 
+@lru_cache(maxsize=4)
+def robot_of(urdf: str):
+    """The :class:`~kukaid.models.robot.RobotModel` of a URDF, built once per process (a fleet's
+    worker meets the same arm in every log)."""
+    from kukaid.models.robot import RobotModel
+
+    return RobotModel(urdf)
+
+
 class AxisFile:
     """A ``kukaid.params/1`` file as a :class:`FittedModel`: a robot of one joint."""
 
@@ -249,10 +259,8 @@ class RobotFile:
 
     @cached_property
     def robot(self):
-        """The robot model of the file's URDF, built once (when first asked)."""
-        from kukaid.models.robot import RobotModel
-
-        return RobotModel(self.params["robot"]["urdf"])
+        """The robot model of the file's URDF (when first asked; :func:`robot_of`)."""
+        return robot_of(self.params["robot"]["urdf"])
 
     def check(self, log: Any) -> None:
         from kukaid.identify.robot_fit import check_torque_scale
@@ -281,5 +289,5 @@ class RobotFile:
         return format_robot_table(self.params)
 
 
-__all__ = ["AxisFile", "FittedModel", "RobotFile", "axis_option", "file_cutoff", "fit_settings", "fitted_logs", "in_sample", "load_model", "model_for", "require_axis",
-           "use_warnings"]
+__all__ = ["AxisFile", "FittedModel", "RobotFile", "axis_option", "file_cutoff", "fit_settings", "fitted_logs",
+           "in_sample", "load_model", "model_for", "require_axis", "robot_of", "use_warnings"]
