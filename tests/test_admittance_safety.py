@@ -424,6 +424,26 @@ def test_a_pushs_breakaway_at_rest_is_no_stop_and_the_push_is_not_taken_in():
     assert drift < 0.05 and n_det == 0, (drift, n_det)
 
 
+def test_a_stops_settling_that_flickers_past_the_speed_threshold_keeps_the_hand_it_stopped_with():
+    """lugre-all seed 16, an ordinary grip, D 50 at 12 ms (benchmarks/admittance_paper.py's operator 16):
+    the person stops the axis and holds it with about 8.5 N·m (the moving model read 7.0 as it
+    stopped: the part that may be a hand).  24 ms later the settling took the filtered speed past
+    qd_thr again for three samples, 10 µrad of travel: no stop, yet the return to the rest dropped
+    the hand part (it went into Γu when the episode began), and the release 2.2 s later read as a
+    push that moved the axis 0.11 degrees with nobody there.  The rest now goes on as it was."""
+    from kukaid.sim.operator import make_operator
+
+    p = plant("lugre-all", seed=16)
+    cfg = LoopConfig(damping="constant", D=50.0, cycle=0.012, duration=13.0)
+    op = make_operator("human", 16, Q0 + cfg.init_move, t_start=cfg.init_time + cfg.init_rest + 0.8,
+                       grip="ordinary")
+    run = run_admittance(SimRobot(VirtualKRC4(p.cfg, seed=16), Q0, op), model_from_params(p.params), cfg)
+    d = run.data
+    after = d["time"] > op.t_release + op.p.release_time + 0.05 - 0.012
+    assert not d["detected"][after].any()
+    assert math.degrees(np.ptp(d["q"][after])) < 0.05
+
+
 def test_the_threshold_floor_at_rest_learns_the_residuals_level_from_the_rest_seen_so_far():
     """The floor at rest is floor_k x the RMS of Γr at rest: a mean over the rest seen so far (its
     starting level weighted as FLOOR_PRIOR s of rest), forgetting over floor_tau once longer.  A residual

@@ -270,6 +270,7 @@ class TorqueResidual:
         self._u_span = (0.0, 0.0)  # at rest: the lowest and highest Γu held since the rest's first window, N·m
         self._q_move0 = q  # where the present dynamic episode began, rad
         self._travel = 0.0  # the farthest the axis has been from there, rad
+        self._rest_kept = (0.0, 0.0, (0.0, 0.0))  # Γu, the hand part and the span as the episode began
         self._dyn_r = 0.0  # Γr while moving, averaged over DYN_MEMORY s, N·m
         self._start_prev = math.inf  # the start threshold at the previous sample, N·m
         self._moving = False
@@ -397,13 +398,17 @@ class TorqueResidual:
             self._mode = QUASI_STATIC
         quasi = self._mode == QUASI_STATIC
         if not quasi and old_mode == QUASI_STATIC:  # moving: Γu is kept without the hand
+            self._rest_kept = (self._gamma_u, self._hand, self._u_span)
             self._gamma_u, self._hand = self._gamma_u + self._hand, 0.0
             self._q_move0, self._travel = q, 0.0
         if not quasi:
             self._travel = max(self._travel, abs(q - self._q_move0))
         # a dynamic episode that stayed within the pre-sliding range was a push's deflection of a standing
-        # axis (its breakaway crossing qd_thr for a few samples), not a move: it ends in no stop
+        # axis (its breakaway crossing qd_thr for a few samples), not a move: it ends in no stop, and the
+        # rest goes on as it was (its Γu, the part that may be a hand, the span)
         moved = self._travel > self._presliding_range
+        if quasi and old_mode == DYNAMIC and not moved:
+            self._gamma_u, self._hand, self._u_span = self._rest_kept
         if not quasi or self._u_n < self._u_need:
             self._u_span = (self._gamma_u, self._gamma_u)
         if quasi and old_mode == DYNAMIC and not self._detected and moved:
