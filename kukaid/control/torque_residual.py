@@ -23,7 +23,7 @@ Online, causal version (what a controller can do):
   (quasi-static, no detection, the innovation below half the start threshold at rest, so a push
   building up is not learnt), a slow observer (time constant ``u_tau``), and beyond half the start
   threshold a drift no faster than ``DRIFT_RATE`` (a servo's integral action winding up against
-  stiction ramps the torque at rest by about 1 N·m/s; a push builds up faster).  In contact Γu is
+  stiction ramps the torque at rest by 1-6 N·m/s; a push builds up faster).  In contact Γu is
   frozen, so a push that is still there when the axis stops is never absorbed;
 * at rest, out of contact, the RMS of Γr is tracked: the start threshold at rest is at least
   ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model whose friction at rest
@@ -97,8 +97,11 @@ QUIET_BEFORE_REST = 0.3
 MOVING_MARGIN = 2.0
 #: memory (s) of the residual read while moving, taken as the hand's torque when the axis stops
 DYN_MEMORY = 0.1
-#: at rest, out of contact, the fastest drift (N·m/s) Γu follows beyond half the start threshold
-DRIFT_RATE = 1.0
+#: at rest, out of contact, the fastest drift (N·m/s) Γu follows beyond half the start threshold: a
+#: servo's integral action winding against stiction ramps the torque at rest by about 1 N·m/s with
+#: nobody there, and by 3-6 N·m/s while a hand holds the axis still (its deflection of the stiction's
+#: bristles is larger); a person's push builds up faster (a 10 N·m push in 0.5 s: 20 N·m/s)
+DRIFT_RATE = 3.0
 #: s of rest the threshold floor's starting level counts as (the floor then learns a plant's level at
 #: rest as a mean over the rest seen so far, not as an average forgetting over floor_tau from the start)
 FLOOR_PRIOR = 2.0
@@ -343,7 +346,7 @@ class TorqueResidual:
             after = self._gamma_u - self._u_anchor
             self._hand -= _beyond(after, self.threshold) - _beyond(before, self.threshold)
         else:  # beyond half the start threshold only a slow drift is followed (a servo's integrator winding
-            # up against stiction ramps the torque at rest by about 1 N·m/s; a push builds up faster)
+            # up against stiction ramps the torque at rest by 1-6 N·m/s; a push builds up faster)
             step = min(h / self.u_tau, 1.0) * e
             if abs(e) >= 0.5 * self.rest_threshold:
                 step = min(max(step, -DRIFT_RATE * h), DRIFT_RATE * h)
