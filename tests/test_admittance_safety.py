@@ -424,24 +424,40 @@ def test_a_pushs_breakaway_at_rest_is_no_stop_and_the_push_is_not_taken_in():
     assert drift < 0.05 and n_det == 0, (drift, n_det)
 
 
-def test_a_stops_settling_that_flickers_past_the_speed_threshold_keeps_the_hand_it_stopped_with():
-    """lugre-all seed 16, an ordinary grip, D 50 at 12 ms (benchmarks/admittance_paper.py's operator 16):
-    the person stops the axis and holds it with about 8.5 N·m (the moving model read 7.0 as it
-    stopped: the part that may be a hand).  24 ms later the settling took the filtered speed past
-    qd_thr again for three samples, 10 µrad of travel: no stop, yet the return to the rest dropped
-    the hand part (it went into Γu when the episode began), and the release 2.2 s later read as a
-    push that moved the axis 0.11 degrees with nobody there.  The rest now goes on as it was."""
+def _after_a_persons_release(member: str, seed: int, grip: str) -> tuple[np.ndarray, np.ndarray]:
+    """benchmarks/admittance_paper.py's person ``seed`` (grip ``grip``) on family member ``member``,
+    D 50 at 12 ms: detected and q (rad) from 0.05 s after the hand's torque is gone."""
     from kukaid.sim.operator import make_operator
 
-    p = plant("lugre-all", seed=16)
+    p = plant(member, seed=seed)
     cfg = LoopConfig(damping="constant", D=50.0, cycle=0.012, duration=13.0)
-    op = make_operator("human", 16, Q0 + cfg.init_move, t_start=cfg.init_time + cfg.init_rest + 0.8,
-                       grip="ordinary")
-    run = run_admittance(SimRobot(VirtualKRC4(p.cfg, seed=16), Q0, op), model_from_params(p.params), cfg)
-    d = run.data
+    op = make_operator("human", seed, Q0 + cfg.init_move, t_start=cfg.init_time + cfg.init_rest + 0.8, grip=grip)
+    d = run_admittance(SimRobot(VirtualKRC4(p.cfg, seed=seed), Q0, op), model_from_params(p.params), cfg).data
     after = d["time"] > op.t_release + op.p.release_time + 0.05 - 0.012
-    assert not d["detected"][after].any()
-    assert math.degrees(np.ptp(d["q"][after])) < 0.05
+    return d["detected"][after], d["q"][after]
+
+
+def test_a_stops_settling_that_flickers_past_the_speed_threshold_keeps_the_hand_it_stopped_with():
+    """lugre-all person 16 (ordinary grip): the person stops the axis and holds it with about 8.5 N·m
+    (the moving model read 7.0 as it stopped: the part that may be a hand).  24 ms later the settling
+    took the filtered speed past qd_thr again for three samples, 10 µrad of travel: no stop, yet the
+    return to the rest dropped the hand part (it went into Γu when the episode began), and the
+    release 2.2 s later read as a push that moved the axis 0.11 degrees with nobody there.  The rest
+    now goes on as it was."""
+    detected, q = _after_a_persons_release("lugre-all", 16, "ordinary")
+    assert not detected.any()
+    assert math.degrees(np.ptp(q)) < 0.05
+
+
+def test_a_hand_held_at_rest_while_the_servo_winds_against_stiction_is_no_push_when_it_lets_go():
+    """lugre-posfric person 27 (soft grip): the person brakes the axis to a stop and holds it with
+    6 N·m for 2.3 s; meanwhile the servo's integral action winds against the LuGre stiction and the
+    motor torque falls by 17 N·m (the residual drifts by 4 N·m/s, the way a hand letting go would).
+    Γu followed at 1 N·m/s, the drift ran past the part held as a possible hand, and the release read
+    as a push: 5 cycles, 0.63 degree with nobody there.  At DRIFT_RATE 3 N·m/s it moves nothing."""
+    detected, q = _after_a_persons_release("lugre-posfric", 27, "soft")
+    assert not detected.any()
+    assert math.degrees(np.ptp(q)) < 0.05
 
 
 def test_the_threshold_floor_at_rest_learns_the_residuals_level_from_the_rest_seen_so_far():
