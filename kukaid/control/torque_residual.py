@@ -23,7 +23,7 @@ Online, causal version (what a controller can do):
   (quasi-static, no detection, the innovation below half the start threshold at rest, so a push
   building up is not learnt), a slow observer (time constant ``u_tau``), and beyond half the start
   threshold a drift no faster than ``DRIFT_RATE`` (a servo's integral action winding up against
-  stiction ramps the torque at rest by about 1 N·m/s; a push builds up faster).  In contact Γu is
+  stiction ramps the torque at rest by 1-6 N·m/s; a push builds up faster).  In contact Γu is
   frozen, so a push that is still there when the axis stops is never absorbed;
 * at rest, out of contact, the RMS of Γr is tracked: the start threshold at rest is at least
   ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model whose friction at rest
@@ -97,8 +97,11 @@ QUIET_BEFORE_REST = 0.3
 MOVING_MARGIN = 2.0
 #: memory (s) of the residual read while moving, taken as the hand's torque when the axis stops
 DYN_MEMORY = 0.1
-#: at rest, out of contact, the fastest drift (N·m/s) Γu follows beyond half the start threshold
-DRIFT_RATE = 1.0
+#: at rest, out of contact, the fastest drift (N·m/s) Γu follows beyond half the start threshold: a
+#: servo's integral action winding against stiction ramps the torque at rest by about 1 N·m/s with
+#: nobody there, and by 3-6 N·m/s while a hand holds the axis still (its deflection of the stiction's
+#: bristles is larger); a person's push builds up faster (a 10 N·m push in 0.5 s: 20 N·m/s)
+DRIFT_RATE = 3.0
 #: s of rest the threshold floor's starting level counts as (the floor then learns a plant's level at
 #: rest as a mean over the rest seen so far, not as an average forgetting over floor_tau from the start)
 FLOOR_PRIOR = 2.0
@@ -270,6 +273,7 @@ class TorqueResidual:
         self._u_span = (0.0, 0.0)  # at rest: the lowest and highest Γu held since the rest's first window, N·m
         self._q_move0 = q  # where the present dynamic episode began, rad
         self._travel = 0.0  # the farthest the axis has been from there, rad
+        self._rest_kept = (0.0, 0.0, (0.0, 0.0))  # Γu, the hand part and the span as the episode began
         self._dyn_r = 0.0  # Γr while moving, averaged over DYN_MEMORY s, N·m
         self._start_prev = math.inf  # the start threshold at the previous sample, N·m
         self._moving = False
@@ -342,7 +346,7 @@ class TorqueResidual:
             after = self._gamma_u - self._u_anchor
             self._hand -= _beyond(after, self.threshold) - _beyond(before, self.threshold)
         else:  # beyond half the start threshold only a slow drift is followed (a servo's integrator winding
-            # up against stiction ramps the torque at rest by about 1 N·m/s; a push builds up faster)
+            # up against stiction ramps the torque at rest by 1-6 N·m/s; a push builds up faster)
             step = min(h / self.u_tau, 1.0) * e
             if abs(e) >= 0.5 * self.rest_threshold:
                 step = min(max(step, -DRIFT_RATE * h), DRIFT_RATE * h)
@@ -397,13 +401,17 @@ class TorqueResidual:
             self._mode = QUASI_STATIC
         quasi = self._mode == QUASI_STATIC
         if not quasi and old_mode == QUASI_STATIC:  # moving: Γu is kept without the hand
+            self._rest_kept = (self._gamma_u, self._hand, self._u_span)
             self._gamma_u, self._hand = self._gamma_u + self._hand, 0.0
             self._q_move0, self._travel = q, 0.0
         if not quasi:
             self._travel = max(self._travel, abs(q - self._q_move0))
         # a dynamic episode that stayed within the pre-sliding range was a push's deflection of a standing
-        # axis (its breakaway crossing qd_thr for a few samples), not a move: it ends in no stop
+        # axis (its breakaway crossing qd_thr for a few samples), not a move: it ends in no stop, and the
+        # rest goes on as it was (its Γu, the part that may be a hand, the span)
         moved = self._travel > self._presliding_range
+        if quasi and old_mode == DYNAMIC and not moved:
+            self._gamma_u, self._hand, self._u_span = self._rest_kept
         if not quasi or self._u_n < self._u_need:
             self._u_span = (self._gamma_u, self._gamma_u)
         if quasi and old_mode == DYNAMIC and not self._detected and moved:
