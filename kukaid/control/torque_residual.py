@@ -100,7 +100,7 @@ DYN_MEMORY = 0.1
 #: at rest, out of contact, the fastest drift (N·m/s) Γu follows beyond half the start threshold: a
 #: servo's integral action winding against stiction ramps the torque at rest by about 1 N·m/s with
 #: nobody there, and by 3-6 N·m/s while a hand holds the axis still (its deflection of the stiction's
-#: bristles is larger); a person's push builds up faster (a 10 N·m push in 0.5 s: 20 N·m/s)
+#: bristles is larger); a person's push builds up faster (the simulated people: 7.6 N·m/s at the slowest)
 DRIFT_RATE = 3.0
 #: s of rest the threshold floor's starting level counts as (the floor then learns a plant's level at
 #: rest as a mean over the rest seen so far, not as an average forgetting over floor_tau from the start)
