@@ -23,7 +23,9 @@ Online, causal version (what a controller can do):
   (quasi-static, no detection, the innovation below half the start threshold at rest, so a push
   building up is not learnt), a slow observer (time constant ``u_tau``), and beyond half the start
   threshold a drift no faster than ``DRIFT_RATE`` (a servo's integral action winding up against
-  stiction ramps the torque at rest by 1-6 N·m/s; a push builds up faster).  In contact Γu is
+  stiction ramps the torque at rest by about 1 N·m/s; a push builds up faster), or
+  ``HELD_DRIFT_RATE`` the way a hand held at rest would read as it lets go (the servo winds faster
+  under it).  In contact Γu is
   frozen, so a push that is still there when the axis stops is never absorbed;
 * at rest, out of contact, the RMS of Γr is tracked: the start threshold at rest is at least
   ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model whose friction at rest
@@ -99,9 +101,12 @@ MOVING_MARGIN = 2.0
 DYN_MEMORY = 0.1
 #: at rest, out of contact, the fastest drift (N·m/s) Γu follows beyond half the start threshold: a
 #: servo's integral action winding against stiction ramps the torque at rest by about 1 N·m/s with
-#: nobody there, and by 3-6 N·m/s while a hand holds the axis still (its deflection of the stiction's
-#: bristles is larger); a person's push builds up faster (the simulated people: 7.6 N·m/s at the slowest)
-DRIFT_RATE = 3.0
+#: nobody there; a person's push builds up faster (the simulated people: 7.6 N·m/s at the slowest)
+DRIFT_RATE = 1.0
+#: the same while a part held as a possible hand (at least half the threshold) may still hold the axis,
+#: for a drift the way its release would read: the servo winds at 3-6 N·m/s then (the hand deflects the
+#: stiction's bristles further), and the drift, read as the hand fading, left the release beyond it
+HELD_DRIFT_RATE = 3.0
 #: s of rest the threshold floor's starting level counts as (the floor then learns a plant's level at
 #: rest as a mean over the rest seen so far, not as an average forgetting over floor_tau from the start)
 FLOOR_PRIOR = 2.0
@@ -349,7 +354,9 @@ class TorqueResidual:
             # up against stiction ramps the torque at rest by 1-6 N·m/s; a push builds up faster)
             step = min(h / self.u_tau, 1.0) * e
             if abs(e) >= 0.5 * self.rest_threshold:
-                step = min(max(step, -DRIFT_RATE * h), DRIFT_RATE * h)
+                held = step * self._hand > 0.0 and abs(self._hand) >= 0.5 * self.threshold
+                rate = HELD_DRIFT_RATE if held else DRIFT_RATE
+                step = min(max(step, -rate * h), rate * h)
             self._gamma_u += step
 
     def update(self, q: float, tau: float, dt: float | None = None) -> ResidualSample:
