@@ -239,7 +239,7 @@ def test_a_residual_standing_at_rest_when_the_threshold_falls_is_not_a_push():
     assert det[615:700].all()  # 8 N·m more: a push
     assert not det[720:900].any()  # gone again: ended; 6 N·m the other way: one reading only
     assert not det[900:].any()  # a slow drift of 8 N·m is followed, as Γu follows one
-    # and the run can say so: 5 N·m of the 8, Γu having followed 3 N·m of it as a drift (DRIFT_RATE)
+    # and the run can say so: 7 N·m of the 8, Γu having followed 1 N·m of it as a drift (DRIFT_RATE)
     # during the second of the stop's doubled threshold
     assert est.standing_max == pytest.approx(8.0 - DRIFT_RATE * 1.0, abs=0.5)
 
@@ -454,7 +454,8 @@ def test_a_hand_held_at_rest_while_the_servo_winds_against_stiction_is_no_push_w
     6 N·m for 2.3 s; meanwhile the servo's integral action winds against the LuGre stiction and the
     motor torque falls by 17 N·m (the residual drifts by 4 N·m/s, the way a hand letting go would).
     Γu followed at 1 N·m/s, the drift ran past the part held as a possible hand, and the release read
-    as a push: 5 cycles, 0.63 degree with nobody there.  At DRIFT_RATE 3 N·m/s it moves nothing."""
+    as a push: 5 cycles, 0.63 degree with nobody there.  Γu now follows such a drift (the way the held
+    hand's release reads) at HELD_DRIFT_RATE, 3 N·m/s, and the release moves nothing."""
     detected, q = _after_a_persons_release("lugre-posfric", 27, "soft")
     assert not detected.any()
     assert math.degrees(np.ptp(q)) < 0.05
