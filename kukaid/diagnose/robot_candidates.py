@@ -247,6 +247,14 @@ class Counterbalance(RobotCandidate):
         return {"q0_rad": (option["q0_rad"] - da, option["q0_rad"] + da), "lever_ratio": (0.1, 0.95),
                 "kappa": (0.8, max(CB_KAPPAS) + 0.4)}
 
+    without_what = "the spring (its joint's spring and ripple terms out, its link's first moments free)"
+
+    def without(self, ctx, option):
+        """No spring, in its place what it replaces and frees (the diagnosis judges a counterbalance with
+        its link's first moments free of the file's prior): that freedom alone must not be what
+        predicts."""
+        return np.zeros((ctx.q.shape[0], 1))
+
     def _sizes(self, ctx, option, coefs):
         peak = float(np.max(np.abs(coefs[0] * self.columns(ctx, option))))
         return peak, peak / max(float(np.max(np.abs(ctx.gravity[:, self.joint]))), 1e-12)
