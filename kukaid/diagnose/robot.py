@@ -37,7 +37,10 @@ the fit's low-pass, as the torque is (near the cut-off the filter attenuates a r
 torque, not in a sine of the filtered position). Its coefficients and the baseline are then
 fitted on the training folds and the held-out error measured. A counterbalance takes the place of
 its joint's spring and ripple terms; it and a payload are judged at every prior strength (a rigid
-body refitted freely takes part of either in). Recordings the file was fitted on are not used when
+body refitted freely takes part of either in), a counterbalance with the gravity parameters of the
+links its joint carries free of the file's prior (:meth:`BaseCorrection.freed`: a fit on a
+recording with the spring took it in there) and against the same freedom without the spring.
+Recordings the file was fitted on are not used when
 at least two others remain (:func:`_unseen`).
 
 A candidate is named when it lowers the held-out relative error of the joints it acts on by more
