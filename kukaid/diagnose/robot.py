@@ -37,7 +37,10 @@ the fit's low-pass, as the torque is (near the cut-off the filter attenuates a r
 torque, not in a sine of the filtered position). Its coefficients and the baseline are then
 fitted on the training folds and the held-out error measured. A counterbalance takes the place of
 its joint's spring and ripple terms; it and a payload are judged at every prior strength (a rigid
-body refitted freely takes part of either in). Recordings the file was fitted on are not used when
+body refitted freely takes part of either in), a counterbalance with the gravity parameters of the
+links its joint carries free of the file's prior (:meth:`BaseCorrection.freed`: a fit on a
+recording with the spring took it in there) and against the same freedom without the spring.
+Recordings the file was fitted on are not used when
 at least two others remain (:func:`_unseen`).
 
 A candidate is named when it lowers the held-out relative error of the joints it acts on by more
@@ -358,7 +361,7 @@ def _signals(params: dict, logs: Sequence[Any], robot):
 
     floor = [filtered_noise_floor([lg.tau[:, lg.index(j + 1)] for lg in logs], fs, [_cutoff(settings, f) for f in fs],
                                   settings.order) for j in range(n)]
-    return (m, rigid + shape + fixed, base, tau_hat, pieces, [corr[:, j, :] for j in range(n)], B.prior,
+    return (m, rigid + shape + fixed, base, tau_hat, pieces, [corr[:, j, :] for j in range(n)], B,
             np.asarray(floor), own_signals)
 
 
@@ -384,17 +387,35 @@ class BaseCorrection:
         # its part in the payload's directions (the last link's mass and first moments in the base):
         # kept at the file's uncertainty whatever the prior's strength, so a payload is a candidate of
         # its own and not a correction of the rigid body
-        k0 = robot.n_std - 10
         base = robot.base_parameters()
-        if np.array_equal(np.sort(self.independent), base.independent):
-            U, sv, _ = np.linalg.svd(base.K(robot.n_std)[:, k0: k0 + 4], full_matrices=False)
-            Q = U[:, sv > 1e-9 * max(float(sv.max()), 1e-300)]
-        else:
-            Q = np.zeros((self.independent.size, 0))
+        self._K = base.K(robot.n_std) if np.array_equal(np.sort(self.independent), base.independent) else None
+        Q = self._span(robot.n_std - 10, 4)
         Pq = Q @ Q.T
         #: (information, its payload part): the prior at strength c is c info + (1 - c) payload part
         self.prior = (D, Pq @ D @ Pq)
         self.size = self.independent.size
+        self.n = robot.n
+
+    def _span(self, k0: int, k: int) -> np.ndarray:
+        """An orthonormal basis (size, r) of the base parameters' directions of the standard
+        parameters k0 .. k0 + k - 1 (none when the file's base parameters are not the URDF's)."""
+        if self._K is None:
+            return np.zeros((self.independent.size, 0))
+        U, sv, _ = np.linalg.svd(self._K[:, k0: k0 + k], full_matrices=False)
+        return U[:, sv > 1e-9 * max(float(sv.max()), 1e-300)]
+
+    def freed(self, prior: tuple, j: int) -> tuple:
+        """``prior`` (information, payload part) without information in the directions of the masses
+        and first moments of the links joint j carries (all but the last: a payload's), its gravity
+        torque: a fit on a recording with a counterbalance on joint j took the spring's torque there
+        (its first harmonic of the joint's angle is a link's first moment), the rest in the joint's
+        spring and ripple terms, and the file's uncertainty is of that sum."""
+        Q = np.concatenate([self._span(10 * k, 4) for k in range(j, self.n - 1)], axis=1)
+        if Q.shape[1]:
+            U, sv, _ = np.linalg.svd(Q, full_matrices=False)
+            Q = U[:, sv > 1e-9 * float(sv.max())]
+        R = np.eye(self.size) - Q @ Q.T
+        return tuple(R @ M @ R for M in prior)
 
     def columns(self, Y: np.ndarray) -> np.ndarray:
         """(B, n, size) from the standard regressor (B, n, 10 n)."""
@@ -794,8 +815,13 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     if not logs:
         raise KukaidError("diagnose: no logs")
     logs, fitted_on = _unseen(params, logs)
-    m, rigid, base, tau_hat, pieces, corr, corr_prior, floor, own_signals = _signals(params, logs, robot)
-    prior = (base.prior, corr_prior)          # own columns' diagonals; (information, payload part)
+    m, rigid, base, tau_hat, pieces, corr, B, floor, own_signals = _signals(params, logs, robot)
+    prior = (base.prior, B.prior)          # own columns' diagonals; (information, payload part)
+
+    def prior_of(cand):
+        """The prior a candidate is judged under: a counterbalance's frees the gravity parameters of
+        the links its joint carries (:meth:`BaseCorrection.freed`)."""
+        return (prior[0], B.freed(prior[1], cand.joint)) if cand.replaces_angle_terms else prior
     n = robot.n
     axes = list(range(1, n + 1))
     tau = m.tau
@@ -845,8 +871,9 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             # a counterbalance or a payload is judged at every prior strength (a rigid body refitted
             # freely takes part of either in, held it keeps what the file took in); the others at the
             # baseline's
+            pr = prior_of(cand)
             res = _try(cand, ctx, r, tau, Fjs if cand.rigid_body_like else {scale: Fj}, shared, local, folds, K, w,
-                       held, prior, base)
+                       held, pr, base)
             if res is None:
                 continue
             fnum, fden, fres, opt, coefs, col, c_scale = res
@@ -859,7 +886,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             ref, ref_res, without = mb, res0, cand.without(ctx, opt)
             if without is not None:
                 wnum, _, wres = _try_at(_Fixed(cand.joint, without), ctx, r, tau, Fjs[c_scale] if cand.rigid_body_like
-                                        else Fj, shared, local, folds, K, w, held, _scaled(prior, c_scale), base)[:3]
+                                        else Fj, shared, local, folds, K, w, held, _scaled(pr, c_scale), base)[:3]
                 if float(np.mean(_rel(wnum, den)[joints])) < ref:
                     ref, ref_res = float(np.mean(_rel(wnum, den)[joints])), wres
             gain_t = _gain_t(ref_res, fres, den.sum(0), block, joints)
@@ -900,6 +927,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
         if cand.replaces_angle_terms:
             r, Fj = base.without_angle_terms(cand.joint, r, Fj)
             replaced.append(cand.joint)
+            prior = prior_of(cand)
         # the joints' own choices and the prior's strength again, with the named effect beside: made
         # without it, they were made on a torque it dominated (a ripple of 30x the noise floor on a
         # joint leaves its Coulomb transition, viscous form and rotor inertia to chance); kept where

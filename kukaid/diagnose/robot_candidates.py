@@ -216,7 +216,10 @@ class Counterbalance(RobotCandidate):
     fitted. The geometry is chosen on the training folds, as every candidate's option (with the
     rigid body refitted beside it the spring no longer takes up the file's A2 error). It takes the
     place of the file's terms of the joint's own angle (its spring ``k q`` and ripple harmonics: on
-    the recording the file was fitted on they stood in for it, and extrapolate as it does not)."""
+    the recording the file was fitted on they stood in for it, and extrapolate as it does not), and
+    it is judged with the gravity parameters of the links its joint carries free of the file's prior
+    (the fit took the rest of the spring in there; its first harmonic of the joint's angle is a
+    link's first moment, so the spring's size is the less determined the more its shape is a sine)."""
 
     replaces_angle_terms = True
     rigid_body_like = True
@@ -246,6 +249,15 @@ class Counterbalance(RobotCandidate):
         da = float(CB_ANGLES[1] - CB_ANGLES[0])
         return {"q0_rad": (option["q0_rad"] - da, option["q0_rad"] + da), "lever_ratio": (0.1, 0.95),
                 "kappa": (0.8, max(CB_KAPPAS) + 0.4)}
+
+    without_what = "the spring (the file's spring and ripple terms, the gravity parameters as free)"
+
+    def without(self, ctx, option):
+        """No spring: the file's spring and ripple terms of the joint kept, the gravity parameters of the
+        links the joint carries as free as beside the spring (the diagnosis frees them for a
+        counterbalance: a fit took the spring in there, :meth:`kukaid.diagnose.robot.BaseCorrection.freed`).
+        The freedom alone must not be what predicts."""
+        return np.zeros((ctx.q.shape[0], 1))
 
     def _sizes(self, ctx, option, coefs):
         peak = float(np.max(np.abs(coefs[0] * self.columns(ctx, option))))
