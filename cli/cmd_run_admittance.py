@@ -125,6 +125,9 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--program", type=click.Path(dir_okay=False, path_type=Path),
               help="sim with a robot parameter file: a robot trajectory (`kukaid excite fourier --robot`) the "
                    "other axes follow meanwhile [they stand at mid range].")
+@click.option("--no-rest-model", is_flag=True,
+              help="Run a robot parameter file's model although it has no friction model at rest: with nobody "
+                   "touching it the axis can move by itself (refused without this flag).")
 @click.option("--enable-motion", is_flag=True, help="kvp: really move the robot (required with --backend kvp).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
 @click.option("--port", type=int, default=7000, show_default=True, help="kvp: KUKAVARPROXY port.")
@@ -136,8 +139,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             duration: float, cycle: float, cutoff: float, init_move: float, q_min: float | None, q_max: float | None,
             qd_max: float, qdd_max: float, tau_max: float, max_age: float, backend: str, operator: str, seed: int,
             q0: float, grip: str | None, sim_config: Path | None, noise: float | None, plant_friction: str | None,
-            strict: bool, program: Path | None, enable_motion: bool, host: str, port: int, axis: int,
-            urdf: Path | None) -> None:
+            strict: bool, program: Path | None, no_rest_model: bool, enable_motion: bool, host: str, port: int,
+            axis: int, urdf: Path | None) -> None:
     """Push the axis by hand without a force sensor: estimate the external torque Γr from the
     identified model (eqs. 12-14) and let an admittance (eqs. 15-16) with constant or adaptive
     damping (eqs. 17-22) move the reference, bounded and watched (position window, speed,
@@ -147,7 +150,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     (--backend kvp) moves only with --enable-motion and a finite position window, through the
     KRL program of `kukaid krl-follower` (which clamps to its own window and stops when this
     command's heartbeat stops).  A one-axis parameter file without Maxwell-slip elements is
-    refused (at rest the axis would move by itself).  Exit status 3: the run stopped early (the
+    refused (at rest the axis would move by itself), and so is a robot parameter file unless
+    --no-rest-model (it has no friction model at rest at all).  Exit status 3: the run stopped early (the
     log says why); 4 (with --strict): it completed with warnings; Ctrl-C
     or SIGTERM stops it at the next cycle, and the log and report are still written (the
     report's comparison run cut where the run stopped).
@@ -189,11 +193,19 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                                    "(the simulator and its simulated person): a real robot starts where it stands")
     params = load_any_params(params_path, urdf)
     robot_file = is_robot_params(params)  # a whole robot (`kukaid fit --robot`): Γr of the axis from every axis
+    if no_rest_model and not robot_file:
+        raise click.UsageError("--no-rest-model is for a robot parameter file (a one-axis file has its model at rest)")
     if robot_file:
         from kukaid.control.robot_residual import RobotTorqueModel
 
         axis_option(str(params_path), tuple(params["axes"]), axis)
         model = RobotTorqueModel.from_params(params, str(params_path))
+        if not no_rest_model:  # before anything moves
+            raise ParamFileError(
+                f"{params_path}: a robot parameter file has no friction model at rest (no quasi-static mode), so at "
+                "rest static friction cannot be told from a push and the axis moves by itself (the LWR4+ fit, A2 on its "
+                "virtual robot: 2.6 degrees in 5 s with nobody there); guide the axis with a one-axis file with Maxwell-slip elements "
+                "(kukaid fit ... --presliding LOG), or pass --no-rest-model to run this one anyway")
     else:
         if given("axis") and params.get("axis") is not None:  # the file's axis, before the robot's or simulator's
             axis_option(str(params_path), (int(params["axis"]),), axis)

@@ -150,9 +150,14 @@ def test_cli_with_a_robot_parameter_file_and_the_other_axes_moving(tmp_path):
     save_robot_params(tmp_path / "robot.json", fit_robot([log], RobotModel(ROBOT), RobotFitSettings(rotor=True)))
     fourier(ROBOT, harmonics=3, period=6.0, periods=2, iterations=0, starts=1, seed=5).to_json(tmp_path / "prog.json")
     out = tmp_path / "run.h5"
-    r = CliRunner().invoke(cli, ["run-admittance", "--params", str(tmp_path / "robot.json"), "--program",
-                                 str(tmp_path / "prog.json"), "--axis", "2", "--q0", "-90", "--operator", "push",
-                                 "--seed", "4", "--duration", "6", "-o", str(out), "--json"])
+    args = ["run-admittance", "--params", str(tmp_path / "robot.json"), "--program", str(tmp_path / "prog.json"),
+            "--axis", "2", "--q0", "-90", "--operator", "push", "--seed", "4", "--duration", "6", "-o", str(out),
+            "--json"]
+    # no friction model at rest: refused before anything moves, unless asked for
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code != 0 and "no friction model at rest" in r.output and "--no-rest-model" in r.output
+    assert not out.exists()
+    r = CliRunner().invoke(cli, args + ["--no-rest-model"])
     assert r.exit_code == 0, r.output
     m = json.loads(r.output.strip().splitlines()[-1])
     assert m["status"] == "completed"
