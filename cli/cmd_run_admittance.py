@@ -200,12 +200,6 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
 
         axis_option(str(params_path), tuple(params["axes"]), axis)
         model = RobotTorqueModel.from_params(params, str(params_path))
-        if not no_rest_model:  # before anything moves
-            raise ParamFileError(
-                f"{params_path}: a robot parameter file has no friction model at rest (no quasi-static mode), so at "
-                "rest static friction cannot be told from a push and the axis moves by itself (the LWR4+ fit, A2 on its "
-                "virtual robot: 2.6 degrees in 5 s with nobody there); guide the axis with a one-axis file with Maxwell-slip elements "
-                "(kukaid fit ... --presliding LOG), or pass --no-rest-model to run this one anyway")
     else:
         if given("axis") and params.get("axis") is not None:  # the file's axis, before the robot's or simulator's
             axis_option(str(params_path), (int(params["axis"]),), axis)
@@ -241,7 +235,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         # LoopConfig checks the admittance's stability (also at D-max) and the detection thresholds
         cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
                          sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf,
-                         cutoff=cutoff, limits=limits)
+                         cutoff=cutoff, limits=limits, no_rest_model=no_rest_model)
 
     for p in (output, report):  # after the options' checks: a wrong option is said first
         if p is not None:
@@ -253,7 +247,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         from kukaid.control.loop import check_guidable
 
         try:
-            check_guidable(model)
+            check_guidable(model, no_rest_model)
         except KukaidError as e:
             raise ParamFileError(f"{params_path}: {str(e).removeprefix('run-admittance: ')}") from None
 
@@ -277,6 +271,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
 
             if sim_config is not None or noise is not None or plant_friction is not None:
                 raise click.UsageError("--sim-config, --noise and --plant-friction are for one-axis parameter files")
+            guidable()
             plant = VirtualRobotKRC4(RobotSimConfig(robot=params["robot"]["urdf"]), seed=seed)
             cfg = dataclasses.replace(cfg, sample_time=plant.cfg.sample_time)
             lo_, hi_ = (np.asarray(x, float) for x in (plant.model_nominal.lowerPositionLimit,

@@ -43,7 +43,7 @@ def _run(model_cls, push: bool):
     op = (lambda tt, qq, qd: PUSH if T_PUSH <= tt < T_PUSH + 1.5 else 0.0) if push else None
     be = SimRobot(sim, q0, op, program=program, axis=AXIS)
     cfg = LoopConfig(I=20.0, D=50.0, threshold=3.0, cycle=0.012, sample_time=sim.cfg.sample_time, duration=7.0,
-                     limits=SafetyLimits(q_min=q0[AXIS - 1] - 0.5, q_max=q0[AXIS - 1] + 0.5, tau_max=1e4))
+                     no_rest_model=True, limits=SafetyLimits(q_min=q0[AXIS - 1] - 0.5, q_max=q0[AXIS - 1] + 0.5, tau_max=1e4))
     model = model_cls.from_truth(sim.truth.to_dict())
     return run_admittance(be, model, cfg)
 
@@ -95,8 +95,29 @@ def test_robot_model_needs_every_axis():
 
     sim = VirtualRobotKRC4(RobotSimConfig(robot=ROBOT), seed=0)
     with pytest.raises(KukaidError, match="every axis"):
-        run_admittance(OneAxis(), RobotTorqueModel.from_truth(sim.truth.to_dict()), LoopConfig(duration=1.0))
+        run_admittance(OneAxis(), RobotTorqueModel.from_truth(sim.truth.to_dict()), LoopConfig(duration=1.0, no_rest_model=True))
     assert math.isfinite(sim.t)
+
+
+def test_a_robot_model_is_refused_before_anything_moves_unless_asked_for():
+    """No quasi-static mode: at rest static friction reads as a push, so the library refuses a robot model
+    as the command does, before the backend is started, unless LoopConfig.no_rest_model (the run log keeps it)."""
+    from kukaid.control.loop import config_dict
+
+    class Untouched:
+        axis = AXIS
+        started = False
+
+        def start(self):
+            self.started = True
+            raise AssertionError("started")
+
+    sim = VirtualRobotKRC4(RobotSimConfig(robot=ROBOT), seed=0)
+    model, be = RobotTorqueModel.from_truth(sim.truth.to_dict()), Untouched()
+    with pytest.raises(KukaidError, match="no friction model at rest"):
+        run_admittance(be, model, LoopConfig(duration=1.0))
+    assert not be.started
+    assert config_dict(LoopConfig(no_rest_model=True))["no_rest_model"] is True
 
 
 def test_kvp_robot_reads_every_axis_for_a_robot_model():
@@ -166,8 +187,11 @@ def test_cli_with_a_robot_parameter_file_and_the_other_axes_moving(tmp_path):
     te = log.tau_ext_true[:, 0]
     push, quiet = ph & (np.abs(te) > 5.0), ph & (np.abs(te) < 0.5)
     # a fitted model of a standing axis: its Coulomb friction (about 10 N·m on A2) is undetermined at rest
-    assert np.sqrt(np.mean(control["gamma_r"][quiet] ** 2)) < 0.15 * np.abs(np.median(te[push]))
-    assert control["detected"][quiet].mean() < 0.05
+    # with no model at rest, what it was refused for shows: a fitted model of a standing axis leaves its
+    # Coulomb friction (about 10 N·m on A2) undetermined, and after the release the axis moved by itself
+    # (24 cycles detected, measured); the run says so
+    assert control["detected"][quiet].any()
+    assert any("nobody touching the axis" in w and "after the release" in w for w in m["warnings"])
     assert control["detected"][push].mean() > 0.9
     assert np.median(control["gamma_r"][push]) == pytest.approx(np.median(te[push]), rel=0.15)
     assert np.sign(m["displacement"]) == np.sign(np.median(te[push]))
@@ -187,7 +211,7 @@ def test_a_persons_arm_guides_a3_of_the_six_axis_robot(damping):
     q0 = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
     q0[AXIS - 1] = math.radians(30.0)
     cfg = LoopConfig(I=20.0, D=50.0, cycle=0.012, sample_time=sim.cfg.sample_time, duration=3.0, damping=damping,
-                     limits=SafetyLimits(q_min=q0[AXIS - 1] - 1.5, q_max=q0[AXIS - 1] + 1.5))
+                     no_rest_model=True, limits=SafetyLimits(q_min=q0[AXIS - 1] - 1.5, q_max=q0[AXIS - 1] + 1.5))
     op = make_human(0, q0[AXIS - 1] + cfg.init_move, cfg.init_time + cfg.init_rest + 0.8)
     assert op.p.grip == "firm" and op.p.I_hand > 1.5 and op.p.distance > 0.3   # the person of the report
     run = run_admittance(SimRobot(sim, q0, op, axis=AXIS), RobotTorqueModel.from_truth(sim.truth.to_dict()), cfg)

@@ -50,7 +50,10 @@ class LoopConfig:
     lets a stiffer grip be guided with less damping, at the price of a noisier Γr);
     rbf (adaptive damping settings); limits (safety);
     stability (the online oscillation monitor that raises the damping, both modes); passivity
-    (the adaptive law's floor: the damping the person must feel at the coupled mode's frequency).
+    (the adaptive law's floor: the damping the person must feel at the coupled mode's frequency);
+    no_rest_model: run a model with no friction model at rest anyway (a robot model: it has no
+    quasi-static mode, so at rest static friction can read as a push and move the axis; off by default,
+    :func:`check_guidable` refuses such a model unless this is set).
     """
 
     I: float = 20.0
@@ -70,6 +73,7 @@ class LoopConfig:
     limits: SafetyLimits = field(default_factory=SafetyLimits)
     stability: StabilityConfig = field(default_factory=StabilityConfig)
     coupling: CouplingConfig = field(default_factory=CouplingConfig)
+    no_rest_model: bool = False
 
     def __post_init__(self) -> None:
         if self.damping not in ("constant", "adaptive"):
@@ -128,7 +132,7 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     record as it is made (to write it to disk while the robot moves).
     """
     cfg = config or LoopConfig()
-    check_guidable(model)
+    check_guidable(model, cfg.no_rest_model)
     if isinstance(model, RobotTorqueModel):  # a robot model: Γr of the guided axis from every axis's motion
         est = GuidedAxisResidual(model, backend.axis, sample_time=cfg.sample_time, threshold=cfg.threshold,
                                  release=cfg.release_torque, cutoff=cfg.cutoff)
@@ -199,12 +203,23 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
 
 
-def check_guidable(model: Any) -> None:
-    """Refuse a one-axis model without Maxwell-slip elements before anything moves: at rest it has no
-    friction state, so static friction held by the gear reads as a push and the axis moves by itself
-    (measured: 3.5 degrees in 20 s with nobody touching it)."""
+def check_guidable(model: Any, no_rest_model: bool = False) -> None:
+    """Refuse, before anything moves, a model whose friction at rest cannot tell static friction from a
+    push, so that the axis would move by itself with nobody touching it: a one-axis model without
+    Maxwell-slip elements (measured: 3.5 degrees in 20 s), and a robot model, which has no quasi-static
+    mode (the LWR4+ fit moved A2 of its virtual robot 2.6 degrees in 5 s) unless ``no_rest_model``
+    (:attr:`LoopConfig.no_rest_model`) asks for it to be run anyway."""
     if isinstance(model, RobotTorqueModel):
+        if not no_rest_model:
+            raise KukaidError("run-admittance: a robot parameter file has no friction model at rest (no quasi-static "
+                              "mode), so at rest static friction cannot be told from a push and the axis moves by itself "
+                              "(the LWR4+ fit, A2 on its virtual robot: 2.6 degrees in 5 s with nobody there); guide the "
+                              "axis with a one-axis file with Maxwell-slip elements (kukaid fit ... --presliding LOG), or "
+                              "pass --no-rest-model to run this one anyway")
         return
+    if no_rest_model:
+        raise KukaidError("run-admittance: --no-rest-model is for a robot parameter file (a one-axis file has its "
+                          "model at rest)")
     ms = getattr(model, "maxwell_slip", None)
     if ms is None or len(ms.k) == 0:
         raise KukaidError("run-admittance: the parameter file has no Maxwell-slip elements, so at rest static "
