@@ -79,7 +79,7 @@ def test_bad_logs_become_error_rows_and_the_rest_is_fitted(faults, tmp_path, kuk
         assert by[path]["status"] == "error" and phrase in by[path]["error"], (path, by[path]["error"])
     ok = [row for row in rows if row["status"] == "ok"]
     assert len(ok) == 9 and all(row["Fc"] > 0 and row["Fv"] > 0 and row["temp_mean"] is not None for row in ok)
-    assert "9 fitted" not in r.stderr or True
+    assert "(9 fitted, 6 error rows" in r.stderr, r.stderr  # a log fitted into an error row is not "fitted"
     assert not journal_path(table).exists()
     # run again: nothing is fitted twice, the table is the same
     r2 = _run(kukaid_cmd, "fleet", "fit", man, "-o", table, "--workers", "1")
@@ -87,6 +87,33 @@ def test_bad_logs_become_error_rows_and_the_rest_is_fitted(faults, tmp_path, kuk
     assert "0 fitted" in r2.stderr and "already in the table" in r2.stderr
     rows2, _ = read_table(table)
     assert rows2 == rows
+
+
+def test_logs_run_into_error_rows_are_not_counted_as_diagnosed(tmp_path, capsys):
+    """New-user trial 7: `fleet diagnose` of a whole-arm manifest with a one-axis fit table said
+    "2 rows (2 diagnosed, 2 error rows)": every log run was counted, its row an error or not."""
+    import functools
+
+    from dask.distributed import Client
+
+    from kukaid.diagnose import diagnose_model
+    from kukaid.fleet.run import run_tasks
+    from kukaid.fleet.table import write_table
+    from kukaid.fleet.tasks import CheckOptions, check_task
+    from kukaid_cli.cmd_fleet import _report
+
+    man = small_fleet(tmp_path / "arm", robots=1, days=2, seed=23, whole_arm=True)
+    fit = tmp_path / "fit.parquet"
+    write_table(fit, _synthetic_rows(1, 3, seed=1), {"task": "fit"})  # one axis, none of these logs
+    opts = CheckOptions(table=str(fit), kind="diagnose", run=functools.partial(diagnose_model, max_steps=4))
+    out = tmp_path / "dia.parquet"
+    with Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as client:
+        s = run_tasks(read_input(man), out, check_task, opts, opts.settings(), kind="diagnose", client=client)
+    rows, _ = read_table(out)
+    assert [r["status"] for r in rows] == ["error", "error"] and "no fit of this log" in rows[0]["error"]
+    assert (s.ran, s.errors, s.rows) == (0, 2, 2)
+    _report(s, out, "diagnosed")
+    assert f"{out}: 2 rows (0 diagnosed, 2 error rows) in " in capsys.readouterr().err
 
 
 def test_ctrl_c_mid_run_says_what_is_kept_and_how_to_go_on(tmp_path, monkeypatch):
