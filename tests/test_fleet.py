@@ -329,6 +329,23 @@ def test_wear_of_a_small_fleet_prints_no_numpy_warning():
     assert res["summary"]["assessed"] == 2 and res["temperature_model"]["Fc_per_K"] is not None
 
 
+def test_wear_says_why_there_is_no_temperature_model():
+    """New-user trial 7: `fleet wear` printed "temperature model: none (no temperature logged)" though
+    every row had temp_mean: the axes had too few logs for a baseline, which only the JSON said."""
+    from kukaid.fleet.wear import assess, lines
+
+    rows = _synthetic_rows(7, 2, seed=3)
+    assert all(r["temp_mean"] is not None for r in rows)
+    res = assess(rows)
+    assert res["temperature_model"]["note"] == "no axis has logs enough for a baseline"
+    out = lines(res)
+    assert out[1] == "temperature model: none (no axis has logs enough for a baseline)", out
+    assert out[2] == "R000         A3 not assessed: too few logs (2; a baseline of 5 and at least one more are needed)"
+    assert out[-1] == "... and 2 more axes not assessed (the verdict file lists them)" and len(out) == 8
+    rows = [{**r, "temp_mean": None} for r in _synthetic_rows(7, 10, seed=3)]  # enough logs, no temperature
+    assert lines(assess(rows))[1] == "temperature model: none (no temperature logged)"
+
+
 def test_wear_cli_writes_json_and_pdf(tmp_path, kukaid_cmd):
     from kukaid.fleet.table import write_table
 
