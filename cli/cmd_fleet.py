@@ -192,7 +192,7 @@ def wear_cmd(table, output, report, alpha, baseline, as_json) -> None:
     check_suffix(report, ".pdf")
     check_outputs([output, report], [table])
     rows, _ = read_table(table)
-    result = assess(rows, WearSettings(alpha=alpha, baseline=baseline))
+    result = assess(rows, WearSettings(alpha=alpha, baseline=baseline), source=str(table))
     result["table"] = str(table)
     with atomic_paths(*[p for p in (output, report) if p is not None]) as tmps:
         tmp = iter(tmps)

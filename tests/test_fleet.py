@@ -346,6 +346,29 @@ def test_wear_says_why_there_is_no_temperature_model():
     assert lines(assess(rows))[1] == "temperature model: none (no temperature logged)"
 
 
+def test_wear_of_a_diagnose_table_says_it_is_not_a_fit_table(tmp_path):
+    """New-user trial 7: `fleet wear` of the table of `fleet diagnose` said "the table has no fitted rows
+    (status ok)", though every row was ok: it is not a fit table, and says so, naming it and its kind."""
+    from click.testing import CliRunner
+
+    from kukaid.fleet.table import write_table
+    from kukaid_cli.main import cli
+
+    for kind in ("diagnose", "validate"):
+        rows = [{**r, "kind": kind} for r in _synthetic_rows(2, 8, seed=4)]
+        table = tmp_path / f"{kind}.parquet"
+        write_table(table, rows, {"task": kind})
+        r = CliRunner().invoke(cli, ["fleet", "wear", str(table), "-o", str(tmp_path / "w.json")])
+        assert r.exit_code == 1 and r.stderr == (f"kukaid: error: {table}: not a table of fleet fit (its rows are of "
+                                                 f"fleet {kind}): fleet wear assesses the friction of a fit table "
+                                                 "(kukaid fleet fit)\n"), r.output
+        assert not (tmp_path / "w.json").exists()
+    rows = [{**r, "status": "error"} for r in _synthetic_rows(2, 8, seed=4)]  # a fit table of error rows only
+    write_table(tmp_path / "fit.parquet", rows, {"task": "fit"})
+    r = CliRunner().invoke(cli, ["fleet", "wear", str(tmp_path / "fit.parquet"), "-o", str(tmp_path / "w.json")])
+    assert r.exit_code == 1 and "fit.parquet: the table has no fitted rows (status ok) to assess" in r.stderr
+
+
 def test_wear_cli_writes_json_and_pdf(tmp_path, kukaid_cmd):
     from kukaid.fleet.table import write_table
 

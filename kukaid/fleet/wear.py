@@ -187,18 +187,23 @@ def _temperature_model(axes: list[_Axis]) -> dict:
     return {"T_ref": T_ref, "b": b.tolist(), "per_axis": per, "pred": pred, "spread": np.sqrt(tau2).tolist()}
 
 
-def assess(rows: Sequence[dict], settings: WearSettings | None = None) -> dict:
+def assess(rows: Sequence[dict], settings: WearSettings | None = None, source: str = "the table") -> dict:
     """The wear verdict of every axis in the fleet table's ``rows`` (dicts of
-    :data:`kukaid.fleet.table.COLUMNS`); the content of ``wear.json`` (schema ``kukaid.fleet-wear/1``).
+    :data:`kukaid.fleet.table.COLUMNS`, read from ``source``); the content of ``wear.json`` (schema
+    ``kukaid.fleet-wear/1``).
 
     Raises
     ------
-    KukaidError : no fitted row at all.
+    KukaidError : a table of another task than fleet fit (validate, diagnose), or no fitted row at all.
     """
     settings = settings or WearSettings()
+    kinds = sorted({str(r.get("kind") or "fit") for r in rows})
+    if kinds and "fit" not in kinds:  # the table of fleet validate or diagnose: no friction in it
+        raise KukaidError(f"{source}: not a table of fleet fit (its rows are of fleet {', '.join(kinds)}): fleet wear "
+                          "assesses the friction of a fit table (kukaid fleet fit)")
     axes, short = _axes(rows, settings)
     if not axes and not short:
-        raise KukaidError("wear: the table has no fitted rows (status ok) to assess")
+        raise KukaidError(f"{source}: the table has no fitted rows (status ok) to assess")
     tm = _temperature_model(axes)
     T_ref = tm["T_ref"]
     # friction at T_ref, relative to the axis's baseline mean
