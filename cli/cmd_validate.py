@@ -45,7 +45,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     for w in warnings:
         click.echo(f"kukaid: warning: validate: {w}", err=True)
     if as_json:
-        click.echo(json.dumps(jsonable(to_json(scores)), indent=2))
+        click.echo(json.dumps(jsonable({**to_json(scores), "warnings": warnings}), indent=2))  # stderr has them too
     else:
         for line in table(scores, model.unit):
             click.echo(line)

@@ -170,3 +170,23 @@ def test_validate_strict_on_a_robot_log_with_a_zero_torque_column(tmp_path):
     assert out["mean_excludes"] == ["A2"] and 0 < out["mean_relative_error"] < 0.5
     (w,) = [line for line in r.stderr.splitlines() if line.startswith("kukaid: warning:")]
     assert "the measured torque of A2 is zero" in w and "A2 is left out of the mean" in w
+
+
+def test_validate_json_holds_its_warnings(tmp_path):
+    """New-user trial 7: `validate --strict --json` exited 4 with the warnings on stderr only; the JSON
+    (a script's input) had no list of them, as run-admittance's has."""
+    fit_log, other, both = tmp_path / "a.h5", tmp_path / "b.h5", tmp_path / "c.h5"
+    write_hdf5(sine_log(1, 0.25), fit_log)
+    write_hdf5(sine_log(2, 0.18, amp=0.7), other)
+    write_hdf5(sine_log(3, 0.18, axes=(2, 3)), both)
+    par = tmp_path / "p.json"
+    r = CliRunner().invoke(cli, ["fit", str(fit_log), "--friction-model", "coulomb-viscous", "-o", str(par)])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(other), "--json", "--strict"])
+    assert r.exit_code == 0 and json.loads(r.stdout)["warnings"] == [], r.output
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(both), str(fit_log), "--json", "--strict"])
+    assert r.exit_code == 4, r.output
+    said = [line.removeprefix("kukaid: warning: validate: ") for line in r.stderr.splitlines()
+            if line.startswith("kukaid: warning: validate: ")]
+    got = json.loads(r.stdout)["warnings"]
+    assert got == said and len(got) == 2 and "other axes (A2) move" in got[0] and "in-sample" in got[1], got
