@@ -116,6 +116,17 @@ def test_logs_run_into_error_rows_are_not_counted_as_diagnosed(tmp_path, capsys)
     assert f"{out}: 2 rows (0 diagnosed, 2 error rows) in " in capsys.readouterr().err
 
 
+def test_the_summary_line_says_one_row_not_one_rows(capsys):
+    """New-user trial 7: "1 error rows" (and "1 rows", "1 duplicates", "on 1 workers")."""
+    from kukaid.fleet.run import RunSummary
+    from kukaid_cli.cmd_fleet import _report
+
+    _report(RunSummary(ran=0, errors=1, duplicates=1, rows=1, wall_s=2.0, workers=1), Path("t.parquet"), "fitted")
+    assert capsys.readouterr().err == "t.parquet: 1 row (0 fitted, 1 error row, 1 duplicate) in 2.0 s on 1 worker\n"
+    _report(RunSummary(ran=2, errors=2, rows=3, wall_s=2.0, workers=2), Path("t.parquet"), "fitted")
+    assert capsys.readouterr().err == "t.parquet: 3 rows (2 fitted, 2 error rows) in 2.0 s on 2 workers\n"
+
+
 def test_ctrl_c_mid_run_says_what_is_kept_and_how_to_go_on(tmp_path, monkeypatch):
     """Ctrl-C during `fleet fit` said only 'interrupted' (exit 130): the finished rows are in a
     hidden journal that the next run reads, which the line now says."""
@@ -206,7 +217,7 @@ def test_separately_started_scheduler_and_worker(tmp_path, kukaid_cmd):
     assert r.returncode == 0, r.stderr
     rows, _ = read_table(table)
     assert len(rows) == 6 and all(row["status"] == "ok" for row in rows)
-    assert "on 1 workers" in r.stderr
+    assert "on 1 worker;" in r.stderr
 
 
 def test_unreachable_scheduler_and_bad_options_are_one_line(tmp_path, kukaid_cmd):
