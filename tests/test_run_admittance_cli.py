@@ -126,6 +126,23 @@ def test_a_threshold_at_rest_at_its_cap_says_so_with_the_measured_rms(tmp_path):
             in w), w
 
 
+def test_the_summary_says_which_figure_is_measured_and_which_the_reference(files, tmp_path):
+    """New-user trial 7: with nobody there the summary printed "displacement 2.3e-05 rad" beside
+    "peak_speed 0 rad/s", one of the axis measured, the other of the reference, without a word of
+    it; the JSON keys stay (tests and scripts read them)."""
+    out = {}
+    for fmt in ("text", "json"):
+        r = _run(["--params", files / "params.json", "--operator", "none", "--duration", "1",
+                  "-o", tmp_path / f"{fmt}.h5", *(["--json"] if fmt == "json" else [])])
+        assert r.exit_code == 0, r.output
+        out[fmt] = r.stdout
+    lines = {line[2:30].strip(): line[30:].strip() for line in out["text"].splitlines() if line.startswith("  ")}
+    assert "displacement" not in lines and "peak_speed" not in lines, lines
+    assert lines["measured displacement"].endswith(" rad") and lines["reference peak speed"] == "0 rad/s"
+    m = json.loads(out["json"])
+    assert m["peak_speed"] == 0.0 and "displacement" in m
+
+
 def test_the_fitted_presliding_state_is_not_this_runs(files, tmp_path):
     """The parameter file's Maxwell-slip ``zeta0`` is the state at the start of the fitted log (a fit
     of pre-sliding data leaves the elements saturated); the state at the start of a run is

@@ -397,7 +397,9 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     * ``settled``: at the end the reference stands (|σ̇| < 1e-3 rad/s), no detection, and (with
       the truth) nobody pushes: the true external torque over the last 0.25 s is below the
       detection threshold on average (a push still on but never detected is not a settled run);
-    * ``displacement`` rad: q at the end minus q when the admittance started;
+    * ``displacement`` rad: the measured q at the end minus q when the admittance started (the summary's
+      "measured displacement"); ``peak_speed`` rad/s: the largest |σ̇|, the reference's speed, not the
+      axis's ("reference peak speed": 0 when nothing was detected, though the axis may creep);
     * ``false_after_release`` (with the truth): detected cycles from 0.3 s after the last cycle
       with |tau_ext_true| >= 1 N·m on (nobody touching);
     * ``warnings``: the run did not settle; (with the truth) the estimate disagreed grossly with
