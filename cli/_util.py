@@ -12,9 +12,20 @@ import click
 from kukaid.errors import KukaidError
 
 
+class AxisNumber(click.IntRange):
+    """``--axis``: a KUKA axis number from ``min`` to ``max``; anything else is said as such (click's
+    own line was "'x' is not a valid integer range")."""
+
+    def convert(self, value, param, ctx):
+        try:
+            return super().convert(value, param, ctx)
+        except click.BadParameter:
+            self.fail(f"'{value}' is not an axis number: give {self.min} to {self.max} (the KUKA axis, as 3)", param, ctx)
+
+
 #: ``--axis``: a KUKA axis number, 1 to 12 as in a parameter file (which axes a file models is checked
 #: with it: :func:`kukaid.identify.fitted.axis_option`)
-AXIS = click.IntRange(1, 12)
+AXIS = AxisNumber(1, 12)
 
 
 #: ``--urdf`` of the commands that read a robot parameter file: where its URDF is now

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from kukaid_cli._util import JSON_HELP
+from kukaid_cli._util import JSON_HELP, AxisNumber
 
 KINDS = ("friction", "inertia", "presliding", "validation", "fourier")
 _ONE_AXIS = KINDS[:4]
@@ -93,7 +93,7 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
                    "[0.005; fourier 0.05]; with --krl.")
 @click.option("--force", is_flag=True, help="Replace an existing file of another kind (-o) or KRL program files.")
 @click.option("--json", "as_json", is_flag=True, help=JSON_HELP)
-@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="Axis (KUKA numbering).")
+@click.option("--axis", type=AxisNumber(1, 6), default=3, show_default=True, help="Axis (KUKA numbering).")
 # limits
 @click.option("--limits", "limits_file", type=click.Path(dir_okay=False, path_type=Path),
               help="JSON with axis limits (q_min, q_max rad; qd_max rad/s; qdd_max rad/s^2; or *_deg).")

@@ -62,15 +62,20 @@ def _table_output(output: Path, source: Path) -> None:
     check_outputs([output], [source] if source.is_file() else [])
 
 
+def _n(count: int, noun: str) -> str:
+    """``1 error row``, ``2 error rows``."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
 def _report(summary, output: Path, what: str) -> None:
-    parts = [f"{summary.ran} {what}", f"{summary.errors} error rows"]
+    parts = [f"{summary.ran} {what}", _n(summary.errors, "error row")]
     if summary.duplicates:
-        parts.append(f"{summary.duplicates} duplicates")
+        parts.append(_n(summary.duplicates, "duplicate"))
     if summary.skipped:
         parts.append(f"{summary.skipped} already in the table")
     peak = f"; peak worker memory {summary.peak_worker_mb:.0f} MB" if summary.peak_worker_mb else ""
-    click.echo(f"{output}: {summary.rows} rows ({', '.join(parts)}) in {summary.wall_s:.1f} s"
-               + (f" on {summary.workers} workers" if summary.workers else "") + peak, err=True)
+    click.echo(f"{output}: {_n(summary.rows, 'row')} ({', '.join(parts)}) in {summary.wall_s:.1f} s"
+               + (f" on {_n(summary.workers, 'worker')}" if summary.workers else "") + peak, err=True)
 
 
 @command.command("fit")
@@ -192,7 +197,7 @@ def wear_cmd(table, output, report, alpha, baseline, as_json) -> None:
     check_suffix(report, ".pdf")
     check_outputs([output, report], [table])
     rows, _ = read_table(table)
-    result = assess(rows, WearSettings(alpha=alpha, baseline=baseline))
+    result = assess(rows, WearSettings(alpha=alpha, baseline=baseline), source=str(table))
     result["table"] = str(table)
     with atomic_paths(*[p for p in (output, report) if p is not None]) as tmps:
         tmp = iter(tmps)

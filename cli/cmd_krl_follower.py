@@ -5,9 +5,11 @@ from pathlib import Path
 
 import click
 
+from kukaid_cli._util import AxisNumber
+
 
 @click.command("krl-follower")
-@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="Axis the program moves.")
+@click.option("--axis", type=AxisNumber(1, 6), default=3, show_default=True, help="Axis the program moves.")
 @click.option("--q-min", type=click.FloatRange(-360.0, 360.0), required=True, help="Position window, lower bound, degrees (clamped on the KRC).")
 @click.option("--q-max", type=click.FloatRange(-360.0, 360.0), required=True, help="Position window, upper bound, degrees (clamped on the KRC).")
 @click.option("--qd-max", type=float, default=30.0, show_default=True, help="Axis speed limit, deg/s.")

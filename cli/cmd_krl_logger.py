@@ -5,9 +5,11 @@ from pathlib import Path
 
 import click
 
+from kukaid_cli._util import AxisNumber
+
 
 @click.command("krl-logger")
-@click.option("--axis", "axes", type=click.IntRange(1, 6), multiple=True, help="Axis to log (repeatable; default 3).")
+@click.option("--axis", "axes", type=AxisNumber(1, 6), multiple=True, help="Axis to log (repeatable; default 3).")
 @click.option("--blocks", type=click.IntRange(2, 32), default=8, show_default=True, help="Ring slots.")
 @click.option("--block-samples", type=click.IntRange(1, 32), default=8, show_default=True,
               help="12 ms samples per block.")

@@ -21,6 +21,8 @@ _UNITS = {"detection_delay": " s", "residual_rmse": " N·m", "residual_rmse_dyna
           "residual_rmse_quasi_static": " N·m", "mean_sq_dgamma": " N²·m²", "displacement": " rad",
           "peak_speed": " rad/s", "D_range": " N·m·s/rad", "dgamma2": " N²·m²", "dgamma2_true": " N²·m²",
           "end_error": " of the move"}
+#: the summary's names of figures whose JSON key does not say what was measured and what commanded
+_LABELS = {"displacement": "measured displacement", "peak_speed": "reference peak speed"}
 
 
 #: the longest run, s: the run log is held in memory until it is written, 3.2 MB per simulated
@@ -377,7 +379,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                       "stability_events"):
                 if k in m:  # NaN: no such figure for this run (no push, no quasi-static cycle)
                     v = m[k]
-                    click.echo(f"  {k:28s} " + ("n/a" if isinstance(v, float) and math.isnan(v) else
+                    click.echo(f"  {_LABELS.get(k, k):28s} " + ("n/a" if isinstance(v, float) and math.isnan(v) else
                                                 f"{_fmt(v)}{_UNITS.get(k, '')}"))
             for w in m.get("warnings") or ():
                 click.echo(f"  warning: {w}")

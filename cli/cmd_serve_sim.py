@@ -5,13 +5,15 @@ from pathlib import Path
 
 import click
 
+from kukaid_cli._util import AxisNumber
+
 
 @click.command("serve-sim")
 @click.option("--host", default="127.0.0.1", show_default=True,
               help="Interface to listen on (loopback by default; 0.0.0.0 exposes it to the network).")
 @click.option("--port", type=click.IntRange(0, 65535), default=7000, show_default=True,
               help="TCP port (0 picks a free one; the port is printed on stderr).")
-@click.option("--axis", type=click.IntRange(1, 6), default=3, show_default=True, help="Simulated axis.")
+@click.option("--axis", type=AxisNumber(1, 6), default=3, show_default=True, help="Simulated axis.")
 @click.option("--trajectory", "traj_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Trajectory JSON the virtual robot runs from the start (like its KRL program); "
                    "without it the axis holds still and follows writes of the global KID_TGT (deg).")

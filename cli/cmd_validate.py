@@ -17,7 +17,8 @@ from kukaid_cli._util import AXIS, URDF
 @click.option("--strict", is_flag=True,
               help="Exit with status 4 after the figures when there were warnings: above all a model that does not "
                    "describe the logs (an axis's relative error 100 % or more: another robot or axis, or another "
-                   "unit), also a log it was fitted on, other axes moving, a log pushed by hand.")
+                   "unit), also a measured torque that does not vary (an empty torque column), a log it was "
+                   "fitted on, other axes moving, a log pushed by hand.")
 @URDF
 def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json: bool, strict: bool,
             urdf: Path | None) -> None:
@@ -29,7 +30,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     --strict that, and any other warning, is exit status 4."""
     import json
 
-    from kukaid.diagnose.validate import mismatch_warnings, table, to_json, validate
+    from kukaid.diagnose.validate import flat_warnings, mismatch_warnings, table, to_json, validate
     from kukaid.identify.fitted import load_model, use_warnings
     from kukaid.jsonfile import jsonable
     from kukaid.logs import read_log
@@ -39,11 +40,12 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     data = [read_log(p) for p in logs]
     per_log: list = []
     scores = validate(model, data, per_log=per_log)
-    warnings = mismatch_warnings(per_log, logs, params_path, model.unit) + use_warnings(model, logs, data)
+    warnings = (flat_warnings(per_log, logs, scores, model.unit)
+                + mismatch_warnings(per_log, logs, params_path, model.unit) + use_warnings(model, logs, data))
     for w in warnings:
         click.echo(f"kukaid: warning: validate: {w}", err=True)
     if as_json:
-        click.echo(json.dumps(jsonable(to_json(scores)), indent=2))
+        click.echo(json.dumps(jsonable({**to_json(scores), "warnings": warnings}), indent=2))  # stderr has them too
     else:
         for line in table(scores, model.unit):
             click.echo(line)

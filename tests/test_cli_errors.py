@@ -47,6 +47,11 @@ def files(tmp_path_factory):
 
 @pytest.mark.parametrize("args, pieces", [
     (["capture", "x.json", "-o", "y.h5", "--axis", "13"], ["capture: Invalid value for '--axis'"]),
+    # new-user trial 7: "'x' is not a valid integer range" (click's)
+    (["validate", "--params", "p.json", "a.h5", "--axis", "x"],
+     ["validate: Invalid value for '--axis': 'x' is not an axis number: give 1 to 12"]),
+    (["excite", "inertia", "-o", "x.json", "--axis", "7"],
+     ["excite: Invalid value for '--axis': '7' is not an axis number: give 1 to 6"]),
     (["excite", "bogus", "-o", "x.json"], ["excite: Invalid value", "'bogus'"]),
     (["excite", "friction"], ["excite: Missing option '-o'"]),
     (["nosuch"], ["No such command 'nosuch'"]),

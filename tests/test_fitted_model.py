@@ -95,14 +95,26 @@ def test_a_robot_file_refuses_an_axis_it_does_not_have_with_the_one_axis_files_l
 
 
 def test_a_robot_report_takes_only_logs(robot_case, tmp_path):
+    """New-user trial 7: `report --params robot.json --log L --axis 3` said "a robot parameter file takes
+    only --log", naming neither the option refused nor the file; now both, as diagnose does."""
+    from kukaid.logs import write_hdf5
     from kukaid.params import save_robot_params
 
-    save_robot_params(tmp_path / "robot.json", robot_case[0])
-    for opt in (["--axis", "2"], ["--friction", str(tmp_path / "robot.json")]):
-        r = CliRunner().invoke(cli, ["report", "--params", str(tmp_path / "robot.json"), *opt,
-                                     "-o", str(tmp_path / "r.pdf")])
+    par = str(tmp_path / "robot.json")
+    save_robot_params(par, robot_case[0])
+    write_hdf5(robot_case[1], tmp_path / "log.h5")
+    log = str(tmp_path / "log.h5")
+    for opt, named in ((["--axis", "2"], "option --axis does not"),
+                       (["--friction", log], "option --friction does not"),
+                       (["--friction", log, "--axis", "2"], "options --friction, --axis do not")):
+        r = CliRunner().invoke(cli, ["report", "--params", par, "--log", log, *opt, "-o", str(tmp_path / "r.pdf")])
         assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1, r.output
-        assert "a robot parameter file takes only --log" in r.output and not (tmp_path / "r.pdf").exists()
+        assert r.stderr.startswith(f"kukaid: error: {par}: {named} apply to a robot parameter file: its report "
+                                   "takes only --log"), r.stderr
+        assert not (tmp_path / "r.pdf").exists()
+    r = CliRunner().invoke(cli, ["diagnose", "--params", par, "--log", log, "--axis", "2"])
+    assert r.exit_code == 2 and r.stderr.startswith(f"kukaid: error: {par}: option --axis does not apply to a robot "
+                                                    "parameter file"), r.stderr
 
 
 def test_a_one_axis_file_refuses_a_log_without_its_axis_before_anything_else():

@@ -79,7 +79,7 @@ def test_bad_logs_become_error_rows_and_the_rest_is_fitted(faults, tmp_path, kuk
         assert by[path]["status"] == "error" and phrase in by[path]["error"], (path, by[path]["error"])
     ok = [row for row in rows if row["status"] == "ok"]
     assert len(ok) == 9 and all(row["Fc"] > 0 and row["Fv"] > 0 and row["temp_mean"] is not None for row in ok)
-    assert "9 fitted" not in r.stderr or True
+    assert "(9 fitted, 6 error rows" in r.stderr, r.stderr  # a log fitted into an error row is not "fitted"
     assert not journal_path(table).exists()
     # run again: nothing is fitted twice, the table is the same
     r2 = _run(kukaid_cmd, "fleet", "fit", man, "-o", table, "--workers", "1")
@@ -87,6 +87,44 @@ def test_bad_logs_become_error_rows_and_the_rest_is_fitted(faults, tmp_path, kuk
     assert "0 fitted" in r2.stderr and "already in the table" in r2.stderr
     rows2, _ = read_table(table)
     assert rows2 == rows
+
+
+def test_logs_run_into_error_rows_are_not_counted_as_diagnosed(tmp_path, capsys):
+    """New-user trial 7: `fleet diagnose` of a whole-arm manifest with a one-axis fit table said
+    "2 rows (2 diagnosed, 2 error rows)": every log run was counted, its row an error or not."""
+    import functools
+
+    from dask.distributed import Client
+
+    from kukaid.diagnose import diagnose_model
+    from kukaid.fleet.run import run_tasks
+    from kukaid.fleet.table import write_table
+    from kukaid.fleet.tasks import CheckOptions, check_task
+    from kukaid_cli.cmd_fleet import _report
+
+    man = small_fleet(tmp_path / "arm", robots=1, days=2, seed=23, whole_arm=True)
+    fit = tmp_path / "fit.parquet"
+    write_table(fit, _synthetic_rows(1, 3, seed=1), {"task": "fit"})  # one axis, none of these logs
+    opts = CheckOptions(table=str(fit), kind="diagnose", run=functools.partial(diagnose_model, max_steps=4))
+    out = tmp_path / "dia.parquet"
+    with Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as client:
+        s = run_tasks(read_input(man), out, check_task, opts, opts.settings(), kind="diagnose", client=client)
+    rows, _ = read_table(out)
+    assert [r["status"] for r in rows] == ["error", "error"] and "no fit of this log" in rows[0]["error"]
+    assert (s.ran, s.errors, s.rows) == (0, 2, 2)
+    _report(s, out, "diagnosed")
+    assert f"{out}: 2 rows (0 diagnosed, 2 error rows) in " in capsys.readouterr().err
+
+
+def test_the_summary_line_says_one_row_not_one_rows(capsys):
+    """New-user trial 7: "1 error rows" (and "1 rows", "1 duplicates", "on 1 workers")."""
+    from kukaid.fleet.run import RunSummary
+    from kukaid_cli.cmd_fleet import _report
+
+    _report(RunSummary(ran=0, errors=1, duplicates=1, rows=1, wall_s=2.0, workers=1), Path("t.parquet"), "fitted")
+    assert capsys.readouterr().err == "t.parquet: 1 row (0 fitted, 1 error row, 1 duplicate) in 2.0 s on 1 worker\n"
+    _report(RunSummary(ran=2, errors=2, rows=3, wall_s=2.0, workers=2), Path("t.parquet"), "fitted")
+    assert capsys.readouterr().err == "t.parquet: 3 rows (2 fitted, 2 error rows) in 2.0 s on 2 workers\n"
 
 
 def test_ctrl_c_mid_run_says_what_is_kept_and_how_to_go_on(tmp_path, monkeypatch):
@@ -179,7 +217,7 @@ def test_separately_started_scheduler_and_worker(tmp_path, kukaid_cmd):
     assert r.returncode == 0, r.stderr
     rows, _ = read_table(table)
     assert len(rows) == 6 and all(row["status"] == "ok" for row in rows)
-    assert "on 1 workers" in r.stderr
+    assert "on 1 worker;" in r.stderr
 
 
 def test_unreachable_scheduler_and_bad_options_are_one_line(tmp_path, kukaid_cmd):
@@ -300,6 +338,46 @@ def test_wear_of_a_small_fleet_prints_no_numpy_warning():
         warnings.simplefilter("error")
         res = assess(_synthetic_rows(2, 24, seed=9))
     assert res["summary"]["assessed"] == 2 and res["temperature_model"]["Fc_per_K"] is not None
+
+
+def test_wear_says_why_there_is_no_temperature_model():
+    """New-user trial 7: `fleet wear` printed "temperature model: none (no temperature logged)" though
+    every row had temp_mean: the axes had too few logs for a baseline, which only the JSON said."""
+    from kukaid.fleet.wear import assess, lines
+
+    rows = _synthetic_rows(7, 2, seed=3)
+    assert all(r["temp_mean"] is not None for r in rows)
+    res = assess(rows)
+    assert res["temperature_model"]["note"] == "no axis has logs enough for a baseline"
+    out = lines(res)
+    assert out[1] == "temperature model: none (no axis has logs enough for a baseline)", out
+    assert out[2] == "R000         A3 not assessed: too few logs (2; a baseline of 5 and at least one more are needed)"
+    assert out[-1] == "... and 2 more axes not assessed (the verdict file lists them)" and len(out) == 8
+    rows = [{**r, "temp_mean": None} for r in _synthetic_rows(7, 10, seed=3)]  # enough logs, no temperature
+    assert lines(assess(rows))[1] == "temperature model: none (no temperature logged)"
+
+
+def test_wear_of_a_diagnose_table_says_it_is_not_a_fit_table(tmp_path):
+    """New-user trial 7: `fleet wear` of the table of `fleet diagnose` said "the table has no fitted rows
+    (status ok)", though every row was ok: it is not a fit table, and says so, naming it and its kind."""
+    from click.testing import CliRunner
+
+    from kukaid.fleet.table import write_table
+    from kukaid_cli.main import cli
+
+    for kind in ("diagnose", "validate"):
+        rows = [{**r, "kind": kind} for r in _synthetic_rows(2, 8, seed=4)]
+        table = tmp_path / f"{kind}.parquet"
+        write_table(table, rows, {"task": kind})
+        r = CliRunner().invoke(cli, ["fleet", "wear", str(table), "-o", str(tmp_path / "w.json")])
+        assert r.exit_code == 1 and r.stderr == (f"kukaid: error: {table}: not a table of fleet fit (its rows are of "
+                                                 f"fleet {kind}): fleet wear assesses the friction of a fit table "
+                                                 "(kukaid fleet fit)\n"), r.output
+        assert not (tmp_path / "w.json").exists()
+    rows = [{**r, "status": "error"} for r in _synthetic_rows(2, 8, seed=4)]  # a fit table of error rows only
+    write_table(tmp_path / "fit.parquet", rows, {"task": "fit"})
+    r = CliRunner().invoke(cli, ["fleet", "wear", str(tmp_path / "fit.parquet"), "-o", str(tmp_path / "w.json")])
+    assert r.exit_code == 1 and "fit.parquet: the table has no fitted rows (status ok) to assess" in r.stderr
 
 
 def test_wear_cli_writes_json_and_pdf(tmp_path, kukaid_cmd):

@@ -61,7 +61,8 @@ def test_an_axis_the_file_does_not_model_or_out_of_range_is_one_usage_error(file
     r = CliRunner().invoke(cli, _commands(files, files / "a2.json", ["--axis", "4"], tmp_path)[command])
     assert r.exit_code == 2 and r.stderr.strip().splitlines() == [
         f"kukaid: error: {files / 'a2.json'}: the parameters are of axis A2, not A4 (--axis 4)"], r.output
-    for bad in ("0", "13"):
+    for bad in ("0", "13", "x"):  # new-user trial 7: 'x' was "not a valid integer range"
         r = CliRunner().invoke(cli, _commands(files, files / "a2.json", ["--axis", bad], tmp_path)[command])
-        assert r.exit_code == 2 and f"'--axis': {bad} is not in the range 1<=x<=12" in r.stderr, r.output
+        assert r.exit_code == 2 and r.stderr == (f"kukaid: error: {command}: Invalid value for '--axis': '{bad}' is "
+                                                 "not an axis number: give 1 to 12 (the KUKA axis, as 3)\n"), r.output
     assert list(tmp_path.iterdir()) == []

@@ -103,6 +103,44 @@ def test_a_threshold_raised_by_a_grasp_does_not_blame_an_exact_model(tmp_path):
     (w,) = [w for w in m["warnings"] if w.startswith("at rest, with nothing detected")]
     assert m["settled"] and m["rest_threshold_max"] > 1.2 * 5.0
     assert "a hand that leaned on the axis before it was taken for a push, or the parameter file's friction" in w
+    # below the cap: the RMS measured, and 4 x it the threshold
+    assert f"(up to {m['rest_rms_max']:.3g} N·m RMS)" in w and "cap" not in w
+    assert m["rest_threshold_max"] == pytest.approx(4 * m["rest_rms_max"])
+
+
+def test_a_threshold_at_rest_at_its_cap_says_so_with_the_measured_rms(tmp_path):
+    """New-user trial 7: on a LuGre plant the warning said Γr "wandered so far (3.75 N·m RMS) that the
+    threshold at rest rose from 5 to 15 N·m": 15 is the cap (3 x --threshold) and 3.75 was 15 / 4
+    worked back from it, not the RMS measured (3.85 here, 4.3 in a 10 s run)."""
+    params = tmp_path / "truth.json"
+    save_params(params, SimConfig().truth_params())
+    r = _run(["--params", params, "--plant-friction", "lugre", "--operator", "pull", "--duration", "2", "--json",
+              "-o", tmp_path / "r.h5"])
+    assert r.exit_code == 0, r.output
+    m = json.loads(r.stdout)
+    (w,) = [w for w in m["warnings"] if w.startswith("at rest, with nothing detected")]
+    rms = m["rest_rms_max"]
+    assert m["rest_threshold_max"] == pytest.approx(15.0) and 4 * rms > 15.0 * 1.01  # the RMS is not 15 / 4
+    assert f"(up to {rms:.3g} N·m RMS)" in w
+    assert (f"rose from 5 N·m to its cap of 15 N·m (3 x --threshold; 4 x the RMS asked for {4 * rms:.3g} N·m)"
+            in w), w
+
+
+def test_the_summary_says_which_figure_is_measured_and_which_the_reference(files, tmp_path):
+    """New-user trial 7: with nobody there the summary printed "displacement 2.3e-05 rad" beside
+    "peak_speed 0 rad/s", one of the axis measured, the other of the reference, without a word of
+    it; the JSON keys stay (tests and scripts read them)."""
+    out = {}
+    for fmt in ("text", "json"):
+        r = _run(["--params", files / "params.json", "--operator", "none", "--duration", "1",
+                  "-o", tmp_path / f"{fmt}.h5", *(["--json"] if fmt == "json" else [])])
+        assert r.exit_code == 0, r.output
+        out[fmt] = r.stdout
+    lines = {line[2:30].strip(): line[30:].strip() for line in out["text"].splitlines() if line.startswith("  ")}
+    assert "displacement" not in lines and "peak_speed" not in lines, lines
+    assert lines["measured displacement"].endswith(" rad") and lines["reference peak speed"] == "0 rad/s"
+    m = json.loads(out["json"])
+    assert m["peak_speed"] == 0.0 and "displacement" in m
 
 
 def test_the_fitted_presliding_state_is_not_this_runs(files, tmp_path):

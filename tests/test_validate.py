@@ -3,6 +3,7 @@ relative error, R², samples), JSON shape, and the schema seam."""
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -108,3 +109,84 @@ def test_validate_warns_when_other_axes_move(tmp_path):
     assert r.exit_code == 0 and "warning: validate:" in r.output and "other axes (A2) move" in r.output, r.output
     r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(fit_log)])  # in-sample: says so, not this
     assert r.exit_code == 0 and "other axes" not in r.output and "in-sample" in r.output, r.output
+
+
+def test_a_torque_column_that_does_not_vary_is_warned_about_and_left_out_of_the_mean():
+    """New-user trial 7: a log whose A2 torque column was all zeros scored A2 nan %, the mean nan %
+    (null in --json, the good axes lost), without a warning, exit 0 with --strict; at 1e-6 N·m it
+    was called a model of another robot.  Now one warning names the log and the axis, and the mean
+    is of the other axes, naming the one left out."""
+    from kukaid.diagnose.validate import AxisScore, flat_warnings, mismatch_warnings, table, to_json
+
+    good, zero, const = AxisScore(0.4, 0.2, 0.9, 100), AxisScore(19.7, math.nan, math.nan, 100), \
+        AxisScore(19.7, 1.97e7, math.nan, 100)
+    for flat, what in ((zero, "is zero in all 100 samples compared"), (const, "does not vary (1e-06 N·m")):
+        scores = {1: good, 2: flat, 3: AxisScore(0.2, 0.1, 0.95, 100)}
+        (w,) = flat_warnings([scores], ["z.csv"], scores)
+        assert w.startswith("z.csv: the measured torque of A2 " + what) and w.endswith("A2 is left out of the mean")
+        assert mismatch_warnings([scores], ["z.csv"], "robot.json") == []  # not a model of another robot
+        d = to_json(scores)
+        assert d["mean_relative_error"] == pytest.approx(0.15) and d["mean_excludes"] == ["A2"]
+        assert table(scores)[-1].split()[:2] == ["mean", "15.00%"] and "without A2" in table(scores)[-1]
+    # one axis: warned, nothing to leave out of
+    (w,) = flat_warnings([{3: zero}], ["z.csv"], {3: zero})
+    assert "A3 is zero" in w and "mean" not in w
+    assert flat_warnings([{3: good}], ["z.csv"], {3: good}) == []
+
+
+def test_validate_strict_on_a_zero_torque_column_one_axis(tmp_path):
+    fit_log, zero = tmp_path / "a.h5", tmp_path / "zero.h5"
+    write_hdf5(sine_log(1, 0.25), fit_log)
+    lg = sine_log(2, 0.18, amp=0.7)
+    write_hdf5(AxisLog(lg.time, lg.q, np.zeros_like(lg.tau), axes=lg.axes, attrs=lg.attrs), zero)
+    par = tmp_path / "p.json"
+    r = CliRunner().invoke(cli, ["fit", str(fit_log), "--friction-model", "coulomb-viscous", "-o", str(par)])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(zero), "--strict"])
+    assert r.exit_code == 4, r.output
+    assert f"kukaid: warning: validate: {zero}: the measured torque of A3 is zero in all" in r.stderr
+    assert "Traceback" not in r.output
+
+
+def test_validate_strict_on_a_robot_log_with_a_zero_torque_column(tmp_path):
+    """The trial's case: the LWR4+ fit of lwr4_1.csv on lwr4_3.csv with A2's torque all zero."""
+    import pandas as pd
+
+    from shared_data import SHARED
+
+    lwr4 = SHARED / "datasets" / "lwr4"
+    if not (lwr4 / "lwr4_1.csv").exists():
+        pytest.skip(f"{lwr4} not found (set KUKAID_SHARED)")
+    par, zero = tmp_path / "robot.json", tmp_path / "zero.csv"
+    r = CliRunner().invoke(cli, ["fit", str(lwr4 / "lwr4_1.csv"), "--robot", str(lwr4 / "kuka_lwr4.urdf"),
+                                 "-o", str(par)])
+    assert r.exit_code == 0, r.output
+    d = pd.read_csv(lwr4 / "lwr4_3.csv")
+    d["A2_Nm"] = 0.0
+    d.to_csv(zero, index=False)
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(zero), "--strict", "--json"])
+    assert r.exit_code == 4, r.output
+    out = json.loads(r.stdout)
+    assert out["mean_excludes"] == ["A2"] and 0 < out["mean_relative_error"] < 0.5
+    (w,) = [line for line in r.stderr.splitlines() if line.startswith("kukaid: warning:")]
+    assert "the measured torque of A2 is zero" in w and "A2 is left out of the mean" in w
+
+
+def test_validate_json_holds_its_warnings(tmp_path):
+    """New-user trial 7: `validate --strict --json` exited 4 with the warnings on stderr only; the JSON
+    (a script's input) had no list of them, as run-admittance's has."""
+    fit_log, other, both = tmp_path / "a.h5", tmp_path / "b.h5", tmp_path / "c.h5"
+    write_hdf5(sine_log(1, 0.25), fit_log)
+    write_hdf5(sine_log(2, 0.18, amp=0.7), other)
+    write_hdf5(sine_log(3, 0.18, axes=(2, 3)), both)
+    par = tmp_path / "p.json"
+    r = CliRunner().invoke(cli, ["fit", str(fit_log), "--friction-model", "coulomb-viscous", "-o", str(par)])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(other), "--json", "--strict"])
+    assert r.exit_code == 0 and json.loads(r.stdout)["warnings"] == [], r.output
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(both), str(fit_log), "--json", "--strict"])
+    assert r.exit_code == 4, r.output
+    said = [line.removeprefix("kukaid: warning: validate: ") for line in r.stderr.splitlines()
+            if line.startswith("kukaid: warning: validate: ")]
+    got = json.loads(r.stdout)["warnings"]
+    assert got == said and len(got) == 2 and "other axes (A2) move" in got[0] and "in-sample" in got[1], got

@@ -183,12 +183,19 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     rest_thr = getattr(est, "rest_threshold_max", cfg.threshold)
     metrics["rest_threshold_max"] = float(rest_thr)
     if rest_thr > 1.2 * cfg.threshold:  # the model's friction at rest is clearly worse than the threshold assumes
+        rms = float(est.rest_rms_max)
+        metrics["rest_rms_max"] = rms
+        cap = est.floor_cap * cfg.threshold
+        rose = (f"the threshold at rest rose from {cfg.threshold:g} N·m to its cap of {rest_thr:.3g} N·m "
+                f"({est.floor_cap:g} x --threshold; {est.floor_k:g} x the RMS asked for {est.floor_k * rms:.3g} N·m)"
+                if rest_thr >= cap * (1 - 1e-9) else
+                f"the threshold at rest rose from {cfg.threshold:g} to {rest_thr:.3g} N·m ({est.floor_k:g} x the RMS)")
         metrics.setdefault("warnings", []).append(
-            f"at rest, with nothing detected, Γr wandered so far ({rest_thr / est.floor_k:.3g} N·m RMS) that the "
-            f"threshold at rest rose from {cfg.threshold:g} to {rest_thr:.3g} N·m (a push there needs that much): "
-            "a hand that leaned on the axis before it was taken for a push, or the parameter file's friction at "
-            "rest off (then refit its Maxwell-slip elements: kukaid fit --presliding; a drive whose friction at rest "
-            "is not Maxwell-slip, e.g. LuGre bristles, keeps the threshold raised after a refit)")
+            f"at rest, with nothing detected, Γr wandered so far (up to {rms:.3g} N·m RMS) that {rose}, and a push "
+            "there needs that much: a hand that leaned on the axis before it was taken for a push, or the parameter "
+            "file's friction at rest off (then refit its Maxwell-slip elements: kukaid fit --presliding; a drive "
+            "whose friction at rest is not Maxwell-slip, e.g. LuGre bristles, keeps the threshold raised after a "
+            "refit)")
     standing = float(getattr(est, "standing_max", 0.0))
     metrics["standing_max"] = standing
     if standing > 0.0:  # not a push, but the run should say it happened
@@ -405,7 +412,9 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     * ``settled``: at the end the reference stands (|σ̇| < 1e-3 rad/s), no detection, and (with
       the truth) nobody pushes: the true external torque over the last 0.25 s is below the
       detection threshold on average (a push still on but never detected is not a settled run);
-    * ``displacement`` rad: q at the end minus q when the admittance started;
+    * ``displacement`` rad: the measured q at the end minus q when the admittance started (the summary's
+      "measured displacement"); ``peak_speed`` rad/s: the largest |σ̇|, the reference's speed, not the
+      axis's ("reference peak speed": 0 when nothing was detected, though the axis may creep);
     * ``false_after_release`` (with the truth): detected cycles from 0.3 s after the last cycle
       with |tau_ext_true| >= 1 N·m on (nobody touching);
     * ``warnings``: the run did not settle; (with the truth) the estimate disagreed grossly with

@@ -30,7 +30,7 @@ Online, causal version (what a controller can do):
 * at rest, out of contact, the RMS of Γr is tracked: the start threshold at rest is at least
   ``floor_k`` times it (at most ``floor_cap`` x ``threshold``), so a model whose friction at rest
   does not match the axis needs a firmer push instead of moving the axis by itself
-  (``rest_threshold_max`` says how far it had to rise).  The mean square is the mean over the
+  (``rest_threshold_max`` says how far it had to rise, ``rest_rms_max`` the RMS that raised it).  The mean square is the mean over the
   rest seen so far, the starting level (Γr's RMS at ``threshold / floor_k``) counted as
   ``FLOOR_PRIOR`` s of it, forgetting over ``floor_tau`` once that much has been seen: an average
   forgetting over ``floor_tau`` from the start held the starting level for seconds, and a plant's
@@ -267,6 +267,7 @@ class TorqueResidual:
         self._rest_t = FLOOR_PRIOR  # s of rest in that mean square (the starting level counts as FLOOR_PRIOR)
         self._dyn_ms, self._dyn_n = 0.0, 0  # mean square of Γr moving out of contact, N²m²
         self.rest_threshold_max = self.threshold
+        self.rest_rms_max = 0.0  # the largest RMS of Γr at rest out of contact the start threshold followed, N·m
         self.standing_max = 0.0  # the largest torque held as a possible hand when the threshold fell under one, N·m
         self.drift_max = 0.0  # the widest span of Γu held in one rest, N·m (a push against it needed that much more)
         self._bump = 0.0  # Γp jump of the last mode switch, fading
@@ -477,6 +478,7 @@ class TorqueResidual:
                     self._rest_ms += min(max(h / self.floor_tau, h / self._rest_t), 1.0) * (r1 * r1 - self._rest_ms)
                 start = self.rest_threshold
                 self.rest_threshold_max = max(self.rest_threshold_max, start)
+                self.rest_rms_max = max(self.rest_rms_max, math.sqrt(self._rest_ms))
             if self._since_stop < self.switch_quiet:  # a stop: friction settles, the servo overshoots
                 start = max(start, self.switch_share * self.threshold)
             if quasi and start <= a < self._start_prev:

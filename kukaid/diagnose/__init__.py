@@ -43,7 +43,8 @@ def diagnose_model(model: Any, logs: Sequence[Any], *, axis: int | None = None, 
     robot = isinstance(model, RobotFile)
     for name, value in (("axis", axis), ("cutoff", cutoff), ("alpha", alpha)) if robot else ():
         if value is not None:
-            raise OptionError(f"option --{name} does not apply to a robot parameter file (yet): {ROBOT_FIXED[name]}")
+            raise OptionError(f"{model.source}: option --{name} does not apply to a robot parameter file (yet): "
+                              f"{ROBOT_FIXED[name]}")
     for lg in logs:  # a one-axis model refuses a log without its axis (the --axis given, or the file's)
         model.check(lg)
     for lg in logs:

@@ -98,18 +98,55 @@ def mismatch_warnings(per_log: Sequence[dict[int, AxisScore]], paths: Sequence[A
                       unit: str = "N·m") -> list[str]:
     """One line per log and axis (``per_log``: :func:`validate`'s, the logs read from ``paths``) whose
     relative error is at least :data:`MISMATCH`, naming the model's error and the measured torque (RMS,
-    ``unit``)."""
+    ``unit``).  A measured torque that does not vary is :func:`flat_warnings`' (not a model's mismatch)."""
     return [f"{path}: the model of {source} does not describe this log on A{ax}: its error (RMS {s.rmse:.4g} {unit}) "
             f"is {s.rel_error:.3g} x the measured torque (RMS {s.rmse / s.rel_error:.4g} {unit}), worse than "
             "predicting none; is it of another robot or axis, or in another unit?"
-            for path, scores in zip(paths, per_log) for ax, s in scores.items() if s.rel_error >= MISMATCH]
+            for path, scores in zip(paths, per_log) for ax, s in scores.items()
+            if s.rel_error >= MISMATCH and not _flat(s)]
+
+
+def _flat(s: AxisScore) -> bool:
+    """The measured torque of the samples ``s`` scores does not vary (R² undefined: all zero, or one value)."""
+    return s.samples > 0 and not math.isfinite(s.r2)
+
+
+def flat_warnings(per_log: Sequence[dict[int, AxisScore]], paths: Sequence[Any], pooled: dict[int, AxisScore],
+                  unit: str = "N·m") -> list[str]:
+    """One line per log and axis whose measured torque does not vary over the samples compared (an
+    empty or filled-in torque column: R² undefined, and all zero the relative error too).  An axis
+    whose pooled measured torque (``pooled``: :func:`validate`'s) does not vary is left out of the
+    mean (:func:`mean_relative_error`), and the line says so."""
+    out = []
+    for path, scores in zip(paths, per_log):
+        for ax, s in scores.items():
+            if not _flat(s):
+                continue
+            what = (f"is zero in all {s.samples} samples compared (an empty torque column?): its relative error and "
+                    "R² are undefined" if not math.isfinite(s.rel_error) else
+                    f"does not vary ({s.rmse / s.rel_error:.4g} {unit} in all {s.samples} samples compared: a "
+                    "filled-in torque column?): its R² is undefined, its relative error says nothing of the model")
+            left = len(pooled) > 1 and ax in pooled and _flat(pooled[ax])
+            out.append(f"{path}: the measured torque of A{ax} {what}" + (f"; A{ax} is left out of the mean" if left else ""))
+    return out
+
+
+def mean_relative_error(scores: dict[int, AxisScore]) -> tuple[float, list[int]]:
+    """The mean of the axes' relative errors, and the axes left out of it: those whose measured torque
+    does not vary (all zero: relative error undefined; one value: it says nothing of the model); NaN
+    when none is left."""
+    left_out = [ax for ax, s in scores.items() if _flat(s) or not math.isfinite(s.rel_error)]
+    kept = [s.rel_error for ax, s in scores.items() if ax not in left_out]
+    return (float(np.mean(kept)) if kept else math.nan), left_out
 
 
 def to_json(scores: dict[int, AxisScore]) -> dict[str, Any]:
     """``{"axes": {"A3": {"rmse": ..., "rel_error": ..., "r2": ..., "samples": ...}},
-    "mean_relative_error": ...}`` (the mean of the axes' relative errors)."""
-    return {"axes": {f"A{ax}": s.to_json() for ax, s in scores.items()},
-            "mean_relative_error": float(np.mean([s.rel_error for s in scores.values()])) if scores else math.nan}
+    "mean_relative_error": ..., "mean_excludes": [...]}`` (the mean of the axes' relative errors
+    without those whose measured torque does not vary, named in ``mean_excludes``)."""
+    mean, left_out = mean_relative_error(scores)
+    return {"axes": {f"A{ax}": s.to_json() for ax, s in scores.items()}, "mean_relative_error": mean,
+            "mean_excludes": [f"A{ax}" for ax in left_out]}
 
 
 def table(scores: dict[int, AxisScore], unit: str = "N·m") -> list[str]:
@@ -118,5 +155,8 @@ def table(scores: dict[int, AxisScore], unit: str = "N·m") -> list[str]:
     for ax, s in scores.items():
         out.append(f"A{ax:<4} {s.rmse:>13.4g} {100 * s.rel_error:>10.2f}% {s.r2:>8.4f} {s.samples:>8d}")
     if len(scores) > 1:
-        out.append(f"{'mean':<5} {'':>13} {100 * float(np.mean([s.rel_error for s in scores.values()])):>10.2f}%")
+        mean, left_out = mean_relative_error(scores)
+        out.append(f"{'mean':<5} {'':>13} {100 * mean:>10.2f}%"
+                   + (f"  (without {', '.join(f'A{ax}' for ax in left_out)}: measured torque does not vary)"
+                      if left_out else ""))
     return out

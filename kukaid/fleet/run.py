@@ -26,7 +26,8 @@ Progress = Callable[[int, int], None]
 
 @dataclass
 class RunSummary:
-    """What a run did.  ``fitted``: tasks run now; ``errors``: error rows among them (and duplicates);
+    """What a run did.  ``ran``: logs run now that gave a result (an ``ok`` row; a log run into an error
+    row is not counted); ``errors``: error rows (of the logs run now, duplicates and missing files);
     ``skipped``: logs already in the table; ``peak_worker_mb``: the largest peak resident memory a
     worker process reported (MB); ``wall_s``: the run's wall time (s), cluster start included; ``tasks_s``: from the first task
     submitted to the last row received (s)."""
@@ -268,7 +269,7 @@ def _stream(client, jobs, task, options, kind, rows, journal, s, table, settings
         fut.release()
         journal.append(new)
         rows.extend(new)
-        s.ran += 1
+        s.ran += any(r.get("status") == "ok" for r in new)  # fitted (validated, diagnosed): not an error row
         s.errors += sum(1 for r in new if r.get("status") != "ok")
         for r in new:
             w, mb = r.get("worker"), r.get("worker_peak_mb")

@@ -203,7 +203,7 @@ def _fits(table: str, mtime: float) -> tuple[dict, dict]:
 
     rows, settings = read_table(table)
     if settings.get("task") != "fit":
-        raise KukaidError(f"{table}: not a table of fleet fit (its rows are {settings.get('task')})")
+        raise KukaidError(f"{table}: not a table of fleet fit (its rows are of fleet {settings.get('task')})")
     params, by_axis = {}, {}
     for r in rows:
         if r["status"] != "ok":

@@ -150,9 +150,11 @@ def _pos(v: Any) -> bool:
 def _temperature_model(axes: list[_Axis]) -> dict:
     """Fleet slope b (per column) and each axis's shrunk slope, from the baselines."""
     have_T = [a for a in axes if np.all(np.isfinite(a.T[:a.nb]))]
-    if not have_T:
-        return {"T_ref": None, "b": [0.0, 0.0], "per_axis": {}, "pred": {}, "spread": [0.0, 0.0],
-                "note": "no temperature logged"}
+    if not have_T:  # why: no baseline at all, no temperature, or baselines with a day without one
+        note = ("no axis has logs enough for a baseline" if not axes else
+                "no temperature logged" if not any(np.isfinite(a.T).any() for a in axes) else
+                "no axis has a temperature for every log of its baseline")
+        return {"T_ref": None, "b": [0.0, 0.0], "per_axis": {}, "pred": {}, "spread": [0.0, 0.0], "note": note}
     T_ref = float(np.median(np.concatenate([a.T[:a.nb] for a in have_T])))
     sxx, sxy, res_var, b_ols, se2 = [], [], [], [], []
     for a in have_T:
@@ -185,18 +187,23 @@ def _temperature_model(axes: list[_Axis]) -> dict:
     return {"T_ref": T_ref, "b": b.tolist(), "per_axis": per, "pred": pred, "spread": np.sqrt(tau2).tolist()}
 
 
-def assess(rows: Sequence[dict], settings: WearSettings | None = None) -> dict:
+def assess(rows: Sequence[dict], settings: WearSettings | None = None, source: str = "the table") -> dict:
     """The wear verdict of every axis in the fleet table's ``rows`` (dicts of
-    :data:`kukaid.fleet.table.COLUMNS`); the content of ``wear.json`` (schema ``kukaid.fleet-wear/1``).
+    :data:`kukaid.fleet.table.COLUMNS`, read from ``source``); the content of ``wear.json`` (schema
+    ``kukaid.fleet-wear/1``).
 
     Raises
     ------
-    KukaidError : no fitted row at all.
+    KukaidError : a table of another task than fleet fit (validate, diagnose), or no fitted row at all.
     """
     settings = settings or WearSettings()
+    kinds = sorted({str(r.get("kind") or "fit") for r in rows})
+    if kinds and "fit" not in kinds:  # the table of fleet validate or diagnose: no friction in it
+        raise KukaidError(f"{source}: not a table of fleet fit (its rows are of fleet {', '.join(kinds)}): fleet wear "
+                          "assesses the friction of a fit table (kukaid fleet fit)")
     axes, short = _axes(rows, settings)
     if not axes and not short:
-        raise KukaidError("wear: the table has no fitted rows (status ok) to assess")
+        raise KukaidError(f"{source}: the table has no fitted rows (status ok) to assess")
     tm = _temperature_model(axes)
     T_ref = tm["T_ref"]
     # friction at T_ref, relative to the axis's baseline mean
@@ -313,12 +320,20 @@ def lines(result: dict, top: int = 20) -> list[str]:
     s = result["summary"]
     tmod = result["temperature_model"]
     out = [f"{s['assessed']} axes assessed, {s['flagged']} flagged (of {s['axes']})",
-           "temperature model: " + ("none (no temperature logged)" if tmod["T_ref"] is None else
-                                    f"Fc {100 * tmod['Fc_per_K']:+.2f} %/K, Fv {100 * tmod['Fv_per_K']:+.2f} %/K "
-                                    f"about {tmod['T_ref']:.1f} °C"),
-           f"{'robot':<10} {'axis':>4} {'flag':>5} {'first flagged':>13} {'evidence':>8} {'ΔFc':>7} {'ΔFv':>7}"]
-    for a in [a for a in result["axes"] if "evidence" in a][:top]:
+           "temperature model: " + (f"none ({tmod.get('note') or 'no temperature logged'})" if tmod["T_ref"] is None
+                                    else f"Fc {100 * tmod['Fc_per_K']:+.2f} %/K, Fv {100 * tmod['Fv_per_K']:+.2f} %/K "
+                                    f"about {tmod['T_ref']:.1f} °C")]
+    ranked = [a for a in result["axes"] if "evidence" in a]
+    if ranked:
+        out.append(f"{'robot':<10} {'axis':>4} {'flag':>5} {'first flagged':>13} {'evidence':>8} {'ΔFc':>7} {'ΔFv':>7}")
+    for a in ranked[:top]:
         out.append(f"{a['robot']:<10} {'A' + str(a['axis']):>4} {'yes' if a['flagged'] else 'no':>5} "
                    f"{a['first_flagged'] or '-':>13} {a['evidence']:8.2f} {100 * a['change']['Fc']:+6.1f}% "
                    f"{100 * a['change']['Fv']:+6.1f}%")
+    short = [a for a in result["axes"] if "evidence" not in a]
+    for a in short[:5]:  # not assessed, and why (a baseline needs that many logs and one more)
+        out.append(f"{a['robot']:<10} {'A' + str(a['axis']):>4} not assessed: {a.get('note', '')}")
+    if len(short) > 5:
+        n = len(short) - 5
+        out.append(f"... and {n} more ax{'i' if n == 1 else 'e'}s not assessed (the verdict file lists them)")
     return out

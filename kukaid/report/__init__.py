@@ -19,8 +19,13 @@ def report_model(model: Any, output: Any, friction: Sequence[Any] = (), inertia:
     from kukaid.identify.fitted import RobotFile, file_cutoff, use_warnings
 
     if isinstance(model, RobotFile):
-        if friction or inertia or presliding or axis is not None:
-            raise OptionError("a robot parameter file takes only --log (prediction pages)")
+        refused = [f"--{name}" for name, given in (("friction", friction), ("inertia", inertia),
+                                                   ("presliding", presliding), ("axis", axis is not None)) if given]
+        if refused:  # as diagnose: the file, the option, why
+            raise OptionError(f"{model.source}: option{'s' if len(refused) > 1 else ''} {', '.join(refused)} "
+                              f"do{'' if len(refused) > 1 else 'es'} not apply to a robot parameter file: its report "
+                              "takes only --log, a prediction page of every joint per log (the experiment roles and "
+                              "--axis are a one-axis file's)")
         from kukaid.logs import read_log
         from kukaid.report.robot import make_robot_report
 
