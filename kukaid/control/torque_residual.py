@@ -67,8 +67,11 @@ Online, causal version (what a controller can do):
   A drift Γu followed at rest may have been a hand leaning in slowly, so Γr is also read against
   every Γu held since the rest's first window (forgotten when the axis moves; :attr:`drift_max`
   reports the widest span): the push is the reading nearest zero over all of them, and a hand
-  that leaned in and lets go moves nothing.  The cost: until the axis has moved, a push against
-  that part, or against a drift Γu followed, needs that much more force.
+  that leaned in and lets go moves nothing.  The other way round, a drift Γu followed the way the
+  hand part's release would read (the servo winding against stiction under a held hand) adds to the
+  hand part beyond the threshold, for the release adds the hand's own torque to it.  The cost:
+  until the axis has moved, a push against that part, or against a drift Γu followed, needs that much
+  more force.
 
 Effects a diagnosis added to the parameter file are included when they depend on position only
 (``gravity_sine``, ``torque_offset``, ``position_ripple``); others are listed in
@@ -279,7 +282,8 @@ class TorqueResidual:
         self._u_span = (0.0, 0.0)  # at rest: the lowest and highest Γu held since the rest's first window, N·m
         self._q_move0 = q  # where the present dynamic episode began, rad
         self._travel = 0.0  # the farthest the axis has been from there, rad
-        self._rest_kept = (0.0, 0.0, (0.0, 0.0))  # Γu, the hand part and the span as the episode began
+        self._wound = 0.0  # at rest: the drift Γu followed the way the hand part's release reads, N·m
+        self._rest_kept = (0.0, 0.0, (0.0, 0.0), 0.0)  # Γu, the hand part, the span and the wound as the episode began
         self._dyn_r = 0.0  # Γr while moving, averaged over DYN_MEMORY s, N·m
         self._start_prev = math.inf  # the start threshold at the previous sample, N·m
         self._moving = False
@@ -346,7 +350,8 @@ class TorqueResidual:
         elif self._rest_age < self.switch_quiet:  # the stop settling (not a push's deflection)
             self._rest_age += h
             before = self._gamma_u - self._u_anchor
-            self._gamma_u += min(h / max(self.u_window, h), 1.0) * e
+            step = min(h / max(self.u_window, h), 1.0) * e
+            self._follow(step)
             # beyond the threshold a settling is as large as a push, and may be a hand pressing harder as
             # the axis stopped: what goes beyond it is kept out of the reading without the hand
             after = self._gamma_u - self._u_anchor
@@ -358,7 +363,16 @@ class TorqueResidual:
                 held = step * self._hand > 0.0 and abs(self._hand) >= 0.5 * self.threshold
                 rate = HELD_DRIFT_RATE if held else DRIFT_RATE
                 step = min(max(step, -rate * h), rate * h)
-            self._gamma_u += step
+            self._follow(step)
+
+    def _follow(self, step: float) -> None:
+        """Γu follows a drift at rest by ``step``; a step the way the hand part's release would read (the
+        servo winding against stiction under a held hand: on a LuGre plant 5-11 N·m while a person held
+        the stopped axis) counts to :attr:`_wound`, which the reading with the hand adds beyond the
+        threshold: the release then adds the hand's own torque to what the winding made Γu follow."""
+        if step * self._hand > 0.0:
+            self._wound += step
+        self._gamma_u += step
 
     def update(self, q: float, tau: float, dt: float | None = None) -> ResidualSample:
         """Feed one measurement (position rad, motor torque N·m); return the new residual.
@@ -409,7 +423,7 @@ class TorqueResidual:
             self._mode = QUASI_STATIC
         quasi = self._mode == QUASI_STATIC
         if not quasi and old_mode == QUASI_STATIC:  # moving: Γu is kept without the hand
-            self._rest_kept = (self._gamma_u, self._hand, self._u_span)
+            self._rest_kept = (self._gamma_u, self._hand, self._u_span, self._wound)
             self._gamma_u, self._hand = self._gamma_u + self._hand, 0.0
             self._q_move0, self._travel = q, 0.0
         if not quasi:
@@ -419,9 +433,10 @@ class TorqueResidual:
         # rest goes on as it was (its Γu, the part that may be a hand, the span)
         moved = self._travel > self._presliding_range
         if quasi and old_mode == DYNAMIC and not moved:
-            self._gamma_u, self._hand, self._u_span = self._rest_kept
+            self._gamma_u, self._hand, self._u_span, self._wound = self._rest_kept
         if not quasi or self._u_n < self._u_need:
             self._u_span = (self._gamma_u, self._gamma_u)
+            self._wound = 0.0
         if quasi and old_mode == DYNAMIC and not self._detected and moved:
             if self._quiet >= QUIET_BEFORE_REST:
                 self._new_rest()  # stopped with nobody in contact (no detection, nor a braking hand)
@@ -429,7 +444,7 @@ class TorqueResidual:
                 self._gamma_u -= self._dyn_r
             # what the moving model read as the axis stopped (a hand left on below the threshold, or the
             # model's own error) is, at rest, either: Γu takes it in, and the two readings below keep it
-            self._hand = self._dyn_r
+            self._hand, self._wound = self._dyn_r, 0.0
         raw = tau_f - pred_f  # what Γu must add for Γr = 0
         learning = quasi and not self._detected
         if learning:
@@ -457,8 +472,9 @@ class TorqueResidual:
             self._dyn_r += min(h / DYN_MEMORY, 1.0) * (r1 - self._dyn_r)
         else:  # a push only if every reading sees it (Γr with and without the hand, against every Γu held
             # in this rest: a drift Γu followed may have been a hand leaning in), the one nearest zero
-            lo = min(0.0, self._hand) + self._u_span[0] - self._gamma_u
-            hi = max(0.0, self._hand) + self._u_span[1] - self._gamma_u
+            held = self._hand + _beyond(self._wound, self.threshold)
+            lo = min(0.0, held) + self._u_span[0] - self._gamma_u
+            hi = max(0.0, held) + self._u_span[1] - self._gamma_u
             gamma_r = r1 + lo if r1 + lo > 0.0 else r1 + hi if r1 + hi < 0.0 else 0.0
         a = abs(gamma_r)
         if not quasi and not self._detected and self._since_switch >= self.switch_quiet / 4:
