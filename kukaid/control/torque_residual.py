@@ -350,8 +350,7 @@ class TorqueResidual:
         elif self._rest_age < self.switch_quiet:  # the stop settling (not a push's deflection)
             self._rest_age += h
             before = self._gamma_u - self._u_anchor
-            step = min(h / max(self.u_window, h), 1.0) * e
-            self._follow(step)
+            self._follow(min(h / max(self.u_window, h), 1.0) * e)
             # beyond the threshold a settling is as large as a push, and may be a hand pressing harder as
             # the axis stopped: what goes beyond it is kept out of the reading without the hand
             after = self._gamma_u - self._u_anchor
