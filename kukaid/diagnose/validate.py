@@ -117,6 +117,7 @@ def flat_warnings(per_log: Sequence[dict[int, AxisScore]], paths: Sequence[Any],
     empty or filled-in torque column: R² undefined, and all zero the relative error too).  An axis
     whose pooled measured torque (``pooled``: :func:`validate`'s) does not vary is left out of the
     mean (:func:`mean_relative_error`), and the line says so."""
+    left_out = mean_relative_error(pooled)[1] if len(pooled) > 1 else []
     out = []
     for path, scores in zip(paths, per_log):
         for ax, s in scores.items():
@@ -126,8 +127,8 @@ def flat_warnings(per_log: Sequence[dict[int, AxisScore]], paths: Sequence[Any],
                     "R² are undefined" if not math.isfinite(s.rel_error) else
                     f"does not vary ({s.rmse / s.rel_error:.4g} {unit} in all {s.samples} samples compared: a "
                     "filled-in torque column?): its R² is undefined, its relative error says nothing of the model")
-            left = len(pooled) > 1 and ax in pooled and _flat(pooled[ax])
-            out.append(f"{path}: the measured torque of A{ax} {what}" + (f"; A{ax} is left out of the mean" if left else ""))
+            out.append(f"{path}: the measured torque of A{ax} {what}"
+                       + (f"; A{ax} is left out of the mean" if ax in left_out else ""))
     return out
 
 
