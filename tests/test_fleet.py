@@ -97,6 +97,7 @@ def test_logs_run_into_error_rows_are_not_counted_as_diagnosed(tmp_path, capsys)
     from dask.distributed import Client
 
     from kukaid.diagnose import diagnose_model
+    from kukaid.errors import KukaidError
     from kukaid.fleet.run import run_tasks
     from kukaid.fleet.table import write_table
     from kukaid.fleet.tasks import CheckOptions, check_task
@@ -112,8 +113,26 @@ def test_logs_run_into_error_rows_are_not_counted_as_diagnosed(tmp_path, capsys)
     rows, _ = read_table(out)
     assert [r["status"] for r in rows] == ["error", "error"] and "no fit of this log" in rows[0]["error"]
     assert (s.ran, s.errors, s.rows) == (0, 2, 2)
+    with pytest.raises(KukaidError, match="no log diagnosed, 2 error rows; the first: "):  # not one: a failed run
+        _report(s, out, "diagnosed")
+    s.ran += 1
     _report(s, out, "diagnosed")
-    assert f"{out}: 2 rows (0 diagnosed, 2 error rows) in " in capsys.readouterr().err
+    assert f"{out}: 2 rows (1 diagnosed, 2 error rows) in " in capsys.readouterr().err
+
+
+def test_a_run_where_no_log_succeeded_exits_non_zero(tmp_path, kukaid_cmd):
+    """New-user trial 8: `fleet fit` of a manifest whose every log failed exited 0 ("0 fitted, 2 error
+    rows"), so a script could not tell it from a good run.  Now one line naming the first error,
+    exit status 1; the table is still written (its error column says why per log)."""
+    (tmp_path / "m.csv").write_text("robot,axis,date,path\nR1,3,2026-01-05,a.h5\nR1,3,2026-01-06,b.h5\n")
+    table = tmp_path / "t.parquet"
+    r = _run(kukaid_cmd, "fleet", "fit", tmp_path / "m.csv", "-o", table)
+    assert r.returncode == 1 and r.stderr == (f"kukaid: error: {table}: no log fitted, 2 error rows; the first: a.h5: "
+                                              "no such file\n"), r.stderr
+    rows, _ = read_table(table)
+    assert [row["status"] for row in rows] == ["error", "error"]
+    r = _run(kukaid_cmd, "fleet", "fit", tmp_path / "m.csv", "-o", table)  # again: nothing run, nothing failed
+    assert r.returncode == 0 and "(0 fitted, 0 error rows, 2 already in the table)" in r.stderr, r.stderr
 
 
 def test_the_summary_line_says_one_row_not_one_rows(capsys):
