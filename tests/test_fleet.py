@@ -359,6 +359,30 @@ def test_wear_of_a_small_fleet_prints_no_numpy_warning():
     assert res["summary"]["assessed"] == 2 and res["temperature_model"]["Fc_per_K"] is not None
 
 
+def test_wear_of_axes_whose_friction_does_not_scatter_prints_no_numpy_warning():
+    """New-user trial 8: `fleet wear` printed numpy's 'RuntimeWarning: invalid value encountered in
+    divide' when no baseline residual of Fc (or Fv) scattered (no correlation of the two to estimate),
+    and 'divide by zero' with NaN in the verdict when an axis's baseline had neither a temperature
+    spread nor a scatter (its own temperature slope undetermined: it takes the fleet's)."""
+    import warnings
+
+    from kukaid.fleet.wear import assess
+
+    flat = [{**r, "Fc": 10.0} for r in _synthetic_rows(3, 24, seed=1)]
+    still = [({**r, "temp_mean": 30.0, "Fc": 10.0, "Fv": 5.0} if r["robot"] == "R000" else r)
+             for r in _synthetic_rows(5, 24, seed=1)]
+    for rows in (flat, still):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            res = assess(rows)
+        json.dumps(res, allow_nan=False)  # no NaN in the verdict
+        assert res["summary"]["assessed"] == len({r["robot"] for r in rows})
+    assert res["residual_correlation_Fc_Fv"] != 0.0
+    assert assess(flat)["residual_correlation_Fc_Fv"] == 0.0
+    r000 = next(a for a in res["axes"] if a["robot"] == "R000")
+    assert not r000["flagged"] and r000["temperature_coefficient"]["Fc"] == res["temperature_model"]["Fc_per_K"]
+
+
 def test_wear_says_why_there_is_no_temperature_model():
     """New-user trial 7: `fleet wear` printed "temperature model: none (no temperature logged)" though
     every row had temp_mean: the axes had too few logs for a baseline, which only the JSON said."""
