@@ -23,8 +23,8 @@ def command() -> None:
 
     INPUT is a manifest CSV with columns robot,axis,date,path (paths relative to the manifest,
     axis empty for a whole-arm log) or a folder of logs matched by --pattern.  A log that cannot
-    be read or fitted becomes an error row; a run started again skips the logs already in the
-    table (by content hash)."""
+    be read or fitted becomes an error row (a run whose every log did exits with status 1); a run
+    started again skips the logs already in the table (by content hash)."""
 
 
 class _Progress:
@@ -68,11 +68,17 @@ def _n(count: int, noun: str) -> str:
 
 
 def _report(summary, output: Path, what: str) -> None:
+    """The summary line; a run whose every log (duplicates aside) became an error row fails: one line
+    with the first error, exit status 1 (the table is written, its error column says why per log)."""
     parts = [f"{summary.ran} {what}", _n(summary.errors, "error row")]
     if summary.duplicates:
         parts.append(_n(summary.duplicates, "duplicate"))
     if summary.skipped:
         parts.append(f"{summary.skipped} already in the table")
+    if summary.ran == 0 and summary.errors > summary.duplicates:
+        from kukaid.errors import KukaidError
+
+        raise KukaidError(f"{output}: no log {what}, {', '.join(parts[1:])}; the first: {summary.first_error}")
     peak = f"; peak worker memory {summary.peak_worker_mb:.0f} MB" if summary.peak_worker_mb else ""
     click.echo(f"{output}: {_n(summary.rows, 'row')} ({', '.join(parts)}) in {summary.wall_s:.1f} s"
                + (f" on {_n(summary.workers, 'worker')}" if summary.workers else "") + peak, err=True)

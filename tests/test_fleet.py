@@ -97,6 +97,7 @@ def test_logs_run_into_error_rows_are_not_counted_as_diagnosed(tmp_path, capsys)
     from dask.distributed import Client
 
     from kukaid.diagnose import diagnose_model
+    from kukaid.errors import KukaidError
     from kukaid.fleet.run import run_tasks
     from kukaid.fleet.table import write_table
     from kukaid.fleet.tasks import CheckOptions, check_task
@@ -110,10 +111,62 @@ def test_logs_run_into_error_rows_are_not_counted_as_diagnosed(tmp_path, capsys)
     with Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=":0") as client:
         s = run_tasks(read_input(man), out, check_task, opts, opts.settings(), kind="diagnose", client=client)
     rows, _ = read_table(out)
-    assert [r["status"] for r in rows] == ["error", "error"] and "no fit of this log" in rows[0]["error"]
+    assert [r["status"] for r in rows] == ["error", "error"] and "a whole-arm log (A1..A6), but" in rows[0]["error"]
     assert (s.ran, s.errors, s.rows) == (0, 2, 2)
+    with pytest.raises(KukaidError, match="no log diagnosed, 2 error rows; the first: "):  # not one: a failed run
+        _report(s, out, "diagnosed")
+    s.ran += 1
     _report(s, out, "diagnosed")
-    assert f"{out}: 2 rows (0 diagnosed, 2 error rows) in " in capsys.readouterr().err
+    assert f"{out}: 2 rows (1 diagnosed, 2 error rows) in " in capsys.readouterr().err
+
+
+def test_a_run_where_no_log_succeeded_exits_non_zero(tmp_path, kukaid_cmd):
+    """New-user trial 8: `fleet fit` of a manifest whose every log failed exited 0 ("0 fitted, 2 error
+    rows"), so a script could not tell it from a good run.  Now one line naming the first error,
+    exit status 1; the table is still written (its error column says why per log)."""
+    (tmp_path / "m.csv").write_text("robot,axis,date,path\nR1,3,2026-01-05,a.h5\nR1,3,2026-01-06,b.h5\n")
+    table = tmp_path / "t.parquet"
+    r = _run(kukaid_cmd, "fleet", "fit", tmp_path / "m.csv", "-o", table)
+    assert r.returncode == 1 and r.stderr == (f"kukaid: error: {table}: no log fitted, 2 error rows; the first: a.h5: "
+                                              "no such file\n"), r.stderr
+    rows, _ = read_table(table)
+    assert [row["status"] for row in rows] == ["error", "error"]
+    r = _run(kukaid_cmd, "fleet", "fit", tmp_path / "m.csv", "-o", table)  # again: nothing run, nothing failed
+    assert r.returncode == 0 and "(0 fitted, 0 error rows, 2 already in the table)" in r.stderr, r.stderr
+
+
+def test_logs_of_the_other_kind_than_the_fits_say_what_was_given_and_expected(tmp_path, kukaid_cmd):
+    """New-user trial 8: whole-arm logs checked against a table of one-axis fits (or one-axis logs
+    against whole-arm fits) gave "no fit of this log in fit.parquet" (diagnose), "no fit of R001 A1
+    from a day before ..." (validate) or, fit with --robot, the robot's missing axes: now the row and
+    the command's one line say what the log is and what the table (or --robot) takes."""
+    from kukaid.fleet.run import plan
+    from kukaid.fleet.table import write_table
+    from kukaid.fleet.tasks import CheckOptions, FitOptions, check_task, fit_task
+
+    arm = plan(read_input(small_fleet(tmp_path / "arm", robots=1, days=1, seed=23, whole_arm=True)), [], "fit")[0][0]
+    one = plan(read_input(small_fleet(tmp_path / "one", robots=1, days=1, seed=23)), [], "fit")[0][0]
+    fit1, fit6 = tmp_path / "fit1.parquet", tmp_path / "fit6.parquet"
+    write_table(fit1, _synthetic_rows(1, 3, seed=1), {"task": "fit", "friction_model": "auto", "robot": None})
+    write_table(fit6, _synthetic_rows(1, 3, seed=1), {"task": "fit", "friction_model": "auto",
+                                                      "robot": "kr6-r700-sixx"})
+    for kind in ("validate", "diagnose"):
+        (row,) = check_task(arm, CheckOptions(table=str(fit1), kind=kind, run=None))
+        assert row["error"] == (f"{arm.name}: a whole-arm log (A1..A6), but fit1.parquet holds one-axis fits "
+                                "(fleet fit without --robot): give the table fleet fit --robot made of these logs")
+        (row,) = check_task(one, CheckOptions(table=str(fit6), kind=kind, run=None))
+        assert row["error"] == (f"{one.name}: a log of one axis (A3), but fit6.parquet holds whole-arm fits (fleet "
+                                "fit --robot kr6-r700-sixx): give the table fleet fit made of these logs without --robot")
+    (row,) = fit_task(one, FitOptions(robot="kr6-r700-sixx"))
+    assert row["error"] == (f"{one.name}: a log of one axis (A3), but fleet fit --robot fits whole-arm logs: fit logs "
+                            "of one axis without --robot")
+    out = tmp_path / "dia.parquet"
+    r = _run(kukaid_cmd, "fleet", "diagnose", tmp_path / "arm" / "manifest.csv", "--table", fit1, "-o", out,
+             "--workers", "1")
+    assert r.returncode == 1 and r.stderr == (f"kukaid: error: {out}: no log diagnosed, 1 error row; the first: "
+                                              f"{arm.name}: a whole-arm log (A1..A6), but fit1.parquet holds one-axis "
+                                              "fits (fleet fit without --robot): give the table fleet fit --robot "
+                                              "made of these logs\n"), r.stderr
 
 
 def test_the_summary_line_says_one_row_not_one_rows(capsys):
@@ -338,6 +391,30 @@ def test_wear_of_a_small_fleet_prints_no_numpy_warning():
         warnings.simplefilter("error")
         res = assess(_synthetic_rows(2, 24, seed=9))
     assert res["summary"]["assessed"] == 2 and res["temperature_model"]["Fc_per_K"] is not None
+
+
+def test_wear_of_axes_whose_friction_does_not_scatter_prints_no_numpy_warning():
+    """New-user trial 8: `fleet wear` printed numpy's 'RuntimeWarning: invalid value encountered in
+    divide' when no baseline residual of Fc (or Fv) scattered (no correlation of the two to estimate),
+    and 'divide by zero' with NaN in the verdict when an axis's baseline had neither a temperature
+    spread nor a scatter (its own temperature slope undetermined: it takes the fleet's)."""
+    import warnings
+
+    from kukaid.fleet.wear import assess
+
+    flat = [{**r, "Fc": 10.0} for r in _synthetic_rows(3, 24, seed=1)]
+    still = [({**r, "temp_mean": 30.0, "Fc": 10.0, "Fv": 5.0} if r["robot"] == "R000" else r)
+             for r in _synthetic_rows(5, 24, seed=1)]
+    for rows in (flat, still):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            res = assess(rows)
+        json.dumps(res, allow_nan=False)  # no NaN in the verdict
+        assert res["summary"]["assessed"] == len({r["robot"] for r in rows})
+    assert res["residual_correlation_Fc_Fv"] != 0.0
+    assert assess(flat)["residual_correlation_Fc_Fv"] == 0.0
+    r000 = next(a for a in res["axes"] if a["robot"] == "R000")
+    assert not r000["flagged"] and r000["temperature_coefficient"]["Fc"] == res["temperature_model"]["Fc_per_K"]
 
 
 def test_wear_says_why_there_is_no_temperature_model():

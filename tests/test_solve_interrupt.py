@@ -12,9 +12,11 @@ from kukaid.identify.solve_interrupt import interruptible_solve
 
 @pytest.fixture(autouse=True)
 def _python_handles_sigint():
-    """Each test starts with Python's own SIGINT handler, as a command does, and gives back what the
-    process had: another test's module fixtures in the same session (the robot diagnosis tests)
-    have been seen to leave SIGINT ignored (SIG_IGN), with which the solve cannot be interrupted."""
+    """Each test starts with Python's own SIGINT handler, as a command on a terminal does, and gives
+    back what the process had: a session started as a background job of a non-interactive shell
+    (``pytest ... &`` in a script) inherits SIGINT ignored (SIG_IGN), which Python keeps, and with
+    it the solve cannot be interrupted.  (Not a leak of another test file: the robot diagnosis
+    tests, once blamed, leave the handler as they find it.)"""
     prev = signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
     signal.signal(signal.SIGINT, prev)

@@ -28,7 +28,8 @@ Progress = Callable[[int, int], None]
 class RunSummary:
     """What a run did.  ``ran``: logs run now that gave a result (an ``ok`` row; a log run into an error
     row is not counted); ``errors``: error rows (of the logs run now, duplicates and missing files);
-    ``skipped``: logs already in the table; ``peak_worker_mb``: the largest peak resident memory a
+    ``skipped``: logs already in the table; ``first_error``: the error of this run's first error row
+    (table order; duplicates aside), empty when none; ``peak_worker_mb``: the largest peak resident memory a
     worker process reported (MB); ``wall_s``: the run's wall time (s), cluster start included; ``tasks_s``: from the first task
     submitted to the last row received (s)."""
 
@@ -37,6 +38,7 @@ class RunSummary:
     errors: int = 0
     skipped: int = 0
     duplicates: int = 0
+    first_error: str = ""
     rows: int = 0
     wall_s: float = 0.0
     tasks_s: float = 0.0
@@ -248,6 +250,8 @@ def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, 
     except BaseException:
         journal.close()  # the journal stays: the next run picks up from it
         raise
+    s.first_error = next((r.get("error") or "" for r in _sort(rows[len(prior):]) if r.get("status") != "ok"
+                          and not (r.get("error") or "").startswith("duplicate")), "")
     s.rows = len(rows)
     s.wall_s = time.perf_counter() - t_start
     return s

@@ -141,10 +141,21 @@ def _fit_body(job: Job, opts: FitOptions) -> list[dict]:
     return [r]
 
 
+def _axes_text(axes) -> str:
+    """``A3``, ``A1..A6``, ``A2, A4``."""
+    axes = [int(a) for a in axes]
+    if len(axes) > 1 and axes == list(range(axes[0], axes[0] + len(axes))):
+        return f"A{axes[0]}..A{axes[-1]}"
+    return ", ".join(f"A{a}" for a in axes)
+
+
 def _fit_robot(job: Job, opts: FitOptions, log) -> list[dict]:
     from kukaid.identify.fitted import robot_of
     from kukaid.identify.robot_fit import RobotFitSettings, fit_robot
 
+    if len(log.axes) == 1:  # what the log is and what --robot takes, not the robot's axes it lacks
+        raise KukaidError(f"{job.name}: a log of one axis ({_axes_text(log.axes)}), but fleet fit --robot fits "
+                          "whole-arm logs: fit logs of one axis without --robot")
     model = robot_of(opts.robot)  # the URDF read once per worker
     fm = "coulomb-viscous" if opts.friction_model == "auto" else opts.friction_model
     p = fit_robot([log], model, RobotFitSettings(friction=fm))
@@ -197,8 +208,9 @@ class CheckOptions:
 
 
 @functools.lru_cache(maxsize=2)
-def _fits(table: str, mtime: float) -> tuple[dict, dict]:
-    """{sha256: parameter dict JSON} and {(robot, axis): [(date, sha256)] sorted} of a fit table's ok rows."""
+def _fits(table: str, mtime: float) -> tuple[dict, dict, str | None]:
+    """{sha256: parameter dict JSON} and {(robot, axis): [(date, sha256)] sorted} of a fit table's ok rows,
+    and the robot (URDF or name) of its whole-arm fits (fleet fit --robot; None: one-axis fits)."""
     from kukaid.fleet.table import read_table
 
     rows, settings = read_table(table)
@@ -213,11 +225,11 @@ def _fits(table: str, mtime: float) -> tuple[dict, dict]:
         by_axis.setdefault((r["robot"], r["axis"]), []).append((r["date"], r["sha256"]))
     for v in by_axis.values():
         v.sort()
-    return params, by_axis
+    return params, by_axis, settings.get("robot")
 
 
 def _model_for(job: Job, opts: CheckOptions, axis: int | None) -> tuple[dict, str]:
-    params, by_axis = _fits(opts.table, os.path.getmtime(opts.table))
+    params, by_axis, _ = _fits(opts.table, os.path.getmtime(opts.table))
     if opts.kind == "diagnose":
         if job.sha256 not in params:
             raise KukaidError(f"{job.name}: no fit of this log in {os.path.basename(opts.table)}")
@@ -231,11 +243,28 @@ def _model_for(job: Job, opts: CheckOptions, axis: int | None) -> tuple[dict, st
     return json.loads(params[sha]), d
 
 
+def _other_kind(job: Job, log, table: str) -> None:
+    """A log of the other kind than the table's fits (a whole-arm log and one-axis fits, or the
+    reverse): one line saying what the log is and what the table holds."""
+    robot = _fits(table, os.path.getmtime(table))[2]
+    name = os.path.basename(table)
+    if robot is None and job.axis is None and len(log.axes) > 1:
+        raise KukaidError(f"{job.name}: a whole-arm log ({_axes_text(log.axes)}), but {name} holds one-axis fits "
+                          "(fleet fit without --robot): give the table fleet fit --robot made of these logs")
+    if robot is not None and len(log.axes) == 1:
+        raise KukaidError(f"{job.name}: a log of one axis ({_axes_text(log.axes)}), but {name} holds whole-arm fits "
+                          f"(fleet fit --robot {robot}): give the table fleet fit made of these logs without --robot")
+
+
 def _check_body(job: Job, opts: CheckOptions) -> list[dict]:
     log = read_job_log(job)
     axis = job.axis if job.axis is not None else (log.axes[0] if len(log.axes) == 1 else None)
     first = axis if axis is not None else log.axes[0]
-    params, model_date = _model_for(job, opts, first)
+    try:
+        params, model_date = _model_for(job, opts, first)
+    except KukaidError:
+        _other_kind(job, log, opts.table)  # no fit of it: say so of a log the table could not have fitted
+        raise
     if opts.kind == "validate":
         scores = opts.run(params, [log], axis)
         rows = []

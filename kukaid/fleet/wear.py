@@ -179,6 +179,9 @@ def _temperature_model(axes: list[_Axis]) -> dict:
     per, pred = {}, {}
     for a, Sxx_i, Sxy_i, v in zip(have_T, sxx, sxy, res_var):
         lam = v / tau2 if np.all(tau2 > 0) else np.full(2, np.inf)
+        # a baseline without a temperature spread and without scatter (Sxx + lam = 0) does not determine
+        # the axis's slope: it takes the fleet's, as without a spread of the slopes
+        lam = np.where(Sxx_i + lam > 0, lam, np.inf)
         with np.errstate(invalid="ignore"):  # lam inf (no spread): inf/inf, not taken
             bi = np.where(np.isfinite(lam), (Sxy_i + lam * b) / (Sxx_i + lam), b)
         per[(a.robot, a.axis)] = bi
@@ -245,7 +248,8 @@ def assess(rows: Sequence[dict], settings: WearSettings | None = None, source: s
         scat.append((r[:a.nb] ** 2).sum(axis=0) / dof[key])
     pooled = np.sqrt(np.median(np.array(scat), axis=0)) if scat else np.ones(2)
     allb = np.concatenate([resid[(a.robot, a.axis)][:a.nb] for a in axes]) if axes else np.zeros((2, 2))
-    rho = float(np.corrcoef(allb[:, 0], allb[:, 1])[0, 1]) if len(allb) > 2 else 0.0
+    scatters = len(allb) > 2 and bool(np.all(allb.std(axis=0) > 1e-12))  # else no correlation to estimate
+    rho = float(np.corrcoef(allb[:, 0], allb[:, 1])[0, 1]) if scatters else 0.0
     rho = 0.0 if not math.isfinite(rho) else max(min(rho, 0.99), -0.99)
     out_axes = []
     horizon = max((len(a.dates) - a.nb for a in axes), default=0)
