@@ -419,7 +419,8 @@ class PositionRipple(RobotCandidate):
     freely instead, they extrapolate and nothing is named), and must then predict better than the
     joint without those terms and without the ripple too (:meth:`without`). A joint's spring or
     ripple can be real (the LWR4+'s A2 spring: in its place A2's ripple held out 22 % for 1.5 %): it is
-    tried beside them too, the better by held-out error."""
+    tried beside them too, the better by held-out error, and judged either way against the joint
+    without those terms as well as with them."""
 
     _effect = E.PositionRipple()
     _rule = C.PositionRipple()
