@@ -434,6 +434,33 @@ def test_wear_says_why_there_is_no_temperature_model():
     assert lines(assess(rows))[1] == "temperature model: none (no temperature logged)"
 
 
+def test_wear_needs_a_temperature_spread_for_a_slope():
+    """New-user trial 9: `fleet simulate --temp-swing 0` then `fleet wear` printed "temperature model:
+    Fc +105.35 %/K, Fv +113.65 %/K": a slope fitted to the tenths of a kelvin a log's own heating moves
+    its mean temperature (and a wearing axis heats more). A baseline spanning less than 3 K determines
+    no slope: with none wider the model is none and says so; a narrow axis beside wide ones takes the
+    fleet's slope and adds nothing to it."""
+    from kukaid.fleet.wear import MIN_TEMP_SPREAD_K, assess, lines
+
+    assert MIN_TEMP_SPREAD_K == 3.0
+    rng = np.random.default_rng(5)
+    narrow = [{**r, "robot": "N" + r["robot"][1:], "temp_mean": 32.7 + 0.05 * rng.standard_normal()}
+              for r in _synthetic_rows(4, 8, seed=5)]
+    res = assess(narrow)
+    tm = res["temperature_model"]
+    assert tm["T_ref"] is None and tm["Fc_per_K"] == 0.0 and tm["Fv_per_K"] == 0.0
+    assert tm["note"].startswith("no axis's baseline spans 3 K of motor temperature (the widest 0.")
+    assert tm["note"].endswith(" K): the temperature slope is not determined"), tm["note"]
+    assert lines(res)[1] == f"temperature model: none ({tm['note']})"
+    assert all(a["temperature_coefficient"]["Fc"] == 0.0 for a in res["axes"])
+    wide = _synthetic_rows(20, 24, seed=9)
+    mixed = narrow + wide
+    res, ref = assess(mixed), assess(wide)
+    assert res["temperature_model"]["Fc_per_K"] == pytest.approx(ref["temperature_model"]["Fc_per_K"], rel=1e-9)
+    b = res["temperature_model"]["Fc_per_K"]
+    assert all(a["temperature_coefficient"]["Fc"] == b for a in res["axes"] if a["robot"].startswith("N"))
+
+
 def test_wear_of_a_diagnose_table_says_it_is_not_a_fit_table(tmp_path):
     """New-user trial 7: `fleet wear` of the table of `fleet diagnose` said "the table has no fitted rows
     (status ok)", though every row was ok: it is not a fit table, and says so, naming it and its kind."""
