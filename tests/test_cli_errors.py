@@ -243,6 +243,15 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
     (["capture", "{d}/inertia.json", "-o", "c11.csv"], ["c11.csv", "name it .h5 or .hdf5"]),
     (["capture", "-o", "c12.h5", "--backend", "kvp", "--port", "9", "--duration", "1", "--axis", "3", "--axis", "3"],
      ["capture: --axis 3 is given twice"]),
+    # new-user trial 9: a port beyond 65535 connected to another (70000 wraps to 4464) or said
+    # "cannot connect (Servname not supported ...)", exit status 1, blaming the robot
+    (["capture", "{d}/inertia.json", "-o", "c13.h5", "--backend", "kvp", "--port", "70000", "--duration", "1"],
+     ["capture: Invalid value for '--port': 70000 is not in the range 1<=x<=65535"]),
+    (["capture", "{d}/inertia.json", "-o", "c14.h5", "--backend", "kvp", "--port", "-5", "--duration", "1"],
+     ["capture: Invalid value for '--port': -5 is not in the range 1<=x<=65535"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--backend", "kvp", "--port", "70000",
+      "--enable-motion", "--q-min", "0", "--q-max", "10"],
+     ["run-admittance: Invalid value for '--port': 70000 is not in the range 1<=x<=65535"]),
 ])
 def test_option_errors_are_usage_errors(files, tmp_path, monkeypatch, args, pieces):
     """Contradictory or out-of-range options: exit status 2 (the usage error of docs/errors.md), one line, no output."""
