@@ -433,3 +433,6 @@ def test_a_log_csv_with_semicolons_says_so(tmp_path):
     p.write_text("time_s;A3_deg;A3_Nm\n0,012;1,5;2,0\n")
     r = _run("load", p, "-o", tmp_path / "x.h5")
     _one_line_error(r, "semi.csv: columns must be separated by commas, not ';'", code=1)
+    # new-user trial 9: "(the header is 'time_s,A3_deg,A3_Nm,...')" read as this file's header, which it is not
+    assert r.output.strip().endswith("decimal mark (a header as 'time_s,A3_deg,A3_Nm,...'; this one is "
+                                     "'time_s;A3_deg;A3_Nm')"), r.output
