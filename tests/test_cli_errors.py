@@ -326,6 +326,19 @@ def test_an_axis_log_given_for_a_json_file_is_named_so(files, tmp_path, monkeypa
     assert os.listdir(tmp_path) == []
 
 
+@pytest.mark.parametrize("name, head, kind", [("r.pdf", b"%PDF-1.4\n", "a PDF (a report)"),
+                                              ("t.parquet", b"PAR1\x15\x04", "a Parquet table (kukaid fleet)")])
+def test_a_report_or_a_fleet_table_given_for_a_json_file_is_named_so(tmp_path, monkeypatch, name, head, kind):
+    """New-user trial 9: `kukaid show fits.parquet` (or report.pdf) said "not valid JSON (line 1, column 1:
+    Expecting value)"; an axis log given so was already named as one."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / name).write_bytes(head + bytes(range(256)))
+    for args, piece in ((["show", name], "not a parameter file (JSON)"),
+                        (["capture", name, "-o", "c.h5"], "not a trajectory file (JSON)")):
+        _one_line_error(_run(*args), f"{name}: is {kind}, {piece}", code=1)
+    assert os.listdir(tmp_path) == [name]
+
+
 def test_fit_cutoff_above_the_logs_nyquist_names_the_option(files):
     """Its limit depends on the log's sample rate: found with the data, but an option out of range
     (exit 2) that says --cutoff and the log; the defaults' limits stay data errors (exit 1)."""
