@@ -339,6 +339,19 @@ def test_a_report_or_a_fleet_table_given_for_a_json_file_is_named_so(tmp_path, m
     assert os.listdir(tmp_path) == [name]
 
 
+def test_fit_of_logs_of_different_axes_names_each_log_and_its_axis(files, tmp_path):
+    """New-user trial 9: `fit --friction friction.h5 --inertia i2.h5` said "the logs are of different axes
+    [2, 3]; choose one with --axis": which log was which went unsaid, and --axis 3 then failed on i2.h5."""
+    assert _run("excite", "inertia", "--axis", "2", "-o", tmp_path / "i2.json", "--period", "2",
+                "--n-periods", "3").exit_code == 0
+    assert _run("capture", tmp_path / "i2.json", "-o", tmp_path / "i2.h5", "--seed", "3").exit_code == 0
+    r = _run("fit", "--friction", files / "inertia.h5", "--inertia", tmp_path / "i2.h5", "-o", tmp_path / "p.json")
+    _one_line_error(r, f"the logs are of different axes ({files / 'inertia.h5'}: A3, {tmp_path / 'i2.h5'}: A2): "
+                       "a fit is of one axis; give the logs of one",
+                    code=1)
+    assert not (tmp_path / "p.json").exists()
+
+
 def test_fit_cutoff_above_the_logs_nyquist_names_the_option(files):
     """Its limit depends on the log's sample rate: found with the data, but an option out of range
     (exit 2) that says --cutoff and the log; the defaults' limits stay data errors (exit 1)."""
