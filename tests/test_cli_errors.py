@@ -352,6 +352,16 @@ def test_fit_of_logs_of_different_axes_names_each_log_and_its_axis(files, tmp_pa
     assert not (tmp_path / "p.json").exists()
 
 
+def test_a_kukaid_file_given_as_limits_is_named_so(files, tmp_path, monkeypatch):
+    """New-user trial 9: `excite --limits params.json` said "unknown key 'schema' (known: q_min, ...)"."""
+    monkeypatch.chdir(tmp_path)
+    for name, schema in (("params.json", "kukaid.params/1"), ("inertia.json", "kukaid.trajectory/1")):
+        r = _run("excite", "inertia", "-o", "x.json", "--limits", files / name)
+        _one_line_error(r, f"{files / name}: is a {schema} file, not a limits file (JSON: q_min, q_max, qd_max, "
+                           "qdd_max, optionally with _deg)", code=1)
+    assert os.listdir(tmp_path) == []
+
+
 def test_fit_cutoff_above_the_logs_nyquist_names_the_option(files):
     """Its limit depends on the log's sample rate: found with the data, but an option out of range
     (exit 2) that says --cutoff and the log; the defaults' limits stay data errors (exit 1)."""
