@@ -484,6 +484,29 @@ def test_wear_of_a_diagnose_table_says_it_is_not_a_fit_table(tmp_path):
     assert r.exit_code == 1 and "fit.parquet: the table has no fitted rows (status ok) to assess" in r.stderr
 
 
+def test_wear_replaces_only_a_wear_verdict_without_force(tmp_path):
+    """New-user trial 9: `fleet wear -o params.json` replaced a parameter file with the verdict, silently;
+    every other JSON output (excite, fit, diagnose -o) replaces only a file of its own kind."""
+    from click.testing import CliRunner
+
+    from kukaid.fleet.table import write_table
+    from kukaid_cli.main import cli
+
+    write_table(tmp_path / "t.parquet", _synthetic_rows(3, 8, seed=4), {"task": "fit"})
+    params = tmp_path / "params.json"
+    params.write_text('{"schema": "kukaid.params/1"}\n')
+    args = ["fleet", "wear", str(tmp_path / "t.parquet"), "-o", str(params)]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 1 and r.stderr == (f"kukaid: error: {params}: already exists and is a kukaid.params/1 file, "
+                                             "not kukaid.fleet-wear/1; choose another name or pass --force to "
+                                             "replace it\n"), r.output
+    assert params.read_text() == '{"schema": "kukaid.params/1"}\n'
+    r = CliRunner().invoke(cli, [*args, "--force"])
+    assert r.exit_code == 0 and json.loads(params.read_text())["schema"] == "kukaid.fleet-wear/1", r.output
+    r = CliRunner().invoke(cli, args)  # a verdict by a verdict: derived from the table again
+    assert r.exit_code == 0, r.output
+
+
 def test_wear_cli_writes_json_and_pdf(tmp_path, kukaid_cmd):
     from kukaid.fleet.table import write_table
 
