@@ -324,6 +324,19 @@ def test_an_interrupted_simulate_leaves_no_half_made_fleet(tmp_path, monkeypatch
     assert r.exit_code == 130 and (out / "mine.txt").read_text() == "kept"
 
 
+def test_simulate_option_errors_name_the_command_once(tmp_path):
+    """New-user trial 9: `fleet simulate --wear 0.5:0.2` said "fleet simulate: fleet simulate: wear range ..."."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    for opt, msg in ((["--wear", "0.5:0.2"], "wear range must be 0 <= low <= high <= 5, got 0.5, 0.2"),
+                     (["--axes", "7"], "axes must be numbers 1 to 6, got [7]")):
+        r = CliRunner().invoke(cli, ["fleet", "simulate", "--robots", "1", "--days", "1", "-o", str(tmp_path / "f"), *opt])
+        assert r.exit_code == 2 and r.stderr == f"kukaid: error: fleet simulate: {msg}\n", r.stderr
+    assert not (tmp_path / "f").exists()
+
+
 def test_simulate_keeps_the_truth_apart(tmp_path):
     from kukaid.logs import read_log
 
