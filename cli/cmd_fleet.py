@@ -142,9 +142,11 @@ def simulate_cmd(robots, days, outdir, axes, whole_arm, wear_share, wear_range, 
     temp dataset), friction that depends on it, and wear in a share of the axes; the truth in
     truth.json apart from the logs."""
     from kukaid.fleet.simulate import FleetSimConfig, simulate_fleet
-    from kukaid_cli._util import usage_errors
+    from kukaid_cli._util import given, usage_errors
 
     _check_workers(workers, scheduler)
+    if whole_arm and given("axes"):
+        raise click.UsageError("--axes does not apply with --whole-arm (each log holds A1 to A6)")
     try:
         ax = tuple(int(a.strip().lstrip("Aa")) for a in axes.split(",") if a.strip())
     except ValueError:

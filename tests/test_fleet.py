@@ -335,6 +335,12 @@ def test_simulate_option_errors_name_the_command_once(tmp_path):
         r = CliRunner().invoke(cli, ["fleet", "simulate", "--robots", "1", "--days", "1", "-o", str(tmp_path / "f"), *opt])
         assert r.exit_code == 2 and r.stderr == f"kukaid: error: fleet simulate: {msg}\n", r.stderr
     assert not (tmp_path / "f").exists()
+    # --axes with --whole-arm (its help: "not with --whole-arm") was ignored: six-axis logs all the same
+    r = CliRunner().invoke(cli, ["fleet", "simulate", "--robots", "1", "--days", "1", "-o", str(tmp_path / "f"),
+                                 "--axes", "1", "--whole-arm"])
+    assert r.exit_code == 2 and r.stderr == ("kukaid: error: fleet simulate: --axes does not apply with --whole-arm "
+                                             "(each log holds A1 to A6)\n"), r.stderr
+    assert not (tmp_path / "f").exists()
 
 
 def test_simulate_keeps_the_truth_apart(tmp_path):
