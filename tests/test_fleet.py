@@ -472,6 +472,17 @@ def test_wear_needs_a_temperature_spread_for_a_slope():
     assert tm["note"].endswith(" K): the temperature slope is not determined"), tm["note"]
     assert lines(res)[1] == f"temperature model: none ({tm['note']})"
     assert all(a["temperature_coefficient"]["Fc"] == 0.0 for a in res["axes"])
+    # the PDF said "no temperature logged" whenever there was no model, whatever the reason
+    import matplotlib.pyplot as plt
+
+    from kukaid.report.wear import ranking_pages
+
+    for rows_ in (narrow, [{**r, "temp_mean": None} for r in narrow]):
+        r_ = assess(rows_)
+        page = ranking_pages(r_)[0]
+        text = " ".join(" ".join(t.get_text() for t in page.texts).split())
+        plt.close(page)
+        assert f"no temperature model ({r_['temperature_model']['note']}): friction not normalised" in text, text
     wide = _synthetic_rows(20, 24, seed=9)
     mixed = narrow + wide
     res, ref = assess(mixed), assess(wide)
