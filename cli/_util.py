@@ -106,8 +106,11 @@ def usage_errors(option: str | None = None, types: tuple[type[KukaidError], ...]
         yield
     except types as e:
         msg, ctx = str(e), click.get_current_context(silent=True)
-        if ctx is not None and msg.startswith(f"{ctx.info_name}: "):  # the usage error names the command
-            msg = msg[len(ctx.info_name) + 2:]
+        # the usage error names the command ('simulate', or 'fleet simulate' without the program's name)
+        for name in ((ctx.command_path.partition(" ")[2], ctx.info_name) if ctx is not None else ()):
+            if name and msg.startswith(f"{name}: "):
+                msg = msg[len(name) + 2:]
+                break
         if option is not None:
             raise click.BadParameter(msg, param_hint=option) from None
         raise click.UsageError(msg) from None

@@ -142,9 +142,11 @@ def simulate_cmd(robots, days, outdir, axes, whole_arm, wear_share, wear_range, 
     temp dataset), friction that depends on it, and wear in a share of the axes; the truth in
     truth.json apart from the logs."""
     from kukaid.fleet.simulate import FleetSimConfig, simulate_fleet
-    from kukaid_cli._util import usage_errors
+    from kukaid_cli._util import given, usage_errors
 
     _check_workers(workers, scheduler)
+    if whole_arm and given("axes"):
+        raise click.UsageError("--axes does not apply with --whole-arm (each log holds A1 to A6)")
     try:
         ax = tuple(int(a.strip().lstrip("Aa")) for a in axes.split(",") if a.strip())
     except ValueError:
@@ -187,7 +189,8 @@ def simulate_cmd(robots, days, outdir, axes, whole_arm, wear_share, wear_range, 
 @click.option("--baseline", type=click.IntRange(3, 10_000), default=None,
               help="Logs in each axis's baseline [default: a quarter of its logs, 5 to 14].")
 @click.option("--json", "as_json", is_flag=True, help="Print the verdict as JSON on stdout (without the series).")
-def wear_cmd(table, output, report, alpha, baseline, as_json) -> None:
+@click.option("--force", is_flag=True, help="Replace an existing -o file that is not a wear verdict.")
+def wear_cmd(table, output, report, alpha, baseline, as_json, force) -> None:
     """Per robot and axis: friction (Fc, Fv) at a reference temperature (a temperature model fitted
     across the fleet), its trend, and a flag when it leaves its own baseline and the fleet's
     course by more than the scatter allows (one-sided CUSUM, threshold for at most --alpha of
@@ -196,12 +199,13 @@ def wear_cmd(table, output, report, alpha, baseline, as_json) -> None:
 
     from kukaid.atomic import atomic_paths
     from kukaid.fleet.table import read_table
-    from kukaid.fleet.wear import WearSettings, assess, lines
-    from kukaid_cli._util import check_outputs, check_suffix
+    from kukaid.fleet.wear import SCHEMA, WearSettings, assess, lines
+    from kukaid_cli._util import check_outputs, check_suffix, refuse_other_kind
 
     check_suffix(output, ".json")
     check_suffix(report, ".pdf")
     check_outputs([output, report], [table])
+    refuse_other_kind(output, force, SCHEMA)
     rows, _ = read_table(table)
     result = assess(rows, WearSettings(alpha=alpha, baseline=baseline), source=str(table))
     result["table"] = str(table)

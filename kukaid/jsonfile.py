@@ -30,6 +30,9 @@ def read_json(path: str | Path, error: type[KukaidError] = KukaidError, what: st
         log = _log_format(raw)
         if log is not None:
             raise error(f"{path}: is an axis log ({log}), not a {what or _expected(error)}") from None
+        other = _other_format(raw)
+        if other is not None:
+            raise error(f"{path}: is {other}, not a {what or _expected(error)}") from None
         raise error(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
 
 
@@ -39,6 +42,15 @@ def _log_format(raw: bytes) -> str | None:
         return "HDF5"
     if raw.removeprefix(b"\xef\xbb\xbf").startswith(b"time_s,"):
         return "CSV"
+    return None
+
+
+def _other_format(raw: bytes) -> str | None:
+    """What else of the toolkit's outputs ``raw`` is: a PDF (report) or a Parquet table (fleet), else None."""
+    if raw.startswith(b"%PDF-"):
+        return "a PDF (a report)"
+    if raw.startswith(b"PAR1"):
+        return "a Parquet table (kukaid fleet)"
     return None
 
 

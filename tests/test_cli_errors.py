@@ -243,6 +243,15 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
     (["capture", "{d}/inertia.json", "-o", "c11.csv"], ["c11.csv", "name it .h5 or .hdf5"]),
     (["capture", "-o", "c12.h5", "--backend", "kvp", "--port", "9", "--duration", "1", "--axis", "3", "--axis", "3"],
      ["capture: --axis 3 is given twice"]),
+    # new-user trial 9: a port beyond 65535 connected to another (70000 wraps to 4464) or said
+    # "cannot connect (Servname not supported ...)", exit status 1, blaming the robot
+    (["capture", "{d}/inertia.json", "-o", "c13.h5", "--backend", "kvp", "--port", "70000", "--duration", "1"],
+     ["capture: Invalid value for '--port': 70000 is not in the range 1<=x<=65535"]),
+    (["capture", "{d}/inertia.json", "-o", "c14.h5", "--backend", "kvp", "--port", "-5", "--duration", "1"],
+     ["capture: Invalid value for '--port': -5 is not in the range 1<=x<=65535"]),
+    (["run-admittance", "--params", "{d}/params.json", "-o", "r.h5", "--backend", "kvp", "--port", "70000",
+      "--enable-motion", "--q-min", "0", "--q-max", "10"],
+     ["run-admittance: Invalid value for '--port': 70000 is not in the range 1<=x<=65535"]),
 ])
 def test_option_errors_are_usage_errors(files, tmp_path, monkeypatch, args, pieces):
     """Contradictory or out-of-range options: exit status 2 (the usage error of docs/errors.md), one line, no output."""
@@ -314,6 +323,42 @@ def test_an_axis_log_given_for_a_json_file_is_named_so(files, tmp_path, monkeypa
     monkeypatch.chdir(tmp_path)
     r = _run(*[a.format(log=log) for a in args])
     _one_line_error(r, f"{log}: is an axis log ({fmt.upper() if fmt == 'csv' else 'HDF5'}), {piece}", code=1)
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("name, head, kind", [("r.pdf", b"%PDF-1.4\n", "a PDF (a report)"),
+                                              ("t.parquet", b"PAR1\x15\x04", "a Parquet table (kukaid fleet)")])
+def test_a_report_or_a_fleet_table_given_for_a_json_file_is_named_so(tmp_path, monkeypatch, name, head, kind):
+    """New-user trial 9: `kukaid show fits.parquet` (or report.pdf) said "not valid JSON (line 1, column 1:
+    Expecting value)"; an axis log given so was already named as one."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / name).write_bytes(head + bytes(range(256)))
+    for args, piece in ((["show", name], "not a parameter file (JSON)"),
+                        (["capture", name, "-o", "c.h5"], "not a trajectory file (JSON)")):
+        _one_line_error(_run(*args), f"{name}: is {kind}, {piece}", code=1)
+    assert os.listdir(tmp_path) == [name]
+
+
+def test_fit_of_logs_of_different_axes_names_each_log_and_its_axis(files, tmp_path):
+    """New-user trial 9: `fit --friction friction.h5 --inertia i2.h5` said "the logs are of different axes
+    [2, 3]; choose one with --axis": which log was which went unsaid, and --axis 3 then failed on i2.h5."""
+    assert _run("excite", "inertia", "--axis", "2", "-o", tmp_path / "i2.json", "--period", "2",
+                "--n-periods", "3").exit_code == 0
+    assert _run("capture", tmp_path / "i2.json", "-o", tmp_path / "i2.h5", "--seed", "3").exit_code == 0
+    r = _run("fit", "--friction", files / "inertia.h5", "--inertia", tmp_path / "i2.h5", "-o", tmp_path / "p.json")
+    _one_line_error(r, f"the logs are of different axes ({files / 'inertia.h5'}: A3, {tmp_path / 'i2.h5'}: A2): "
+                       "a fit is of one axis; give the logs of one",
+                    code=1)
+    assert not (tmp_path / "p.json").exists()
+
+
+def test_a_kukaid_file_given_as_limits_is_named_so(files, tmp_path, monkeypatch):
+    """New-user trial 9: `excite --limits params.json` said "unknown key 'schema' (known: q_min, ...)"."""
+    monkeypatch.chdir(tmp_path)
+    for name, schema in (("params.json", "kukaid.params/1"), ("inertia.json", "kukaid.trajectory/1")):
+        r = _run("excite", "inertia", "-o", "x.json", "--limits", files / name)
+        _one_line_error(r, f"{files / name}: is a {schema} file, not a limits file (JSON: q_min, q_max, qd_max, "
+                           "qdd_max, optionally with _deg)", code=1)
     assert os.listdir(tmp_path) == []
 
 
@@ -424,3 +469,6 @@ def test_a_log_csv_with_semicolons_says_so(tmp_path):
     p.write_text("time_s;A3_deg;A3_Nm\n0,012;1,5;2,0\n")
     r = _run("load", p, "-o", tmp_path / "x.h5")
     _one_line_error(r, "semi.csv: columns must be separated by commas, not ';'", code=1)
+    # new-user trial 9: "(the header is 'time_s,A3_deg,A3_Nm,...')" read as this file's header, which it is not
+    assert r.output.strip().endswith("decimal mark (a header as 'time_s,A3_deg,A3_Nm,...'; this one is "
+                                     "'time_s;A3_deg;A3_Nm')"), r.output

@@ -156,6 +156,28 @@ def test_report_and_validate_refuse_a_log_without_the_files_axis_with_one_line(t
     assert lines[0] == lines[1] == "kukaid: error: a1.h5: axis A3 of the parameter file is not in the log (axes: [1])"
 
 
+def test_a_log_without_the_axis_names_where_the_axis_came_from(tmp_path, monkeypatch):
+    """New-user trial 9: a one-axis file without an axis field, given --axis 2 (or no --axis: A3 by
+    default), and a log without that axis: validate, report and diagnose said "axis A2 of the parameter
+    file is not in the log", blaming the file for an axis that came from --axis or the default."""
+    from kukaid.logs import write_hdf5
+
+    params, _ = axis_case()
+    params.pop("axis", None)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.json").write_text(json.dumps(params))
+    write_hdf5(sine_log(1, 0.2, axes=(1,)), tmp_path / "a1.h5")
+    for axis, origin in ((["--axis", "2"], "A2 (--axis 2)"),
+                         ([], "A3 (the default: the parameter file names no axis; --axis chooses one)")):
+        lines = []
+        for args in (["report", "--params", "p.json", "--log", "a1.h5", "-o", "r.pdf"],
+                     ["validate", "a1.h5", "--params", "p.json"], ["diagnose", "--params", "p.json", "--log", "a1.h5"]):
+            r = CliRunner().invoke(cli, [*args, *axis])
+            assert r.exit_code == 1 and not (tmp_path / "r.pdf").exists(), r.output
+            lines.append(r.stderr.strip())
+        assert set(lines) == {f"kukaid: error: a1.h5: axis {origin} is not in the log (axes: [1])"}, lines
+
+
 def test_a_robot_file_finds_its_urdf_after_the_project_moved_or_says_how_to_give_it(robot_case, tmp_path):
     """The file kept only the URDF's absolute path: a moved project failed with "robot '...': no such
     robot" (new-user trial 6).  Now the URDF is also looked for from the file's folder (robot.urdf_relative,

@@ -324,6 +324,25 @@ def test_an_interrupted_simulate_leaves_no_half_made_fleet(tmp_path, monkeypatch
     assert r.exit_code == 130 and (out / "mine.txt").read_text() == "kept"
 
 
+def test_simulate_option_errors_name_the_command_once(tmp_path):
+    """New-user trial 9: `fleet simulate --wear 0.5:0.2` said "fleet simulate: fleet simulate: wear range ..."."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    for opt, msg in ((["--wear", "0.5:0.2"], "wear range must be 0 <= low <= high <= 5, got 0.5, 0.2"),
+                     (["--axes", "7"], "axes must be numbers 1 to 6, got [7]")):
+        r = CliRunner().invoke(cli, ["fleet", "simulate", "--robots", "1", "--days", "1", "-o", str(tmp_path / "f"), *opt])
+        assert r.exit_code == 2 and r.stderr == f"kukaid: error: fleet simulate: {msg}\n", r.stderr
+    assert not (tmp_path / "f").exists()
+    # --axes with --whole-arm (its help: "not with --whole-arm") was ignored: six-axis logs all the same
+    r = CliRunner().invoke(cli, ["fleet", "simulate", "--robots", "1", "--days", "1", "-o", str(tmp_path / "f"),
+                                 "--axes", "1", "--whole-arm"])
+    assert r.exit_code == 2 and r.stderr == ("kukaid: error: fleet simulate: --axes does not apply with --whole-arm "
+                                             "(each log holds A1 to A6)\n"), r.stderr
+    assert not (tmp_path / "f").exists()
+
+
 def test_simulate_keeps_the_truth_apart(tmp_path):
     from kukaid.logs import read_log
 
@@ -434,6 +453,44 @@ def test_wear_says_why_there_is_no_temperature_model():
     assert lines(assess(rows))[1] == "temperature model: none (no temperature logged)"
 
 
+def test_wear_needs_a_temperature_spread_for_a_slope():
+    """New-user trial 9: `fleet simulate --temp-swing 0` then `fleet wear` printed "temperature model:
+    Fc +105.35 %/K, Fv +113.65 %/K": a slope fitted to the tenths of a kelvin a log's own heating moves
+    its mean temperature (and a wearing axis heats more). A baseline spanning less than 3 K determines
+    no slope: with none wider the model is none and says so; a narrow axis beside wide ones takes the
+    fleet's slope and adds nothing to it."""
+    from kukaid.fleet.wear import MIN_TEMP_SPREAD_K, assess, lines
+
+    assert MIN_TEMP_SPREAD_K == 3.0
+    rng = np.random.default_rng(5)
+    narrow = [{**r, "robot": "N" + r["robot"][1:], "temp_mean": 32.7 + 0.05 * rng.standard_normal()}
+              for r in _synthetic_rows(4, 8, seed=5)]
+    res = assess(narrow)
+    tm = res["temperature_model"]
+    assert tm["T_ref"] is None and tm["Fc_per_K"] == 0.0 and tm["Fv_per_K"] == 0.0
+    assert tm["note"].startswith("no axis's baseline spans 3 K of motor temperature (the widest 0.")
+    assert tm["note"].endswith(" K): the temperature slope is not determined"), tm["note"]
+    assert lines(res)[1] == f"temperature model: none ({tm['note']})"
+    assert all(a["temperature_coefficient"]["Fc"] == 0.0 for a in res["axes"])
+    # the PDF said "no temperature logged" whenever there was no model, whatever the reason
+    import matplotlib.pyplot as plt
+
+    from kukaid.report.wear import ranking_pages
+
+    for rows_ in (narrow, [{**r, "temp_mean": None} for r in narrow]):
+        r_ = assess(rows_)
+        page = ranking_pages(r_)[0]
+        text = " ".join(" ".join(t.get_text() for t in page.texts).split())
+        plt.close(page)
+        assert f"no temperature model ({r_['temperature_model']['note']}): friction not normalised" in text, text
+    wide = _synthetic_rows(20, 24, seed=9)
+    mixed = narrow + wide
+    res, ref = assess(mixed), assess(wide)
+    assert res["temperature_model"]["Fc_per_K"] == pytest.approx(ref["temperature_model"]["Fc_per_K"], rel=1e-9)
+    b = res["temperature_model"]["Fc_per_K"]
+    assert all(a["temperature_coefficient"]["Fc"] == b for a in res["axes"] if a["robot"].startswith("N"))
+
+
 def test_wear_of_a_diagnose_table_says_it_is_not_a_fit_table(tmp_path):
     """New-user trial 7: `fleet wear` of the table of `fleet diagnose` said "the table has no fitted rows
     (status ok)", though every row was ok: it is not a fit table, and says so, naming it and its kind."""
@@ -455,6 +512,29 @@ def test_wear_of_a_diagnose_table_says_it_is_not_a_fit_table(tmp_path):
     write_table(tmp_path / "fit.parquet", rows, {"task": "fit"})
     r = CliRunner().invoke(cli, ["fleet", "wear", str(tmp_path / "fit.parquet"), "-o", str(tmp_path / "w.json")])
     assert r.exit_code == 1 and "fit.parquet: the table has no fitted rows (status ok) to assess" in r.stderr
+
+
+def test_wear_replaces_only_a_wear_verdict_without_force(tmp_path):
+    """New-user trial 9: `fleet wear -o params.json` replaced a parameter file with the verdict, silently;
+    every other JSON output (excite, fit, diagnose -o) replaces only a file of its own kind."""
+    from click.testing import CliRunner
+
+    from kukaid.fleet.table import write_table
+    from kukaid_cli.main import cli
+
+    write_table(tmp_path / "t.parquet", _synthetic_rows(3, 8, seed=4), {"task": "fit"})
+    params = tmp_path / "params.json"
+    params.write_text('{"schema": "kukaid.params/1"}\n')
+    args = ["fleet", "wear", str(tmp_path / "t.parquet"), "-o", str(params)]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 1 and r.stderr == (f"kukaid: error: {params}: already exists and is a kukaid.params/1 file, "
+                                             "not kukaid.fleet-wear/1; choose another name or pass --force to "
+                                             "replace it\n"), r.output
+    assert params.read_text() == '{"schema": "kukaid.params/1"}\n'
+    r = CliRunner().invoke(cli, [*args, "--force"])
+    assert r.exit_code == 0 and json.loads(params.read_text())["schema"] == "kukaid.fleet-wear/1", r.output
+    r = CliRunner().invoke(cli, args)  # a verdict by a verdict: derived from the table again
+    assert r.exit_code == 0, r.output
 
 
 def test_wear_cli_writes_json_and_pdf(tmp_path, kukaid_cmd):

@@ -8,7 +8,9 @@ The method, per axis (rows of the fleet table with ``status == "ok"``; one frict
 3. Temperature model, fitted across the fleet's own baselines: ``y = a_i + b_i (T - T_ref)``; the
    fleet slope ``b`` is the pooled within-axis slope, each axis's ``b_i`` its own slope shrunk
    toward ``b`` by the spread of the slopes across axes (empirical Bayes).  ``T_ref`` is the fleet's
-   median baseline temperature.  Friction at ``T_ref``: ``y* = y - b_i (T - T_ref)``.
+   median baseline temperature.  Friction at ``T_ref``: ``y* = y - b_i (T - T_ref)``.  A baseline
+   spanning less than ``MIN_TEMP_SPREAD_K`` (3 K) of temperature gives no slope (it takes the fleet's);
+   with none wider there is no temperature model.
 4. The fleet's common drift on each day (the median over axes of ``y*`` minus its baseline mean,
    with at least ``min_fleet`` axes that day) is removed, so a change every axis shares (a colder
    plant, a new grease batch) flags no axis; an axis must leave the fleet's course too.
@@ -37,6 +39,10 @@ import numpy as np
 from kukaid.errors import KukaidError
 
 SCHEMA = "kukaid.fleet-wear/1"
+# A baseline whose motor temperatures span less than this determines no temperature slope: a log's own
+# heating by its friction moves its mean temperature by tenths of a kelvin (more on a wearing axis), so
+# a slope fitted to such a spread is friction against itself, not against the temperature.
+MIN_TEMP_SPREAD_K = 3.0
 
 
 @dataclass(frozen=True)
@@ -156,8 +162,14 @@ def _temperature_model(axes: list[_Axis]) -> dict:
                 "no axis has a temperature for every log of its baseline")
         return {"T_ref": None, "b": [0.0, 0.0], "per_axis": {}, "pred": {}, "spread": [0.0, 0.0], "note": note}
     T_ref = float(np.median(np.concatenate([a.T[:a.nb] for a in have_T])))
+    wide = [a for a in have_T if np.ptp(a.T[:a.nb]) >= MIN_TEMP_SPREAD_K]
+    if not wide:
+        widest = max(float(np.ptp(a.T[:a.nb])) for a in have_T)
+        note = (f"no axis's baseline spans {MIN_TEMP_SPREAD_K:g} K of motor temperature (the widest {widest:.2g} K): "
+                "the temperature slope is not determined")
+        return {"T_ref": None, "b": [0.0, 0.0], "per_axis": {}, "pred": {}, "spread": [0.0, 0.0], "note": note}
     sxx, sxy, res_var, b_ols, se2 = [], [], [], [], []
-    for a in have_T:
+    for a in wide:
         Tb, yb = a.T[:a.nb], a.y[:a.nb]
         dT = Tb - Tb.mean()
         dy = yb - yb.mean(axis=0)
@@ -177,7 +189,11 @@ def _temperature_model(axes: list[_Axis]) -> dict:
     ok = np.isfinite(se2).all(axis=1)
     tau2 = np.maximum(np.var(b_ols[ok], axis=0) - np.mean(se2[ok], axis=0), 0.0) if ok.sum() > 2 else np.zeros(2)
     per, pred = {}, {}
-    for a, Sxx_i, Sxy_i, v in zip(have_T, sxx, sxy, res_var):
+    for a in have_T:  # a baseline too narrow for a slope takes the fleet's
+        if np.ptp(a.T[:a.nb]) < MIN_TEMP_SPREAD_K:
+            per[(a.robot, a.axis)] = b
+            pred[(a.robot, a.axis)] = (float(a.T[:a.nb].mean()), np.full(2, np.inf))
+    for a, Sxx_i, Sxy_i, v in zip(wide, sxx, sxy, res_var):
         lam = v / tau2 if np.all(tau2 > 0) else np.full(2, np.inf)
         # a baseline without a temperature spread and without scatter (Sxx + lam = 0) does not determine
         # the axis's slope: it takes the fleet's, as without a spread of the slopes

@@ -182,7 +182,8 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     all_preps = general + fr + ine + ([psl] if psl is not None else [])
     axes = {p.axis for p in all_preps}
     if len(axes) > 1:
-        raise FitError(f"the logs are of different axes {sorted(axes)}; choose one with --axis")
+        which = ", ".join(f"{p.source}: A{p.axis}" for p in all_preps)
+        raise FitError(f"the logs are of different axes ({which}): a fit is of one axis; give the logs of one")
     ax = axes.pop()
     try:
         gravity, offset = _model_options(all_preps[0].joint, gravity, offset)

@@ -18,8 +18,9 @@ ask the protocol, not the schema:
 - ``source`` (where the file was read) and ``cutoff_field`` (where it keeps its low-pass cut-off).
 
 Around the protocol, one line for every command and both kinds: :func:`axis_option` (an ``--axis``
-the file does not model), :func:`require_axis` (a log without the file's axis), :func:`file_cutoff`
-(the file's cut-off a log's rate cannot take), :func:`use_warnings` (validate's and report's
+the file does not model), :func:`require_axis` (a log without the model's axis, named as the file's,
+--axis's or the default's by :func:`axis_origin`), :func:`file_cutoff` (the file's cut-off a log's
+rate cannot take), :func:`use_warnings` (validate's and report's
 warnings, :func:`in_sample` among them).
 
 The one-axis predictor evaluates exactly the model ``kukaid fit`` fits: the log pre-processed with
@@ -109,11 +110,21 @@ def axis_option(source: str, axes: tuple[int, ...], axis: int | None) -> None:
     check_axis(source, axes, axis, f" (--axis {axis})", OptionError)
 
 
-def require_axis(log: Any, axis: int, where: str | None = None) -> None:
-    """A log without the parameter file's axis: one line for every command (a problem of the data,
-    exit status 1); ``where``: the log's name (default its ``source_file``)."""
+def axis_origin(params: dict, axis: int | None) -> str:
+    """Where a one-axis model's axis came from, for :func:`require_axis`: the file's ``axis``, else
+    ``axis`` (--axis), else the default A3 (a file without its axis fits any)."""
+    if params.get("axis") is not None:
+        return "of the parameter file"
+    if axis is not None:
+        return f"(--axis {axis})"
+    return "(the default: the parameter file names no axis; --axis chooses one)"
+
+
+def require_axis(log: Any, axis: int, where: str | None = None, origin: str = "of the parameter file") -> None:
+    """A log without the model's axis: one line for every command (a problem of the data, exit status
+    1); ``where``: the log's name (default its ``source_file``); ``origin``: :func:`axis_origin`."""
     if int(axis) not in tuple(int(a) for a in log.axes):
-        raise KukaidError(f"{where or log.attrs.get('source_file', 'log')}: axis A{axis} of the parameter file is "
+        raise KukaidError(f"{where or log.attrs.get('source_file', 'log')}: axis A{axis} {origin} is "
                           f"not in the log (axes: {list(log.axes)})")
 
 
@@ -194,11 +205,12 @@ class AxisFile:
             axis_option(source, (int(params["axis"]),), axis)
         self.params, self.source = params, source
         self.axis = int(params.get("axis", 3)) if axis is None else int(axis)
+        self.origin = axis_origin(params, axis)
         self.joints = (self.axis,)
         self.unit = "N" if (params.get("provenance") or {}).get("joint") == "prismatic" else "N·m"
 
     def check(self, log: Any) -> None:
-        require_axis(log, self.axis)
+        require_axis(log, self.axis, origin=self.origin)
         check_model_of(self.params, self.source, joint=log.joint[log.index(self.axis)])
 
     def predict(self, log: Any) -> Pairs:
@@ -290,4 +302,4 @@ class RobotFile:
 
 
 __all__ = ["AxisFile", "FittedModel", "RobotFile", "axis_option", "file_cutoff", "fit_settings", "fitted_logs",
-           "in_sample", "load_model", "model_for", "require_axis", "robot_of", "use_warnings"]
+           "axis_origin", "in_sample", "load_model", "model_for", "require_axis", "robot_of", "use_warnings"]

@@ -42,8 +42,10 @@ def read_csv(path: str | Path) -> AxisLog:
     if header[0] != "time_s":
         sep = next((c for c in (";", "\t") if c in header[0]), None) if len(header) == 1 else None
         if sep is not None:  # a spreadsheet's export where the comma is the decimal mark
+            line = lines[0].strip()
+            line = line if len(line) <= 60 else line[:57] + "..."
             raise LogFormatError(f"{path}: columns must be separated by commas, not {sep!r}, with '.' as the "
-                                 "decimal mark (the header is 'time_s,A3_deg,A3_Nm,...')")
+                                 f"decimal mark (a header as 'time_s,A3_deg,A3_Nm,...'; this one is '{line}')")
         raise LogFormatError(f"{path}: first column must be 'time_s', found '{header[0]}'")
     cols: dict[tuple[int, str], tuple[int, float]] = {}
     joint_of: dict[int, str] = {}

@@ -66,6 +66,9 @@ class AxisLimits:
         """Limits from a dict; missing keys come from ``base`` (default: KR 6 R700 sixx A3)."""
         if not isinstance(d, dict):
             raise TrajectoryError(f"{where}: expected a JSON object")
+        if isinstance(d.get("schema"), str):  # another of kukaid's files (a parameter file, a trajectory)
+            raise TrajectoryError(f"{where}: is a {d['schema']} file, not a limits file (JSON: q_min, q_max, qd_max, "
+                                  "qdd_max, optionally with _deg)")
         base = base or cls.kr6_r700_sixx()
         kw: dict[str, Any] = {}
         allowed = {"q_min", "q_max", "qd_max", "qdd_max", "name"}

@@ -85,7 +85,7 @@ def _prep_options(params: dict, fs: float) -> dict:
     return opts
 
 
-def _load_one(x: Any, axis: int, params: dict) -> tuple[Any, Any]:
+def _load_one(x: Any, axis: int, params: dict, origin: str = "of the parameter file") -> tuple[Any, Any]:
     from kukaid.identify import preprocess
     from kukaid.identify.fitted import require_axis
     from kukaid.logs import read_log
@@ -98,7 +98,7 @@ def _load_one(x: Any, axis: int, params: dict) -> tuple[Any, Any]:
             raise ReportError(f"{p}: no such file")
         log = read_log(p)
     where = log.attrs.get("source_file", str(x) if not hasattr(x, "tau") else "axis log")
-    require_axis(log, axis, where)
+    require_axis(log, axis, where, origin)
     fs = 1.0 / float(np.median(np.diff(np.asarray(log.time, dtype=float)))) if log.time.size > 1 else 1.0
     try:
         pr = preprocess(log, axis=axis, **_prep_options(params, fs))
@@ -132,16 +132,19 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
         source = source or "parameters"
     else:
         par, source = load_params(params), str(params)
+    from kukaid.identify.fitted import axis_origin
+
+    origin = axis_origin(par, axis)
     if axis is None:
         axis = int(par.get("axis") or 3)
     else:
         check_model_of(par, source, axis=axis)
     data = ReportData(par, source)
-    data.friction = [_load_one(x, axis, par) for x in friction]
-    data.inertia = [_load_one(x, axis, par) for x in inertia]
-    data.general = [_load_one(x, axis, par) for x in logs]
+    data.friction = [_load_one(x, axis, par, origin) for x in friction]
+    data.inertia = [_load_one(x, axis, par, origin) for x in inertia]
+    data.general = [_load_one(x, axis, par, origin) for x in logs]
     if presliding is not None:
-        data.presliding = _load_one(presliding, axis, par)
+        data.presliding = _load_one(presliding, axis, par, origin)
     from kukaid.identify.adequacy import role_warnings
 
     for role, given in (("friction", data.friction), ("inertia", data.inertia),

@@ -27,7 +27,8 @@ def ranking_pages(result: dict, source: str = "") -> list:
     axes = [a for a in result["axes"] if "evidence" in a]
     tm = result["temperature_model"]
     s = result["summary"]
-    temp = ("no temperature logged: friction not normalised" if tm["T_ref"] is None else
+    temp = (f"no temperature model ({tm.get('note') or 'no temperature logged'}): friction not normalised"
+            if tm["T_ref"] is None else
             f"friction normalised to {tm['T_ref']:.1f} °C with the fleet's model: Fc {100 * tm['Fc_per_K']:+.2f} %/K, "
             f"Fv {100 * tm['Fv_per_K']:+.2f} %/K (spread across axes {100 * tm['slope_spread_per_K'][0]:.2f} %/K)")
     st = result["settings"]
