@@ -474,6 +474,18 @@ def test_a_hand_held_at_rest_under_which_the_servo_winds_past_the_hand_part_is_n
     assert math.degrees(np.ptp(q)) < 0.05
 
 
+def test_a_hand_whose_torque_the_servo_hands_to_stiction_at_rest_is_no_push_when_it_lets_go():
+    """lugre-posfric person 3011 (firm grip, D 50): the axis stops and the person presses on with about
+    15 N·m for 3.5 s.  Γr reads 9.4 N·m (under the stop's doubled threshold), then falls back to 0 in
+    1.2 s while Γu moves by 1.8: the servo's integral action hands the hand's torque to the LuGre
+    stiction, and the motor torque goes back to where it was with the hand still on.  The release then
+    unloads the stiction through the motor: -11 N·m, read as a push that moved the axis 0.2 degree with
+    nobody there (3 cycles).  What Γr read and lost while Γu stood is now a possible hand too."""
+    detected, q = _after_a_persons_release("lugre-posfric", 3011, "firm")
+    assert not detected.any()
+    assert math.degrees(np.ptp(q)) < 0.05
+
+
 def test_the_threshold_floor_at_rest_learns_the_residuals_level_from_the_rest_seen_so_far():
     """The floor at rest is floor_k x the RMS of Γr at rest: a mean over the rest seen so far (its
     starting level weighted as FLOOR_PRIOR s of rest), forgetting over floor_tau once longer.  A residual
