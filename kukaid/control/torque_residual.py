@@ -334,6 +334,11 @@ class TorqueResidual:
         ``threshold``."""
         return min(max(self.threshold, self.floor_k * math.sqrt(self._rest_ms)), self.floor_cap * self.threshold)
 
+    def nobody_was_there(self) -> None:
+        """The loop's word that nobody has touched the axis so far (its own initiation move and the rest
+        after it): what the present rest read and lost (a stop's settling) was no hand."""
+        self._seen, self._hidden = NOTHING_LOST
+
     def end_detection(self) -> None:
         """End the present detection now (the loop's judgement: see :func:`kukaid.control.loop.run_admittance`);
         a new one needs the start threshold again."""
