@@ -474,6 +474,42 @@ def test_a_hand_held_at_rest_under_which_the_servo_winds_past_the_hand_part_is_n
     assert math.degrees(np.ptp(q)) < 0.05
 
 
+def test_a_hand_whose_torque_the_servo_hands_to_stiction_at_rest_is_no_push_when_it_lets_go():
+    """lugre-posfric person 3011 (firm grip, D 50): the axis stops and the person presses on with about
+    15 N·m for 3.5 s.  Γr reads 9.4 N·m (under the stop's doubled threshold), then falls back to 0 in
+    1.2 s while Γu moves by 1.8: the servo's integral action hands the hand's torque to the LuGre
+    stiction, and the motor torque goes back to where it was with the hand still on.  The release then
+    unloads the stiction through the motor: -11 N·m, read as a push that moved the axis 0.2 degree with
+    nobody there (3 cycles).  What Γr read and lost while Γu stood is now a possible hand too."""
+    detected, q = _after_a_persons_release("lugre-posfric", 3011, "firm")
+    assert not detected.any()
+    assert math.degrees(np.ptp(q)) < 0.05
+
+
+@pytest.mark.parametrize("loop_says", [False, True])
+def test_what_the_residual_lost_at_rest_is_a_possible_hand_unless_the_loop_says_nobody_was_there(loop_says):
+    """At rest, 2 s after a stop, Γr reads -4.5 N·m (under the threshold) for 0.4 s and falls back while Γu
+    stands (a hand whose torque the servo handed to stiction reads so): a push of 7 N·m the other way is
+    then no push (4 N·m of it may be that hand letting go), unless the loop says nobody had touched the axis (its own
+    initiation move and rest, where a stop's settling reads and falls back by itself): then it is."""
+    m = _model(vibration=False)
+    est = TorqueResidual(m, sample_time=0.012, threshold=5.0)
+    det = []
+    for k in range(900):
+        x = min(max((k - 100) / 100.0, 0.0), 1.0)
+        q = Q0 + 0.06 * x ** 3 * (10 - 15 * x + 6 * x * x)
+        v = 0.06 * 30 * x * x * (1 - x) ** 2 / 1.2
+        fric = float(m.friction(v)) if 100 <= k < 200 else (0.0 if k < 100 else float(np.sum(m.maxwell_slip.W)))
+        bump = 4.5 * math.sin(math.pi * min(max((k - 370) / 35.0, 0.0), 1.0))  # -4.5 N·m read, then lost
+        push = 7.0 * min(max((k - 700) / 20.0, 0.0), 1.0)
+        if k == 650 and loop_says:
+            est.nobody_was_there()
+        det.append(est.update(q, m.rigid.Mx * math.cos(q) + fric + bump - push).detected)
+    det = np.array(det)
+    assert not det[200:700].any()
+    assert det[730:].all() if loop_says else not det[700:].any()
+
+
 def test_the_threshold_floor_at_rest_learns_the_residuals_level_from_the_rest_seen_so_far():
     """The floor at rest is floor_k x the RMS of Γr at rest: a mean over the rest seen so far (its
     starting level weighted as FLOOR_PRIOR s of rest), forgetting over floor_tau once longer.  A residual

@@ -272,6 +272,7 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
     m = getattr(est, "model", None)  # a one-axis model with Stribeck friction: its Stribeck velocity
     v_hold = float(m.vs) if getattr(m, "friction_kind", None) == "stribeck" else 0.0
     n_cycles = int(math.ceil((t_adm + cfg.duration) / cfg.cycle - 1e-9))
+    phase = PHASE_INIT
     for k in range(n_cycles):
         tr = (k + 1) * cfg.cycle  # time since start at the end of this cycle
         if tr <= t_adm:  # initiation move (eq. 12), then rest while Γu settles
@@ -285,6 +286,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             adm.reset(q_cmd)
             sd = 0.0
         else:
+            if phase != PHASE_ADMITTANCE and hasattr(est, "nobody_was_there"):
+                est.nobody_was_there()  # the loop's own move and rest: nothing read there was a hand
             phase = PHASE_ADMITTANCE
             sd0 = adm.sigma_dot
             if r.detected and abs(r.gamma_r) < min(cfg.threshold, D_now * v_hold):

@@ -69,7 +69,11 @@ Online, causal version (what a controller can do):
   reports the widest span): the push is the reading nearest zero over all of them, and a hand
   that leaned in and lets go moves nothing.  The other way round, a drift Γu followed the way the
   hand part's release would read (the servo winding against stiction under a held hand) adds to the
-  hand part beyond the threshold, for the release adds the hand's own torque to it.  The cost:
+  hand part beyond the threshold, for the release adds the hand's own torque to it.  And what Γr read
+  on one side of zero (at least half the threshold) and then lost there with Γu standing, Γr - Γu
+  falling back (the servo's integral action handing a hand's torque to stiction: the motor torque goes
+  back to where it was with the hand still on) is a possible hand too, at most what Γr read: the hand's
+  release unloads the stiction through the motor and reads as a push the other way.  The cost:
   until the axis has moved, a push against that part, or against a drift Γu followed, needs that much
   more force.
 
@@ -113,6 +117,9 @@ HELD_DRIFT_RATE = 3.0
 #: s of rest the threshold floor's starting level counts as (the floor then learns a plant's level at
 #: rest as a mean over the rest seen so far, not as an average forgetting over floor_tau from the start)
 FLOOR_PRIOR = 2.0
+#: at rest, before anything was read and lost: (the side of zero, Γr - Γu's extreme there, the lowest and
+#: highest Γr) and the loss each way (negative, positive), N·m
+NOTHING_LOST = ((0.0, 0.0, 0.0, 0.0), (0.0, 0.0))
 #: effects of a parameter file that the online residual evaluates
 SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
 
@@ -283,7 +290,11 @@ class TorqueResidual:
         self._q_move0 = q  # where the present dynamic episode began, rad
         self._travel = 0.0  # the farthest the axis has been from there, rad
         self._wound = 0.0  # at rest: the drift Γu followed the way the hand part's release reads, N·m
-        self._rest_kept = (0.0, 0.0, (0.0, 0.0), 0.0)  # Γu, the hand part, the span and the wound as the episode began
+        # at rest: what Γr read on one side of zero and then lost with Γu standing (the servo handing a hand's
+        # torque to stiction), N·m
+        self._seen, self._hidden = NOTHING_LOST
+        self._rest_kept = (0.0, 0.0, (0.0, 0.0), 0.0, self._seen, self._hidden)  # Γu, the hand part, the span,
+        # the wound and what was lost as the episode began
         self._dyn_r = 0.0  # Γr while moving, averaged over DYN_MEMORY s, N·m
         self._start_prev = math.inf  # the start threshold at the previous sample, N·m
         self._moving = False
@@ -322,6 +333,11 @@ class TorqueResidual:
         needs a firmer push, instead of moving the axis by itself), at most ``floor_cap`` x
         ``threshold``."""
         return min(max(self.threshold, self.floor_k * math.sqrt(self._rest_ms)), self.floor_cap * self.threshold)
+
+    def nobody_was_there(self) -> None:
+        """The loop's word that nobody has touched the axis so far (its own initiation move and the rest
+        after it): what the present rest read and lost (a stop's settling) was no hand."""
+        self._seen, self._hidden = NOTHING_LOST
 
     def end_detection(self) -> None:
         """End the present detection now (the loop's judgement: see :func:`kukaid.control.loop.run_admittance`);
@@ -373,6 +389,27 @@ class TorqueResidual:
             self._wound += step
         self._gamma_u += step
 
+    def _lose(self, r: float, u: float) -> None:
+        """At rest, out of contact: what Γr (``r``) read on one side of zero and then lost there while Γu (``u``)
+        stood (Γr - Γu falling back, not Γu following) may be a hand whose torque the servo handed to stiction
+        (on a LuGre plant a 15 N·m hold read 9 N·m, then nothing, with Γu still): its release then reads as a
+        push the other way, so that much is a possible hand too, each way at most what Γr read."""
+        w = r - u
+        side, w_ext, r_lo, r_hi = self._seen
+        r_lo, r_hi = min(r_lo, r), max(r_hi, r)
+        neg, pos = self._hidden
+        small = 0.5 * self.threshold  # a residual's own noise at rest: nothing lost
+        if r > 0.0:
+            w_ext = max(w_ext, w) if side > 0 else w
+            if r_hi >= small:
+                pos = max(pos, min(w_ext - w, r_hi))
+        elif r < 0.0:
+            w_ext = min(w_ext, w) if side < 0 else w
+            if -r_lo >= small:
+                neg = max(neg, min(w - w_ext, -r_lo))
+        self._seen = (math.copysign(1.0, r) if r else side, w_ext, r_lo, r_hi)
+        self._hidden = (neg, pos)
+
     def update(self, q: float, tau: float, dt: float | None = None) -> ResidualSample:
         """Feed one measurement (position rad, motor torque N·m); return the new residual.
 
@@ -422,7 +459,7 @@ class TorqueResidual:
             self._mode = QUASI_STATIC
         quasi = self._mode == QUASI_STATIC
         if not quasi and old_mode == QUASI_STATIC:  # moving: Γu is kept without the hand
-            self._rest_kept = (self._gamma_u, self._hand, self._u_span, self._wound)
+            self._rest_kept = (self._gamma_u, self._hand, self._u_span, self._wound, self._seen, self._hidden)
             self._gamma_u, self._hand = self._gamma_u + self._hand, 0.0
             self._q_move0, self._travel = q, 0.0
         if not quasi:
@@ -432,10 +469,11 @@ class TorqueResidual:
         # rest goes on as it was (its Γu, the part that may be a hand, the span)
         moved = self._travel > self._presliding_range
         if quasi and old_mode == DYNAMIC and not moved:
-            self._gamma_u, self._hand, self._u_span, self._wound = self._rest_kept
+            self._gamma_u, self._hand, self._u_span, self._wound, self._seen, self._hidden = self._rest_kept
         if not quasi or self._u_n < self._u_need:
             self._u_span = (self._gamma_u, self._gamma_u)
             self._wound = 0.0
+            self._seen, self._hidden = NOTHING_LOST
         if quasi and old_mode == DYNAMIC and not self._detected and moved:
             if self._quiet >= QUIET_BEFORE_REST:
                 self._new_rest()  # stopped with nobody in contact (no detection, nor a braking hand)
@@ -472,8 +510,10 @@ class TorqueResidual:
         else:  # a push only if every reading sees it (Γr with and without the hand, against every Γu held
             # in this rest: a drift Γu followed may have been a hand leaning in), the one nearest zero
             held = self._hand + _beyond(self._wound, self.threshold)
-            lo = min(0.0, held) + self._u_span[0] - self._gamma_u
-            hi = max(0.0, held) + self._u_span[1] - self._gamma_u
+            if learning and self._u_n >= self._u_need:
+                self._lose(r1, new_u)
+            lo = min(0.0, held, -self._hidden[0]) + self._u_span[0] - self._gamma_u
+            hi = max(0.0, held, self._hidden[1]) + self._u_span[1] - self._gamma_u
             gamma_r = r1 + lo if r1 + lo > 0.0 else r1 + hi if r1 + hi < 0.0 else 0.0
         a = abs(gamma_r)
         if not quasi and not self._detected and self._since_switch >= self.switch_quiet / 4:
