@@ -48,12 +48,16 @@ the joint without them (its null tried both ways too: the same freedom). The wri
 friction takes the place of A5 and A6's own Coulomb and viscous terms and of A4-A6's angle terms,
 and is judged with the wrist links' inertial parameters free of the file's prior
 (:meth:`BaseCorrection.freed_inertia`; a fit took part of it there), against the same without the
-coupling. Recordings the file was fitted on are not used when
+coupling. Load-dependent and thermal friction are judged with the gravity parameters of the links
+their joint carries free of the file's prior (a fit took part of either there: a friction torque
+that switches with the joint's direction is its gravity torque wherever it moves against gravity),
+against the same freedom without them (thermal friction: its friction terms without the
+temperature). Recordings the file was fitted on are not used when
 at least two others remain (:func:`_unseen`).
 
 A candidate is named when it lowers the held-out relative error of the joints it acts on by more
 than :data:`MARGIN` (below the baseline's and below what the candidate without what names it
-predicts, where it says: a thermal friction's friction term without the temperature), makes no
+predicts, where it says: a thermal friction's friction terms without the temperature), makes no
 joint's held-out error worse by as much (and by more than :data:`WORSE_FLOOR` of its noise floor),
 its gain is at least :data:`MIN_T` standard errors of its spread over blocks of the held-out
 recordings (the log of the squared-error ratio per block), and its refit
@@ -990,7 +994,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             info = cand.describe(ctx, opt, coefs)
             mb, ma = float(np.mean(err[joints])), float(np.mean(e[joints]))
             # judged against the baseline, and against the candidate without what names it when that
-            # predicts better (a thermal friction's own friction term without the temperature). A
+            # predicts better (a thermal friction's own friction terms without the temperature). A
             # candidate tried in several ways (in the place of the file's terms of its joint's angle
             # and beside them, the better by held-out error) is judged against its null tried in each
             # of those ways too, the better of them: the null given the same freedom, so that taking

@@ -10,8 +10,10 @@ predicts, the diagnosis' filtered one while a candidate is judged):
 - ``payload``: the last link's m, m c change (its regressor columns, c0..c3), on every joint.
 - ``load_dependent_friction@A<j>``: c0 |L_j| s, L_j the file's gravity (``load`` "gravity") or
   rigid-body torque ("rigid").
-- ``thermal_friction@A<j>``: c0 T_j s (``form`` "coulomb") or c0 T_j F_j, F_j the file's friction
-  torque ("friction"); T_j the log's motor temperature, degC.
+- ``thermal_friction@A<j>``: c0 T_j s (``form`` "coulomb"), c0 T_j F_j, F_j the file's friction
+  torque ("friction"), or c0 T_j s + c1 T_j qd_j ("coulomb_viscous": the Coulomb and the viscous
+  friction each changing with temperature at a rate of its own); T_j the log's motor temperature,
+  degC.
 - ``position_ripple@A<j>``: c0 sin(n q_j) + c1 cos(n q_j).
 - ``coupled_wrist_friction``: the friction of the wrist's motors 5 and 6 on their own velocities
   (joint units) ``m5 = qd5 + c54 qd4``, ``m6 = qd6 + c64 qd4 + c65 qd5`` (a KUKA wrist's gearing
@@ -58,6 +60,14 @@ KINDS = {
 ELASTIC_STEP = 1e-6
 #: effects on every joint, named without a joint
 JOINTLESS = ("payload", "coupled_wrist_friction")
+
+
+def n_coefficients(kind: str, spec: dict) -> int:
+    """The number of coefficients of an effect of ``kind`` with settings ``spec`` (a thermal
+    friction's "coulomb_viscous" form has two, every other form its kind's)."""
+    if kind == "thermal_friction" and spec.get("form") == "coulomb_viscous":
+        return 2
+    return KINDS[kind][1]
 
 
 def gas_spring(q: np.ndarray, q0: float, ratio: float, kappa: float = CB_KAPPA) -> np.ndarray:
@@ -165,6 +175,10 @@ def columns(name: str, spec: dict, s: EffectSignals) -> np.ndarray:
     if kind == "thermal_friction":
         if s.temp is None:
             raise ValueError(f"{name} needs the log's motor temperature channel (temp)")
+        if spec["form"] == "coulomb_viscous":
+            if s.qd is None:
+                raise ValueError(f"{name} needs the joint velocities")
+            return np.column_stack([s.temp[:, j] * s.sign[:, j], s.temp[:, j] * s.qd[:, j]])
         return (s.temp[:, j] * (s.sign[:, j] if spec["form"] == "coulomb" else s.friction[:, j]))[:, None]
     return E.PositionRipple().columns(_Joint(s.q[:, j]), spec, None)
 

@@ -174,11 +174,11 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
 
 
 #: an effect's settings that are words, and the words allowed (every other setting is a number)
-_EFFECT_WORDS = {"load": ("gravity", "rigid"), "form": ("coulomb", "friction")}
+_EFFECT_WORDS = {"load": ("gravity", "rigid"), "form": ("coulomb", "friction", "coulomb_viscous")}
 
 
 def _effects(where: str, effects: Any, n: int) -> None:
-    from kukaid.models.robot_effects import KINDS, parse
+    from kukaid.models.robot_effects import KINDS, n_coefficients, parse
 
     for name, e in _object(where, "effects", effects).items():
         try:
@@ -188,7 +188,7 @@ def _effects(where: str, effects: Any, n: int) -> None:
         if j is not None and j >= n:
             _fail(where, f"'effects.{name}': the robot has {n} axes")
         e = _object(where, f"effects.{name}", e)
-        keys, nc = KINDS[kind]
+        keys = KINDS[kind][0]
         for k in keys + tuple(k for k in ("kappa",) if k in e):
             if k not in e:
                 _fail(where, f"missing field 'effects.{name}.{k}'")
@@ -197,7 +197,7 @@ def _effects(where: str, effects: Any, n: int) -> None:
                 _fail(where, f"'effects.{name}.{k}' must be one of {', '.join(words)}, got {json.dumps(e[k])[:40]}")
             if not words:
                 _numbers(where, f"effects.{name}.{k}", [e[k]])
-        _numbers(where, f"effects.{name}.coefficients", e.get("coefficients"), nc)
+        _numbers(where, f"effects.{name}.coefficients", e.get("coefficients"), n_coefficients(kind, e))
 
 
 def is_robot_params(d: Any) -> bool:
