@@ -198,7 +198,7 @@ def wear_cmd(table, output, report, alpha, baseline, as_json, force) -> None:
     import json
 
     from kukaid.atomic import atomic_paths
-    from kukaid.fleet.table import read_table
+    from kukaid.fleet.table import FIT_TABLE, read_table
     from kukaid.fleet.wear import SCHEMA, WearSettings, assess, lines
     from kukaid_cli._util import check_outputs, check_suffix, refuse_other_kind
 
@@ -206,7 +206,7 @@ def wear_cmd(table, output, report, alpha, baseline, as_json, force) -> None:
     check_suffix(report, ".pdf")
     check_outputs([output, report], [table])
     refuse_other_kind(output, force, SCHEMA)
-    rows, _ = read_table(table)
+    rows, _ = read_table(table, FIT_TABLE)
     result = assess(rows, WearSettings(alpha=alpha, baseline=baseline), source=str(table))
     result["table"] = str(table)
     with atomic_paths(*[p for p in (output, report) if p is not None]) as tmps:
@@ -245,7 +245,8 @@ def _check(kind: str, source, table, output, pattern, workers, scheduler) -> Non
         run = functools.partial(diagnose_model, max_steps=4)  # what kukaid diagnose runs, its default --max-steps
     from kukaid.fleet.tasks import _fits
 
-    _fits(str(table.resolve()), table.stat().st_mtime)  # a table that is not a fit table: one line, before any work
+    # a table that is not a fit table: one line, before any work, naming it as typed (the workers get its full path)
+    _fits(str(table), table.stat().st_mtime)
     entries = read_input(source, pattern)
     opts = CheckOptions(table=str(table.resolve()), kind=kind, run=run)
     bar = _Progress(f"fleet {kind}")

@@ -11,7 +11,9 @@ from kukaid_cli._util import AXIS, URDF
 @click.command("validate")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Parameter file whose model is evaluated.")
-@click.argument("logs", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("logs", nargs=-1, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--log", "log_opts", type=click.Path(dir_okay=False, path_type=Path), multiple=True,
+              help="Axis log, as diagnose and report take it; repeatable, and the same as giving it as LOGS.")
 @click.option("--axis", type=AXIS, default=None, help="KUKA axis number (default: the parameter file's).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
 @click.option("--strict", is_flag=True,
@@ -20,10 +22,11 @@ from kukaid_cli._util import AXIS, URDF
                    "unit), also a measured torque that does not vary (an empty torque column), a log it was "
                    "fitted on, other axes moving, a log pushed by hand.")
 @URDF
-def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json: bool, strict: bool,
-            urdf: Path | None) -> None:
+def command(params_path: Path, logs: tuple[Path, ...], log_opts: tuple[Path, ...], axis: int | None,
+            as_json: bool, strict: bool, urdf: Path | None) -> None:
     """Per axis RMSE, relative error ||tau - tau_hat|| / ||tau||, R² and samples of the model of
-    --params on LOGS (pooled), pre-processed as its fit was.  Give logs the model was not fitted on.
+    --params on LOGS (pooled), pre-processed as its fit was.  Give logs the model was not fitted on,
+    as LOGS or each with --log (as diagnose and report take them).
 
     An axis whose relative error is 100 % or more (the model's error as large as the torque itself:
     a model of another robot or axis, or torques in another unit) is warned about first; with
@@ -36,6 +39,9 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     from kukaid.logs import read_log
     from kukaid_cli._util import strict_exit
 
+    logs = (*logs, *log_opts)
+    if not logs:
+        raise click.UsageError("Missing argument 'LOGS...' (or --log)")
     model = load_model(params_path, axis, urdf)
     data = [read_log(p) for p in logs]
     per_log: list = []

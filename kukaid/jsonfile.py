@@ -54,6 +54,28 @@ def _other_format(raw: bytes) -> str | None:
     return None
 
 
+def file_kind(path: str | Path) -> str | None:
+    """What else of the toolkit's files ``path`` is, by its first bytes, for a reader it is not for:
+    "an axis log (HDF5)", "a PDF (a report)", "a fleet manifest (CSV)", ...; None when unknown or unreadable."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(4096)
+    except OSError:
+        return None
+    log = _log_format(raw)
+    if log is not None:
+        return f"an axis log ({log})"
+    other = _other_format(raw)
+    if other is not None:
+        return other
+    head = raw.removeprefix(b"\xef\xbb\xbf").split(b"\n", 1)[0]
+    if {b"robot", b"axis", b"date", b"path"} <= {c.strip().strip(b'"') for c in head.split(b",")}:
+        return "a fleet manifest (CSV)"
+    if raw.removeprefix(b"\xef\xbb\xbf").lstrip()[:1] == b"{":
+        return "a JSON file"
+    return None
+
+
 def _expected(error: type[KukaidError]) -> str:
     for kind, name in ((SimConfigError, "simulator configuration (JSON)"), (ParamFileError, "parameter file (JSON)"),
                        (TrajectoryError, "trajectory file (JSON)")):

@@ -339,6 +339,22 @@ def test_a_report_or_a_fleet_table_given_for_a_json_file_is_named_so(tmp_path, m
     assert os.listdir(tmp_path) == [name]
 
 
+@pytest.mark.parametrize("head, kind", [(b"%PDF-1.4\n", "a PDF (a report)"),
+                                        (b"PAR1\x15\x04", "a Parquet table (kukaid fleet)"),
+                                        (b"time_s,q_A3,tau_A3\n0,0,0\n", "an axis log (CSV)")])
+def test_a_report_or_a_table_given_as_an_hdf5_log_is_named_so(files, tmp_path, monkeypatch, head, kind):
+    """New-user trial 10: a PDF renamed run.h5, given as a log, was "not a readable HDF5 file
+    (truncated or corrupt)": named as what it is, as the JSON inputs name it."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "run.h5").write_bytes(head + bytes(range(256)))
+    for args in (["fit", "run.h5", "-o", "p.json"], ["validate", "--params", files / "params.json", "run.h5"],
+                 ["diagnose", "--params", files / "params.json", "--log", "run.h5"]):
+        _one_line_error(_run(*args), f"run.h5: is {kind}, not an HDF5 axis log", code=1)
+    assert os.listdir(tmp_path) == ["run.h5"]
+    (tmp_path / "run.h5").write_bytes(b"\x89HDF\r\n\x1a\n" + bytes(100))  # an HDF5 file cut short: as before
+    _one_line_error(_run("fit", "run.h5", "-o", "p.json"), "run.h5: not a readable HDF5 file (truncated or corrupt)")
+
+
 def test_fit_of_logs_of_different_axes_names_each_log_and_its_axis(files, tmp_path):
     """New-user trial 9: `fit --friction friction.h5 --inertia i2.h5` said "the logs are of different axes
     [2, 3]; choose one with --axis": which log was which went unsaid, and --axis 3 then failed on i2.h5."""

@@ -93,6 +93,35 @@ def test_text_output(case):
     assert "step 1: position_ripple" in r.output and "gap after" in r.output
 
 
+def test_a_refit_that_is_not_kept_says_so(tmp_path, monkeypatch):
+    """New-user trial 10: a run-admittance log (the push in its torque) printed "refit without new effects:
+    RMSE 2" beside "gap after: RMSE 13": the refit of the file's own terms (in-sample) is where the steps
+    start; with nothing named it is not kept and the gap after is the file's as it was, and the line says so."""
+    from kukaid.params import save_params
+    from kukaid.sim import SimConfig
+
+    monkeypatch.chdir(tmp_path)
+    save_params("truth.json", SimConfig().truth_params())
+    r = CliRunner().invoke(cli, ["run-admittance", "--params", "truth.json", "--operator", "push", "--seed", "4",
+                                 "--duration", "7", "-o", "run.h5"])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(cli, ["diagnose", "--params", "truth.json", "--log", "run.h5"])
+    assert r.exit_code == 0 and "run.h5 is a run log of kukaid run-admittance" in r.stderr, r.output
+    out = r.stdout.splitlines()
+    (refit,) = [x for x in out if x.startswith("refit without new effects: RMSE")]
+    assert refit.endswith("(the file's own terms refitted on these logs, in-sample; not kept, as nothing was named: "
+                          "the gap after is the file's as it was)"), refit
+    before, after = (re.search(r"RMSE (\S+)", x).group(1) for x in (out[0], out[-1]))
+    assert out[0].startswith("gap before") and out[-1].startswith("gap after") and before == after
+
+
+def test_a_refit_the_steps_start_from_is_printed_as_before(case):
+    d, params, paths = case
+    r = CliRunner().invoke(cli, args(params, paths, "--max-steps", "1"))
+    out = r.output.splitlines()
+    assert out[1] == "refit without new effects: RMSE 1.042 N·m" and "RMSE 1.042 -> " in r.output, r.output
+
+
 def test_bad_inputs_give_one_line_errors(case, tmp_path):
     d, params, paths = case
     bad = tmp_path / "bad.json"

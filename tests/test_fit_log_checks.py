@@ -4,6 +4,7 @@ role of another experiment (its `experiment` attribute) is a printed warning."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 
 import numpy as np
@@ -140,6 +141,29 @@ def test_a_run_admittance_log_is_warned_by_fit_validate_and_diagnose(logs, kukai
     r = subprocess.run([*kukaid_cmd, "validate", "--params", str(tmp_path / "g.json"), str(p["inertia"])],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0 and "run log" not in r.stderr, r.stderr
+
+
+def test_a_fit_of_run_logs_only_says_they_are_run_logs(tmp_path, monkeypatch):
+    """New-user trial 10: `kukaid fit run.h5` (a run-admittance log, pushed one way) said "the axis moves in
+    one direction only": a fit of run logs only is refused naming them as run logs of hand guiding, not
+    excitation logs; with an excitation log beside one it stays a warning (above)."""
+    from click.testing import CliRunner
+
+    from kukaid.params import save_params
+    from kukaid_cli.main import cli
+
+    monkeypatch.chdir(tmp_path)
+    save_params("truth.json", SimConfig().truth_params())
+    r = CliRunner().invoke(cli, ["run-admittance", "--params", "truth.json", "--operator", "push", "--seed", "4",
+                                 "--duration", "7", "-o", "run.h5"])
+    assert r.exit_code == 0, r.output
+    said = ("is a run log of kukaid run-admittance (hand guiding), not an excitation log: its torque holds the push "
+            "of the person guiding the axis")
+    for args in (["run.h5"], ["--inertia", "run.h5"], ["run.h5", "--friction-model", "coulomb-viscous"]):
+        r = CliRunner().invoke(cli, ["fit", *args, "-o", "p.json"])
+        assert r.exit_code == 1 and r.stderr.startswith(f"kukaid: error: run.h5: {said}"), (args, r.output)
+        assert len(r.output.splitlines()) == 1 and "one direction" not in r.output
+    assert sorted(os.listdir(tmp_path)) == ["run.h5", "truth.json"]
 
 
 def test_role_warning_needs_the_attribute():

@@ -491,6 +491,30 @@ def test_wear_needs_a_temperature_spread_for_a_slope():
     assert all(a["temperature_coefficient"]["Fc"] == b for a in res["axes"] if a["robot"].startswith("N"))
 
 
+def test_a_manifest_or_a_report_given_for_the_fit_table_is_named_so(tmp_path, monkeypatch):
+    """New-user trial 10: `fleet validate/diagnose --table manifest.csv` said "/abs/path/manifest.csv: not a
+    readable Parquet file (Parquet magic bytes not found in footer...)": one line, the path as typed, what
+    the file is and which table to give; nothing is written."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    monkeypatch.chdir(tmp_path)
+    Path("manifest.csv").write_text("robot,axis,date,path\nr1,3,2024-01-01,a.h5\n")
+    Path("r.pdf").write_bytes(b"%PDF-1.4\n" + bytes(range(256)))
+    Path("t.csv").write_text("a,b\n1,2\n")
+    give = ", not a fleet table (Parquet): give the table `kukaid fleet fit` wrote\n"
+    for table, said in (("manifest.csv", "manifest.csv: is a fleet manifest (CSV)" + give),
+                        ("r.pdf", "r.pdf: is a PDF (a report)" + give),
+                        ("t.csv", "t.csv: not" + give.removeprefix(", not"))):
+        for args in (["validate", "manifest.csv", "--table", table, "-o", "v.parquet"],
+                     ["diagnose", "manifest.csv", "--table", table, "-o", "v.parquet"],
+                     ["wear", table, "-o", "w.json"]):
+            r = CliRunner().invoke(cli, ["fleet", *args])
+            assert r.exit_code == 1 and r.stderr == f"kukaid: error: {said}", (args, r.output)
+    assert sorted(os.listdir(tmp_path)) == ["manifest.csv", "r.pdf", "t.csv"]
+
+
 def test_wear_of_a_diagnose_table_says_it_is_not_a_fit_table(tmp_path):
     """New-user trial 7: `fleet wear` of the table of `fleet diagnose` said "the table has no fitted rows
     (status ok)", though every row was ok: it is not a fit table, and says so, naming it and its kind."""

@@ -59,6 +59,29 @@ def test_validate_cli_table_and_json(tmp_path):
     assert r.exit_code == 0 and "A3" in r.output and "R2" in r.output
 
 
+def test_validate_takes_its_logs_with_log_as_diagnose_and_report_do(tmp_path, monkeypatch):
+    """New-user trial 10: `validate --params p.json --log x.h5` (as diagnose and report take logs)
+    said only "No such option '--log'"; both forms, and a mix, score the same logs."""
+    monkeypatch.chdir(tmp_path)
+    write_hdf5(sine_log(1, 0.25), "a.h5")
+    write_hdf5(sine_log(2, 0.18, amp=0.7), "b.h5")
+    write_hdf5(sine_log(3, 0.21, amp=0.8), "c.h5")
+    r = CliRunner().invoke(cli, ["fit", "a.h5", "--friction-model", "coulomb-viscous", "-o", "p.json"])
+    assert r.exit_code == 0, r.output
+    runs = [["b.h5", "c.h5"], ["--log", "b.h5", "--log", "c.h5"], ["b.h5", "--log", "c.h5"]]
+    out = []
+    for logs in runs:
+        r = CliRunner().invoke(cli, ["validate", "--params", "p.json", *logs, "--json"])
+        assert r.exit_code == 0, r.output
+        out.append(json.loads(r.output))
+    assert out[0] == out[1] == out[2] and out[0]["axes"]["A3"]["samples"] > 2000
+    r = CliRunner().invoke(cli, ["validate", "--params", "p.json"])
+    assert r.exit_code == 2 and r.output.strip().splitlines() == [
+        "kukaid: error: validate: Missing argument 'LOGS...' (or --log)"], r.output
+    r = CliRunner().invoke(cli, ["validate", "--help"])
+    assert "--log" in r.output
+
+
 def test_validate_detects_a_wrong_model(tmp_path):
     from kukaid.diagnose.validate import validate
 

@@ -105,7 +105,10 @@ class Diagnosis:
                f"{100 * self.rel_before:.2f} %" if self.noise_floor > 0 else
                f"gap before: RMSE {self.rmse_before:.4g} {u}; relative error {100 * self.rel_before:.2f} %"]
         if abs(self.rmse_refit - self.rmse_before) > 1e-3 * max(self.rmse_before, 1e-12):
-            out.append(f"refit without new effects: RMSE {self.rmse_refit:.4g} {u}")
+            # the steps start from this refit; with none it is not kept, and the gap after is the file's own
+            out.append(f"refit without new effects: RMSE {self.rmse_refit:.4g} {u}" + ("" if self.steps else
+                       " (the file's own terms refitted on these logs, in-sample; not kept, as nothing was named: "
+                       "the gap after is the file's as it was)"))
         for i, s in enumerate(self.steps, 1):
             ev = s.test
             par = ", ".join(_fmt_param(k, v, s.params.get("std", {}).get(k)) for k, v in s.params.items()

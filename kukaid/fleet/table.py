@@ -14,8 +14,11 @@ from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 from kukaid.errors import KukaidError
+from kukaid.jsonfile import file_kind
 
 SCHEMA = "kukaid.fleet-table/1"
+#: what a command that reads fits wants, named when it is given another file
+FIT_TABLE = "the table `kukaid fleet fit` wrote"
 
 #: column -> (pyarrow type name, unit or meaning); the table's columns in this order
 COLUMNS: dict[str, tuple[str, str]] = {
@@ -106,8 +109,9 @@ def write_table(path: str | Path, rows: Sequence[dict], settings: dict | None = 
         pq.write_table(table, tmp)
 
 
-def read_table(path: str | Path) -> tuple[list[dict], dict]:
-    """Rows and settings of a fleet table (:func:`write_table`).
+def read_table(path: str | Path, expected: str | None = None) -> tuple[list[dict], dict]:
+    """Rows and settings of a fleet table (:func:`write_table`); ``expected``, the table the caller
+    wants (``the table `kukaid fleet fit` wrote``), is named when ``path`` is no Parquet file.
 
     Raises
     ------
@@ -124,7 +128,12 @@ def read_table(path: str | Path) -> tuple[list[dict], dict]:
         info = json.loads(meta.get(b"kukaid", b"{}"))
         table = pf.read()
     except (OSError, ValueError) as e:
-        raise KukaidError(f"{path}: not a readable Parquet file ({str(e).splitlines()[0][:120]})") from None
+        kind = file_kind(path)
+        if kind is not None and kind.startswith("a Parquet"):  # a Parquet file cut short: pyarrow's reason
+            raise KukaidError(f"{path}: not a readable Parquet file ({str(e).splitlines()[0][:120]})") from None
+        what = f"is {kind}, not" if kind else "not"  # a manifest, a log, a report: named as what it is
+        give = f": give {expected}" if expected else ""
+        raise KukaidError(f"{path}: {what} a fleet table (Parquet){give}") from None
     if info.get("schema") != SCHEMA:
         raise KukaidError(f"{path}: not a kukaid fleet table ({SCHEMA})")
     data = table.to_pydict()

@@ -211,9 +211,9 @@ class CheckOptions:
 def _fits(table: str, mtime: float) -> tuple[dict, dict, str | None]:
     """{sha256: parameter dict JSON} and {(robot, axis): [(date, sha256)] sorted} of a fit table's ok rows,
     and the robot (URDF or name) of its whole-arm fits (fleet fit --robot; None: one-axis fits)."""
-    from kukaid.fleet.table import read_table
+    from kukaid.fleet.table import FIT_TABLE, read_table
 
-    rows, settings = read_table(table)
+    rows, settings = read_table(table, FIT_TABLE)
     if settings.get("task") != "fit":
         raise KukaidError(f"{table}: not a table of fleet fit (its rows are of fleet {settings.get('task')})")
     params, by_axis = {}, {}

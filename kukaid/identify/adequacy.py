@@ -205,6 +205,19 @@ def pushed_log_warnings(log: Any, name: str | None = None) -> list[str]:
             "(kukaid capture)"]
 
 
+def run_logs_only(names: list[str]) -> FitError:
+    """The error of a fit given only run logs of ``kukaid run-admittance`` (``names``): hand guiding,
+    not an excitation; whatever of the fit failed first (one direction of motion) is beside the point."""
+    from kukaid.errors import FitError
+
+    what, its = ("is a run log", "not an excitation log: its") if len(names) == 1 else \
+        ("are run logs", "not excitation logs: their")
+    return FitError(f"{', '.join(names)}: {what} of kukaid run-admittance (hand guiding), {its} torque holds "
+                    "the push of the person guiding the axis, which no model of the axis predicts; "
+                    "fit logs of an excitation recorded with nobody touching the robot (kukaid excite, then kukaid "
+                    "capture)")
+
+
 def role_warnings(log: Any, role: str, name: str | None = None, command: str = "fit") -> list[str]:
     """A warning when ``log`` records (attribute ``experiment``) an experiment other than ``role``,
     given to ``command`` ("fit" or "report").

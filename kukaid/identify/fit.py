@@ -154,6 +154,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
                reversal_window=reversal_window, diff=diff)
     raw_logs: list[Any] = []
     role_warn: list[str] = []
+    run_logs: list[str] = []
 
     def prep(x: Any, role: str | None = None) -> Any:
         from kukaid.identify.adequacy import check_not_held, pushed_log_warnings, role_warnings
@@ -168,6 +169,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         check_not_held(lg, name)
         pushed = pushed_log_warnings(lg, name)
         role_warn.extend(pushed)
+        run_logs.extend([name] if pushed else [])
         if role is not None and not pushed:
             role_warn.extend(role_warnings(lg, role, name))
         raw_logs.append(lg)
@@ -179,6 +181,10 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     psl = prep(presliding, "presliding") if presliding is not None else None
     if not (general or fr or ine):
         raise FitError("no logs to fit: give general logs, or --friction and/or --inertia logs")
+    if len(run_logs) == len(raw_logs):  # with an excitation log beside them: a warning (the push is in the fit)
+        from kukaid.identify.adequacy import run_logs_only
+
+        raise run_logs_only(run_logs)
     all_preps = general + fr + ine + ([psl] if psl is not None else [])
     axes = {p.axis for p in all_preps}
     if len(axes) > 1:
