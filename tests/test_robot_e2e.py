@@ -38,7 +38,8 @@ def test_fourier_capture_fit_validate_recovers_the_simulated_robot(tmp_path):
     bp = p["base_parameters"]
     dep = np.asarray(bp["dependent"], int)
     beta = pi[np.asarray(bp["independent"], int)] + (np.asarray(bp["R"]) @ pi[dep] if dep.size else 0.0)
-    est, ls, sig = (np.asarray(bp[k]) for k in ("values", "least_squares", "sigma"))
+    # (a parameter the file gives no sigma for is null in the JSON: NaN, not "well determined")
+    est, ls, sig = (np.asarray(bp[k], dtype=float) for k in ("values", "least_squares", "sigma"))
     # what the fit itself says is determined: sigma corrected for the residuals' correlation (the factor
     # is 4-5 here: the 1 kHz servo behind a 12 ms interpolation) under 2 % of the estimate; such a
     # parameter is within 3 corrected sigma of the truth (kukaid.identify.robot_fit.well_excited's rule)
