@@ -27,6 +27,10 @@ class AxisNumber(click.IntRange):
 #: with it: :func:`kukaid.identify.fitted.axis_option`)
 AXIS = AxisNumber(1, 12)
 
+#: ``--port`` of the commands that connect to KUKAVARPROXY (a real controller or serve-sim)
+PORT = click.option("--port", type=click.IntRange(1, 65535), default=7000, show_default=True,
+                    help="kvp: KUKAVARPROXY port.")
+
 
 #: ``--urdf`` of the commands that read a robot parameter file: where its URDF is now
 URDF = click.option("--urdf", type=click.Path(dir_okay=False, path_type=Path), default=None,

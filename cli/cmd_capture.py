@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import AXIS, JSON_HELP
+from kukaid_cli._util import AXIS, JSON_HELP, PORT
 
 from kukaid_cli._util import progress as progress_bar
 
@@ -34,8 +34,7 @@ from kukaid_cli._util import progress as progress_bar
               help="sim: seconds recorded after the trajectory ends.")
 # kvp
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
-@click.option("--port", type=click.IntRange(1, 65535), default=7000, show_default=True,
-              help="kvp: KUKAVARPROXY port.")
+@PORT
 @click.option("--axis", "axes", type=AXIS, multiple=True, help="kvp: axis to record; repeatable [3].")
 @click.option("--duration", type=click.FloatRange(0.0, 7 * 86400.0, min_open=True),
               help="kvp: seconds to record (Ctrl-C before then: an interrupted capture).")

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import AXIS, URDF
+from kukaid_cli._util import AXIS, PORT, URDF
 
 
 def _fmt(v):
@@ -132,8 +132,7 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
                    "touching it the axis can move by itself (refused without this flag).")
 @click.option("--enable-motion", is_flag=True, help="kvp: really move the robot (required with --backend kvp).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
-@click.option("--port", type=click.IntRange(1, 65535), default=7000, show_default=True,
-              help="kvp: KUKAVARPROXY port.")
+@PORT
 @click.option("--axis", type=AXIS, default=3, show_default=True,
               help="kvp (A1..A6), or a robot parameter file (any of its axes): axis to control.")
 @URDF
