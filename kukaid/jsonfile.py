@@ -27,12 +27,9 @@ def read_json(path: str | Path, error: type[KukaidError] = KukaidError, what: st
     try:
         return json.loads(text)
     except json.JSONDecodeError as e:
-        log = _log_format(raw)
-        if log is not None:
-            raise error(f"{path}: is an axis log ({log}), not a {what or _expected(error)}") from None
-        other = _other_format(raw)
-        if other is not None:
-            raise error(f"{path}: is {other}, not a {what or _expected(error)}") from None
+        kind = _output_kind(raw)
+        if kind is not None:
+            raise error(f"{path}: is {kind}, not a {what or _expected(error)}") from None
         raise error(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
 
 
@@ -45,8 +42,12 @@ def _log_format(raw: bytes) -> str | None:
     return None
 
 
-def _other_format(raw: bytes) -> str | None:
-    """What else of the toolkit's outputs ``raw`` is: a PDF (report) or a Parquet table (fleet), else None."""
+def _output_kind(raw: bytes) -> str | None:
+    """Which of the toolkit's outputs ``raw`` is: "an axis log (HDF5)" or "(CSV)", "a PDF (a report)", "a
+    Parquet table (kukaid fleet)"; else None."""
+    log = _log_format(raw)
+    if log is not None:
+        return f"an axis log ({log})"
     if raw.startswith(b"%PDF-"):
         return "a PDF (a report)"
     if raw.startswith(b"PAR1"):
@@ -62,16 +63,13 @@ def file_kind(path: str | Path) -> str | None:
             raw = f.read(4096)
     except OSError:
         return None
-    log = _log_format(raw)
-    if log is not None:
-        return f"an axis log ({log})"
-    other = _other_format(raw)
-    if other is not None:
-        return other
-    head = raw.removeprefix(b"\xef\xbb\xbf").split(b"\n", 1)[0]
-    if {b"robot", b"axis", b"date", b"path"} <= {c.strip().strip(b'"') for c in head.split(b",")}:
+    kind = _output_kind(raw)
+    if kind is not None:
+        return kind
+    text = raw.removeprefix(b"\xef\xbb\xbf")
+    if {b"robot", b"axis", b"date", b"path"} <= {c.strip().strip(b'"') for c in text.split(b"\n", 1)[0].split(b",")}:
         return "a fleet manifest (CSV)"
-    if raw.removeprefix(b"\xef\xbb\xbf").lstrip()[:1] == b"{":
+    if text.lstrip()[:1] == b"{":
         return "a JSON file"
     return None
 
