@@ -153,6 +153,11 @@ def _pos(v: Any) -> bool:
     return v is not None and math.isfinite(float(v)) and float(v) > 0
 
 
+def _no_temperature_model(note: str) -> dict:
+    """The temperature model when there is none (friction not normalised), and why (``note``)."""
+    return {"T_ref": None, "b": [0.0, 0.0], "per_axis": {}, "pred": {}, "spread": [0.0, 0.0], "note": note}
+
+
 def _temperature_model(axes: list[_Axis]) -> dict:
     """Fleet slope b (per column) and each axis's shrunk slope, from the baselines."""
     have_T = [a for a in axes if np.all(np.isfinite(a.T[:a.nb]))]
@@ -160,14 +165,14 @@ def _temperature_model(axes: list[_Axis]) -> dict:
         note = ("no axis has logs enough for a baseline" if not axes else
                 "no temperature logged" if not any(np.isfinite(a.T).any() for a in axes) else
                 "no axis has a temperature for every log of its baseline")
-        return {"T_ref": None, "b": [0.0, 0.0], "per_axis": {}, "pred": {}, "spread": [0.0, 0.0], "note": note}
+        return _no_temperature_model(note)
     T_ref = float(np.median(np.concatenate([a.T[:a.nb] for a in have_T])))
-    wide = [a for a in have_T if np.ptp(a.T[:a.nb]) >= MIN_TEMP_SPREAD_K]
+    spans = [float(np.ptp(a.T[:a.nb])) for a in have_T]
+    wide = [a for a, span in zip(have_T, spans) if span >= MIN_TEMP_SPREAD_K]
+    narrow = [a for a, span in zip(have_T, spans) if span < MIN_TEMP_SPREAD_K]
     if not wide:
-        widest = max(float(np.ptp(a.T[:a.nb])) for a in have_T)
-        note = (f"no axis's baseline spans {MIN_TEMP_SPREAD_K:g} K of motor temperature (the widest {widest:.2g} K): "
-                "the temperature slope is not determined")
-        return {"T_ref": None, "b": [0.0, 0.0], "per_axis": {}, "pred": {}, "spread": [0.0, 0.0], "note": note}
+        return _no_temperature_model(f"no axis's baseline spans {MIN_TEMP_SPREAD_K:g} K of motor temperature (the "
+                                     f"widest {max(spans):.2g} K): the temperature slope is not determined")
     sxx, sxy, res_var, b_ols, se2 = [], [], [], [], []
     for a in wide:
         Tb, yb = a.T[:a.nb], a.y[:a.nb]
@@ -189,10 +194,9 @@ def _temperature_model(axes: list[_Axis]) -> dict:
     ok = np.isfinite(se2).all(axis=1)
     tau2 = np.maximum(np.var(b_ols[ok], axis=0) - np.mean(se2[ok], axis=0), 0.0) if ok.sum() > 2 else np.zeros(2)
     per, pred = {}, {}
-    for a in have_T:  # a baseline too narrow for a slope takes the fleet's
-        if np.ptp(a.T[:a.nb]) < MIN_TEMP_SPREAD_K:
-            per[(a.robot, a.axis)] = b
-            pred[(a.robot, a.axis)] = (float(a.T[:a.nb].mean()), np.full(2, np.inf))
+    for a in narrow:  # a baseline too narrow for a slope takes the fleet's
+        per[(a.robot, a.axis)] = b
+        pred[(a.robot, a.axis)] = (float(a.T[:a.nb].mean()), np.full(2, np.inf))
     for a, Sxx_i, Sxy_i, v in zip(wide, sxx, sxy, res_var):
         lam = v / tau2 if np.all(tau2 > 0) else np.full(2, np.inf)
         # a baseline without a temperature spread and without scatter (Sxx + lam = 0) does not determine
