@@ -486,6 +486,18 @@ def test_a_hand_whose_torque_the_servo_hands_to_stiction_at_rest_is_no_push_when
     assert math.degrees(np.ptp(q)) < 0.05
 
 
+def test_a_servo_winding_faster_than_its_own_creep_under_a_held_hand_is_no_push_when_it_lets_go():
+    """lugre person 22 (ordinary grip, D 35): the person stops the axis and holds it with 9.8 N·m for 2.8 s
+    (the moving model read 8.8 as it stopped: the part that may be a hand).  Under the hand the servo winds
+    against the LuGre stiction and Γu follows 8.9 N·m of it at HELD_DRIFT_RATE (3 N·m/s), the way the
+    hand's release reads; of that winding only the 3.9 beyond the threshold counted to the hand part, and the
+    release read as a push (7 cycles, 0.07 degree with nobody there).  A drift faster than the servo's own
+    creep (DRIFT_RATE) under a held hand is the hand's doing: that part now counts in full."""
+    detected, q = _after_a_persons_release("lugre", 22, "ordinary", D=35.0)
+    assert not detected.any()
+    assert math.degrees(np.ptp(q)) < 0.05
+
+
 @pytest.mark.parametrize("loop_says", [False, True])
 def test_what_the_residual_lost_at_rest_is_a_possible_hand_unless_the_loop_says_nobody_was_there(loop_says):
     """At rest, 2 s after a stop, Γr reads -4.5 N·m (under the threshold) for 0.4 s and falls back while Γu

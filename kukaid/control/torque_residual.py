@@ -69,7 +69,8 @@ Online, causal version (what a controller can do):
   reports the widest span): the push is the reading nearest zero over all of them, and a hand
   that leaned in and lets go moves nothing.  The other way round, a drift Γu followed the way the
   hand part's release would read (the servo winding against stiction under a held hand) adds to the
-  hand part beyond the threshold, for the release adds the hand's own torque to it.  And what Γr read
+  hand part beyond the threshold (in full where it came faster than the servo's own creep,
+  ``DRIFT_RATE``: the hand's doing), for the release adds the hand's own torque to it.  And what Γr read
   on one side of zero (at least half the threshold) and then lost there with Γu standing, Γr - Γu
   falling back (the servo's integral action handing a hand's torque to stiction: the motor torque goes
   back to where it was with the hand still on) is a possible hand too, at most what Γr read: the hand's
@@ -120,6 +121,9 @@ FLOOR_PRIOR = 2.0
 #: at rest, before anything was read and lost: (the side of zero, Γr - Γu's extreme there, the lowest and
 #: highest Γr) and the loss each way (negative, positive), N·m
 NOTHING_LOST = ((0.0, 0.0, 0.0, 0.0), (0.0, 0.0))
+#: at rest, before Γu followed any drift the way the hand part's release reads: (all of it, the part
+#: faster than ``DRIFT_RATE``), N·m
+NOT_WOUND = (0.0, 0.0)
 #: effects of a parameter file that the online residual evaluates
 SUPPORTED_EFFECTS = ("gravity_sine", "torque_offset", "position_ripple")
 
@@ -289,7 +293,7 @@ class TorqueResidual:
         self._u_span = (0.0, 0.0)  # at rest: the lowest and highest Γu held since the rest's first window, N·m
         self._q_move0 = q  # where the present dynamic episode began, rad
         self._travel = 0.0  # the farthest the axis has been from there, rad
-        self._wound = 0.0  # at rest: the drift Γu followed the way the hand part's release reads, N·m
+        self._wound = NOT_WOUND  # at rest: the drift Γu followed the way the hand part's release reads, N·m
         # at rest: what Γr read on one side of zero and then lost with Γu standing (the servo handing a hand's
         # torque to stiction), N·m
         self._seen, self._hidden = NOTHING_LOST
@@ -373,20 +377,25 @@ class TorqueResidual:
             self._hand -= _beyond(after, self.threshold) - _beyond(before, self.threshold)
         else:  # beyond half the start threshold only a slow drift is followed (a servo's integrator winding
             # up against stiction ramps the torque at rest by 1-6 N·m/s; a push builds up faster)
-            step = min(h / self.u_tau, 1.0) * e
+            step, fast = min(h / self.u_tau, 1.0) * e, 0.0
             if abs(e) >= 0.5 * self.rest_threshold:
                 held = step * self._hand > 0.0 and abs(self._hand) >= 0.5 * self.threshold
                 rate = HELD_DRIFT_RATE if held else DRIFT_RATE
                 step = min(max(step, -rate * h), rate * h)
-            self._follow(step)
+                if held:  # faster than the servo's own creep: the hand deflecting the stiction further
+                    fast = _beyond(step, DRIFT_RATE * h)
+            self._follow(step, fast)
 
-    def _follow(self, step: float) -> None:
+    def _follow(self, step: float, fast: float = 0.0) -> None:
         """Γu follows a drift at rest by ``step``; a step the way the hand part's release would read (the
         servo winding against stiction under a held hand: on a LuGre plant 5-11 N·m while a person held
         the stopped axis) counts to :attr:`_wound`, which the reading with the hand adds beyond the
-        threshold: the release then adds the hand's own torque to what the winding made Γu follow."""
+        threshold: the release then adds the hand's own torque to what the winding made Γu follow.
+        ``fast``, the part of the step faster than the servo's own creep (``DRIFT_RATE``) under a held
+        hand, is the hand's doing and counts in full (lugre person 22: a 9.8 N·m hold wound 8.9 N·m at
+        3 N·m/s; its 3.9 beyond the threshold left the release reading as a push)."""
         if step * self._hand > 0.0:
-            self._wound += step
+            self._wound = (self._wound[0] + step, self._wound[1] + fast)
         self._gamma_u += step
 
     def _lose(self, r: float, u: float) -> None:
@@ -472,7 +481,7 @@ class TorqueResidual:
             self._gamma_u, self._hand, self._u_span, self._wound, self._seen, self._hidden = self._rest_kept
         if not quasi or self._u_n < self._u_need:
             self._u_span = (self._gamma_u, self._gamma_u)
-            self._wound = 0.0
+            self._wound = NOT_WOUND
             self._seen, self._hidden = NOTHING_LOST
         if quasi and old_mode == DYNAMIC and not self._detected and moved:
             if self._quiet >= QUIET_BEFORE_REST:
@@ -481,7 +490,7 @@ class TorqueResidual:
                 self._gamma_u -= self._dyn_r
             # what the moving model read as the axis stopped (a hand left on below the threshold, or the
             # model's own error) is, at rest, either: Γu takes it in, and the two readings below keep it
-            self._hand, self._wound = self._dyn_r, 0.0
+            self._hand, self._wound = self._dyn_r, NOT_WOUND
         raw = tau_f - pred_f  # what Γu must add for Γr = 0
         learning = quasi and not self._detected
         if learning:
@@ -509,7 +518,8 @@ class TorqueResidual:
             self._dyn_r += min(h / DYN_MEMORY, 1.0) * (r1 - self._dyn_r)
         else:  # a push only if every reading sees it (Γr with and without the hand, against every Γu held
             # in this rest: a drift Γu followed may have been a hand leaning in), the one nearest zero
-            held = self._hand + _beyond(self._wound, self.threshold)
+            wound, fast = self._wound
+            held = self._hand + fast + _beyond(wound - fast, self.threshold)
             if learning and self._u_n >= self._u_need:
                 self._lose(r1, new_u)
             lo = min(0.0, held, -self._hidden[0]) + self._u_span[0] - self._gamma_u
