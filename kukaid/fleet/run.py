@@ -108,8 +108,18 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
         cluster.close()
 
 
+#: what a busy worker logs when the command, stopped by Ctrl-C, closes the scheduler under it (with a
+#: traceback, under the command's one line): no news to the user, whom the command has told
+SCHEDULER_GONE = "Failed to communicate with scheduler during heartbeat"
+
+
+def _not_scheduler_gone(record: logging.LogRecord) -> bool:
+    return not str(record.msg).startswith(SCHEDULER_GONE)
+
+
 def _leave_ctrl_c_to_the_command() -> Any:
-    """A Dask worker plugin: the worker ignores SIGINT (set in its main thread, its event loop's)."""
+    """A Dask worker plugin: the worker ignores SIGINT (set in its main thread, its event loop's), and
+    does not log the scheduler closing under it (:data:`SCHEDULER_GONE`)."""
     from distributed.diagnostics.plugin import WorkerPlugin
 
     class LeaveCtrlCToTheCommand(WorkerPlugin):
@@ -121,6 +131,7 @@ def _leave_ctrl_c_to_the_command() -> Any:
 
             if threading.current_thread() is threading.main_thread():
                 signal.signal(signal.SIGINT, signal.SIG_IGN)
+            logging.getLogger("distributed.worker").addFilter(_not_scheduler_gone)
 
     return LeaveCtrlCToTheCommand()
 
