@@ -339,6 +339,27 @@ def test_a_report_or_a_fleet_table_given_for_a_json_file_is_named_so(tmp_path, m
     assert os.listdir(tmp_path) == [name]
 
 
+@pytest.mark.parametrize("name, fmt", [("run.csv", "a CSV"), ("run.mat", "a MAT"), ("run.csv.gz", "a CSV")])
+def test_a_report_or_another_log_given_as_a_csv_or_mat_log_is_named_so(files, tmp_path, monkeypatch, name, fmt):
+    """Left from new-user trial 10: a PDF renamed run.csv was "first column must be 'time_s', found
+    '%PDF-1.4'", renamed run.mat "not a readable MAT file: Unknown mat file type, version 116, 101";
+    named as what it is, as the HDF5 reader names it; so is an HDF5 log renamed.  A CSV log's own
+    fault is still said as it was."""
+    import gzip
+
+    monkeypatch.chdir(tmp_path)
+    pack = gzip.compress if name.endswith(".gz") else (lambda b: b)
+    for head, kind in ((b"%PDF-1.4\n", "a PDF (a report)"), (b"\x89HDF\r\n\x1a\n", "an axis log (HDF5)")):
+        (tmp_path / name).write_bytes(pack(head + bytes(range(256))))
+        for args in (["fit", name, "-o", "p.json"], ["validate", "--params", files / "params.json", name]):
+            _one_line_error(_run(*args), f"{name}: is {kind}, not {fmt} axis log", code=1)
+    assert os.listdir(tmp_path) == [name]
+    if name == "run.csv":
+        (tmp_path / name).write_text("time_s,A3_deg\n0,1\n0.012,1\n")
+        r = _run("fit", name, "-o", "p.json")
+        assert r.exit_code != 0 and "axis log" not in r.output, r.output  # its own fault (a column missing)
+
+
 @pytest.mark.parametrize("head, kind", [(b"%PDF-1.4\n", "a PDF (a report)"),
                                         (b"PAR1\x15\x04", "a Parquet table (kukaid fleet)"),
                                         (b"time_s,q_A3,tau_A3\n0,0,0\n", "an axis log (CSV)")])

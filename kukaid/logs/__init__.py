@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from kukaid.errors import LogFormatError
-from kukaid.logs.core import AxisLog, check_samples, check_units, log_fingerprint
+from kukaid.logs.core import AxisLog, check_samples, check_units, log_fingerprint, other_kind
 from kukaid.logs.csvlog import read_csv, write_csv
 from kukaid.logs.hdf5 import read_hdf5, write_hdf5
 from kukaid.logs.matlog import read_mat
@@ -25,6 +25,9 @@ READERS: dict[str, Callable[..., AxisLog]] = {
     ".r64": read_trace,  # a Trace data file: its .dat header beside it
 }
 
+
+#: the format each suffix's reader reads, as :func:`kukaid.jsonfile.file_kind` names a log of it
+FORMATS = {".h5": "HDF5", ".hdf5": "HDF5", ".csv": "CSV", ".mat": "MAT", ".dat": "KUKA Trace", ".r64": "KUKA Trace"}
 
 #: compressed logs, read transparently: the suffix before the compression's names the format
 COMPRESSIONS = {".gz": "gzip", ".bz2": "bzip2", ".xz": "xz"}
@@ -43,9 +46,22 @@ def read_log(path: str | Path, **options: Any) -> AxisLog:
         expected = ", ".join(READERS)
         raise LogFormatError(f"{path}: unknown log format '{''.join(path.suffixes[-2:]).lower() or path.suffix}' "
                              f"(expected {expected}, optionally compressed: {', '.join(COMPRESSIONS)})")
+    fmt = FORMATS[inner.suffix.lower()]
     if comp is None:
+        return _read(reader, path, fmt, options)
+    return _read_compressed(path, comp, inner.name, lambda plain, **o: _read(reader, plain, fmt, o), options)
+
+
+def _read(reader: Callable[..., AxisLog], path: Path, fmt: str, options: dict) -> AxisLog:
+    """``reader`` on ``path``; a file it cannot read that is another of the toolkit's files (a report
+    renamed .csv, an HDF5 log renamed .mat) is named as what it is."""
+    try:
         return reader(path, **options)
-    return _read_compressed(path, comp, inner.name, reader, options)
+    except LogFormatError:
+        other = other_kind(path, fmt)
+        if other is not None:
+            raise other from None
+        raise
 
 
 def _read_compressed(path: Path, comp: str, name: str, reader: Callable[..., AxisLog], options: dict) -> AxisLog:

@@ -17,6 +17,7 @@ from typing import Any, Iterable, Iterator
 import numpy as np
 
 from kukaid.errors import KukaidError, LogFormatError
+from kukaid.jsonfile import file_kind
 
 #: Per-axis channels, each an (N, A) array.  ``q`` and ``tau`` are required.
 CHANNELS = ("q", "tau", "q_cmd", "temp", "tau_ext_true")
@@ -254,3 +255,13 @@ def _os_errors(path: str | Path, action: str = "cannot write") -> Iterator[None]
 def _short(e: Exception) -> str:
     """The first line of an exception's text, shortened for a one-line message."""
     return str(e).split("\n")[0].strip()[:160]
+
+
+def other_kind(path: str | Path, fmt: str) -> LogFormatError | None:
+    """The error for a file its ``fmt`` reader ("HDF5", "CSV", "MAT", "KUKA Trace") could not read when
+    its first bytes say it is another of the toolkit's files (a report, a table, a log of another
+    format renamed): "is a PDF (a report), not a CSV axis log"; None when they do not."""
+    kind = file_kind(path)
+    if kind is None or kind == f"an axis log ({fmt})":
+        return None
+    return LogFormatError(f"{path}: is {kind}, not {'an' if fmt == 'HDF5' else 'a'} {fmt} axis log")

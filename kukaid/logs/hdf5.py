@@ -12,8 +12,7 @@ import numpy as np
 from kukaid import __version__
 from kukaid.atomic import atomic_path
 from kukaid.errors import LogFormatError
-from kukaid.jsonfile import file_kind
-from kukaid.logs.core import CHANNELS, FORMAT, JOINT_TYPES, AxisLog, _os_errors, _short, channel_unit
+from kukaid.logs.core import CHANNELS, FORMAT, JOINT_TYPES, AxisLog, _os_errors, _short, channel_unit, other_kind
 
 _JSON_ATTRS = "_json_attrs"
 
@@ -83,9 +82,9 @@ def _open_h5(path: Path):
                 return h5py.File(path, "r", swmr=True)
             except OSError:
                 pass
-        kind = file_kind(path)
-        if kind is not None and kind != "an axis log (HDF5)":  # a report, a table, a CSV log renamed .h5
-            raise LogFormatError(f"{path}: is {kind}, not an HDF5 axis log") from None
+        other = other_kind(path, "HDF5")  # a report, a table, a CSV log renamed .h5
+        if other is not None:
+            raise other from None
         raise LogFormatError(f"{path}: not a readable HDF5 file (truncated or corrupt): {_short(e)}") from None
 
 
