@@ -438,7 +438,7 @@ def test_krl_follower_program(tmp_path):
     assert raw.startswith(b"DEF KUKAID_FOLLOW()\r\n")  # KRL files have CR LF line ends
     src = raw.decode()
     dat = (tmp_path / "KUKAID_FOLLOW.DAT").read_text()
-    for piece in ("WAIT FOR KID_RUN", "IF KID_Q>45.0000 THEN", "IF KID_Q<-10.0000 THEN", "$VEL_AXIS[3]=5.00",
+    for piece in ("WAIT FOR KID_RUN", "IF KID_Q>45.0000 THEN", "IF KID_Q<-10.0000 THEN", "$VEL_AXIS[3]=5", "$ACC_AXIS[3]=30",
                   "KID_GOAL.A3=KID_Q", "PTP KID_GOAL C_PTP", "($ROB_TIMER-KID_HBT)>200"):
         assert piece in src, piece
     for g in ("DECL GLOBAL REAL KID_TGT", "DECL GLOBAL INT KID_HB", "DECL GLOBAL BOOL KID_RUN"):
@@ -447,6 +447,20 @@ def test_krl_follower_program(tmp_path):
     assert r.exit_code == 1 and "already exists" in r.output
     r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "50", "--q-max", "45", "-o", tmp_path / "x"])
     assert r.exit_code == 2 and "window" in r.output and not (tmp_path / "x").exists()  # a usage error
+
+
+def test_krl_follower_speed_is_a_whole_percentage_never_above_qd_max(tmp_path):
+    """$VEL_AXIS and $ACC_AXIS are INT on the KRC: 9.72 (35 of 360 deg/s) would be rounded to 10, 36 deg/s,
+    faster than --qd-max; 0.01 to 0, no motion (or an error on the controller)."""
+    r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "0", "--q-max", "45", "--qd-max", "35", "-o", tmp_path / "a"])
+    assert r.exit_code == 0, r.output
+    src = (tmp_path / "a" / "KUKAID_FOLLOW.SRC").read_text()
+    assert "$VEL_AXIS[3]=9\r\n" in src or "$VEL_AXIS[3]=9\n" in src, src
+    assert "$VEL_AXIS 9 % = 32.4 deg/s" in r.output
+    r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "0", "--q-max", "45", "--qd-max", "0.05", "-o", tmp_path / "b"])
+    assert r.exit_code == 2 and "at least 3.6 deg/s" in r.output and not (tmp_path / "b").exists()
+    r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "0", "--q-max", "45", "--acc-pct", "30.5", "-o", tmp_path / "c"])
+    assert r.exit_code == 2 and not (tmp_path / "c").exists()
 
 
 def test_a_killed_run_leaves_the_measured_log(files, tmp_path, kukaid_cmd):

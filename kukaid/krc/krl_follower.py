@@ -38,13 +38,14 @@ STOP_BY_PC, STOP_STALE = 1, 2
 class FollowerConfig:
     """The follower's settings: ``axis`` (1-6), position window ``q_min_deg``/``q_max_deg``
     (degrees), ``vel_pct``/``acc_pct`` ($VEL_AXIS/$ACC_AXIS of the axis, % of the machine data's
-    maximum) and ``stale_ms`` (heartbeat age that stops motion, ms)."""
+    maximum: whole numbers 1 to 100, as the KRC's INT variables hold them) and ``stale_ms``
+    (heartbeat age that stops motion, ms)."""
 
     axis: int = 3
     q_min_deg: float = -math.inf
     q_max_deg: float = math.inf
-    vel_pct: float = 10.0
-    acc_pct: float = 30.0
+    vel_pct: int = 10
+    acc_pct: int = 30
     stale_ms: int = 200
 
     def __post_init__(self) -> None:
@@ -55,8 +56,8 @@ class FollowerConfig:
                               "must be finite with q_min < q_max")
         for name in ("vel_pct", "acc_pct"):
             v = getattr(self, name)
-            if not (math.isfinite(v) and 0 < v <= 100):
-                raise KukaidError(f"KRL follower: {name} = {v} must be in (0, 100] %")
+            if not (math.isfinite(v) and v == int(v) and 1 <= v <= 100):  # an INT on the KRC: 8.33 would be rounded
+                raise KukaidError(f"KRL follower: {name} = {v} must be a whole number 1 to 100 %")
         if not 12 <= int(self.stale_ms) <= 5000:
             raise KukaidError(f"KRL follower: stale_ms = {self.stale_ms} must be 12 to 5000 ms")
 
@@ -93,8 +94,8 @@ def krl_follower_files(cfg: FollowerConfig, name: str = "KUKAID_FOLLOW") -> dict
            f"stops when KID_HB is older than {int(cfg.stale_ms)} ms",
            ";run in T1 first; the KRC's own monitoring stays in force",
            "BAS(#INITMOV,0)",
-           f"$VEL_AXIS[{a}]={cfg.vel_pct:.2f}",
-           f"$ACC_AXIS[{a}]={cfg.acc_pct:.2f}",
+           f"$VEL_AXIS[{a}]={int(cfg.vel_pct)}",
+           f"$ACC_AXIS[{a}]={int(cfg.acc_pct)}",
            "$ADVANCE=1",
            "KID_RUN=FALSE",
            "KID_STOP=0",
