@@ -27,7 +27,7 @@ def read_json(path: str | Path, error: type[KukaidError] = KukaidError, what: st
     try:
         return json.loads(text)
     except json.JSONDecodeError as e:
-        kind = _output_kind(raw)
+        kind = _output_kind(raw) or _urdf_kind(raw)
         if kind is not None:
             raise error(f"{path}: is {kind}, not a {what or _expected(error)}") from None
         raise error(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
@@ -55,6 +55,12 @@ def _output_kind(raw: bytes) -> str | None:
     return None
 
 
+def _urdf_kind(raw: bytes) -> str | None:
+    """"a URDF (a robot's description, XML)" when ``raw`` begins as one (``fit --robot`` takes it), else None."""
+    text = raw.removeprefix(b"\xef\xbb\xbf").lstrip()
+    return "a URDF (a robot's description, XML)" if text[:1] == b"<" and b"<robot" in raw else None
+
+
 def file_kind(path: str | Path) -> str | None:
     """What else of the toolkit's files ``path`` is, by its first bytes, for a reader it is not for:
     "an axis log (HDF5)", "a PDF (a report)", "a fleet manifest (CSV)", ...; None when unknown or unreadable."""
@@ -63,7 +69,7 @@ def file_kind(path: str | Path) -> str | None:
             raw = f.read(4096)
     except OSError:
         return None
-    kind = _output_kind(raw)
+    kind = _output_kind(raw) or _urdf_kind(raw)
     if kind is not None:
         return kind
     text = raw.removeprefix(b"\xef\xbb\xbf")

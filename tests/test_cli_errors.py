@@ -360,6 +360,26 @@ def test_a_report_or_another_log_given_as_a_csv_or_mat_log_is_named_so(files, tm
         assert r.exit_code != 0 and "axis log" not in r.output, r.output  # its own fault (a column missing)
 
 
+def test_a_urdf_and_a_parameter_file_given_for_each_other_are_named_so(files, tmp_path, monkeypatch):
+    """New-user trial 10: `kukaid validate --params robot.urdf ...` said "not valid JSON (line 1, column 1:
+    Expecting value)", and `fit --robot p.json` (or a log) "not a URDF Pinocchio can read (The file ... does
+    not contain a valid URDF model.)": each is named as what it is."""
+    from kukaid.models.urdf import robot_urdf
+
+    monkeypatch.chdir(tmp_path)
+    urdf = robot_urdf("kr6-r700-sixx")
+    for args in (["show", urdf], ["validate", "--params", urdf, files / "inertia.h5"],
+                 ["run-admittance", "--params", urdf, "-o", "run.h5"]):
+        _one_line_error(_run(*args), f"{urdf}: is a URDF (a robot's description, XML), not a parameter file (JSON)",
+                        code=1)
+    (tmp_path / "p.json").write_text('{"schema": "kukaid.params/1"}')
+    _one_line_error(_run("fit", files / "inertia.h5", "--robot", "p.json", "-o", "q.json"),
+                    "p.json: is a JSON file, not a URDF", code=1)
+    _one_line_error(_run("fit", files / "inertia.h5", "--robot", files / "inertia.h5", "-o", "q.json"),
+                    "inertia.h5: is an axis log (HDF5), not a URDF", code=1)
+    assert os.listdir(tmp_path) == ["p.json"]
+
+
 @pytest.mark.parametrize("head, kind", [(b"%PDF-1.4\n", "a PDF (a report)"),
                                         (b"PAR1\x15\x04", "a Parquet table (kukaid fleet)"),
                                         (b"time_s,q_A3,tau_A3\n0,0,0\n", "an axis log (CSV)")])

@@ -53,6 +53,11 @@ def load_model(robot: str | Path):
         with _captured_stderr() as said:
             model = pin.buildModelFromUrdf(str(path))
     except Exception as e:  # Pinocchio raises RuntimeError/ValueError with multi-line text
+        from kukaid.jsonfile import file_kind
+
+        kind = file_kind(path)  # a parameter file or a log given as --robot: said what it is
+        if kind is not None and not kind.startswith("a URDF"):
+            raise ParamFileError(f"{path}: is {kind}, not a URDF (the robot's description, XML)") from None
         first = (str(e).strip() or said() or type(e).__name__).splitlines()[0]
         raise ParamFileError(f"{path}: not a URDF Pinocchio can read ({first})") from None
     if model.nq != model.nv or model.nv == 0:
