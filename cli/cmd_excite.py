@@ -278,6 +278,9 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
             raise click.UsageError(f"option {flag} does not apply to 'fourier' (give per-axis limits with --limits)")
     robot = kwargs.pop("robot", "kr6-r700-sixx")
     model = load_model(robot)
+    if krl_dir is not None and model.nv > 6:  # before the optimiser's minute, not after it
+        raise TrajectoryError(f"{robot}: --krl writes a KR C4 program, which moves A1..A6; this robot has "
+                              f"{model.nv} joints (A1..A{model.nv}): write the trajectory without --krl")
     limits = robot_limits(model, None if qdd_max_deg is None else qdd_max_deg * _DEG, robot=robot)
     if limits_file is not None:
         over = read_json(limits_file, TrajectoryError, "limits file (JSON)")

@@ -126,3 +126,33 @@ def test_a_badly_conditioned_excitation_is_written_with_a_warning(tmp_path):
     r = CliRunner().invoke(cli, ["excite", "fourier", "--robot", ROBOT, "-o", str(tmp_path / "g.json"),
                                  "--harmonics", "3", "--period", "5"])
     assert r.exit_code == 0 and "warning" not in r.output, r.output
+
+
+def _chain_urdf(n: int) -> str:
+    """A serial robot of ``n`` revolute joints (z axes, 0.2 m apart), each link 2 kg."""
+    links = "".join(f'<link name="l{i}"><inertial><origin xyz="0 0 0.1"/><mass value="2"/>'
+                    f'<inertia ixx="0.01" iyy="0.01" izz="0.005" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+                    for i in range(n + 1))
+    joints = "".join(f'<joint name="j{i}" type="revolute"><parent link="l{i - 1}"/><child link="l{i}"/>'
+                     f'<origin xyz="0 0 0.2" rpy="{1.5708 * (i % 2)} 0 0"/><axis xyz="0 0 1"/>'
+                     f'<limit lower="-2.9" upper="2.9" velocity="2" effort="100"/></joint>' for i in range(1, n + 1))
+    return f'<?xml version="1.0"?><robot name="chain{n}">{links}{joints}</robot>'
+
+
+def test_krl_for_a_robot_of_seven_joints_is_refused_before_the_optimiser(tmp_path, monkeypatch):
+    """New-user trial 10: `excite fourier --robot kuka_lwr4.urdf --krl krl/` optimised for 54 s, then said
+    "KRL export: axes [1, ..., 7] are not robot axes (1 to 6)" and wrote nothing."""
+    import kukaid.excite.fourier as fourier_module
+
+    urdf = tmp_path / "chain7.urdf"
+    urdf.write_text(_chain_urdf(7))
+
+    def no_optimiser(*a, **k):
+        raise AssertionError("the optimiser ran")
+
+    monkeypatch.setattr(fourier_module, "fourier", no_optimiser)
+    r = CliRunner().invoke(cli, ["excite", "fourier", "--robot", str(urdf), "-o", str(tmp_path / "f.json"),
+                                 "--krl", str(tmp_path / "krl")])
+    assert r.exit_code == 1, r.output
+    assert "--krl writes a KR C4 program, which moves A1..A6; this robot has 7 joints" in r.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["chain7.urdf"]
