@@ -293,7 +293,12 @@ UNIT_MISTAKES = {
     "command_millidegrees": ("time_s,A3_deg,A3_Nm,A3_cmd_deg\n0,45,1,-45000\n0.012,45,2,-45000\n",
                              "A3_cmd_deg reaches -45000 degrees"),
     "milliseconds": ("time_s,A3_deg,A3_Nm\n0,45,1\n12,45.1,2\n24,45.2,3\n",
-                     "time_s has a median sample interval of 12 s; above 1 s: milliseconds written as seconds?"),
+                     "time_s has a median sample interval of 12 s; 1 s or more: milliseconds written as seconds?"),
+    # new-user trial 10: a 1 kHz drive log with its time in ms is exactly 1 "s" apart, and was taken
+    # for a 1 Hz log (fit then asked for a cut-off below 0.45 Hz)
+    "milliseconds_at_1kHz": ("time_s,A3_deg,A3_Nm\n0,45,1\n1,45.1,2\n2,45.2,3\n3,45.3,4\n",
+                             "time_s has a median sample interval of 1 s; 1 s or more: milliseconds written as "
+                             "seconds?"),
 }
 
 
@@ -321,10 +326,11 @@ def test_hdf5_implausible_units_refused(tmp_path):
 
 def test_plausible_units_accepted():
     t = np.arange(100) * 0.012
-    # two full turns either way of a revolute axis, a long prismatic track (m), 1 s samples
+    # two full turns either way of a revolute axis, a long prismatic track (m), 0.5 s samples (1 s is the
+    # line: a 1 kHz log in milliseconds)
     AxisLog(time=t, q=np.linspace(-4 * np.pi, 4 * np.pi, t.size), tau=np.zeros(t.size), axes=(6,))
     AxisLog(time=t, q=np.linspace(0, 30.0, t.size), tau=np.zeros(t.size), axes=(7,), joint=("prismatic",))
-    AxisLog(time=np.arange(10) * 1.0, q=np.zeros(10), tau=np.zeros(10), axes=(3,))
+    AxisLog(time=np.arange(10) * 0.5, q=np.zeros(10), tau=np.zeros(10), axes=(3,))
     with pytest.raises(LogFormatError, match=r"axis log: channel 'q' of axis A6 reaches 12.6 rad"):
         AxisLog(time=t, q=np.full(t.size, 12.6), tau=np.zeros(t.size), axes=(6,))
 

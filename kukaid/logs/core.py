@@ -31,7 +31,8 @@ MAX_REVOLUTE_RAD = 4 * np.pi
 #: Largest plausible |position| of a prismatic axis, m: longer than a robot's linear track (a
 #: warning only: a wrong --q-scale, or millimetres as metres).
 MAX_PRISMATIC_M = 100.0
-#: Largest plausible median sample interval, s.  Above it the times are probably milliseconds.
+#: Median sample interval, s, from which on the times are probably milliseconds (a drive's 1 ms
+#: samples written in ms are exactly 1 "s" apart).
 MAX_SAMPLE_INTERVAL_S = 1.0
 
 
@@ -198,8 +199,8 @@ def check_units(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: 
     """Refuse values whose size betrays a unit mistake (the values are SI, already converted).
 
     A revolute position (``q``, ``q_cmd``) beyond +-720 degrees (4 pi rad) is millidegrees or
-    degrees stored as radians; a median sample interval above 1 s is milliseconds stored as
-    seconds.  Prismatic positions are not bounded (linear tracks are long).
+    degrees stored as radians; a median sample interval of 1 s or more is milliseconds stored as
+    seconds (1 ms samples are 1 "s" apart).  Prismatic positions are not bounded (linear tracks are long).
 
     Parameters
     ----------
@@ -212,10 +213,10 @@ def check_units(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: 
     labels = labels or {}
     if time.size >= 2:
         dt = float(np.median(np.diff(time)))
-        if dt > MAX_SAMPLE_INTERVAL_S:
+        if dt >= MAX_SAMPLE_INTERVAL_S:
             raise LogFormatError(
-                f"{where}: {labels.get('time', 'time')} has a median sample interval of {dt:.6g} s; above "
-                f"{MAX_SAMPLE_INTERVAL_S:g} s: milliseconds written as seconds?"
+                f"{where}: {labels.get('time', 'time')} has a median sample interval of {dt:.6g} s; "
+                f"{MAX_SAMPLE_INTERVAL_S:g} s or more: milliseconds written as seconds?"
             )
     for name in ("q", "q_cmd"):
         x = channels.get(name)
