@@ -409,6 +409,22 @@ def test_fit_of_logs_of_different_axes_names_each_log_and_its_axis(files, tmp_pa
     assert not (tmp_path / "p.json").exists()
 
 
+def test_one_recording_given_twice_is_refused_by_fit_and_diagnose(files, tmp_path):
+    """New-user trial 10: `fit --friction f.h5 --friction f.h5` weighed the recording double (standard
+    deviations too small by sqrt 2) and `diagnose --log a.h5 --log b.h5 --log a.h5` held a.h5 out with its
+    copy in the fit ("held out ... better in 3/3 folds"); fit --robot already refused it."""
+    log = files / "inertia.h5"
+    copy = tmp_path / "copy.h5"
+    copy.write_bytes(log.read_bytes())  # another name, the same samples
+    for args in (["fit", "--friction", log, "--inertia", copy, "-o", tmp_path / "p.json"],
+                 ["fit", log, log, "--friction-model", "coulomb-viscous", "-o", tmp_path / "p.json"],
+                 ["diagnose", "--params", files / "params.json", "--log", log, "--log", copy, "-o",
+                  tmp_path / "p.json"]):
+        r = _run(*args)
+        _one_line_error(r, ": the same recording as ", "give each recording once", code=1)
+    assert sorted(os.listdir(tmp_path)) == ["copy.h5"]
+
+
 def test_a_kukaid_file_given_as_limits_is_named_so(files, tmp_path, monkeypatch):
     """New-user trial 9: `excite --limits params.json` said "unknown key 'schema' (known: q_min, ...)"."""
     monkeypatch.chdir(tmp_path)
