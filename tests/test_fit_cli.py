@@ -61,6 +61,21 @@ def test_staged_method_and_bounds(logs):
     assert load_params(out)["provenance"]["method"] == "staged"
 
 
+@pytest.mark.parametrize("model", ["coulomb-viscous", "auto"])
+def test_staged_coulomb_viscous_keeps_the_bounds_given(logs, model):
+    """New-user trial 10: `--method staged --friction-model coulomb-viscous --bound Fc=0:1` wrote Fc = 16.6
+    (its linear fit took no bounds); with auto the Stribeck fit hit the bound and fell back to that fit."""
+    d, p = logs
+    out = d / f"staged_cv_{model}.json"
+    r = CliRunner().invoke(cli, ["fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]),
+                                 "--method", "staged", "--friction-model", model, "--bound", "Fc=0:1", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    par = load_params(out)
+    assert par["friction"]["model"] == "coulomb-viscous"
+    assert 0 <= par["friction"]["Fc"] <= 1 + 1e-9
+    assert [b["name"] for b in par["metrics"]["at_bound"]] == ["Fc"] and "on a bound: Fc = 1 (upper bound)" in r.output
+
+
 def _bad(tmp_path, log, name="bad.h5"):
     path = tmp_path / name
     write_hdf5(log, path)

@@ -21,11 +21,11 @@ import numpy as np
 
 from kukaid import __version__
 from kukaid.errors import FitError, OptionError
-from kukaid.identify.dynamic import fit_dynamic
+from kukaid.identify.dynamic import _linear_bounded, fit_dynamic
 from kukaid.identify.filtering import preprocess, settings_reason
 from kukaid.identify.least_squares import fit_rigid
 from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
-from kukaid.identify.stribeck_fit import extract_friction, natural_uncertainty, solve_separable
+from kukaid.identify.stribeck_fit import at_bounds, extract_friction, natural_uncertainty, solve_separable
 from kukaid.identify.uncertainty import correlation_factor, covariance
 from kukaid.jsonfile import jsonable
 from kukaid.logs import log_fingerprint, repeated_recording, same_recording_message
@@ -79,12 +79,12 @@ def staged_friction(preps: Sequence[Any], friction_model: str = "stribeck",
         params, u = natural_uncertainty(sr)
         res, status = sr.residual, sr.status
         on_bound = sr.at_bound(u.std)
-    else:
-        theta = np.linalg.lstsq(A, y, rcond=None)[0]
+    else:  # within the bounds (--bound), as the joint method's linear fit
+        theta, status, info = _linear_bounded(y, A, ["Fc", "Fv"], bounds, v)
         res = y - A @ theta
         u = covariance(res, A, ["Fc", "Fv"], theta)
-        params, status = {"Fc": float(theta[0]), "Fv": float(theta[1])}, "linear"
-        on_bound = []
+        params = {"Fc": float(theta[0]), "Fv": float(theta[1])}
+        on_bound = at_bounds(["Fc", "Fv"], theta, [info["bounds"][k] for k in ("Fc", "Fv")], u.std)
     return params, u.std, float(np.mean(res ** 2)), status, (pts, u, on_bound)
 
 
