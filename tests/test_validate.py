@@ -53,10 +53,41 @@ def test_validate_cli_table_and_json(tmp_path):
     assert r.exit_code == 0, r.output
     d = json.loads(r.output)
     a = d["axes"]["A3"]
-    assert set(a) == {"rmse", "rel_error", "r2", "samples"} and d["mean_relative_error"] == a["rel_error"]
+    assert set(a) == {"rmse", "rel_error", "r2", "samples", "noise_floor"} and d["mean_relative_error"] == a["rel_error"]
     assert a["r2"] > 0.99 and a["rel_error"] < 0.05 and a["samples"] > 1000
     r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(other)])
     assert r.exit_code == 0 and "A3" in r.output and "R2" in r.output
+
+
+def test_validate_reads_the_rmse_against_the_noise_floor(tmp_path):
+    """New-user trial 10: validate printed "RMSE 0.1623 N·m" with nothing to read it against; fit and
+    diagnose say "x the noise floor".  A right model on noisy torques sits at about 1 x the floor (its
+    white noise through the fit's low-pass); the floor is pooled over the logs by samples."""
+    fit_log, other = tmp_path / "a.h5", tmp_path / "b.h5"
+    write_hdf5(sine_log(1, 0.25, noise=0.3), fit_log)
+    write_hdf5(sine_log(2, 0.18, amp=0.7, noise=1.5), other)
+    par = tmp_path / "p.json"
+    assert CliRunner().invoke(cli, ["fit", str(fit_log), "--friction-model", "coulomb-viscous",
+                                    "-o", str(par)]).exit_code == 0
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(other), "--json"])
+    assert r.exit_code == 0, r.output
+    a = json.loads(r.output)["axes"]["A3"]
+    assert 0.05 < a["noise_floor"] < 1.5  # 1.5 N·m white noise through a low-pass far below Nyquist
+    assert 0.8 < a["rmse"] / a["noise_floor"] < 1.5
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(other)])
+    head, row = r.output.splitlines()[:2]
+    assert "x noise" in head and f"{a['rmse'] / a['noise_floor']:.3g}" in row.split()
+    pooled = CliRunner().invoke(cli, ["validate", "--params", str(par), str(other), str(fit_log), "--json"])
+    assert json.loads(pooled.stdout)["axes"]["A3"]["noise_floor"] < a["noise_floor"]  # the quieter log pools in
+    # a torque filtered before it was recorded: no white noise to tell the floor from, n/a and why
+    from scipy.signal import butter, filtfilt
+
+    noisy = sine_log(3, 0.18, amp=0.7, noise=0.3)
+    tau = filtfilt(*butter(4, 10.0, fs=250.0), noisy.tau, axis=0)  # as the LWR4+'s torque sensors did
+    write_hdf5(AxisLog(noisy.time, noisy.q, tau, axes=noisy.axes), tmp_path / "s.h5")
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(tmp_path / "s.h5")])
+    assert r.exit_code == 0 and r.output.splitlines()[1].split()[2] == "n/a", r.output
+    assert "n/a for A3: the torque was filtered before it was recorded" in r.output
 
 
 def test_validate_takes_its_logs_with_log_as_diagnose_and_report_do(tmp_path, monkeypatch):
@@ -150,7 +181,8 @@ def test_a_torque_column_that_does_not_vary_is_warned_about_and_left_out_of_the_
         assert mismatch_warnings([scores], ["z.csv"], "robot.json") == []  # not a model of another robot
         d = to_json(scores)
         assert d["mean_relative_error"] == pytest.approx(0.15) and d["mean_excludes"] == ["A2"]
-        assert table(scores)[-1].split()[:2] == ["mean", "15.00%"] and "without A2" in table(scores)[-1]
+        mean_line = next(line for line in table(scores) if line.startswith("mean"))
+        assert mean_line.split()[:2] == ["mean", "15.00%"] and "without A2" in mean_line
     # one axis: warned, nothing to leave out of
     (w,) = flat_warnings([{3: zero}], ["z.csv"], {3: zero})
     assert "A3 is zero" in w and "mean" not in w

@@ -11,7 +11,7 @@ arrays, N·m), pre-processed the way that model's fit pre-processes; one code pa
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -21,15 +21,19 @@ from kukaid.errors import KukaidError
 
 @dataclass(frozen=True)
 class AxisScore:
-    """Out-of-sample figures of one axis (pooled over logs): N·m, dimensionless, samples."""
+    """Out-of-sample figures of one axis (pooled over logs): N·m, dimensionless, samples; ``noise_floor``
+    N·m, the RMSE a perfect model would reach on these samples (the torque's white noise; NaN when not
+    known), against which the RMSE reads."""
 
     rmse: float
     rel_error: float
     r2: float
     samples: int
+    noise_floor: float = math.nan
 
     def to_json(self) -> dict[str, Any]:
-        return {"rmse": self.rmse, "rel_error": self.rel_error, "r2": self.r2, "samples": self.samples}
+        return {"rmse": self.rmse, "rel_error": self.rel_error, "r2": self.r2, "samples": self.samples,
+                "noise_floor": self.noise_floor}
 
 
 def score(tau: np.ndarray, tau_hat: np.ndarray) -> AxisScore:
@@ -68,14 +72,18 @@ def validate(params: Any, logs: Sequence[Any], axis: int | None = None, source: 
         model.check(log)
     parts: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
     names: dict[int, list[str]] = {}
+    floors: dict[int, list[float]] = {}
     for log in logs:
         with file_cutoff(model):
             pairs = model.predict(log)
+            floor = model.noise_floor(log)
         for ax, pair in pairs.items():
             parts.setdefault(int(ax), []).append(pair)
             names.setdefault(int(ax), []).append(str(log.attrs.get("source_file", "log")))
+            floors.setdefault(int(ax), []).append(float(floor.get(ax, math.nan)))
         if per_log is not None:
-            per_log.append({int(ax): score(*pair) for ax, pair in sorted(pairs.items())})
+            per_log.append({int(ax): replace(score(*pair), noise_floor=float(floor.get(ax, math.nan)))
+                            for ax, pair in sorted(pairs.items())})
     out = {}
     for ax in sorted(parts):
         tau = np.concatenate([p[0] for p in parts[ax]])
@@ -83,7 +91,8 @@ def validate(params: Any, logs: Sequence[Any], axis: int | None = None, source: 
         if tau.size == 0:
             raise KukaidError(f"{', '.join(names[ax])}: no dynamic-mode samples of A{ax} to compare (the axis does "
                               "not move, or only where the filter trims the log's ends)")
-        out[ax] = score(tau, hat)
+        n = np.array([p[0].size for p in parts[ax]], float)  # pooled as the RMSE is: by samples
+        out[ax] = replace(score(tau, hat), noise_floor=float(np.sqrt(n @ np.square(floors[ax]) / n.sum())))
     return out
 
 
@@ -152,12 +161,19 @@ def to_json(scores: dict[int, AxisScore]) -> dict[str, Any]:
 
 def table(scores: dict[int, AxisScore], unit: str = "N·m") -> list[str]:
     """A text table, one line per axis."""
-    out = [f"{'axis':<5} {'RMSE (' + unit + ')':>13} {'rel. error':>11} {'R2':>8} {'samples':>8}"]
+    out = [f"{'axis':<5} {'RMSE (' + unit + ')':>13} {'x noise':>8} {'rel. error':>11} {'R2':>8} {'samples':>8}"]
     for ax, s in scores.items():
-        out.append(f"A{ax:<4} {s.rmse:>13.4g} {100 * s.rel_error:>10.2f}% {s.r2:>8.4f} {s.samples:>8d}")
+        ratio = s.rmse / s.noise_floor if s.noise_floor > 0 else math.nan  # NaN: not known
+        out.append(f"A{ax:<4} {s.rmse:>13.4g} {'n/a' if math.isnan(ratio) else f'{ratio:.3g}':>8} "
+                   f"{100 * s.rel_error:>10.2f}% {s.r2:>8.4f} {s.samples:>8d}")
     if len(scores) > 1:
         mean, left_out = mean_relative_error(scores)
-        out.append(f"{'mean':<5} {'':>13} {100 * mean:>10.2f}%"
+        out.append(f"{'mean':<5} {'':>13} {'':>8} {100 * mean:>10.2f}%"
                    + (f"  (without {', '.join(f'A{ax}' for ax in left_out)}: measured torque does not vary)"
                       if left_out else ""))
+    unknown = [f"A{ax}" for ax, s in scores.items() if not s.noise_floor > 0 and not _flat(s)]
+    if unknown:
+        out.append(f"x noise: the RMSE over the noise floor (what a perfect model would reach); n/a for "
+                   f"{', '.join(unknown)}: the torque was filtered before it was recorded, so its noise is not "
+                   "white and cannot be told from it")
     return out

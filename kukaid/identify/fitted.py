@@ -60,6 +60,8 @@ class FittedModel(Protocol):
 
     def predict(self, log: Any) -> Pairs: ...
 
+    def noise_floor(self, log: Any) -> dict[int, float]: ...  # per joint, the RMSE of a perfect model on predict's samples
+
     def warnings(self, log: Any, where: str) -> list[str]: ...
 
     def table(self) -> str: ...
@@ -235,6 +237,17 @@ class AxisFile:
             tau_hat = tau_hat + model.effects_torque(pr.time, pr.q, pr.qd, temp, others)
         return {ax: (pr.tau[keep], tau_hat[keep])}
 
+    def noise_floor(self, log: Any) -> dict[int, float]:
+        """The RMSE a perfect model would reach on :meth:`predict`'s samples of ``log`` (the torque's
+        white noise through the fit's low-pass, :func:`kukaid.identify.adequacy.noise_floor`), N·m; NaN for
+        a torque filtered before it was recorded (its noise not white)."""
+        from kukaid.identify.adequacy import noise_floor, smooth_at_source
+        from kukaid.identify.filtering import preprocess
+
+        if smooth_at_source(log.channel("tau", self.axis)):
+            return {self.axis: math.nan}
+        return {self.axis: noise_floor([preprocess(log, self.axis, **fit_settings(self.params))])}
+
     def warnings(self, log: Any, where: str) -> list[str]:
         from kukaid.identify.adequacy import moving_axes, pushed_log_warnings
 
@@ -289,6 +302,17 @@ class RobotFile:
         edge = int(math.ceil(2.0 * fs / fc))
         rows = slice(edge, log.n_samples - edge)
         return {a: (log.channel("tau", a)[rows], pred[a][rows]) for a in self.joints}
+
+    def noise_floor(self, log: Any) -> dict[int, float]:
+        """The RMSE a perfect model would reach on :meth:`predict`'s samples of ``log`` (raw torques:
+        their white noise), N·m; NaN for a torque filtered before it was recorded (its noise not white)."""
+        from kukaid.identify.adequacy import raw_noise_sigma, smooth_at_source
+
+        out = {}
+        for a in self.joints:
+            tau = log.channel("tau", a)
+            out[a] = math.nan if smooth_at_source(tau) else raw_noise_sigma(tau)
+        return out
 
     def warnings(self, log: Any, where: str) -> list[str]:
         from kukaid.identify.adequacy import pushed_log_warnings
