@@ -69,6 +69,33 @@ def test_noise_floor_does_not_depend_on_decimation():
     assert r10 == pytest.approx(r1, rel=0.1)
 
 
+def test_a_torque_filtered_before_it_was_recorded_has_no_noise_floor(tmp_path):
+    """New-user trial 10: `fit lwr4_1.csv --axis 2` said "residual 9.94e+05 x the noise floor": the LWR4+'s
+    torques were filtered before they were recorded, so their second differences hold no white noise and
+    the floor read from them is near zero.  Now the floor is not known, and the fit says so instead of a
+    ratio; diagnose -o of such a file (its residual_over_noise null) works too."""
+    from scipy.signal import butter, filtfilt
+
+    lg = coupled_log()
+    tau = filtfilt(*butter(4, 10.0, fs=200.0), lg.tau, axis=0)  # as a torque sensor's electronics may
+    p = tmp_path / "s.h5"
+    write_hdf5(AxisLog(lg.time, lg.q, tau, axes=lg.axes), p)
+    out = tmp_path / "p.json"
+    r = CliRunner().invoke(cli, ["fit", str(p), "--axis", "2", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "x the noise floor" not in r.output and "the noise floor is not known: the torque was filtered" in r.output
+    m = json.loads(out.read_text())["metrics"]
+    assert m["residual_over_noise"] is None and m["single_axis_adequate"] is False  # other axes move
+    one = AxisLog(lg.time, lg.q[:, :1], tau[:, :1], axes=(2,))
+    write_hdf5(one, tmp_path / "one.h5")
+    r = CliRunner().invoke(cli, ["fit", str(tmp_path / "one.h5"), "-o", str(tmp_path / "one.json"),
+                                 "--friction-model", "coulomb-viscous"])
+    assert r.exit_code == 0 and "whether the model misses an effect is not judged" in r.output, r.output
+    from kukaid.identify.adequacy import with_effects  # what diagnose -o does with the file's metrics
+
+    assert with_effects(m, ["coupling"], 3.0, 2.0) == m
+
+
 def test_lwr4_axis2_writes_parameters_with_the_reason(tmp_path):
     if not (LWR4 / "lwr4_1.csv").exists():
         pytest.skip("../shared/datasets/lwr4 is not present")

@@ -108,8 +108,11 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
     """Warnings for a single-axis fit, and the figures behind them (for the parameter file).
 
     Returns (warnings, {"residual_over_noise", "other_axes_moving", "single_axis_adequate"}).
+    ``floor`` NaN: not known (a torque filtered before it was recorded, :func:`smooth_at_source`), so
+    the residual is not judged against it (``residual_over_noise`` NaN).
     """
-    ratio = residual_rms / floor if floor > 0 else math.inf
+    ratio = residual_rms / floor if floor > 0 else math.nan if math.isnan(floor) else math.inf
+    unknown = math.isnan(ratio)
     warnings = []
     if not converged:
         warnings.append(f"IPOPT stopped before converging ('{status}'); the best parameters it found are written "
@@ -118,17 +121,26 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
         warnings.append("on a bound: " + ", ".join(f"{b['name']} = {b['value']:.4g} ({b['side']} bound)"
                                                    for b in at_bound)
                         + ": the data do not determine these, or the model does not describe the data")
-    inadequate = bool(others) and (ratio > FAR_ABOVE_NOISE or bool(at_bound) or not converged)
+    inadequate = bool(others) and (unknown or ratio > FAR_ABOVE_NOISE or bool(at_bound) or not converged)
     if inadequate:
         warnings.append(
             f"the single-axis model cannot explain A{axis}: other axes ({', '.join(f'A{a}' for a in others)}) move "
-            f"in the log, so the gravity and inertia torque on A{axis} depend on their positions (residual "
-            f"{ratio:.3g} x the noise floor). Fit all axes together with a robot model (kukaid fit --robot URDF), "
+            f"in the log, so the gravity and inertia torque on A{axis} depend on their positions ("
+            + (f"{_UNKNOWN_FLOOR}, so the residual cannot show otherwise" if unknown else
+               f"residual {ratio:.3g} x the noise floor")
+            + f"). Fit all axes together with a robot model (kukaid fit --robot URDF), "
             f"or record A{axis} moving alone; treat these parameters as a local description only")
+    elif unknown:
+        warnings.append(f"{_UNKNOWN_FLOOR}: whether the model misses an effect is not judged from the residual")
     elif ratio > FAR_ABOVE_NOISE:
         warnings.append(_residual_warning(ratio))
     figures = {"residual_over_noise": ratio, "other_axes_moving": list(others), "single_axis_adequate": not inadequate}
     return warnings, figures
+
+
+#: why a fit's noise floor is not known
+_UNKNOWN_FLOOR = ("the noise floor is not known: the torque was filtered before it was recorded (its noise is not "
+                  "white)")
 
 
 def _residual_warning(ratio: float) -> str:
@@ -139,7 +151,9 @@ def with_effects(metrics: dict, added: Sequence[str], before: float, after: floa
     """The fit's ``metrics`` for the file diagnose writes with the effects ``added``: the fit's
     residual warning was of the model without them, so it goes, or (the gap still far above the
     noise: diagnose's ``before`` and ``after``, x its noise floor) says both figures."""
-    fit_warning = _residual_warning(float(metrics.get("residual_over_noise", math.nan)))
+    if metrics.get("residual_over_noise") is None:  # not judged (a noise floor not known): no such warning
+        return metrics
+    fit_warning = _residual_warning(float(metrics["residual_over_noise"]))
     if fit_warning not in metrics.get("warnings", []):
         return metrics
     warnings = [w for w in metrics["warnings"] if w != fit_warning]

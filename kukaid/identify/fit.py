@@ -91,7 +91,7 @@ def staged_friction(preps: Sequence[Any], friction_model: str = "stribeck",
 def _adequacy(ax: int, raw_logs: Sequence[Any], preps: Sequence[Any], fit_joint: Any, staged_at_bound: list,
               model: JointTorqueModel) -> dict[str, Any]:
     """Parameters on bounds, solver status and single-axis adequacy (:func:`kukaid.identify.adequacy.assess`)."""
-    from kukaid.identify.adequacy import assess, moving_axes, noise_floor
+    from kukaid.identify.adequacy import assess, moving_axes, noise_floor, smooth_at_source
     on_bound = list(staged_at_bound) + (list(fit_joint.at_bound_) if fit_joint is not None else [])
     converged = fit_joint.converged if fit_joint is not None else True
     status = fit_joint.ipopt_status if fit_joint is not None else ""
@@ -99,7 +99,9 @@ def _adequacy(ax: int, raw_logs: Sequence[Any], preps: Sequence[Any], fit_joint:
     res = np.concatenate([(pr.tau - rb.torque(pr.q, pr.qdd) - friction(pr.qd))[pr.dynamic] for pr in preps])
     rms = float(np.sqrt(np.mean(res ** 2))) if res.size else 0.0
     others = sorted({a for lg in raw_logs for a in moving_axes(lg, ax)})
-    warnings, figures = assess(ax, rms, noise_floor(preps), others, on_bound, converged, status)
+    smooth = all(smooth_at_source(lg.channel("tau", ax)) for lg in raw_logs)  # no white noise to read it from
+    warnings, figures = assess(ax, rms, math.nan if smooth else noise_floor(preps), others, on_bound, converged,
+                               status)
     return {"at_bound": on_bound, "converged": converged, "warnings": warnings, **figures}
 
 
