@@ -212,11 +212,28 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     if as_json:
         echo_json(figures)
     click.echo(msg, err=True)
+    if krl_dir is not None:
+        _krl_speed_warning(summary, limits.qd_max)
 
 
 def _krl_figures(krl_dir: Path, summary: dict) -> dict:
     return {"src": str(krl_dir / f"{summary['name']}.src"), "dat": str(krl_dir / f"{summary['name']}.dat"),
-            "via_points": summary["points"]}
+            "via_points": summary["points"], "max_speed_error": summary.get("max_speed_error")}
+
+
+#: a KRL program whose pieces of 0.5 s or more run this far off their speed is said so on stderr
+KRL_SPEED_WARN = 0.05
+
+
+def _krl_speed_warning(summary: dict, qd_max: float) -> None:
+    """The KRL's largest speed error of a piece of 0.5 s or more (in the .dat's header only, before);
+    ``qd_max`` the axis's speed limit, rad/s."""
+    err = summary.get("max_speed_error")
+    if err is not None and err > KRL_SPEED_WARN:
+        click.echo(f"kukaid: warning: excite: the KRL program runs a piece of 0.5 s or more {100 * err:.0f} % off "
+                   "its speed: $VEL_AXIS and $OV_PRO are whole percentages, and a speed below 0.01 % of the maximum "
+                   f"cannot be programmed (it runs at that, {1e-4 * qd_max / _DEG:.3g} deg/s); the captured log records "
+                   "what the robot did", err=True)
 
 
 def _option_names(msg: str) -> str:

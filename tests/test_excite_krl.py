@@ -144,3 +144,22 @@ def test_via_points_stay_within_tolerance(steps, tol_deg):
     assert idx[0] == 0 and idx[-1] == q.size - 1
     assert all(a < b for a, b in zip(idx, idx[1:]))
     assert np.max(np.abs(np.interp(t, t[idx], q[idx]) - q)) <= tol_deg * DEG + 1e-12
+
+
+def test_excite_says_when_the_krl_runs_far_off_its_speed(tmp_path):
+    """New-user trial 10: the pre-sliding KRL runs its reversals 1778 % too fast (speeds below 0.01 % of
+    the maximum cannot be programmed); that was written only in the .dat's header comment."""
+    import json
+
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    r = CliRunner().invoke(cli, ["excite", "presliding", "-o", str(tmp_path / "p.json"), "--krl", str(tmp_path / "k"),
+                                 "--json"])
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["krl"]["max_speed_error"] > 10
+    assert "kukaid: warning: excite: the KRL program runs a piece of 0.5 s or more" in r.stderr
+    assert "0.036 deg/s" in r.stderr
+    r = CliRunner().invoke(cli, ["excite", "inertia", "-o", str(tmp_path / "i.json"), "--krl", str(tmp_path / "k")])
+    assert r.exit_code == 0 and "warning" not in r.stderr, r.output
