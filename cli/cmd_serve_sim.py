@@ -78,6 +78,10 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
         raise click.UsageError("--operator-start is for --operator (a simulated person)")
     if not follower_window and given("stale_ms"):
         raise click.UsageError("--stale-ms is for --follower")
+    if follower_window and traj_path is not None:  # a KRC runs one program: the follower or the trajectory's
+        raise click.UsageError("--follower emulates the program of `kukaid krl-follower`, --trajectory another program "
+                               "the virtual robot runs: not with --trajectory (the follower's axis stands until "
+                               "KID_TGT moves it)")
     if truth_path is not None:  # checked now, not after the session
         check_suffix(truth_path, ".h5", ".hdf5")
         check_outputs([truth_path], [traj_path, sim_config])

@@ -67,6 +67,9 @@ def files(tmp_path_factory):
     (["serve-sim", "--port", "0", "--duration", "1", "--grip", "firm"], ["--grip is for --operator human"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--operator-start", "5"], ["--operator-start is for --operator"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--stale-ms", "50"], ["--stale-ms is for --follower"]),
+    # new-user trial 10: both accepted, the follower's window and heartbeat said nothing to the trajectory's motion
+    (["serve-sim", "--port", "0", "--duration", "1", "--follower", "20", "50", "--trajectory", "{traj}"],
+     ["--follower emulates the program of `kukaid krl-follower`", "not with --trajectory"]),
     # an axis given twice is the option's fault (it was exit 1)
     (["krl-logger", "-o", "krl", "--axis", "3", "--axis", "3"], ["--axis", "axes must be distinct", "[3, 3]"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--ring-axes", "3", "--ring-axes", "3"],
