@@ -117,6 +117,21 @@ def test_sim_config_file(short_traj, tmp_path):
     assert read_hdf5(out).attrs["truth"]["friction"]["Fc"] == 12.0
 
 
+def test_a_sim_config_of_another_axis_than_the_trajectorys_is_refused(short_traj, tmp_path):
+    """New-user trial 10: a --sim-config saying "axis": 2 captured the A3 trajectory as A3 without a word
+    (run-admittance simulates the config's axis); the file's own axis, or none, is taken as before."""
+    for said, code in ((2, 1), (3, 0)):
+        cfg = tmp_path / f"a{said}.json"
+        cfg.write_text(json.dumps({"axis": said}))
+        out = tmp_path / f"log{said}.h5"
+        got, text = run("capture", short_traj, "-o", out, "--sim-config", cfg)
+        assert got == code, text
+        assert out.exists() == (code == 0)
+    got, text = run("capture", short_traj, "-o", tmp_path / "x.h5", "--sim-config", tmp_path / "a2.json")
+    assert text.startswith("kukaid: error: ") and f'a2.json: "axis": 2, but {short_traj} moves A3' in text
+    assert "--axis 2" in text and text.count("\n") == 1
+
+
 @pytest.mark.parametrize("args, message", [
     (["--effect", "gremlins"], "unknown effect 'gremlins'"),
     (["--effect", "backlash=big"], "size 'big' is not a number"),
