@@ -350,6 +350,10 @@ def format_table(params: dict) -> str:
     if "ipopt_status" in m:
         extra.append(f"IPOPT: {m['ipopt_status']}")
     tail = []
+    cf = m.get("residual_correlation_factor")
+    if unc and isinstance(cf, (int, float)) and math.isfinite(cf):  # the +- above assume white residuals
+        tail.append(f"  +-: least-squares standard deviations, white residuals assumed; the filtered residuals are "
+                    f"correlated: multiply by the residual correlation factor {cf:.3g} for a realistic one")
     if m.get("at_bound"):
         tail.append("  at a bound: " + ", ".join(f"{names.get(b['name'], b['name'])} ({b['side']} {b['bound']:.4g})"
                                              for b in m["at_bound"]))
