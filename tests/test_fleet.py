@@ -466,6 +466,22 @@ def test_wear_says_why_there_is_no_temperature_model():
     assert lines(assess(rows))[1] == "temperature model: none (no temperature logged)"
 
 
+def test_wear_table_gives_each_change_its_scatter_and_says_what_the_figures_are():
+    """New-user trial 10: `fleet wear` printed "+18.4%" and an evidence of 2.87 with nothing to weigh them by:
+    the change now carries the baseline's day-to-day scatter (the verdict's scatter_rel), and a line says
+    what evidence and the change are."""
+    from kukaid.fleet.wear import assess, lines
+
+    res = assess(_synthetic_rows(5, 24, seed=1))
+    out = lines(res)
+    a = next(a for a in res["axes"] if "evidence" in a)
+    row = next(line for line in out if line.startswith(f"{a['robot']:<10} {'A' + str(a['axis']):>4}"))
+    sc = a["baseline"]["scatter_rel"]
+    assert f"{100 * a['change']['Fc']:+.1f}±{100 * sc[0]:.1f}%" in row.split()
+    assert f"{100 * a['change']['Fv']:+.1f}±{100 * sc[1]:.1f}%" in row.split()
+    assert any(line.startswith("evidence: the largest CUSUM over its threshold (above 1: flagged)") for line in out)
+
+
 def test_wear_needs_a_temperature_spread_for_a_slope():
     """New-user trial 9: `fleet simulate --temp-swing 0` then `fleet wear` printed "temperature model:
     Fc +105.35 %/K, Fv +113.65 %/K": a slope fitted to the tenths of a kelvin a log's own heating moves

@@ -349,11 +349,16 @@ def lines(result: dict, top: int = 20) -> list[str]:
                                     f"about {tmod['T_ref']:.1f} °C")]
     ranked = [a for a in result["axes"] if "evidence" in a]
     if ranked:
-        out.append(f"{'robot':<10} {'axis':>4} {'flag':>5} {'first flagged':>13} {'evidence':>8} {'ΔFc':>7} {'ΔFv':>7}")
+        out.append(f"{'robot':<10} {'axis':>4} {'flag':>5} {'first flagged':>13} {'evidence':>8} {'ΔFc':>12} "
+                   f"{'ΔFv':>12}")
     for a in ranked[:top]:
+        sc = (a.get("baseline") or {}).get("scatter_rel") or [math.nan, math.nan]
+        moved = [f"{100 * a['change'][k]:+.1f}±{100 * sc[j]:.1f}%" for j, k in enumerate(("Fc", "Fv"))]
         out.append(f"{a['robot']:<10} {'A' + str(a['axis']):>4} {'yes' if a['flagged'] else 'no':>5} "
-                   f"{a['first_flagged'] or '-':>13} {a['evidence']:8.2f} {100 * a['change']['Fc']:+6.1f}% "
-                   f"{100 * a['change']['Fv']:+6.1f}%")
+                   f"{a['first_flagged'] or '-':>13} {a['evidence']:8.2f} {moved[0]:>12} {moved[1]:>12}")
+    if ranked:  # what the figures are, so a reader can weigh them
+        out.append("evidence: the largest CUSUM over its threshold (above 1: flagged); ΔFc, ΔFv: the last week "
+                   "against the baseline at T_ref, ± the baseline's day-to-day scatter (one log's)")
     short = [a for a in result["axes"] if "evidence" not in a]
     for a in short[:5]:  # not assessed, and why (a baseline needs that many logs and one more)
         out.append(f"{a['robot']:<10} {'A' + str(a['axis']):>4} not assessed: {a.get('note', '')}")
