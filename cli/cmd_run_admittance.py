@@ -362,6 +362,12 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                                         f"cycle {1000 * cfg.cycle:g} ms)")
 
         rec.finish(run, metrics=metrics, report=draw)
+        if run.metrics.get("ignored_effects"):  # a file refined by diagnose -o: say what Γr went without
+            from kukaid.control.torque_residual import SUPPORTED_EFFECTS
+
+            notes.append(f"the parameter file's effects {', '.join(run.metrics['ignored_effects'])} (from kukaid "
+                         f"diagnose) are not modelled online, only {', '.join(SUPPORTED_EFFECTS)}: Γr was estimated "
+                         "without them")
         # the summary too is printed while the signals are counted: one coming now is not an exit 130
         if as_json:
             for w in [*(run.metrics.get("warnings") or ()), *notes]:  # the JSON holds them too; a person reads stderr

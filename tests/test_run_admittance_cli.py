@@ -51,6 +51,20 @@ def test_a_wrong_option_is_said_before_an_existing_output(files, tmp_path, bad, 
     assert len(r.stderr.strip().splitlines()) == 1 and out.read_bytes() == b"an earlier run"
 
 
+def test_effects_the_online_estimate_does_not_model_are_said(files, tmp_path):
+    """New-user trial 10: a file refined by `diagnose -o` with backlash ran without it, said only in --json
+    (ignored_effects); the summary now says which effects Γr went without."""
+    par = json.loads((files / "params.json").read_text())
+    par["effects"] = {"backlash": {"model": "kukaid.diagnose/1", "shape": "decay", "tau": 0.02, "A": -2.0}}
+    save_params(tmp_path / "p.json", par)
+    r = _run(["--params", tmp_path / "p.json", "--operator", "none", "--duration", "0.5", "-o", tmp_path / "r.h5"])
+    assert r.exit_code == 0, r.output
+    assert ("note: the parameter file's effects backlash (from kukaid diagnose) are not modelled online, only "
+            "gravity_sine, torque_offset, position_ripple") in r.stdout
+    r = _run(["--params", files / "params.json", "--operator", "none", "--duration", "0.5", "-o", tmp_path / "s.h5"])
+    assert r.exit_code == 0 and "not modelled online" not in r.output, r.output
+
+
 def test_sim_run_writes_log_report_and_metrics(files, tmp_path, monkeypatch):
     out, pdf = tmp_path / "run.h5", tmp_path / "run.pdf"
     problems = capture_pages(monkeypatch)
