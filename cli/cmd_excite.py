@@ -136,7 +136,8 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
 @click.option("--weights", help="validation: relative amplitudes of the sines [0.6,0.3,0.1; equal with --periods].")
 @click.option("--sine-time", type=float, help="validation: multi-sine duration, s [18].")
 @click.option("--ramp", type=float, help="validation: multi-sine ramp in/out, s [3].")
-@click.option("--moves-deg", help="validation: move targets relative to the centre, deg, comma-separated.")
+@click.option("--moves-deg", help="validation: move targets relative to the centre, deg, comma-separated "
+                                  "(with --move-speeds).")
 @click.option("--move-speeds", help="validation: cruise speed of each move, rad/s, comma-separated.")
 # fourier
 @click.option("--robot", help="fourier: bundled robot (kr6-r700-sixx) or URDF file [kr6-r700-sixx].")
@@ -178,6 +179,9 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
             check_krl_name(krl_name)
     refuse_other_kind(output, force, ROBOT_SCHEMA if kind == "fourier" else SCHEMA)  # one axis is not six
     kwargs = _generator_options(kind, opts)
+    if "moves" in kwargs and "move_speeds" not in kwargs:  # the default speeds are of the default moves
+        raise click.UsageError(f"--moves-deg gives {len(kwargs['moves'])} move(s): give --move-speeds too, one cruise "
+                               "speed (rad/s) per move")
     if kind == "fourier":
         _fourier(output, krl_dir, krl_name, krl_tol, force, limits_file, q_min_deg, q_max_deg, qd_max_deg,
                  qdd_max_deg, kwargs, as_json)

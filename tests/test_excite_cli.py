@@ -73,3 +73,14 @@ def test_excite_option_for_another_kind_is_refused(tmp_path):
     code, text = run("excite", "friction", "-o", str(tmp_path / "x.json"), "--speeds", "0.1,abc")
     assert code != 0 and "not a comma-separated list" in text
     assert not (tmp_path / "x.json").exists()
+
+
+def test_moves_without_their_speeds_say_which_option_is_missing(tmp_path):
+    """New-user trial 10: `excite validation --moves-deg 10,20` said "option --move-speeds: need one speed per
+    move (2), got 6", about speeds the user never gave (the default moves' six)."""
+    code, text = run("excite", "validation", "-o", str(tmp_path / "v.json"), "--moves-deg", "10,20")
+    assert code == 2 and "--moves-deg gives 2 move(s): give --move-speeds too" in text and "got 6" not in text
+    assert not (tmp_path / "v.json").exists()
+    code, text = run("excite", "validation", "-o", str(tmp_path / "v.json"), "--moves-deg", "10,20",
+                     "--move-speeds", "0.1,0.2")
+    assert code == 0, text
