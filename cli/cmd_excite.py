@@ -161,7 +161,7 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     """
     from kukaid.excite import AxisLimits, generate
     from kukaid.atomic import write_texts_atomic
-    from kukaid.errors import TrajectoryError
+    from kukaid.errors import LimitError, TrajectoryError
     from kukaid.excite.fourier import ROBOT_SCHEMA
     from kukaid.excite.trajectory import SCHEMA
     from kukaid.krc.krl import check_krl_name
@@ -197,6 +197,10 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     with usage_errors(types=(TrajectoryError,)):  # a generator option out of range (a broken limit stays 1)
         try:
             traj = generate(kind, axis=axis, limits=limits, **kwargs)
+        except LimitError as e:  # a broken limit stays exit 1; a position limit says what sets the motion's size
+            raise LimitError(f"{e}; the motion's size is {_POSITION_HINT[kind]}, its place --centre-deg"
+                             if "position limit" in str(e)
+                             and kind in _POSITION_HINT else str(e)) from None
         except TrajectoryError as e:  # the generator names its parameter: say which option it is
             raise TrajectoryError(_option_names(str(e))) from None
     files = {output: traj.json_text()}
@@ -218,6 +222,11 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     click.echo(msg, err=True)
     if krl_dir is not None:
         _krl_speed_warning(summary, limits.qd_max)
+
+
+#: what sets the size of each kind's motion (a position limit it breaks names them)
+_POSITION_HINT = {"friction": "--span-deg [90]", "inertia": "--amplitude-deg [45.8]",
+                  "validation": "--amplitude-deg [34.4] and --moves-deg", "presliding": "--step-deg [1]"}
 
 
 def _krl_figures(krl_dir: Path, summary: dict) -> dict:

@@ -84,3 +84,13 @@ def test_moves_without_their_speeds_say_which_option_is_missing(tmp_path):
     code, text = run("excite", "validation", "-o", str(tmp_path / "v.json"), "--moves-deg", "10,20",
                      "--move-speeds", "0.1,0.2")
     assert code == 0, text
+
+
+@pytest.mark.parametrize("kind, option", [("friction", "--span-deg [90]"), ("inertia", "--amplitude-deg [45.8]")])
+def test_a_broken_position_limit_names_what_sets_the_motions_size(tmp_path, kind, option):
+    """New-user trial 10: `excite friction --q-min-deg 0 --q-max-deg 30` said only that q = 60 deg breaks
+    the 30 deg limit: the default span (90 deg) was not named."""
+    code, text = run("excite", kind, "-o", str(tmp_path / "x.json"), "--q-min-deg", "0", "--q-max-deg", "30")
+    assert code == 1 and "breaks the position limit of A3" in text
+    assert f"the motion's size is {option}, its place --centre-deg" in text
+    assert list(tmp_path.iterdir()) == []
