@@ -55,6 +55,19 @@ def _check_workers(workers: int | None, scheduler: str | None) -> None:
                                "own workers")
 
 
+def _check_pattern(source: Path, pattern: str | None) -> None:
+    """--pattern is an option's value: a malformed one, or one given with a manifest, is a usage error (exit 2)."""
+    if pattern is None:
+        return
+    from kukaid.fleet.manifest import pattern_regex
+    from kukaid_cli._util import usage_errors
+
+    if Path(source).exists() and not Path(source).is_dir():
+        raise click.UsageError(f"{source}: --pattern applies to a folder of logs, not to a manifest file")
+    with usage_errors("--pattern"):
+        pattern_regex(pattern)
+
+
 def _table_output(output: Path, source: Path) -> None:
     from kukaid_cli._util import check_outputs, check_suffix
 
@@ -106,6 +119,7 @@ def fit_cmd(source, output, pattern, workers, scheduler, robot, friction_model) 
     from kukaid.fleet.tasks import FitOptions, fit_task
 
     _check_workers(workers, scheduler)
+    _check_pattern(source, pattern)
     _table_output(output, source)
     entries = read_input(source, pattern)
     opts = FitOptions(friction_model=friction_model, robot=robot)
@@ -231,6 +245,7 @@ def _check(kind: str, source, table, output, pattern, workers, scheduler) -> Non
     from kukaid.fleet.tasks import CheckOptions, check_task
 
     _check_workers(workers, scheduler)
+    _check_pattern(source, pattern)
     _table_output(output, source)
     from kukaid_cli._util import check_outputs
 

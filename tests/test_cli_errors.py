@@ -67,6 +67,11 @@ def files(tmp_path_factory):
     (["serve-sim", "--port", "0", "--duration", "1", "--grip", "firm"], ["--grip is for --operator human"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--operator-start", "5"], ["--operator-start is for --operator"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--stale-ms", "50"], ["--stale-ms is for --follower"]),
+    # new-user trial 10: a malformed --pattern, or one with a manifest, was exit status 1 (a problem of the data)
+    (["fleet", "fit", ".", "-o", "t.parquet", "--workers", "1", "--pattern", "{robot}/*"],
+     ["fleet fit: Invalid value for --pattern", "must contain {robot} and {date}"]),
+    (["fleet", "fit", "{traj}", "-o", "t.parquet", "--workers", "1", "--pattern", "{robot}/{date}/*"],
+     ["--pattern applies to a folder of logs, not to a manifest file"]),
     # new-user trial 10: both accepted, the follower's window and heartbeat said nothing to the trajectory's motion
     (["serve-sim", "--port", "0", "--duration", "1", "--follower", "20", "50", "--trajectory", "{traj}"],
      ["--follower emulates the program of `kukaid krl-follower`", "not with --trajectory"]),
