@@ -201,3 +201,15 @@ def test_a_log_that_does_not_say_where_its_torques_come_from_gets_no_rotor_inert
     assert p["settings"]["rotor"] is False and not p["metrics"]["choices"]["rotor"]["fitted"]
     assert not any(k.endswith(".rotor_inertia") for k in p["friction"]["values"])
     assert "no rotor inertias" in format_robot_table(p) and "--rotor-inertia" in format_robot_table(p)
+
+
+def test_without_a_prior_the_table_does_not_say_the_undetermined_parameters_lean_on_the_urdf(rest_fit):
+    """New-user trial 10: `fit --robot ... --prior-weight 0` printed "they lean on the URDF's links" of the
+    undetermined base parameters, though nothing pulled them there."""
+    from kukaid.identify.robot_fit import format_robot_table
+
+    _, _, p = rest_fit
+    assert "they lean on the URDF's links" in format_robot_table(p)
+    free = {**p, "settings": {**p["settings"], "prior_weight": 0.0}}
+    text = format_robot_table(free)
+    assert "they lean on the URDF's links" not in text and "--prior-weight 0" in text

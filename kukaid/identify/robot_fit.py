@@ -1668,7 +1668,10 @@ def format_robot_table(params: dict) -> str:
     if undet:
         nosd = int(val.size - has.size)
         lines.append(f"not identifiable from these data: {undet} of {val.size} base parameters (sigma >= "
-                     f"{100 * DETERMINED:g} %{f' or none: {nosd}' if nosd else ''}); they lean on the URDF's links")
+                     f"{100 * DETERMINED:g} %{f' or none: {nosd}' if nosd else ''}); "
+                     + ("they lean on the URDF's links" if st.get("prior_weight", PRIOR_WEIGHT) > 0 else
+                        "nothing pulls them toward the URDF's links (--prior-weight 0): their estimates are "
+                        "whatever the bounds and the physical consistency leave"))
     at = mt.get("at_bound") or []
     lines.append(f"sigma: least squares x the residual correlation factor {cf:.2f}; condition number "
                  f"{table_number(mt.get('condition_number'))}; physically consistent: {'yes' if mt.get('physically_consistent') else 'no'}")
