@@ -39,6 +39,9 @@ def _run(args):
 
 @pytest.mark.parametrize("bad, said", [(["--qd-max", "0"], "--qd-max"), (["--noise", "-1"], "--noise"),
                                        (["--release", "8", "--threshold", "3"], "release 8.0 N·m"),
+                                       # new-user trial 10: accepted, and no push could show before the torque stop
+                                       (["--threshold", "60", "--tau-max", "50"],
+                                        "threshold 60 N·m must be below the torque limit 50 N·m"),
                                        (["--grip", "firm", "--operator", "push"], "--grip is for --operator human"),
                                        (["--D-min", "60"], "--D-min/--D-max are for --damping adaptive")])
 def test_a_wrong_option_is_said_before_an_existing_output(files, tmp_path, bad, said):

@@ -86,6 +86,9 @@ class LoopConfig:
                               f"{3 * self.sample_time:g} ... s)")
         if not (math.isfinite(self.threshold) and self.threshold > 0):
             raise KukaidError(f"run-admittance: threshold must be a finite number > 0 N·m, got {self.threshold}")
+        if self.threshold >= self.limits.tau_max:  # the torque stop acts on the measured torque, before any push shows
+            raise KukaidError(f"run-admittance: threshold {self.threshold:g} N·m must be below the torque limit "
+                              f"{self.limits.tau_max:g} N·m: a push that could reach it trips the torque stop first")
         if self.release is not None and not (math.isfinite(self.release) and 0 <= self.release <= self.threshold):
             raise KukaidError(f"run-admittance: release {self.release} N·m must be in [0, threshold {self.threshold}] N·m "
                               "(a detection ends below it)")
