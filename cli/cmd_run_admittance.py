@@ -42,6 +42,17 @@ def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> No
                                f"[{lo:.4g}, {hi:.4g}] degrees ({where})")
 
 
+def _check_start(q0: float, lo: float, hi: float, what: str) -> None:
+    """The simulated start --q0 (degrees) within the simulated axis's range of motion ``lo``..``hi`` (rad;
+    an infinite bound: none): the virtual robot has no hard stops, a start beyond them simulates no robot."""
+    import math
+
+    q = math.radians(q0)
+    if (math.isfinite(lo) and q < lo - 1e-9) or (math.isfinite(hi) and q > hi + 1e-9):
+        raise click.BadParameter(f"{q0:g} degrees is outside the range of motion of {what}, "
+                                 f"{math.degrees(lo):.4g} to {math.degrees(hi):.4g} degrees", param_hint="--q0")
+
+
 def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hint: str = "",
                      error: type | None = None) -> None:
     """A one-axis parameter file drives the axis that moves only if it is a model of that axis:
@@ -287,6 +298,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                 if not isinstance(prog, RobotTrajectory) or tuple(prog.axes) != tuple(range(1, plant.n + 1)):
                     raise KukaidError(f"{program}: not a trajectory of every axis A1..A{plant.n} of the robot")
                 q_start = np.asarray(prog.q[0], float).copy()
+            _check_start(q0, float(lo_[axis - 1]), float(hi_[axis - 1]), f"the URDF's A{axis}")
             q_start[axis - 1] = math.radians(q0)
         else:
             if program is not None:
@@ -298,6 +310,10 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                                          "\"axis\" sets another)", param_hint="--axis")
             _check_axis_kind(params, params_path, scfg.axis, f"the virtual KR C4's A{scfg.axis}",
                              f" (a --sim-config with \"axis\": {params.get('axis')} simulates that axis)")
+            from kukaid.models.limits import AxisLimits
+
+            rng = AxisLimits.kr6_r700_sixx(scfg.axis)
+            _check_start(q0, rng.q_min, rng.q_max, f"the virtual KR C4's A{scfg.axis} (a KR 6 R700 sixx)")
             guidable()
 
         def sim_backend(cfg_):  # the same person and the same noise for every controller (paired)

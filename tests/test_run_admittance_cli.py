@@ -54,6 +54,15 @@ def test_a_wrong_option_is_said_before_an_existing_output(files, tmp_path, bad, 
     assert len(r.stderr.strip().splitlines()) == 1 and out.read_bytes() == b"an earlier run"
 
 
+@pytest.mark.parametrize("q0", ["300", "-130"])
+def test_a_start_beyond_the_simulated_axis_range_is_refused(files, tmp_path, q0):
+    """New-user trial 10: --q0 300 ran on the virtual KR C4's A3, whose range of motion is -120 to 156
+    degrees (the virtual robot has no hard stops: it simulated no robot); a usage error naming the range."""
+    r = _run(["--params", files / "params.json", "--q0", q0, "--duration", "1", "-o", tmp_path / "r.h5"])
+    assert r.exit_code == 2 and "--q0" in r.stderr and "-120 to 156 degrees" in r.stderr, r.output
+    assert not any(tmp_path.iterdir())
+
+
 def test_effects_the_online_estimate_does_not_model_are_said(files, tmp_path):
     """New-user trial 10: a file refined by `diagnose -o` with backlash ran without it, said only in --json
     (ignored_effects); the summary now says which effects Γr went without."""
