@@ -74,6 +74,34 @@ def test_drive_model_round_trip_and_rotor_torque():
     assert np.allclose(rot, (qdd @ d.G.T * d.rotor_inertia) @ d.G)
 
 
+def test_equations_near_reversals_and_stops_are_left_out():
+    """A joint that sticks (under STANDSTILL) and goes on the same way, or stands longer than the window,
+    is a stop: its samples and those within the window of its edges are not fitted, as around a
+    reversal; a quick passage through zero is a reversal's alone (the window about its crossing)."""
+    from kukaid.identify.robot_fit import STANDSTILL, away_from_reversals
+
+    t = np.arange(0.0, 10.0, 0.01)
+    v = np.ones(t.size)
+    v[(t >= 2.0) & (t < 2.3)] = 0.2 * STANDSTILL      # sticks 0.3 s, goes on forwards
+    v[t >= 5.0] = -1.0                                # a quick reversal at 5 s
+    v[(t >= 7.0) & (t < 7.5)] = 0.1 * STANDSTILL      # reverses and stands 0.5 s (longer than the window)
+    v[t >= 7.5] = 1.0
+    w = 0.2
+    keep = away_from_reversals(v[:, None], t, w, STANDSTILL)[:, 0]
+    assert np.array_equal(keep, away_from_reversals(v[:, None], t, w, STANDSTILL)[:, 0])
+    # (a sample's own 10 ms either side of an edge left to rounding)
+    out = lambda a, b: np.all(~keep[(t > a + 0.015) & (t < b - 0.015)])     # noqa: E731
+    inside = lambda a, b: np.all(keep[(t > a + 0.015) & (t < b - 0.015)])  # noqa: E731
+    assert inside(0.0, 1.8) and out(1.8, 2.49) and inside(2.49, 4.8)     # the stick and a window each side
+    assert out(4.8, 5.2) and inside(5.2, 6.8)                              # the quick reversal: its window
+    assert out(6.8, 7.69) and inside(7.69, 10.0)                           # the long stop, from its edges
+    # without the stops only the reversals' windows go: the stick forwards and the end of the long stop
+    # (beyond the window about its zero crossing at 7 s) are then fitted
+    plain = away_from_reversals(v[:, None], t, w)[:, 0]
+    assert np.all(plain[(t > 1.0) & (t < 4.8)]) and np.all(plain[(t > 7.25) & (t < 7.5)])
+    assert np.all(away_from_reversals(v[:, None], t, 0.0, STANDSTILL))    # a window of 0: everything fitted
+
+
 def test_simulated_kr6_base_parameters_friction_and_consistency(kr6, sim_fit):
     params, truth = sim_fit
     base = kr6.base_parameters()

@@ -77,6 +77,18 @@ RIPPLE = 4
 #: lwr4_3 chose it for A5, which then lost on lwr4_1 and lwr4_2 (27 -> 35 %): as wide as a slow
 #: joint's whole motion, it is no longer a friction transition
 SMOOTH_GRID = (0.0, 0.01, 0.03)
+#: a joint slower than this (rad/s, its filtered velocity) is standing or sticking: its friction is static,
+#: any torque up to the breakaway force, no function of the velocity. Such samples are not fitted, and a
+#: stop (going on the same way after it, or lasting longer than the reversal window) is treated as a
+#: reversal, its window counted from its edges (:func:`away_from_reversals`). The smallest transition
+#: velocity of :data:`SMOOTH_GRID`: below it no candidate Coulomb term is determined by the speed. The
+#: virtual KR C4's servo-driven joints stick between and at reversals (runs under 0.01 rad/s of up to
+#: 0.8 s; 1 to 9 % of the equations away from reversals under 0.003 rad/s on tests/test_robot_e2e.py's
+#: recording): fitted, they had a transition velocity of 0.01 to 0.03 rad/s chosen for them, which then
+#: biased the inertias (well-determined base parameters 10 with the sign, 2 with 0.01 rad/s, 3 chosen),
+#: and ripple harmonics the robot does not have. The LWR4+ passes through zero speed in at most 0.12 s
+#: at its reversals and never stops: its fits are unchanged
+STANDSTILL = 0.01
 #: the Coulomb term's dead-band: this many standard deviations of the joint's velocity noise (the filtered
 #: noise is correlated: at 3 its excursions still flip the sign a few times a second at rest)
 NOISE_DEADBAND = 5.0
@@ -138,7 +150,7 @@ class RobotFitSettings:
         velocity noise, estimated from the positions, so a joint at rest is not given ``±Fc`` by
         the sign of its noise (the file holds the values used).
     reversal_window : a joint's equations closer than this many cut-off periods to a reversal of
-        its velocity are not fitted (0: all are).
+        its velocity or to a stop (slower than :data:`STANDSTILL`) are not fitted (0: all are).
     mass_bounds : (low, high) every link's mass within these multiples of its URDF mass (None: no
         bound). The consistent set alone lets a link take several times its mass where the data
         see only combinations (a 339 kg link fitted at 1.7 to 3.8 t on a heavy robot).
@@ -231,17 +243,30 @@ class Motion:
     tau_raw: np.ndarray | None = None   # (N, n) the joint torques unfiltered (the cut-off's common target)
 
 
-def away_from_reversals(qd: np.ndarray, time: np.ndarray, window: float) -> np.ndarray:
-    """(N, n) mask: True where joint j's velocity has not changed sign within ``window`` s.
+def away_from_reversals(qd: np.ndarray, time: np.ndarray, window: float, standstill: float = 0.0) -> np.ndarray:
+    """(N, n) mask: True where joint j's velocity has not changed sign within ``window`` s, is not
+    under ``standstill`` rad/s and has not stopped within ``window`` s.
 
     Near a reversal the low-pass filter smears the Coulomb step of the measured torque over about
-    one cut-off period while ``sign(qd)`` steps at once; those equations are left out."""
+    one cut-off period while ``sign(qd)`` steps at once; in and near a stop the joint stands or sticks
+    and its friction is static, any torque up to the breakaway force, no function of the velocity
+    (see :data:`STANDSTILL`); those equations are left out."""
     keep = np.ones(qd.shape, bool)
     if window <= 0:
         return keep
     for j in range(qd.shape[1]):
         s = np.signbit(qd[:, j])
         idx = np.flatnonzero(s[1:] != s[:-1])
+        slow = np.abs(qd[:, j]) < standstill
+        keep[:, j] = ~slow
+        # a stop: slower than ``standstill`` and either going on the same way (a joint that sticks and
+        # slips) or for longer than the window (standing); its samples are events, so the window
+        # counts from its edges. A passage through zero shorter than the window is a reversal's: the
+        # window about its zero crossing covers it
+        d = np.diff(np.concatenate([[0], slow.astype(np.int8), [0]]))
+        for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+            if (0 < a and b < s.size and s[a - 1] == s[b]) or time[b - 1] - time[a] > window:
+                idx = np.union1d(idx, np.arange(a, b))
         if idx.size == 0:
             continue
         tc = time[idx]
@@ -250,7 +275,7 @@ def away_from_reversals(qd: np.ndarray, time: np.ndarray, window: float) -> np.n
         for off in (-1, 0):
             k = np.clip(pos + off, 0, tc.size - 1)
             near = np.minimum(near, np.abs(time - tc[k]))
-        keep[:, j] = near > window
+        keep[:, j] &= near > window
     return keep
 
 
@@ -326,7 +351,7 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
     """Filtered positions, their derivatives and the (filtered) joint torques of axes A1..An.
 
     ``rows``: the samples to return (after filtering and differentiating the whole log);
-    ``reversal_window`` (s): also mark the samples away from the joint's velocity reversals
+    ``reversal_window`` (s): also mark the samples away from the joint's velocity reversals and stops
     (:func:`away_from_reversals`) in ``keep``. The log is processed one joint at a time, so the
     memory beyond the returned rows is a few single-column arrays whatever the log's length.
     ``raw``: also the unfiltered joint torques at those rows (``tau_raw``)."""
@@ -359,7 +384,7 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
         out["qd"][:, j] = qdj[rows]
         out["qdd"][:, j] = np.gradient(qdj, t)[rows]
         if keep is not None:
-            keep[:, j] = away_from_reversals(qdj[:, None], log.time, reversal_window)[rows, 0]
+            keep[:, j] = away_from_reversals(qdj[:, None], log.time, reversal_window, STANDSTILL)[rows, 0]
         del qj, qdj
         if G is None:
             tj = log.tau[:, c]
