@@ -753,6 +753,36 @@ def _active_columns(robot: RobotModel, settings: RobotFitSettings, drive: DriveM
     return [np.flatnonzero(nz[j]) for j in range(n)]
 
 
+def folded_rotors(robot: RobotModel, drive: DriveModel, base, samples: int = 200,
+                  rtol: float = 1e-8) -> list[tuple[int, np.ndarray]]:
+    """The motors (0-based, each with its (b,) coefficients ``x``: per kg·m² of its rotor, the base
+    parameters grow by ``x``) whose rotor-inertia column is a combination of the base parameters' columns
+    at every state: the rotor of a joint whose link inertia about the
+    joint's axis shows only in that joint's own equation, as A1's (``ratio² qdd1``, as link 1's
+    ``Izz``) and, with A2's axis across A1's, A2's. The data cannot split such a rotor from the base
+    parameters: fitted as a column of its own it left those base parameters without a sigma (NaN,
+    a null direction) and their split arbitrary. Folded, it is held at 0 and the base parameters
+    that hold that link inertia carry it (their value is the sum). Found as
+    :meth:`RobotModel.base_parameters` finds the base parameters: at random states."""
+    rng = np.random.default_rng(1)
+    n = robot.n
+    lo = np.where(np.isfinite(robot.lower) & (robot.lower > -1e10), robot.lower, -np.pi)
+    hi = np.where(np.isfinite(robot.upper) & (robot.upper < 1e10), robot.upper, np.pi)
+    q = rng.uniform(lo, hi, (samples, n))
+    qdd = rng.standard_normal((samples, n))
+    Y = robot.regressor(q, rng.standard_normal((samples, n)), qdd)[:, :, base.independent].reshape(-1, base.size)
+    R = drive.rotor_regressor(qdd).reshape(-1, n)
+    out = []
+    for k in range(n):
+        c = R[:, k]
+        if not np.any(c):
+            continue
+        x, *_ = np.linalg.lstsq(Y, c, rcond=None)
+        if np.linalg.norm(c - Y @ x) <= rtol * np.linalg.norm(c):
+            out.append((k, np.where(np.abs(x) > 1e-9 * np.abs(x).max(), x, 0.0)))
+    return out
+
+
 @dataclass
 class FoldEquations:
     """Per-joint normal equations per candidate transition velocity and per fold, compact: joint j
@@ -1145,6 +1175,7 @@ def _terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSetting
     fe = fold_equations(robot, m, settings, drive, grid, folds, K)
     n_extra = fe.used.size
     p = robot.n_std + n_extra
+    folded = folded_rotors(robot, drive, base) if settings.rotor else []
     ib = np.concatenate([base.independent, robot.n_std + np.arange(n_extra)])
     harmonic = np.zeros(p, int)           # the ripple harmonic of each column (0: not a ripple column)
     if settings.ripple:
@@ -1157,6 +1188,14 @@ def _terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSetting
             spring_col[robot.n_std + k] = nm.endswith(".k")
     pick = [(0, settings.ripple, True, settings.spring)] * n
     choices: dict = {}
+    if folded:
+        choices["rotor_folded"] = {
+            "motors": [f"M{k + 1}" for k, _ in folded], "columns": [p - n + k for k, _ in folded],
+            # the least-squares base parameters hold the folded rotors: (links' part) + sum_k into[k] * I_rotor_k
+            "into": [x.tolist() for _, x in folded],
+            "why": "each is one column with a link's inertia about its joint's axis: in the least squares it is held "
+                   "at 0 and the base parameters holding that inertia carry it; the consistent estimate splits it "
+                   "between them and the rotor (the prior decides)"}
     err_raw = None
     if choose:
         G0, g0, c0 = fe.full(p)
@@ -1329,7 +1368,11 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
         t.settings, t.m, t.fe, t.K, t.p, t.ib, t.harmonic, t.spring_col, t.pick, t.choices)
     N = m.q.shape[0]
     nb = base.size
-    choices["rotor"] = {"fitted": settings.rotor, "motor_current_logs": motor_currents, "why": rotor_why}
+    fold = choices.pop("rotor_folded", None)
+    fcols = np.asarray(fold["columns"] if fold else [], int)
+    choices["rotor"] = {"fitted": settings.rotor, "motor_current_logs": motor_currents, "why": rotor_why,
+                        **({"folded": fold["motors"], "folded_into": fold["into"], "folded_why": fold["why"]}
+                           if fold else {})}
     # the chosen equations: joint j at its transition velocity, its ripple harmonics, its samples
     G, gb, cc, used = _chosen(fe, pick, harmonic, p, spring_col=spring_col)
     used &= fe.used
@@ -1344,6 +1387,10 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     w = 1.0 / sig ** 2
     Gw, gw, cw = np.einsum("j,jkl->kl", w, G), w @ gb, float(w @ cc)
     Gwb, gwb = Gw[np.ix_(ib, ib)], gw[ib]
+    if fcols.size:   # least squares without the folded rotors' columns: the base parameters carry them
+        fold_ls = np.isin(ib, fcols)
+        Gwb, gwb = Gwb.copy(), gwb.copy()
+        Gwb[fold_ls, :], Gwb[:, fold_ls], gwb[fold_ls] = 0.0, 0.0, 0.0
     beta = _solve(Gwb, gwb)
     M = float(kw.sum())
     s2 = max(cw - 2 * gwb @ beta + beta @ Gwb @ beta, 0.0) / max(M - ib.size, 1)
@@ -1351,10 +1398,11 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     dsc = 1.0 / np.sqrt(np.maximum(np.diag(Gwb), 1e-300))
     Gs = dsc[:, None] * Gwb * dsc[None, :]
-    live = np.diag(Gwb) > 0                                # ripple harmonics left out are zero columns
+    live = np.diag(Gwb) > 0              # ripple harmonics left out and folded rotors are zero columns
     cond = float(np.sqrt(np.linalg.cond(Gs[np.ix_(live, live)])))
-    # directions the data do not see (A1's rotor inertia and link 1's Izz are one column): the
-    # pseudo-inverse gives them no variance, but their parameters have no standard deviation (null)
+    # directions the data do not see (a folded rotor's zero column; a rotor that is one column with a
+    # link inertia is folded above, :func:`folded_rotors`): the pseudo-inverse gives them no variance,
+    # but their parameters have no standard deviation (null)
     ev, V = np.linalg.eigh(Gs)
     null = V[:, ev < 1e-10 * ev.max()]
     sd[np.any(np.abs(null) > 1e-6, axis=1)] = np.nan
@@ -1388,7 +1436,7 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     with _one_blas_thread():
         cfac = [correlation_factor(resid[m.keep[:, j], j], 20) for j in range(n)]
     rel = np.linalg.norm(m.tau - pred, axis=0) / np.maximum(np.linalg.norm(m.tau, axis=0), 1e-12)
-    at_bound = [nm for nm, v, nn in zip(extra_n, extra, _nonneg(extra_n)) if nn and abs(v) < 1e-7]
+    at_bound = [nm for nm, v, nn, u in zip(extra_n, extra, _nonneg(extra_n), used) if nn and u and abs(v) < 1e-7]
     checks = consistency(pi_c) if pi_c is not None else None
     # a link on the boundary of the consistent set: its pseudo-inertia (nearly) singular
     if pi_c is not None and settings.mass_bounds is not None:
@@ -1646,7 +1694,10 @@ def format_robot_table(params: dict) -> str:
     ch = mt.get("choices") or {}
     rot = [(k, x) for k, x in vals.items() if k.endswith(".rotor_inertia")]
     if rot:
-        lines.append("rotor inertia kg·m²: " + " ".join(f"{k.split('.')[0]} {table_number(x)}" for k, x in rot))
+        folded = (ch.get("rotor") or {}).get("folded") or []
+        lines.append("rotor inertia kg·m²: " + " ".join(f"{k.split('.')[0]} {table_number(x)}" for k, x in rot)
+                     + (f" ({', '.join(folded)}: one column with link inertias, in the least-squares base "
+                        "parameters; split from them by the prior)" if folded else ""))
     elif (ch.get("rotor") or {}).get("motor_current_logs") is False:
         lines.append("no rotor inertias: the logs do not say their torques come from the motor currents "
                      "(--rotor-inertia if they do)")
