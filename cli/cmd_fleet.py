@@ -75,9 +75,9 @@ def _table_output(output: Path, source: Path) -> None:
     check_outputs([output], [source] if source.is_file() else [])
 
 
-def _n(count: int, noun: str) -> str:
-    """``1 error row``, ``2 error rows``."""
-    return f"{count} {noun}{'' if count == 1 else 's'}"
+def _n(count: int, noun: str, plural: str | None = None) -> str:
+    """``1 error row``, ``2 error rows`` (``plural``: when it is not ``noun`` + s)."""
+    return f"{count} {noun if count == 1 else plural or noun + 's'}"
 
 
 def _report(summary, output: Path, what: str) -> None:
@@ -188,7 +188,7 @@ def simulate_cmd(robots, days, outdir, axes, whole_arm, wear_share, wear_range, 
         raise
     finally:
         bar.close()
-    click.echo(f"{outdir}: {s.logs} logs of {s.axes} axes ({s.wearing} wearing) in {s.wall_s:.1f} s; "
+    click.echo(f"{outdir}: {_n(s.logs, 'log')} of {_n(s.axes, 'axis', 'axes')} ({s.wearing} wearing) in {s.wall_s:.1f} s; "
                f"manifest.csv, truth.json", err=True)
 
 

@@ -356,6 +356,14 @@ def test_simulate_option_errors_name_the_command_once(tmp_path):
     assert not (tmp_path / "f").exists()
 
 
+def test_simulate_counts_in_words():
+    """New-user trial 10: a fleet of one robot and one day said "1 logs of 1 axes"."""
+    from kukaid_cli.cmd_fleet import _n
+
+    assert [_n(1, "log"), _n(2, "log"), _n(1, "axis", "axes"), _n(6, "axis", "axes")] == \
+        ["1 log", "2 logs", "1 axis", "6 axes"]
+
+
 def test_simulate_keeps_the_truth_apart(tmp_path):
     from kukaid.logs import read_log
 
