@@ -49,3 +49,14 @@ def pytest_terminal_summary(terminalreporter) -> None:
         terminalreporter.write_line(f"kukaid: {SHARED / 'datasets'} has no {' or '.join(missing)}: the tests and docs "
                                     f"examples that need the real datasets were skipped ({n} skips in all); put them "
                                     "there or set KUKAID_SHARED", yellow=True)
+
+
+@pytest.fixture(scope="session")
+def robot_hidden_bench():
+    """``benchmarks/diagnose_robot_hidden.py`` imported: its cases (the six-axis virtual KR C4 with one
+    hidden effect) are what the robot diagnosis tests run."""
+    spec = importlib.util.spec_from_file_location("diagnose_robot_hidden", ROOT / "benchmarks" / "diagnose_robot_hidden.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("diagnose_robot_hidden", mod)
+    spec.loader.exec_module(mod)
+    return mod

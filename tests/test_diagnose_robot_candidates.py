@@ -94,35 +94,25 @@ def test_a_hidden_joint_effect_is_named_first(kr6, effect, name):
         assert abs(st["params"]["q0_rad"] + 1.23) < 0.3 and 0.1 < st["params"]["share_of_gravity"] < 0.4, st["params"]
 
 
-def _bench():
-    """benchmarks/diagnose_robot_hidden.py, imported."""
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        import diagnose_robot_hidden as bench
-    finally:
-        sys.path.pop(0)
-    return bench
-
-
-def test_after_a_named_payload_the_baseline_is_chosen_again(kr6):
+def test_after_a_named_payload_the_baseline_is_chosen_again(kr6, robot_hidden_bench):
     """The benchmark's quick payload case (a 1.5-5 kg box at the flange, its own inertia too): after
     the payload is named, the joints' own choices (Coulomb transition, viscous form, rotor inertia)
     and the prior's strength are made again with it beside. Made on a torque the payload dominated,
     they left the held-out error at 4.4x the noise floor; made again, 3.4x."""
-    bench = _bench()
+    bench = robot_hidden_bench
     row = bench.run_case(bench.draw("payload", 0, kr6), 4.0, kr6, twin=False, n_rec=3)
     assert row["named"] == ["payload"], row["named"]
     assert row["after_x_floor"] < 3.9, row["after_x_floor"]
 
 
-def test_a_counterbalance_the_fit_took_in_is_named(kr6):
+def test_a_counterbalance_the_fit_took_in_is_named(kr6, robot_hidden_bench):
     """The benchmark's held-out counterbalance seed 20 (a gas spring of 27 % of A2's gravity torque,
     attached at -1.69 rad): the robot fit on the first recording took the spring into the gravity
     parameters of the links A2 carries and A2's ripple harmonics (held out 1.6x the noise floor).
     Judged under the file's uncertainty the spring could not take that back (A2 0.54 -> 1.68 %)
     and nothing was named; with those gravity parameters free, and against the same freedom
     without it, it is named and A2 ends near its clean twin (1.2x)."""
-    bench = _bench()
+    bench = robot_hidden_bench
     spec = bench.draw("counterbalance", 20, kr6)
     row = bench.run_case(spec, 10.0, kr6, twin=False, n_rec=4)
     assert row["named"][:1] == ["counterbalance@A2"], row["named"]
@@ -147,14 +137,14 @@ def test_benchmark_quick_runs():
     assert all(np.isfinite(x["before_x_floor"]) for x in out["rows"])
 
 
-def test_a_ripple_the_fit_took_in_is_closed_to_near_its_twin(kr6):
+def test_a_ripple_the_fit_took_in_is_closed_to_near_its_twin(kr6, robot_hidden_bench):
     """The benchmark's dev ripple seed 0 (an A6 ripple of 0.39 N·m at 16.2 periods per rad): the
     robot fit on the first recording took part of it into A6's spring (0.12 N·m/rad, held at that
     it extrapolates to the other recordings' angles), and the simulator held the ripple's torque
     over each 4 ms sample (10 % of it a lag of its position). A6 held out after the ripple was 3.5x
     the noise floor (its clean twin 2.0x); with the ripple carried every servo cycle 2.8x, and with
     the ripple in place of the file's spring and ripple terms 2.1x."""
-    bench = _bench()
+    bench = robot_hidden_bench
     spec = bench.draw("ripple", 0, kr6)
     row = bench.run_case(spec, 10.0, kr6, twin=False, n_rec=4)
     assert row["named"] == ["position_ripple@A6"], row["named"]

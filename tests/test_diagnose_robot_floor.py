@@ -8,10 +8,6 @@ speeds (the simulator's friction is linear), and the file's rigid body fitted on
 recording (its estimation error, several times the floor on the wrist)."""
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -19,20 +15,10 @@ from kukaid.diagnose.robot import diagnose_robot
 from kukaid.identify.robot_fit import RobotFitSettings, filtered_coulomb, fit_robot, motion, sample_rows
 from kukaid.models.robot import DriveModel, RobotModel
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _bench():
-    spec = importlib.util.spec_from_file_location("diagnose_robot_hidden", ROOT / "benchmarks" / "diagnose_robot_hidden.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("diagnose_robot_hidden", mod)
-    spec.loader.exec_module(mod)
-    return mod
-
 
 @pytest.fixture(scope="module")
-def clean():
-    B = _bench()
+def clean(robot_hidden_bench):
+    B = robot_hidden_bench
     robot = RobotModel(B.ROBOT)
     logs = B.recordings(B.draw(None, 0, robot), 6.0, 3)
     return robot, logs

@@ -38,8 +38,10 @@ rigid body refitted freely, the wrist's ratios took up what the file's wrist lin
 the fit's low-pass, as the torque is (near the cut-off the filter attenuates a ripple in the
 torque, not in a sine of the filtered position). Its coefficients and the baseline are then
 fitted on the training folds and the held-out error measured. A counterbalance takes the place of
-its joint's spring and ripple terms; it and a payload are judged at every prior strength (a rigid
-body refitted freely takes part of either in), a counterbalance with the gravity parameters of the
+its joint's spring and ripple terms; it, a payload and the wrist's coupled friction are judged at
+every prior strength (a rigid body refitted freely takes part of either in; the baseline's strength
+was chosen on a torque the effect dominated), the strength that predicts best among those that make
+no joint worse (:func:`_try`), a counterbalance with the gravity parameters of the
 links its joint carries free of the file's prior (:meth:`BaseCorrection.freed`: a fit on a
 recording with the spring took it in there) and against the same freedom without the spring.
 A ripple is tried in the place of its joint's spring and ripple terms (a fit took part of it
@@ -799,12 +801,14 @@ class _Stacked(RobotCandidate):
         return A, np.concatenate([self.sw[j] * r[:, j] for j in self.J])
 
 
-def _try(cand: RobotCandidate, ctx: Context, r, tau, Fjs: dict, shared, local, folds, K, w, held, prior, base=None):
+def _try(cand: RobotCandidate, ctx: Context, r, tau, Fjs: dict, shared, local, folds, K, w, held, prior, base=None,
+         admissible=None):
     """:func:`_try_at` at each prior strength of ``Fjs`` {multiple of the raw ``prior``: the joints'
     own columns chosen at it}: the one with the smallest weighted held-out error, and that strength
     (None when no option applies). With and without the candidate, the model is judged at the
-    strength that predicts it best."""
-    best = None
+    strength that predicts it best. ``admissible(num, den)``: the strengths whose held-out errors it
+    accepts (no joint made worse) are preferred; none accepted, the best of all."""
+    best, best_ok = None, None
     for c, Fj in Fjs.items():
         res = _try_at(cand, ctx, r, tau, Fj, shared, local, folds, K, w, held, _scaled(prior, c), base)
         if res is None:
@@ -812,7 +816,17 @@ def _try(cand: RobotCandidate, ctx: Context, r, tau, Fjs: dict, shared, local, f
         e = _weighted(res[0], w)
         if best is None or e < best[0]:
             best = (e, res + (c,))
-    return best[1]
+        if admissible is not None and admissible(res[0], res[1]) and (best_ok is None or e < best_ok[0]):
+            best_ok = (e, res + (c,))
+    return (best_ok or best)[1]
+
+
+def _worse(e: np.ndarray, err: np.ndarray, rms: np.ndarray, floor: np.ndarray) -> list[int]:
+    """The joints (0-based) a model of held-out relative errors ``e`` makes worse than ``err``: by
+    :data:`MARGIN` and by more than :data:`WORSE_FLOOR` of the joint's noise floor (with the rigid
+    body refitted beside a candidate, every joint's held-out error moves a little)."""
+    return [k for k in range(e.size)
+            if e[k] > (1 + MARGIN) * err[k] + 1e-12 and (e[k] - err[k]) * rms[k] > WORSE_FLOOR * floor[k]]
 
 
 def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds, K, w, held, prior, base=None):
@@ -972,16 +986,16 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
         best = None
         trials: list[dict] = []
         for name, cand in remaining.items():
-            # a counterbalance or a payload is judged at every prior strength (a rigid body refitted
-            # freely takes part of either in, held it keeps what the file took in); the others at the
-            # baseline's
+            # a counterbalance, a payload or the wrist's coupled friction is judged at every prior
+            # strength (a rigid body refitted freely takes part of either in, held it keeps what the
+            # file took in), preferring those that make no joint worse; the others at the baseline's
             pr = prior_of(cand)
             # a candidate that may take the place of the file's terms of its joint's angle is tried
             # in their place and beside them: the better by held-out error
             res, var, ways = None, cand, []
             for v in [cand] + ([_AngleTermsHeld(cand)] if cand.angle_terms_optional else []):
                 rv = _try(v, ctx, r, tau, Fjs if cand.rigid_body_like else {scale: Fj}, shared, local, folds, K, w,
-                          held, pr, base)
+                          held, pr, base, admissible=lambda a, b: not _worse(_rel(a, b), err, rms, floor))
                 if rv is not None:
                     ways.append(v)
                 if rv is not None and (res is None or _weighted(rv[0], w) < _weighted(res[0], w)):
@@ -1013,10 +1027,8 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             per_fold = (fnum[held][:, joints].sum(1) / np.maximum(fold_err[held][:, joints].sum(1), 1e-300)).tolist()
             trials.append({"name": name, "mean_before": mb, "mean_after": ma, "fold_sse_ratio": per_fold,
                            "gain_t": gain_t})
-            # worse: by the margin and by more than WORSE_FLOOR of the joint's noise floor (with the rigid
-            # body refitted beside a candidate, every joint's held-out error moves a little)
-            worse = [f"A{k + 1} ({100 * err[k]:.2f} -> {100 * e[k]:.2f} %)" for k in range(n)
-                     if e[k] > (1 + MARGIN) * err[k] + 1e-12 and (e[k] - err[k]) * rms[k] > WORSE_FLOOR * floor[k]]
+            # worse: by the margin and by more than WORSE_FLOOR of the joint's noise floor (:func:`_worse`)
+            worse = [f"A{k + 1} ({100 * err[k]:.2f} -> {100 * e[k]:.2f} %)" for k in _worse(e, err, rms, floor)]
             reason = None
             if ma > (1 - MARGIN) * ref:
                 reason = f"held-out error {100 * mb:.2f} -> {100 * ma:.2f} % (needs a {100 * MARGIN:.0f} % drop)" + (
