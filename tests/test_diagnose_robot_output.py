@@ -15,18 +15,17 @@ import pytest
 from kukaid.logs import write_hdf5
 from pdf_layout import capture_pages
 from test_cli_errors import _one_line_error, _run
-from test_diagnose_robot_floor import _bench
 from test_report_pdf import _pages
 
 
 @pytest.fixture(scope="module")
-def case(tmp_path_factory):
+def case(tmp_path_factory, robot_hidden_bench):
     """The payload case on disk, diagnosed once with -o (onto a note file, with --force) and --report."""
     from kukaid.identify.robot_fit import fit_robot
     from kukaid.models.robot import RobotModel
     from kukaid.params import save_robot_params
 
-    B = _bench()
+    B = robot_hidden_bench
     robot = RobotModel(B.ROBOT)
     spec = B.draw("payload", 0, robot)
     d = tmp_path_factory.mktemp("robot_out")

@@ -173,13 +173,11 @@ def test_robot_table_is_short_and_has_no_nan_or_tiny_numbers(rest_fit, tmp_path)
     assert r.exit_code == 0 and r.stdout.strip() == text.strip(), r.output
 
 
-def test_rotor_inertias_are_fitted_for_motor_current_torques_and_predict_other_recordings_better():
+def test_rotor_inertias_are_fitted_for_motor_current_torques_and_predict_other_recordings_better(robot_hidden_bench):
     """A KR C4's torques come from its motor currents and carry the rotors' inertia (the six-axis virtual
     KR C4 has it): the default fit has a rotor inertia per motor, says why, and predicts the robot's other
     recordings better than without them (seed 1: 10.1 -> 9.2 % mean; seeds 0-4 all better)."""
-    from test_diagnose_robot_floor import _bench
-
-    B = _bench()
+    B = robot_hidden_bench
     robot = RobotModel(B.ROBOT)
     logs = B.recordings(B.draw("payload", 1, robot), 10.0, 3, hidden=False)
     p = fit_robot(logs[:1], robot)
