@@ -210,6 +210,23 @@ def check_outputs(outputs: Iterable[Path | None], inputs: Iterable[Path | None] 
                 raise KukaidError(f"{o}: is also an input of this command; write the output elsewhere")
 
 
+def config_axis(sim_config: Path | None, axis: int | None, what: str, fix: str = "make the two agree") -> int | None:
+    """The axis a --sim-config names ("axis"; None when it names none), checked against ``axis``, the one
+    ``what`` moves (a trajectory's, --axis): a config of another axis is refused, never dropped in silence
+    (the simulator runs one axis); ``fix`` (``{said}``: the file's axis) says how to mend it."""
+    if sim_config is None:
+        return None
+    from kukaid.errors import SimConfigError
+    from kukaid.jsonfile import read_json
+
+    said = read_json(sim_config, SimConfigError)
+    said = said.get("axis") if isinstance(said, dict) else None
+    if said is not None and axis is not None and int(said) != int(axis):
+        raise SimConfigError(f"{sim_config}: \"axis\": {said}, but {what} moves A{axis}: the virtual KR C4 simulates "
+                             f"one axis; leave \"axis\" out, or {fix.format(said=said)}")
+    return None if said is None else int(said)
+
+
 def check_suffix(path: Path | None, *suffixes: str) -> None:
     """Refuse an output whose name does not say its format (``.json``, ``.pdf``, ``.h5`` ...)."""
     if path is not None and path.suffix.lower() not in suffixes:

@@ -163,7 +163,7 @@ def _one_axis_backend(traj, trajectory: Path, sim_config: Path | None, noise: fl
     """The one-axis virtual KR C4 with the requested noise and hidden effects."""
     from kukaid.capture import SimCapture, parse_effect, sim_config as make_config
     from kukaid.errors import SimConfigError
-    from kukaid_cli._util import check_noise
+    from kukaid_cli._util import check_noise, config_axis
 
     parsed = [parse_effect(e) for e in effects]
     names = [e[0] for e in parsed]
@@ -172,14 +172,7 @@ def _one_axis_backend(traj, trajectory: Path, sim_config: Path | None, noise: fl
     check_noise(noise)
     if sim_config is not None:
         make_config(sim_config)  # an error in the file is one in the data (exit 1), before the options'
-        from kukaid.jsonfile import read_json
-
-        said = read_json(sim_config, SimConfigError)
-        said = said.get("axis") if isinstance(said, dict) else None
-        if said is not None and int(said) != int(traj.axis):  # the trajectory's axis is simulated: never a silent choice
-            raise SimConfigError(f"{sim_config}: \"axis\": {said}, but {trajectory} moves A{traj.axis}: the virtual "
-                                 f"KR C4 simulates the trajectory's axis; leave \"axis\" out, or excite the "
-                                 f"trajectory with --axis {said}")
+        config_axis(sim_config, traj.axis, str(trajectory), "excite the trajectory with --axis {said}")
     for spec, effect in zip(effects, parsed):  # a size the simulator refuses is the option's error
         try:
             make_config(sim_config, effects=[effect], seed=seed)

@@ -68,7 +68,8 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
     from kukaid.krc.krl_logger import RingLayout
     from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
     from kukaid.krc.sim_source import SimSource
-    from kukaid_cli._util import check_noise, check_outputs, check_suffix, given, refuse_overwrite, usage_errors
+    from kukaid_cli._util import (check_noise, check_outputs, check_suffix, config_axis, given, refuse_overwrite,
+                                  usage_errors)
 
     if q0 is not None and not math.isfinite(q0):  # FloatRange lets nan through
         raise click.BadParameter(f"{q0} is not a position in degrees", param_hint="--q0")
@@ -112,6 +113,9 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
             raise click.UsageError(f"--axis {axis} differs from the trajectory's axis A{traj.axis} ({traj_path}); "
                                    "the trajectory's axis is simulated")
         axis = int(getattr(traj, "axis", axis) or axis)
+    # a --sim-config's "axis" is simulated (as run-admittance does), or refused when it is not the axis asked for
+    axis = config_axis(sim_config, axis if traj is not None or given("axis") else None,
+                       str(traj_path) if traj is not None else f"--axis {axis}") or axis
     sim = VirtualKRC4(cfg, seed=seed, axis=axis)
     if q0 is not None:
         if traj is not None:

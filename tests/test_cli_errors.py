@@ -191,6 +191,16 @@ def test_serve_sim_checks_its_truth_file_before_serving(files, tmp_path):
     assert (tmp_path / "truth.h5").read_text() == "recorded"
 
 
+def test_serve_sim_simulates_the_axis_its_sim_config_names(tmp_path):
+    """New-user trial 10: serve-sim --sim-config with "axis": 2 served A3 (the file's axis dropped without a
+    word; run-admittance and capture simulate or check it): now it simulates A2, and refuses --axis 3 with it."""
+    (tmp_path / "a2.json").write_text('{"axis": 2}')
+    r = _run("serve-sim", "--port", "0", "--duration", "1", "--sim-config", tmp_path / "a2.json", "--ring-axes", "3")
+    _one_line_error(r, "A3 is not simulated: the one-axis simulator runs A2 only", code=2)
+    r = _run("serve-sim", "--port", "0", "--duration", "1", "--sim-config", tmp_path / "a2.json", "--axis", "3")
+    _one_line_error(r, 'a2.json: "axis": 2, but --axis 3 moves A3', code=1)
+
+
 def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
     """stderr of a command that is not on a terminal holds what it says, and no bar."""
     r = subprocess.run([*kukaid_cmd, "capture", str(files / "inertia.json"), "-o", str(tmp_path / "x.h5"),
