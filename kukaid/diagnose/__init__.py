@@ -36,9 +36,9 @@ def diagnose_model(model: Any, logs: Sequence[Any], *, axis: int | None = None, 
     (result, draw(result, path)); the result's ``joints()`` gives each joint's figures."""
     from contextlib import nullcontext
 
-    from kukaid.errors import KukaidError, OptionError
+    from kukaid.errors import OptionError
     from kukaid.identify.fitted import RobotFile, file_cutoff
-    from kukaid.logs import repeated_recording, same_recording_message
+    from kukaid.logs import check_each_recording_once
 
     stage = stage or (lambda text: None)
     robot = isinstance(model, RobotFile)
@@ -48,9 +48,7 @@ def diagnose_model(model: Any, logs: Sequence[Any], *, axis: int | None = None, 
                               f"{ROBOT_FIXED[name]}")
     for lg in logs:  # a one-axis model refuses a log without its axis (the --axis given, or the file's)
         model.check(lg)
-    twice = repeated_recording(logs)  # a copy of a held-out log among the others is no held-out check
-    if twice is not None:
-        raise KukaidError(same_recording_message(logs, twice))
+    check_each_recording_once(logs)  # a copy of a held-out log among the others is no held-out check
     for lg in logs:
         for w in model.warnings(lg, str(lg.attrs.get("source_file", "log"))):
             (warn or (lambda text: None))(w)

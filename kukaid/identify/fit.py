@@ -28,7 +28,7 @@ from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
 from kukaid.identify.stribeck_fit import at_bounds, extract_friction, natural_uncertainty, solve_separable
 from kukaid.identify.uncertainty import correlation_factor, covariance
 from kukaid.jsonfile import jsonable
-from kukaid.logs import log_fingerprint, repeated_recording, same_recording_message
+from kukaid.logs import check_each_recording_once, log_fingerprint
 from kukaid.models.friction import MaxwellSlip
 from kukaid.models.torque import JointTorqueModel
 from kukaid.params.axis import IZZ_MIN, model_sections
@@ -184,9 +184,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     if not (general or fr or ine):
         raise FitError("no logs to fit: give general logs, or --friction and/or --inertia logs")
     fitted = raw_logs[:len(general) + len(fr) + len(ine)]  # the pre-sliding log's rests are fitted apart
-    twice = repeated_recording(fitted)  # weighed double: standard deviations too small by sqrt 2
-    if twice is not None:
-        raise FitError(same_recording_message(fitted, twice))
+    check_each_recording_once(fitted, FitError)  # weighed double: standard deviations too small by sqrt 2
     if len(run_logs) == len(raw_logs):  # with an excitation log beside them: a warning (the push is in the fit)
         from kukaid.identify.adequacy import run_logs_only
 

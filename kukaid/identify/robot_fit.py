@@ -37,7 +37,7 @@ from kukaid.errors import FitError, ParamFileError
 from kukaid.identify.filtering import check_even_samples
 from kukaid.identify.solve_interrupt import interruptible_solve
 from kukaid.identify.uncertainty import correlation_factor
-from kukaid.logs import AxisLog, log_fingerprint, repeated_recording, same_recording_message
+from kukaid.logs import AxisLog, check_each_recording_once, log_fingerprint
 from kukaid.params.robot import SCHEMA as ROBOT_SCHEMA
 from kukaid.params.robot import validate_robot_params
 from kukaid.models import robot_effects
@@ -1350,9 +1350,7 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     for lg in logs:
         check_not_held(lg)
         check_torque_scale(lg, robot)
-    twice = repeated_recording(logs)  # one recording twice would be its own held-out check
-    if twice is not None:
-        raise FitError(same_recording_message(logs, twice))
+    check_each_recording_once(logs, FitError)  # one recording twice would be its own held-out check
     n = robot.n
     motor_currents = all(lg.attrs.get("source") in MOTOR_TORQUE_SOURCES for lg in logs)
     rotor_why = ("as given" if settings.rotor is not None else

@@ -62,23 +62,16 @@ def log_fingerprint(log: "AxisLog") -> str:
     return h.hexdigest()[:16]
 
 
-def repeated_recording(logs: Sequence["AxisLog"]) -> tuple[int, int] | None:
-    """(first, i): log ``i`` is the same recording as log ``first`` (their :func:`log_fingerprint`), the
-    first such pair; None when every log is its own.  One recording twice weighs it double in a fit
-    (standard deviations too small by sqrt 2) and is its own held-out check in a diagnosis."""
+def check_each_recording_once(logs: Sequence["AxisLog"], error: type[KukaidError] = KukaidError) -> None:
+    """Raise ``error`` naming the first log that is the same recording as an earlier one (their
+    :func:`log_fingerprint`).  One recording twice weighs it double in a fit (standard deviations too
+    small by sqrt 2) and is its own held-out check in a diagnosis."""
     seen: dict[str, int] = {}
     for i, lg in enumerate(logs):
         first = seen.setdefault(log_fingerprint(lg), i)
         if first != i:
-            return first, i
-    return None
-
-
-def same_recording_message(logs: Sequence["AxisLog"], pair: tuple[int, int]) -> str:
-    """The line that names a :func:`repeated_recording` pair."""
-    first, i = pair
-    return (f"{logs[i].attrs.get('source_file', 'log')}: the same recording as "
-            f"{logs[first].attrs.get('source_file', 'another log')}; give each recording once")
+            raise error(f"{lg.attrs.get('source_file', 'log')}: the same recording as "
+                        f"{logs[first].attrs.get('source_file', 'another log')}; give each recording once")
 
 
 @dataclass(frozen=True, eq=False)
