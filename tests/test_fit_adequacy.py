@@ -143,3 +143,23 @@ def test_several_axes_without_axis_is_a_usage_error(tmp_path):
     assert len(r.output.strip().splitlines()) == 1
     assert "holds axes A2, A3; choose one with --axis" in r.output and "--robot" in r.output
     assert not out.exists()
+
+
+def test_diagnose_of_a_torque_filtered_before_it_was_recorded_reads_no_ratio(tmp_path):
+    """New-user trial 11: one-axis `diagnose` on the LWR4+ said "RMSE 22.38 N·m = 946441.30 x noise floor
+    2.364e-05 N·m": the floor read from a torque filtered at the source is near zero.  Now it is not known
+    (JSON null), and the gap is given without a ratio, as fit and validate do."""
+    from scipy.signal import butter, filtfilt
+
+    lg = coupled_log()
+    tau = filtfilt(*butter(4, 10.0, fs=200.0), lg.tau[:, :1], axis=0)
+    write_hdf5(AxisLog(lg.time, lg.q[:, :1], tau, axes=(2,)), tmp_path / "one.h5")
+    r = CliRunner().invoke(cli, ["fit", str(tmp_path / "one.h5"), "-o", str(tmp_path / "one.json"),
+                                 "--friction-model", "coulomb-viscous"])
+    assert r.exit_code == 0, r.output
+    args = ["diagnose", "--params", str(tmp_path / "one.json"), "--log", str(tmp_path / "one.h5")]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 0, r.output
+    assert "x noise floor" not in r.output and "the noise floor is not known" in r.output, r.output
+    r = CliRunner().invoke(cli, [*args, "--json"])
+    assert json.loads(r.stdout)["noise_floor"] is None

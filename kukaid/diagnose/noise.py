@@ -8,12 +8,13 @@ the square root of the filter's white-noise power gain: the RMSE a perfect model
 """
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import numpy as np
 
 from kukaid.diagnose.signals import LogSignals
-from kukaid.identify.adequacy import raw_noise_sigma
+from kukaid.identify.adequacy import raw_noise_sigma, smooth_at_source
 
 __all__ = ["raw_noise_sigma", "noise_sigma", "noise_floor", "row_noise_gain", "filtered_noise_floor"]
 
@@ -40,7 +41,12 @@ def row_noise_gain(sig: LogSignals) -> np.ndarray:
 
 
 def noise_floor(sigs: Sequence[LogSignals]) -> float:
-    """RMSE of a perfect model in the filtered comparison over the compared rows, N·m."""
+    """RMSE of a perfect model in the filtered comparison over the compared rows, N·m; NaN when it
+    cannot be estimated: a log's torque filtered before it was recorded (its second differences hold
+    no white noise, :func:`kukaid.identify.adequacy.smooth_at_source`: the LWR4+'s read 2.4e-05 N·m,
+    a residual of 22 N·m "946441 x the noise floor")."""
+    if any(smooth_at_source(s.tau_raw) for s in sigs):
+        return math.nan
     num = den = 0.0
     for s in sigs:
         sig2 = raw_noise_sigma(s.tau_raw) ** 2

@@ -127,7 +127,8 @@ def page_spectrum(result: Diagnosis, fig=None, top: float = 0.92):
     ax.set_xlabel("frequency (Hz)")
     u = _unit(result)
     ax.set_ylabel(f"residual PSD ({u}²/Hz)" if u == "N" else f"residual PSD (({u})²/Hz)")
-    ax.set_title(f"residual spectrum; noise floor {result.noise_floor:.3g} {u} RMS")
+    ax.set_title("residual spectrum; noise floor " + (f"{result.noise_floor:.3g} {u} RMS" if result.noise_floor > 0
+                                                       else "not known"))
     ax.legend()
     return fig
 

@@ -9,6 +9,7 @@ from typing import Any
 from kukaid.diagnose import candidates as C
 from kukaid.diagnose.evidence import CandidateTest
 from kukaid.diagnose.signals import LogSignals
+from kukaid.identify.adequacy import UNKNOWN_FLOOR
 from kukaid.jsonfile import jsonable
 from kukaid.models.torque import JointTorqueModel as Model
 
@@ -103,7 +104,8 @@ class Diagnosis:
         out = [f"gap before: RMSE {self.rmse_before:.4g} {u} = {self.rmse_before / self.noise_floor:.2f} x noise "
                f"floor {self.noise_floor:.4g} {u} (raw torque noise {self.noise_sigma:.4g} {u}); relative error "
                f"{100 * self.rel_before:.2f} %" if self.noise_floor > 0 else
-               f"gap before: RMSE {self.rmse_before:.4g} {u}; relative error {100 * self.rel_before:.2f} %"]
+               f"gap before: RMSE {self.rmse_before:.4g} {u}; relative error {100 * self.rel_before:.2f} %"
+               + (f" ({UNKNOWN_FLOOR}: the gap is not read against it)" if math.isnan(self.noise_floor) else "")]
         if abs(self.rmse_refit - self.rmse_before) > 1e-3 * max(self.rmse_before, 1e-12):
             # the steps start from this refit; with none it is not kept, and the gap after is the file's own
             out.append(f"refit without new effects: RMSE {self.rmse_refit:.4g} {u}" + ("" if self.steps else
@@ -115,9 +117,10 @@ class Diagnosis:
                             if k not in ("model", "std", "stored_as", "unit"))
             out.append(f"step {i}: {s.name} ({C.get(s.name).meaning}); size in the final fit {ev.size:.3g} {u}")
             out.append(f"    parameters: {par}")
-            out.append(f"    RMSE {s.rmse_before:.4g} -> {s.rmse_after:.4g} {u}, {100 * s.gap_closed:.0f} % of the "
-                       f"gap to the noise floor closed; relative error {100 * s.rel_before:.2f} % -> "
-                       f"{100 * s.rel_after:.2f} %")
+            out.append(f"    RMSE {s.rmse_before:.4g} -> {s.rmse_after:.4g} {u}, "
+                       + ("" if math.isnan(s.gap_closed) else
+                          f"{100 * s.gap_closed:.0f} % of the gap to the noise floor closed; ")
+                       + f"relative error {100 * s.rel_before:.2f} % -> {100 * s.rel_after:.2f} %")
             out.append(f"    evidence: HAC Wald {ev.wald.stat:.1f} (dof {ev.wald.dof}), corrected p = "
                        f"{ev.p_adjusted:.2g}, effect RMS {ev.effect_rms:.3g} {u}")
             if ev.held_out is not None:

@@ -54,7 +54,7 @@ def _add(model: Model, test: CandidateTest, coefs: dict, sigs: Sequence[LogSigna
     new.std = hac_std(new, sigs)
     r_after, rel_after = rmse_of(new, sigs)
     gap = rmse_before - floor
-    closed = (rmse_before - r_after) / gap if gap > 0 else 0.0
+    closed = (rmse_before - r_after) / gap if gap > 0 else math.nan if math.isnan(floor) else 0.0
     if cand.native:
         coefs_new = {cand.native: new.lin[cand.native]}
         std = {cand.native: new.std.get(cand.native, math.nan)}

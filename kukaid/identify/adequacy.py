@@ -126,12 +126,12 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
         warnings.append(
             f"the single-axis model cannot explain A{axis}: other axes ({', '.join(f'A{a}' for a in others)}) move "
             f"in the log, so the gravity and inertia torque on A{axis} depend on their positions ("
-            + (f"{_UNKNOWN_FLOOR}, so the residual cannot show otherwise" if unknown else
+            + (f"{UNKNOWN_FLOOR}, so the residual cannot show otherwise" if unknown else
                f"residual {ratio:.3g} x the noise floor")
             + f"). Fit all axes together with a robot model (kukaid fit --robot URDF), "
             f"or record A{axis} moving alone; treat these parameters as a local description only")
     elif unknown:
-        warnings.append(f"{_UNKNOWN_FLOOR}: whether the model misses an effect is not judged from the residual")
+        warnings.append(f"{UNKNOWN_FLOOR}: whether the model misses an effect is not judged from the residual")
     elif ratio > FAR_ABOVE_NOISE:
         warnings.append(_residual_warning(ratio))
     figures = {"residual_over_noise": ratio, "other_axes_moving": list(others), "single_axis_adequate": not inadequate}
@@ -139,7 +139,7 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
 
 
 #: why a fit's noise floor is not known
-_UNKNOWN_FLOOR = ("the noise floor is not known: the torque was filtered before it was recorded (its noise is not "
+UNKNOWN_FLOOR = ("the noise floor is not known: the torque was filtered before it was recorded (its noise is not "
                   "white)")
 
 
