@@ -27,6 +27,9 @@ class AxisNumber(click.IntRange):
 #: with it: :func:`kukaid.identify.fitted.axis_option`)
 AXIS = AxisNumber(1, 12)
 
+#: ``--qd-max`` of run-admittance (its reference's speed limit) and krl-follower (the KRC's), deg/s
+QD_MAX_DEG = 30.0
+
 #: ``--port`` of the commands that connect to KUKAVARPROXY (a real controller or serve-sim)
 PORT = click.option("--port", type=click.IntRange(1, 65535), default=7000, show_default=True,
                     help="kvp: KUKAVARPROXY port.")

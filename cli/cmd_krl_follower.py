@@ -6,14 +6,14 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import AxisNumber
+from kukaid_cli._util import QD_MAX_DEG, AxisNumber
 
 
 @click.command("krl-follower")
 @click.option("--axis", type=AxisNumber(1, 6), default=3, show_default=True, help="Axis the program moves.")
 @click.option("--q-min", type=click.FloatRange(-360.0, 360.0), required=True, help="Position window, lower bound, degrees (clamped on the KRC).")
 @click.option("--q-max", type=click.FloatRange(-360.0, 360.0), required=True, help="Position window, upper bound, degrees (clamped on the KRC).")
-@click.option("--qd-max", type=float, default=30.0, show_default=True,
+@click.option("--qd-max", type=float, default=QD_MAX_DEG, show_default=True,
               help="Axis speed limit, deg/s, at least 1 % of --axis-speed (the KRC's limit is the whole percentage "
                    "at or below it).")
 @click.option("--axis-speed", type=float, default=360.0, show_default=True,
@@ -50,6 +50,10 @@ def command(axis: int, q_min: float, q_max: float, qd_max: float, axis_speed: fl
                              stale_ms=stale_ms)
     files = krl_follower_files(cfg)
     write_krl_files(outdir, files, force)
+    vel = cfg.vel_pct * axis_speed / 100
     click.echo(f"{outdir}: {', '.join(files)} (A{axis}, window [{q_min:g}, {q_max:g}] deg, "
-               f"$VEL_AXIS {cfg.vel_pct} % = {cfg.vel_pct * axis_speed / 100:g} deg/s, heartbeat {stale_ms} ms)",
-               err=True)
+               f"$VEL_AXIS {cfg.vel_pct} % = {vel:g} deg/s, heartbeat {stale_ms} ms)", err=True)
+    if vel < qd_max - 1e-9:  # the KRC bounds the axis below what was asked: a faster reference runs ahead of it
+        click.echo(f"kukaid: warning: krl-follower: the KRC moves A{axis} no faster than {vel:g} deg/s (--qd-max {qd_max:g} rounded "
+                   f"down to a whole percentage of {axis_speed:g} deg/s): give run-admittance --qd-max {vel:g} or "
+                   f"less (its default is {QD_MAX_DEG:g}), or its reference runs ahead of the axis", err=True)

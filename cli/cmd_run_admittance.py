@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import AXIS, PORT, URDF
+from kukaid_cli._util import AXIS, PORT, QD_MAX_DEG, URDF
 
 
 def _fmt(v):
@@ -104,7 +104,7 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 # safety (degrees at the edge)
 @click.option("--q-min", type=float, help="Position window, lower bound, degrees (sim default: q0 - 90).")
 @click.option("--q-max", type=float, help="Position window, upper bound, degrees (sim default: q0 + 90).")
-@click.option("--qd-max", type=float, default=30.0, show_default=True, help="Reference speed limit, deg/s.")
+@click.option("--qd-max", type=float, default=QD_MAX_DEG, show_default=True, help="Reference speed limit, deg/s.")
 @click.option("--qdd-max", type=float, default=300.0, show_default=True, help="Reference acceleration limit, deg/s².")
 @click.option("--tau-max", type=float, default=100.0, show_default=True,
               help="Motion stops when the measured torque exceeds this, N·m.")
