@@ -68,7 +68,9 @@ def test_staged_method_and_bounds(logs):
 @pytest.mark.parametrize("model", ["coulomb-viscous", "auto"])
 def test_staged_coulomb_viscous_keeps_the_bounds_given(logs, model):
     """New-user trial 10: `--method staged --friction-model coulomb-viscous --bound Fc=0:1` wrote Fc = 16.6
-    (its linear fit took no bounds); with auto the Stribeck fit hit the bound and fell back to that fit."""
+    (its linear fit took no bounds); with auto the Stribeck fit hit the bound and fell back to that fit.
+    New-user trial 11: the warning blamed the data ("the data do not determine these") for the bound the user
+    gave; now it names that bound."""
     d, p = logs
     out = d / f"staged_cv_{model}.json"
     r = CliRunner().invoke(cli, ["fit", "--friction", str(p["friction"]), "--inertia", str(p["inertia"]),
@@ -77,7 +79,9 @@ def test_staged_coulomb_viscous_keeps_the_bounds_given(logs, model):
     par = load_params(out)
     assert par["friction"]["model"] == "coulomb-viscous"
     assert 0 <= par["friction"]["Fc"] <= 1 + 1e-9
-    assert [b["name"] for b in par["metrics"]["at_bound"]] == ["Fc"] and "on a bound: Fc = 1 (upper bound)" in r.output
+    assert [(b["name"], b["given"]) for b in par["metrics"]["at_bound"]] == [("Fc", True)]
+    assert "on the bound --bound gave: Fc = 1 (upper bound): the value is that bound" in r.output, r.output
+    assert "at a bound: Fc (upper 1, --bound)" in r.output and "the data do not determine" not in r.output
 
 
 def _bad(tmp_path, log, name="bad.h5"):

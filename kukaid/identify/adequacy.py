@@ -107,6 +107,7 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
            converged: bool, status: str) -> tuple[list[str], dict[str, Any]]:
     """Warnings for a single-axis fit, and the figures behind them (for the parameter file).
 
+    ``at_bound``: ``{"name", "value", "bound", "side", "given"}``, ``given`` true for a bound the user gave.
     Returns (warnings, {"residual_over_noise", "other_axes_moving", "single_axis_adequate"}).
     ``floor`` NaN: not known (a torque filtered before it was recorded, :func:`smooth_at_source`), so
     the residual is not judged against it (``residual_over_noise`` NaN).
@@ -117,10 +118,15 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
     if not converged:
         warnings.append(f"IPOPT stopped before converging ('{status}'); the best parameters it found are written "
                         "(never worse than the start)")
-    if at_bound:
-        warnings.append("on a bound: " + ", ".join(f"{b['name']} = {b['value']:.4g} ({b['side']} bound)"
-                                                   for b in at_bound)
-                        + ": the data do not determine these, or the model does not describe the data")
+    def listed(bs: Sequence[dict]) -> str:
+        return ", ".join(f"{b['name']} = {b['value']:.4g} ({b['side']} bound)" for b in bs)
+
+    if any(not b.get("given") for b in at_bound):
+        warnings.append(f"on a bound: {listed([b for b in at_bound if not b.get('given')])}: the data do not "
+                        "determine these, or the model does not describe the data")
+    if any(b.get("given") for b in at_bound):
+        warnings.append(f"on the bound --bound gave: {listed([b for b in at_bound if b.get('given')])}: the value "
+                        "is that bound, not an estimate (the data pull it past the bound, or do not determine it)")
     inadequate = bool(others) and (unknown or ratio > FAR_ABOVE_NOISE or bool(at_bound) or not converged)
     if inadequate:
         warnings.append(

@@ -89,10 +89,13 @@ def staged_friction(preps: Sequence[Any], friction_model: str = "stribeck",
 
 
 def _adequacy(ax: int, raw_logs: Sequence[Any], preps: Sequence[Any], fit_joint: Any, staged_at_bound: list,
-              model: JointTorqueModel) -> dict[str, Any]:
-    """Parameters on bounds, solver status and single-axis adequacy (:func:`kukaid.identify.adequacy.assess`)."""
+              model: JointTorqueModel, bounds: dict | None) -> dict[str, Any]:
+    """Parameters on bounds (``given``: a bound of ``bounds``, the user's), solver status and single-axis
+    adequacy (:func:`kukaid.identify.adequacy.assess`)."""
     from kukaid.identify.adequacy import assess, moving_axes, noise_floor, smooth_at_source
-    on_bound = list(staged_at_bound) + (list(fit_joint.at_bound_) if fit_joint is not None else [])
+    user = {"Fs-Fc" if k == "dF" else k: v for k, v in (bounds or {}).items()}
+    on_bound = [{**b, "given": user.get(b["name"], (None, None))[b["side"] == "upper"] is not None}
+                for b in list(staged_at_bound) + (list(fit_joint.at_bound_) if fit_joint is not None else [])]
     converged = fit_joint.converged if fit_joint is not None else True
     status = fit_joint.ipopt_status if fit_joint is not None else ""
     rb, friction = model.rigid, model.friction
@@ -258,7 +261,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     model = _model(fp, rigid, friction_model)
     model.qd_thr = qd_thr_used
     metrics.update(_adequacy(ax, raw_logs, [p for p in (general + fr + ine) if p is not None], fit_joint,
-                             staged_at_bound, model))
+                             staged_at_bound, model, bounds))
     metrics["warnings"] = role_warn + list(metrics.get("warnings", []))
     if psl is not None:
         ms = fit_maxwell_slip(psl, n_elements, gravity=model.rigid.gravity)
@@ -301,8 +304,11 @@ def fit_axis_auto(**kw: Any) -> dict:
         st["metrics"]["friction_model_choice"] = f"stribeck: Fc, Fs-Fc and vs are inside their bounds{shape}"
         return st
     cv = fit_axis(friction_model="coulomb-viscous", **kw)
-    cv["metrics"]["friction_model_choice"] = (f"coulomb-viscous: the Stribeck fit left {', '.join(loose)} on a bound "
-                                              "(not determined by these data)")
+    given = [b["name"] for b in st["metrics"]["at_bound"] if b["name"] in loose and b["given"]]
+    data = [n for n in loose if n not in given]
+    cv["metrics"]["friction_model_choice"] = "coulomb-viscous: the Stribeck fit left " + "; ".join(
+        ([f"{', '.join(data)} on a bound (not determined by these data)"] if data else [])
+        + ([f"{', '.join(given)} on the bound --bound gave"] if given else []))
     return cv
 
 
@@ -353,8 +359,8 @@ def format_table(params: dict) -> str:
         tail.append(f"  +-: least-squares standard deviations, white residuals assumed; the filtered residuals are "
                     f"correlated: multiply by the residual correlation factor {cf:.3g} for a realistic one")
     if m.get("at_bound"):
-        tail.append("  at a bound: " + ", ".join(f"{names.get(b['name'], b['name'])} ({b['side']} {b['bound']:.4g})"
-                                             for b in m["at_bound"]))
+        tail.append("  at a bound: " + ", ".join(f"{names.get(b['name'], b['name'])} ({b['side']} {b['bound']:.4g}"
+                                             + (", --bound" if b.get("given") else "") + ")" for b in m["at_bound"]))
     else:
         tail.append("  at a bound: none")
     pre = (params.get("provenance") or {}).get("preprocess") or {}
