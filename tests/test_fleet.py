@@ -457,19 +457,29 @@ def test_wear_of_axes_whose_friction_does_not_scatter_prints_no_numpy_warning():
     assert not r000["flagged"] and r000["temperature_coefficient"]["Fc"] == res["temperature_model"]["Fc_per_K"]
 
 
-def test_wear_says_why_there_is_no_temperature_model():
+def test_wear_says_why_there_is_no_temperature_model(tmp_path):
     """New-user trial 7: `fleet wear` printed "temperature model: none (no temperature logged)" though
-    every row had temp_mean: the axes had too few logs for a baseline, which only the JSON said."""
+    every row had temp_mean: the axes had too few logs for a baseline, which only the JSON said.
+    New-user trial 11: with no axis assessed it exited 0 with "0 axes assessed, 0 flagged" and wrote that
+    verdict, which reads as no wear where none was looked for: now an error, and nothing written."""
+    from click.testing import CliRunner
+
+    from kukaid.fleet.table import write_table
     from kukaid.fleet.wear import assess, lines
+    from kukaid_cli.main import cli
 
     rows = _synthetic_rows(7, 2, seed=3)
     assert all(r["temp_mean"] is not None for r in rows)
-    res = assess(rows)
-    assert res["temperature_model"]["note"] == "no axis has logs enough for a baseline"
-    out = lines(res)
-    assert out[1] == "temperature model: none (no axis has logs enough for a baseline)", out
-    assert out[2] == "R000         A3 not assessed: too few logs (2; a baseline of 5 and at least one more are needed)"
-    assert out[-1] == "... and 2 more axes not assessed (the verdict file lists them)" and len(out) == 8
+    write_table(tmp_path / "t.parquet", rows, {"task": "fit"})
+    r = CliRunner().invoke(cli, ["fleet", "wear", str(tmp_path / "t.parquet"), "-o", str(tmp_path / "w.json")])
+    assert r.exit_code == 1 and r.stderr == (f"kukaid: error: {tmp_path / 't.parquet'}: no axis has logs enough to "
+                                             "assess: the most, 2 (R000 A3), are fewer than a baseline of 5 and one "
+                                             "more\n"), r.output
+    assert not (tmp_path / "w.json").exists()
+    out = lines(assess(rows + [{**r, "robot": "R100"} for r in _synthetic_rows(1, 10, seed=4)]))
+    assert out[0] == "1 axes assessed, 0 flagged (of 8)", out
+    assert "R000         A3 not assessed: too few logs (2; a baseline of 5 and at least one more are needed)" in out
+    assert out[-1] == "... and 2 more axes not assessed (the verdict file lists them)"
     rows = [{**r, "temp_mean": None} for r in _synthetic_rows(7, 10, seed=3)]  # enough logs, no temperature
     assert lines(assess(rows))[1] == "temperature model: none (no temperature logged)"
 
@@ -612,6 +622,29 @@ def test_wear_cli_writes_json_and_pdf(tmp_path, kukaid_cmd):
     assert (top["robot"], top["axis"], top["flagged"]) == ("R003", 3, True) and top["first_flagged"]
     assert {"robot", "axis", "flagged", "first_flagged", "evidence"} <= set(top)
     assert (tmp_path / "w.pdf").read_bytes()[:4] == b"%PDF"
+
+
+def test_wear_report_plots_every_axis_change_with_its_standard_error():
+    """New-user trial 11: the wear PDF had the ranking table and no figure of the fleet: now a page plots each
+    assessed axis's change of Fc and Fv with its standard error, the flagged ones red and named."""
+    from matplotlib.container import ErrorbarContainer
+    from pdf_layout import layout_problems
+
+    from kukaid.fleet.wear import assess
+    from kukaid.report.wear import change_page, change_se
+
+    res = assess(_synthetic_rows(20, 24, seed=9, wearing={3}))
+    fig = change_page(res)
+    assert not layout_problems(fig)
+    bars = [c for c in fig.axes[0].containers if isinstance(c, ErrorbarContainer)]
+    flagged = [a for a in res["axes"] if a.get("flagged")]
+    assert [len(c.lines[0].get_xdata()) for c in bars] == [20 - len(flagged), len(flagged)]
+    a = flagged[0]
+    (x,), (y,) = bars[1].lines[0].get_xdata(), bars[1].lines[0].get_ydata()
+    assert (x, y) == (100 * a["change"]["Fc"], 100 * a["change"]["Fv"])
+    se = change_se(a)  # the last 7 logs against a baseline of 6, one log's scatter each
+    assert se[0] == pytest.approx((1 + a["change"]["Fc"]) * a["baseline"]["scatter_rel"][0] * (1 / 7 + 1 / 6) ** 0.5)
+    assert f"{a['robot']} A{a['axis']}" in [t.get_text() for t in fig.axes[0].texts]
 
 
 def test_validate_and_diagnose_over_the_fleet(tmp_path, kukaid_cmd):

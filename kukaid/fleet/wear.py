@@ -161,9 +161,8 @@ def _no_temperature_model(note: str) -> dict:
 def _temperature_model(axes: list[_Axis]) -> dict:
     """Fleet slope b (per column) and each axis's shrunk slope, from the baselines."""
     have_T = [a for a in axes if np.all(np.isfinite(a.T[:a.nb]))]
-    if not have_T:  # why: no baseline at all, no temperature, or baselines with a day without one
-        note = ("no axis has logs enough for a baseline" if not axes else
-                "no temperature logged" if not any(np.isfinite(a.T).any() for a in axes) else
+    if not have_T:  # why: no temperature, or baselines with a day without one
+        note = ("no temperature logged" if not any(np.isfinite(a.T).any() for a in axes) else
                 "no axis has a temperature for every log of its baseline")
         return _no_temperature_model(note)
     T_ref = float(np.median(np.concatenate([a.T[:a.nb] for a in have_T])))
@@ -217,7 +216,8 @@ def assess(rows: Sequence[dict], settings: WearSettings | None = None, source: s
 
     Raises
     ------
-    KukaidError : a table of another task than fleet fit (validate, diagnose), or no fitted row at all.
+    KukaidError : a table of another task than fleet fit (validate, diagnose), no fitted row at all, or no
+        axis with logs enough for a baseline and one more.
     """
     settings = settings or WearSettings()
     kinds = sorted({str(r.get("kind") or "fit") for r in rows})
@@ -227,6 +227,11 @@ def assess(rows: Sequence[dict], settings: WearSettings | None = None, source: s
     axes, short = _axes(rows, settings)
     if not axes and not short:
         raise KukaidError(f"{source}: the table has no fitted rows (status ok) to assess")
+    if not axes:  # a verdict of no axis would read as "none flagged": no wear seen, where none was looked for
+        most = max(short, key=lambda a: a["n_logs"])
+        raise KukaidError(f"{source}: no axis has logs enough to assess: the most, {most['n_logs']} ({most['robot']} "
+                          f"A{most['axis']}), are fewer than a baseline of {baseline_size(most['n_logs'], settings)} "
+                          "and one more")
     tm = _temperature_model(axes)
     T_ref = tm["T_ref"]
     # friction at T_ref, relative to the axis's baseline mean

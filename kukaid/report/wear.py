@@ -1,6 +1,7 @@
-"""The fleet's wear report (``kukaid fleet wear --report``): the axes ranked by evidence, then per
-flagged axis its friction at the reference temperature over the days, with the temperature and
-the CUSUM against its threshold.  Built from the wear result alone (``kukaid.fleet-wear/1``)."""
+"""The fleet's wear report (``kukaid fleet wear --report``): the axes ranked by evidence, every axis's
+change of friction with its standard error, then per flagged axis its friction at the reference
+temperature over the days, with the temperature and the CUSUM against its threshold.  Built from
+the wear result alone (``kukaid.fleet-wear/1``)."""
 from __future__ import annotations
 
 import datetime as dt
@@ -57,6 +58,45 @@ def ranking_pages(result: dict, source: str = "") -> list:
     return pages
 
 
+def change_se(a: dict) -> list[float]:
+    """Standard error of an assessed axis's change of Fc and Fv (relative): the mean of its last week
+    (up to 7 logs) against its baseline's, each log with the baseline's day-to-day scatter (the
+    temperature slope's error left out)."""
+    nb = a["baseline"]["logs"]
+    last = min(7, a["n_logs"] - nb)
+    return [(1 + a["change"][k]) * s * (1 / last + 1 / nb) ** 0.5
+            for k, s in zip(("Fc", "Fv"), a["baseline"]["scatter_rel"])]
+
+
+def change_page(result: dict, source: str = "") -> Any:
+    """Every assessed axis as a point: its change of Fc against that of Fv at the reference
+    temperature, with their standard errors (:func:`change_se`); the flagged axes red and named."""
+    axes = [a for a in result["axes"] if "evidence" in a]
+    fig = _page("Fleet wear: friction change per axis", _footer(source))
+    _subtitle(fig, "ΔFc and ΔFv of every assessed axis: the last week (up to 7 logs) against its baseline, at the "
+                   "reference temperature. Error bars: one standard error of the change, from the baseline's "
+                   "day-to-day scatter (the temperature slope's error left out). Red: flagged (the CUSUM, which "
+                   "weighs every log after the baseline, crossed its threshold).")
+    ax = fig.add_axes([0.12, 0.32, 0.8, 0.56])
+    for flagged, color, label in ((False, "0.45", "not flagged"), (True, "C3", "flagged")):
+        sel = [a for a in axes if a["flagged"] == flagged]
+        if sel:
+            se = [change_se(a) for a in sel]
+            ax.errorbar([100 * a["change"]["Fc"] for a in sel], [100 * a["change"]["Fv"] for a in sel],
+                        xerr=[100 * e[0] for e in se], yerr=[100 * e[1] for e in se], fmt="o", ms=3, color=color,
+                        elinewidth=0.6, label=f"{label} ({len(sel)})")
+    for a in [a for a in axes if a["flagged"]][:20]:
+        ax.annotate(f"{a['robot']} A{a['axis']}", (100 * a["change"]["Fc"], 100 * a["change"]["Fv"]), fontsize=6,
+                    xytext=(3, 3), textcoords="offset points")
+    ax.axhline(0, color="0.7", lw=0.6)
+    ax.axvline(0, color="0.7", lw=0.6)
+    ax.set_xlabel("ΔFc (%)", fontsize=8)
+    ax.set_ylabel("ΔFv (%)", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.legend(fontsize=7, loc="upper left")
+    return fig
+
+
 def _dates(ds: list[str]) -> list:
     return [dt.date.fromisoformat(d) for d in ds]
 
@@ -105,7 +145,7 @@ def axis_page(a: dict, source: str = "") -> Any:
 
 def write_wear_report(path: str | Path, result: dict, source: str = "") -> int:
     """Write the wear report (PDF, atomically); returns the number of pages."""
-    pages = ranking_pages(result, source)
+    pages = ranking_pages(result, source) + [change_page(result, source)]
     flagged = [a for a in result["axes"] if a.get("flagged")][:MAX_PLOTS]
     pages += [axis_page(a, source) for a in flagged]
     return write_report(path, pages, title="kukaid fleet wear report")
