@@ -83,6 +83,17 @@ def test_position_window_is_never_left():
     assert np.max(np.abs(v)) <= 0.5 + 1e-9  # the default speed limit of SafetyLimits
 
 
+def test_an_initiation_move_cut_by_the_window_is_said():
+    """New-user trial 11: a start 0.5 degree from the window's edge cut the 1-degree initiation move in half,
+    and the run said only "clipped_cycles 75"; now a warning says how far it went."""
+    run = _run(duration=0.5, limits=SafetyLimits(q_min=Q0 - 0.5, q_max=Q0 + math.radians(0.5)))
+    said = [w for w in run.metrics["warnings"] if w.startswith("the initiation move (+1 deg, --init-move) was cut")]
+    assert len(said) == 1 and "at 30.5 deg after +0.5 deg" in said[0], run.metrics["warnings"]
+    run = _run(duration=0.5, init_move=-math.radians(1.0),  # the other way: not cut, not said
+               limits=SafetyLimits(q_min=Q0 - 0.5, q_max=Q0 + math.radians(0.5)))
+    assert not any("initiation move" in w for w in run.metrics["warnings"]), run.metrics["warnings"]
+
+
 def test_torque_limit_stops_motion():
     run = _run(_push(15.0), duration=6.0, limits=SafetyLimits(tau_max=25.0))
     assert run.status.startswith("stopped: measured torque") and "25 N·m" in run.status

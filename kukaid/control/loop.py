@@ -428,7 +428,8 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
       push the controller did not see, or a simulation that went wrong) — or a push still on at
       the end; a detection with nobody touching (before the first push or after the release); Γr
       beyond the threshold with nobody touching (not taken for a push), also during the initiation move
-      and rest (``init_residual_max`` N·m: nothing detected there drives the axis).  :func:`run_admittance`
+      and rest (``init_residual_max`` N·m: nothing detected there drives the axis); the initiation move
+      cut short by the position window.  :func:`run_admittance`
       adds one when the threshold at rest had to rise by over 20 % (the model's friction at rest is off).
     """
     lam = cfg.rbf.lam if cfg.rbf is not None else RBFConfig().lam
@@ -499,6 +500,13 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
             warnings.append(f"with nobody touching the axis Γr reached {np.max(np.abs(gr[untouched])):.3g} N·m, "
                             f"beyond the threshold {cfg.threshold:g} N·m (not taken for a push: the threshold at "
                             "rest had risen, or the axis was starting or stopping)")
+    cut = np.flatnonzero(np.asarray(data.get("clipped", False), bool) & (data["phase"] == PHASE_INIT))
+    if cut.size:  # the window stopped the initiation move short (a start near its edge)
+        edge, moved = data["q_cmd"][cut[0]], data["q_cmd"][cut[0]] - data["q"][0]
+        warnings.append(f"the initiation move ({math.degrees(cfg.init_move):+g} deg, --init-move) was cut by the "
+                        f"position window at {math.degrees(edge):g} deg after {math.degrees(moved):+.3g} deg: the "
+                        "Maxwell-slip elements are set by it only if that passes their break-away (eq. 12); start "
+                        "farther from the window's edge, or move the other way (a negative --init-move)")
     init = data["phase"] < PHASE_ADMITTANCE
     if init.any():  # the loop's own move and rest: nobody touches the axis, Γr is the model's error there
         out["init_residual_max"] = float(np.max(np.abs(gr[init])))
