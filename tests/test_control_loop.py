@@ -94,6 +94,25 @@ def test_an_initiation_move_cut_by_the_window_is_said():
     assert not any("initiation move" in w for w in run.metrics["warnings"]), run.metrics["warnings"]
 
 
+def test_a_detection_on_before_the_hand_touched_gives_no_detection_delay():
+    """New-user trial 11: an LWR4+ robot file with --no-rest-model (A1) said "detection_delay -0.996 s": the
+    detection counted began with nobody touching the axis (a false detection, 62 cycles of it), up to 1 s
+    before the push.  Now such a detection gives no delay; one that begins once the hand is on, before its
+    torque reaches the threshold, is still the (negative) delay."""
+    from kukaid.control.loop import run_metrics
+
+    n = 400
+    t = np.arange(n) * 0.012
+    te = np.clip((t - 3.0) * 10.0, 0.0, 20.0)  # the hand from 3 s, 5 N·m (the threshold) at 3.5 s
+    det = t >= 2.9  # on 0.1 s before the hand touched
+    data = dict(time=t, phase=np.full(n, PHASE_ADMITTANCE), gamma_r=np.zeros(n), tau_ext_true=te, detected=det,
+                dynamic=np.ones(n, bool), q=np.zeros(n), sigma_dot=np.zeros(n), D=np.full(n, 50.0))
+    m = run_metrics(data, LoopConfig())
+    assert math.isnan(m["detection_delay"]) and m["false_detections"] > 0
+    m = run_metrics({**data, "detected": t >= 3.3}, LoopConfig())  # on with the hand (2 N·m), before 5 N·m
+    assert m["detection_delay"] == pytest.approx(3.3 - 3.5, abs=0.013)
+
+
 def test_torque_limit_stops_motion():
     run = _run(_push(15.0), duration=6.0, limits=SafetyLimits(tau_max=25.0))
     assert run.status.startswith("stopped: measured torque") and "25 N·m" in run.status
