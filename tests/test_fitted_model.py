@@ -260,3 +260,19 @@ def test_a_files_cut_off_above_the_logs_nyquist_names_the_files_setting(robot_ca
     assert r.exit_code == 1 and len(lines) == 1 and not (tmp_path / "r.pdf").exists(), r.output
     assert lines[0].startswith(f"kukaid: error: {par}: its low-pass cut-off (settings.cutoff) does not suit this "
                                f"log: {lg}: filter cut-off 500 Hz must be in (0, "), lines
+
+
+def test_validate_preprocesses_a_log_once_for_a_one_axis_file(monkeypatch):
+    """Code review: validate pre-processed each log twice for a one-axis file, for the prediction and again
+    for its noise floor; now compare() hands out both from one pre-processing, the floor as it was."""
+    import kukaid.identify.filtering as filtering
+    from kukaid.identify.adequacy import noise_floor
+    from kukaid.identify.fitted import fit_settings
+
+    params, log = axis_case()
+    floor = noise_floor([filtering.preprocess(log, 3, **fit_settings(params))])  # what it was, pre-processed apart
+    calls = []
+    real = filtering.preprocess
+    monkeypatch.setattr(filtering, "preprocess", lambda *a, **k: calls.append(1) or real(*a, **k))
+    scores = validate(params, [log])
+    assert len(calls) == 1 and scores[3].noise_floor == pytest.approx(floor, rel=1e-12)

@@ -75,8 +75,7 @@ def validate(params: Any, logs: Sequence[Any], axis: int | None = None, source: 
     floors: dict[int, list[float]] = {}
     for log in logs:
         with file_cutoff(model):
-            pairs = model.predict(log)
-            floor = model.noise_floor(log)
+            pairs, floor = model.compare(log)
         for ax, pair in pairs.items():
             parts.setdefault(int(ax), []).append(pair)
             names.setdefault(int(ax), []).append(str(log.attrs.get("source_file", "log")))

@@ -10,7 +10,9 @@ ask the protocol, not the schema:
 - ``check(log)``: refuse a log it cannot be compared with (another joint type; torques in
   another unit than the URDF's limits), before anything is computed;
 - ``predict(log) -> {axis: (tau, tau_hat)}``: measured and predicted torque on the samples the
-  fit would compare, pre-processed with the fit's own settings;
+  fit would compare, pre-processed with the fit's own settings; ``compare(log)`` the same with, per
+  joint, the noise floor on those samples (the RMSE of a perfect model; NaN: not known), from the
+  same pre-processing;
 - ``warnings(log, where)``: what the user should read about a log (a one-axis model on a log
   where other axes move; a log pushed by hand);
 - ``table()``: the text ``kukaid fit`` printed; ``check_file`` / ``save``: the file's own schema
@@ -60,7 +62,7 @@ class FittedModel(Protocol):
 
     def predict(self, log: Any) -> Pairs: ...
 
-    def noise_floor(self, log: Any) -> dict[int, float]: ...  # per joint, the RMSE of a perfect model on predict's samples
+    def compare(self, log: Any) -> tuple[Pairs, dict[int, float]]: ...  # and per joint the noise floor on them
 
     def warnings(self, log: Any, where: str) -> list[str]: ...
 
@@ -216,7 +218,16 @@ class AxisFile:
         check_model_of(self.params, self.source, joint=log.joint[log.index(self.axis)])
 
     def predict(self, log: Any) -> Pairs:
-        """Effects are evaluated on the whole log (their time and energy coordinates start with it)."""
+        return self.compare(log)[0]
+
+    def compare(self, log: Any) -> tuple[Pairs, dict[int, float]]:
+        """Effects are evaluated on the whole log (their time and energy coordinates start with it).
+        The noise floor is the torque's white noise over the compared span through the fit's low-pass
+        (:func:`kukaid.identify.adequacy.noise_floor`); NaN for a torque filtered before it was recorded
+        (its noise not white)."""
+        from dataclasses import replace
+
+        from kukaid.identify.adequacy import noise_floor, smooth_at_source
         from kukaid.identify.filtering import preprocess
         from kukaid.params import model_from_params
 
@@ -235,18 +246,9 @@ class AxisFile:
             others = ({a: preprocess(log, a, edge=0, **st).q for a in log.axes if a != ax}
                       if "coupling" in params["effects"] else None)
             tau_hat = tau_hat + model.effects_torque(pr.time, pr.q, pr.qd, temp, others)
-        return {ax: (pr.tau[keep], tau_hat[keep])}
-
-    def noise_floor(self, log: Any) -> dict[int, float]:
-        """The RMSE a perfect model would reach on :meth:`predict`'s samples of ``log`` (the torque's
-        white noise through the fit's low-pass, :func:`kukaid.identify.adequacy.noise_floor`), N·m; NaN for
-        a torque filtered before it was recorded (its noise not white)."""
-        from kukaid.identify.adequacy import noise_floor, smooth_at_source
-        from kukaid.identify.filtering import preprocess
-
-        if smooth_at_source(log.channel("tau", self.axis)):
-            return {self.axis: math.nan}
-        return {self.axis: noise_floor([preprocess(log, self.axis, **fit_settings(self.params))])}
+        floor = (math.nan if smooth_at_source(pr.tau_span) else  # edge=0: the whole log's torque
+                 noise_floor([replace(pr, tau_span=pr.tau_span[edge:pr.tau_span.size - edge], dynamic=keep)]))
+        return {ax: (pr.tau[keep], tau_hat[keep])}, {ax: floor}
 
     def warnings(self, log: Any, where: str) -> list[str]:
         from kukaid.identify.adequacy import moving_axes, pushed_log_warnings
@@ -303,16 +305,17 @@ class RobotFile:
         rows = slice(edge, log.n_samples - edge)
         return {a: (log.channel("tau", a)[rows], pred[a][rows]) for a in self.joints}
 
-    def noise_floor(self, log: Any) -> dict[int, float]:
-        """The RMSE a perfect model would reach on :meth:`predict`'s samples of ``log`` (raw torques:
-        their white noise), N·m; NaN for a torque filtered before it was recorded (its noise not white)."""
+    def compare(self, log: Any) -> tuple[Pairs, dict[int, float]]:
+        """:meth:`predict`, and per joint the RMSE a perfect model would reach on its samples (raw
+        torques: their white noise), N·m; NaN for a torque filtered before it was recorded (its noise
+        not white)."""
         from kukaid.identify.adequacy import raw_noise_sigma, smooth_at_source
 
         out = {}
         for a in self.joints:
             tau = log.channel("tau", a)
             out[a] = math.nan if smooth_at_source(tau) else raw_noise_sigma(tau)
-        return out
+        return self.predict(log), out
 
     def warnings(self, log: Any, where: str) -> list[str]:
         from kukaid.identify.adequacy import pushed_log_warnings
