@@ -190,3 +190,18 @@ def test_maxwell_slip_fit_synthetic():
     fit = fit_maxwell_slip(pr, 3)
     assert sum(fit.W) == pytest.approx(sum(ms.W), rel=0.05)
     assert fit.rms < 0.3
+
+
+def test_the_bounded_linear_fit_is_public_and_keeps_the_bounds_given():
+    """Code review: fit imported the private _linear_bounded of kukaid.identify.dynamic; it is public now
+    (linear_bounded), as fit and fit_dynamic both use it."""
+    from kukaid.identify.dynamic import linear_bounded
+
+    rng = np.random.default_rng(0)
+    v = rng.uniform(-1.0, 1.0, 400)
+    A = np.column_stack([np.sign(v), v])
+    y = A @ [12.0, 8.0] + 0.1 * rng.standard_normal(v.size)
+    theta, status, info = linear_bounded(y, A, ["Fc", "Fv"], None, v)
+    assert status == "linear" and theta == pytest.approx([12.0, 8.0], abs=0.05)
+    theta, status, info = linear_bounded(y, A, ["Fc", "Fv"], {"Fc": (0.0, 1.0)}, v)
+    assert status == "linear (bounded)" and theta[0] == pytest.approx(1.0) and info["bounds"]["Fc"] == [0.0, 1.0]

@@ -156,7 +156,7 @@ def fit_dynamic(prepared_list: Sequence[Any], friction_model: str = "stribeck", 
                 "iterations": sr.iterations, "solve_time": sr.solve_time, "bounds": sr.info["bounds"]}
         converged, on_bound = sr.converged, sr.at_bound(u.std)
     else:
-        theta, status, info = _linear_bounded(y, A, names, bounds, v)
+        theta, status, info = linear_bounded(y, A, names, bounds, v)
         res = y - A @ theta
         cost = 0.5 * float(res @ res)
         u = covariance(res, A, names, theta)
@@ -175,7 +175,12 @@ def fit_dynamic(prepared_list: Sequence[Any], friction_model: str = "stribeck", 
     return fit
 
 
-def _linear_bounded(y, A, names, bounds, v):
+def linear_bounded(y: np.ndarray, A: np.ndarray, names: Sequence[str], bounds: dict | None,
+                   v: np.ndarray) -> tuple[np.ndarray, str, dict[str, Any]]:
+    """Linear least squares ``A theta ~ y`` within the bounds of the parameters ``names``: the data's
+    (:func:`~kukaid.identify.stribeck_fit.default_bounds`, from ``y`` and the velocities ``v``) with
+    ``bounds`` ({name: (lo, hi)}, the user's) over them.  Returns (theta, status "linear" or "linear
+    (bounded)" when a bound is active, {"bounds": {name: [lo, hi]}})."""
     bnd = _merge_bounds(default_bounds(y, v, names), bounds)
     lo = np.array([bnd[k][0] for k in names])
     hi = np.array([bnd[k][1] for k in names])

@@ -21,7 +21,7 @@ import numpy as np
 
 from kukaid import __version__
 from kukaid.errors import FitError, OptionError
-from kukaid.identify.dynamic import _linear_bounded, fit_dynamic
+from kukaid.identify.dynamic import linear_bounded, fit_dynamic
 from kukaid.identify.filtering import preprocess, settings_reason
 from kukaid.identify.least_squares import fit_rigid
 from kukaid.identify.maxwell_slip_fit import fit_maxwell_slip
@@ -80,7 +80,7 @@ def staged_friction(preps: Sequence[Any], friction_model: str = "stribeck",
         res, status = sr.residual, sr.status
         on_bound = sr.at_bound(u.std)
     else:  # within the bounds (--bound), as the joint method's linear fit
-        theta, status, info = _linear_bounded(y, A, ["Fc", "Fv"], bounds, v)
+        theta, status, info = linear_bounded(y, A, ["Fc", "Fv"], bounds, v)
         res = y - A @ theta
         u = covariance(res, A, ["Fc", "Fv"], theta)
         params = {"Fc": float(theta[0]), "Fv": float(theta[1])}
