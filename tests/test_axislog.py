@@ -145,6 +145,17 @@ def test_unknown_extension(tmp_path):
         read_log(tmp_path / "x.txt")
 
 
+def test_one_table_names_each_suffix_format_and_reader():
+    """Code review: kukaid.logs kept two tables keyed by the same suffixes (READERS, FORMATS), which could
+    drift apart; now one holds both, the format's name beside its reader."""
+    import kukaid.logs as logs
+
+    assert not hasattr(logs, "FORMATS")
+    assert {s: fmt for s, (fmt, _) in logs.READERS.items()} == {
+        ".h5": "HDF5", ".hdf5": "HDF5", ".csv": "CSV", ".mat": "MAT", ".dat": "KUKA Trace", ".r64": "KUKA Trace"}
+    assert all(callable(reader) for _, reader in logs.READERS.values())
+
+
 def test_writer_survives_sigkill(tmp_path):
     path = tmp_path / "live.h5"
     code = textwrap.dedent(f"""

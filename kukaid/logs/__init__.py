@@ -16,19 +16,16 @@ from kukaid.logs.matlog import read_mat
 from kukaid.logs.trace import read_trace
 from kukaid.logs.writer import AxisLogWriter
 
-#: one reader per file suffix; a reader takes the path and the format's own options
-READERS: dict[str, Callable[..., AxisLog]] = {
-    ".h5": lambda path, **_: read_hdf5(path),
-    ".hdf5": lambda path, **_: read_hdf5(path),
-    ".csv": lambda path, **_: read_csv(path),
-    ".mat": read_mat,
-    ".dat": read_trace,
-    ".r64": read_trace,  # a Trace data file: its .dat header beside it
+#: per file suffix, the format it holds (as :func:`kukaid.jsonfile.file_kind` names a log of it) and its
+#: reader, which takes the path and the format's own options
+READERS: dict[str, tuple[str, Callable[..., AxisLog]]] = {
+    ".h5": ("HDF5", lambda path, **_: read_hdf5(path)),
+    ".hdf5": ("HDF5", lambda path, **_: read_hdf5(path)),
+    ".csv": ("CSV", lambda path, **_: read_csv(path)),
+    ".mat": ("MAT", read_mat),
+    ".dat": ("KUKA Trace", read_trace),
+    ".r64": ("KUKA Trace", read_trace),  # a Trace data file: its .dat header beside it
 }
-
-
-#: the format each suffix's reader reads, as :func:`kukaid.jsonfile.file_kind` names a log of it
-FORMATS = {".h5": "HDF5", ".hdf5": "HDF5", ".csv": "CSV", ".mat": "MAT", ".dat": "KUKA Trace", ".r64": "KUKA Trace"}
 
 #: compressed logs, read transparently: the suffix before the compression's names the format
 COMPRESSIONS = {".gz": "gzip", ".bz2": "bzip2", ".xz": "xz"}
@@ -42,12 +39,11 @@ def read_log(path: str | Path, **options: Any) -> AxisLog:
     path = Path(path)
     comp = COMPRESSIONS.get(path.suffix.lower())
     inner = Path(path.stem) if comp else path
-    reader = READERS.get(inner.suffix.lower())
-    if reader is None:
+    if inner.suffix.lower() not in READERS:
         expected = ", ".join(READERS)
         raise LogFormatError(f"{path}: unknown log format '{''.join(path.suffixes[-2:]).lower() or path.suffix}' "
                              f"(expected {expected}, optionally compressed: {', '.join(COMPRESSIONS)})")
-    fmt = FORMATS[inner.suffix.lower()]
+    fmt, reader = READERS[inner.suffix.lower()]
     if comp is None:
         return _read(reader, path, fmt, options)
     return _read_compressed(path, comp, inner.name, lambda plain, **o: _read(reader, plain, fmt, o), options)
