@@ -156,6 +156,20 @@ def test_one_table_names_each_suffix_format_and_reader():
     assert all(callable(reader) for _, reader in logs.READERS.values())
 
 
+def test_a_file_named_h5_of_another_kind_is_looked_at_once(tmp_path, monkeypatch):
+    """Code review: a report renamed .h5 had its first bytes read twice on the error path (by the HDF5
+    reader, then again by read_log); once now, and still named as what it is."""
+    import kukaid.logs.core as core
+
+    calls = []
+    real = core.file_kind
+    monkeypatch.setattr(core, "file_kind", lambda p: calls.append(p) or real(p))
+    (tmp_path / "r.h5").write_bytes(b"%PDF-1.4\n" + bytes(range(256)))
+    with pytest.raises(LogFormatError, match=r"r\.h5: is a PDF \(a report\), not an HDF5 axis log"):
+        read_log(tmp_path / "r.h5")
+    assert len(calls) == 1
+
+
 def test_writer_survives_sigkill(tmp_path):
     path = tmp_path / "live.h5"
     code = textwrap.dedent(f"""

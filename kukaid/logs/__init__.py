@@ -8,8 +8,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 from kukaid.errors import LogFormatError
-from kukaid.logs.core import (AxisLog, check_each_recording_once, check_samples, check_units, log_fingerprint,
-                              other_kind)
+from kukaid.logs.core import (AxisLog, OtherKindError, check_each_recording_once, check_samples, check_units,
+                              log_fingerprint, other_kind)
 from kukaid.logs.csvlog import read_csv, write_csv
 from kukaid.logs.hdf5 import read_hdf5, write_hdf5
 from kukaid.logs.matlog import read_mat
@@ -54,8 +54,8 @@ def _read(reader: Callable[..., AxisLog], path: Path, fmt: str, options: dict) -
     renamed .csv, an HDF5 log renamed .mat) is named as what it is."""
     try:
         return reader(path, **options)
-    except LogFormatError:
-        other = other_kind(path, fmt)
+    except LogFormatError as e:
+        other = None if isinstance(e, OtherKindError) else other_kind(path, fmt)  # the HDF5 reader looks itself
         if other is not None:
             raise other from None
         raise

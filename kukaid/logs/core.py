@@ -270,11 +270,16 @@ def _short(e: Exception) -> str:
     return str(e).split("\n")[0].strip()[:160]
 
 
-def other_kind(path: str | Path, fmt: str) -> LogFormatError | None:
+class OtherKindError(LogFormatError):
+    """A file a log reader could not read that is another of the toolkit's files (:func:`other_kind`):
+    said already, not to be looked at again."""
+
+
+def other_kind(path: str | Path, fmt: str) -> OtherKindError | None:
     """The error for a file its ``fmt`` reader ("HDF5", "CSV", "MAT", "KUKA Trace") could not read when
     its first bytes say it is another of the toolkit's files (a report, a table, a log of another
     format renamed): "is a PDF (a report), not a CSV axis log"; None when they do not."""
     kind = file_kind(path)
     if kind is None or kind == f"an axis log ({fmt})":
         return None
-    return LogFormatError(f"{path}: is {kind}, not {'an' if fmt == 'HDF5' else 'a'} {fmt} axis log")
+    return OtherKindError(f"{path}: is {kind}, not {'an' if fmt == 'HDF5' else 'a'} {fmt} axis log")
