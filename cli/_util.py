@@ -27,8 +27,10 @@ class AxisNumber(click.IntRange):
 #: with it: :func:`kukaid.identify.fitted.axis_option`)
 AXIS = AxisNumber(1, 12)
 
-#: ``--qd-max`` of run-admittance (its reference's speed limit) and krl-follower (the KRC's), deg/s
-QD_MAX_DEG = 30.0
+#: ``--qd-max`` of run-admittance (its reference's speed limit) and krl-follower (the KRC's), deg/s: 8 % of
+#: krl-follower's default ``--axis-speed`` (360 deg/s), a whole percentage the KRC's INT $VEL_AXIS takes as it is,
+#: so the two defaults agree (30 became 8 % = 28.8 on the KRC, and the reference ran ahead of it)
+QD_MAX_DEG = 28.8
 
 #: ``--port`` of the commands that connect to KUKAVARPROXY (a real controller or serve-sim)
 PORT = click.option("--port", type=click.IntRange(1, 65535), default=7000, show_default=True,

@@ -491,8 +491,11 @@ def test_krl_follower_speed_is_a_whole_percentage_never_above_qd_max(tmp_path):
 
 def test_krl_follower_says_when_the_krc_bounds_the_axis_below_qd_max(tmp_path):
     """New-user trial 11: the defaults gave $VEL_AXIS 8 % = 28.8 deg/s, below run-admittance's --qd-max 30:
-    the KRC bounds the axis, and a reference faster than that runs ahead of it; the follower says so."""
-    r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "0", "--q-max", "45", "-o", tmp_path / "a"])
+    the KRC bounds the axis, and a reference faster than that runs ahead of it.  The defaults now agree (28.8),
+    and a --qd-max the KRC rounds down is said."""
+    r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "0", "--q-max", "45", "-o", tmp_path / "d"])
+    assert r.exit_code == 0 and "$VEL_AXIS 8 % = 28.8 deg/s" in r.output and "warning" not in r.output, r.output
+    r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "0", "--q-max", "45", "--qd-max", "30", "-o", tmp_path / "a"])
     assert r.exit_code == 0, r.output
     assert "no faster than 28.8 deg/s" in r.output and "run-admittance --qd-max 28.8 or less" in r.output
     r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "0", "--q-max", "45", "--qd-max", "36", "-o", tmp_path / "b"])
