@@ -477,7 +477,7 @@ def test_wear_says_why_there_is_no_temperature_model(tmp_path):
                                              "more\n"), r.output
     assert not (tmp_path / "w.json").exists()
     out = lines(assess(rows + [{**r, "robot": "R100"} for r in _synthetic_rows(1, 10, seed=4)]))
-    assert out[0] == "1 axes assessed, 0 flagged (of 8)", out
+    assert out[0] == "1 axis assessed, 0 flagged (of 8)", out
     assert "R000         A3 not assessed: too few logs (2; a baseline of 5 and at least one more are needed)" in out
     assert out[-1] == "... and 2 more axes not assessed (the verdict file lists them)"
     rows = [{**r, "temp_mean": None} for r in _synthetic_rows(7, 10, seed=3)]  # enough logs, no temperature

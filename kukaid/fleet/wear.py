@@ -348,7 +348,7 @@ def lines(result: dict, top: int = 20) -> list[str]:
     """A short table for the terminal: the axes ranked by evidence."""
     s = result["summary"]
     tmod = result["temperature_model"]
-    out = [f"{s['assessed']} axes assessed, {s['flagged']} flagged (of {s['axes']})",
+    out = [f"{s['assessed']} {'axis' if s['assessed'] == 1 else 'axes'} assessed, {s['flagged']} flagged (of {s['axes']})",
            "temperature model: " + (f"none ({tmod.get('note') or 'no temperature logged'})" if tmod["T_ref"] is None
                                     else f"Fc {100 * tmod['Fc_per_K']:+.2f} %/K, Fv {100 * tmod['Fv_per_K']:+.2f} %/K "
                                     f"about {tmod['T_ref']:.1f} °C")]

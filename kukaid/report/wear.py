@@ -38,7 +38,7 @@ def ranking_pages(result: dict, source: str = "") -> list:
     for k, chunk in enumerate(chunks):
         fig = _page("Fleet wear: axes ranked by evidence" + (f" ({k + 1}/{len(chunks)})" if len(chunks) > 1 else ""),
                     _footer(source))
-        _subtitle(fig, f"{s['assessed']} axes assessed, {s['flagged']} flagged (of {s['axes']} in the table). {temp}. "
+        _subtitle(fig, f"{s['assessed']} {'axis' if s['assessed'] == 1 else 'axes'} assessed, {s['flagged']} flagged (of {s['axes']} in the table). {temp}. "
                        f"Evidence = largest CUSUM of the standardised residuals / threshold (flagged above 1; "
                        f"threshold set for at most {100 * st['alpha']:.1f} % of healthy axes ever flagged). "
                        "ΔFc, ΔFv: last week against the baseline at the reference temperature.")
