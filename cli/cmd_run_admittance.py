@@ -1,6 +1,8 @@
 """kukaid run-admittance: sensorless admittance control (constant or adaptive damping)."""
 from __future__ import annotations
 
+import dataclasses
+import math
 from pathlib import Path
 
 import click
@@ -45,12 +47,30 @@ def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> No
 def _check_start(q0: float, lo: float, hi: float, what: str) -> None:
     """The simulated start --q0 (degrees) within the simulated axis's range of motion ``lo``..``hi`` (rad;
     an infinite bound: none): the virtual robot has no hard stops, a start beyond them simulates no robot."""
-    import math
-
     q = math.radians(q0)
     if (math.isfinite(lo) and q < lo - 1e-9) or (math.isfinite(hi) and q > hi + 1e-9):
         raise click.BadParameter(f"{q0:g} degrees is outside the range of motion of {what}, "
                                  f"{math.degrees(lo):.4g} to {math.degrees(hi):.4g} degrees", param_hint="--q0")
+
+
+def _within_axis(cfg, given: tuple[bool, bool, bool, bool], lo: float, hi: float, what: str,
+                 qd_max: float = math.inf, tau_max: float = math.inf):
+    """``cfg`` (a LoopConfig) within the axis ``what``: its position window inside the range ``lo``..``hi`` (rad),
+    ``--qd-max`` at most the top speed ``qd_max`` (rad/s), ``--tau-max`` at most the drive's torque ``tau_max``
+    (N·m; beyond it the torque stop could never trip).  A default beyond is cut to the axis; a value the user gave
+    (``given``: --q-min, --q-max, --qd-max, --tau-max) beyond is refused."""
+    L = cfg.limits
+    checks = (("--q-min", L.q_min, lo, -1.0, "degrees", "the range of motion", math.degrees),
+              ("--q-max", L.q_max, hi, 1.0, "degrees", "the range of motion", math.degrees),
+              ("--qd-max", L.qd_max, qd_max, 1.0, "deg/s", "the top speed", math.degrees),
+              ("--tau-max", L.tau_max, tau_max, 1.0, "N·m", "the drive torque", float))
+    for (name, v, edge, side, unit, of, show), user in zip(checks, given):
+        if user and math.isfinite(edge) and side * (v - edge) > 1e-9 * max(1.0, abs(edge)):
+            rng = (f"{math.degrees(lo):.4g} to {math.degrees(hi):.4g}" if unit == "degrees" else f"{show(edge):.4g}")
+            raise click.BadParameter(f"{show(v):g} {unit} is beyond {of} of {what}, {rng} {unit}", param_hint=name)
+    return dataclasses.replace(cfg, limits=dataclasses.replace(L, q_min=max(L.q_min, lo), q_max=min(L.q_max, hi),
+                                                               qd_max=min(L.qd_max, qd_max),
+                                                               tau_max=min(L.tau_max, tau_max)))
 
 
 def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hint: str = "",
@@ -102,12 +122,15 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--init-move", type=click.FloatRange(-10.0, 10.0), default=1.0, show_default=True,
               help="Initiation move before control, degrees (saturates the Maxwell-slip elements, eq. 12; 0: none).")
 # safety (degrees at the edge)
-@click.option("--q-min", type=float, help="Position window, lower bound, degrees (sim default: q0 - 90).")
-@click.option("--q-max", type=float, help="Position window, upper bound, degrees (sim default: q0 + 90).")
-@click.option("--qd-max", type=float, default=QD_MAX_DEG, show_default=True, help="Reference speed limit, deg/s.")
+@click.option("--q-min", type=float, help="Position window, lower bound, degrees (sim default: q0 - 90); within the "
+                                          "axis's range of motion (kvp: its software limit switches, read first).")
+@click.option("--q-max", type=float, help="Position window, upper bound, degrees (sim default: q0 + 90, cut to the "
+                                          "axis's range of motion).")
+@click.option("--qd-max", type=float, default=QD_MAX_DEG, show_default=True,
+              help="Reference speed limit, deg/s (sim: at most the axis's top speed).")
 @click.option("--qdd-max", type=float, default=300.0, show_default=True, help="Reference acceleration limit, deg/s².")
 @click.option("--tau-max", type=float, default=100.0, show_default=True,
-              help="Motion stops when the measured torque exceeds this, N·m.")
+              help="Motion stops when the measured torque exceeds this, N·m (sim: at most the drive's torque).")
 @click.option("--max-age", type=float, default=0.1, show_default=True,
               help="Motion stops when the latest measurement is older than this, s (kvp: also the longest a "
                    "reply of KUKAVARPROXY is awaited, at least 2 cycles).")
@@ -123,8 +146,9 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
               help="sim, --operator human: the person's grip [drawn from --seed].")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="sim: seed of noise, vibration and operator.")
-@click.option("--q0", type=click.FloatRange(-360.0, 360.0), default=30.0, show_default=True,
-              help="sim: start position, degrees.")
+@click.option("--q0", type=float, default=30.0, show_default=True,
+              help="sim: start position, degrees, within the simulated axis's range of motion (A3 of a KR 6 R700 "
+                   "sixx: -120 to 156).")
 @click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
               help="sim, one-axis parameter file: JSON overriding the simulator's truth and settings.")
 @click.option("--noise", type=float, help="sim, one-axis parameter file: torque noise sigma, N·m [0.5].")
@@ -169,9 +193,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     or SIGTERM stops it at the next cycle, and the log and report are still written (the
     report's comparison run cut where the run stopped).
     """
-    import dataclasses
     import json
-    import math
 
     import numpy as np
 
@@ -232,6 +254,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         raise click.UsageError("--D-min/--D-max are for --damping adaptive")
 
     if backend == "sim":
+        if not math.isfinite(q0):
+            raise click.BadParameter(f"{q0} is not a position in degrees", param_hint="--q0")
         lo_deg = q0 - 90.0 if q_min is None else q_min
         hi_deg = q0 + 90.0 if q_max is None else q_max
     else:
@@ -239,6 +263,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         hi_deg = q_max if q_max is not None else math.inf
     _check_window(lo_deg, hi_deg, q0 if backend == "sim" else None, q_min is None or q_max is None)
     lo, hi = math.radians(lo_deg), math.radians(hi_deg)
+    limits_given = (q_min is not None, q_max is not None, given("qd_max"), given("tau_max"))
     # SafetyLimits checks these too; here the message names the option
     require_positive(("--qd-max", qd_max), ("--qdd-max", qdd_max), ("--tau-max", tau_max), ("--max-age", max_age))
     with usage_errors():  # values of options alone
@@ -300,6 +325,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                 q_start = np.asarray(prog.q[0], float).copy()
             _check_start(q0, float(lo_[axis - 1]), float(hi_[axis - 1]), f"the URDF's A{axis}")
             q_start[axis - 1] = math.radians(q0)
+            urdf_lim = plant.model_nominal
+            cfg = _within_axis(cfg, limits_given, float(lo_[axis - 1]), float(hi_[axis - 1]), f"the URDF's A{axis}",
+                               float(urdf_lim.velocityLimit[axis - 1]), float(urdf_lim.effortLimit[axis - 1]))
         else:
             if program is not None:
                 raise click.UsageError("--program is for a robot parameter file")
@@ -313,7 +341,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             from kukaid.models.limits import AxisLimits
 
             rng = AxisLimits.kr6_r700_sixx(scfg.axis)
-            _check_start(q0, rng.q_min, rng.q_max, f"the virtual KR C4's A{scfg.axis} (a KR 6 R700 sixx)")
+            what = f"the virtual KR C4's A{scfg.axis} (a KR 6 R700 sixx)"
+            _check_start(q0, rng.q_min, rng.q_max, what)
+            cfg = _within_axis(cfg, limits_given, rng.q_min, rng.q_max, what, rng.qd_max, scfg.tau_max)
             guidable()
 
         def sim_backend(cfg_):  # the same person and the same noise for every controller (paired)
@@ -339,6 +369,17 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         client = KvpClient(host=host, port=port, timeout=max(max_age, 2 * cycle))
         client.connect()
         be = KvpRobot(client, axis=axis, n_axes=model.n if robot_file else 0)
+        soft = be.soft_limits()  # the controller's software limit switches, before anything moves
+        if soft is None:
+            click.echo(f"kukaid: warning: run-admittance: $SOFTN_END[{axis}]/$SOFTP_END[{axis}] could not be read: the "
+                       f"window [{q_min:g}, {q_max:g}] degrees is not checked against A{axis}'s software limit switches "
+                       "(the KRC's own still stop the axis there)", err=True)
+        else:
+            try:
+                cfg = _within_axis(cfg, limits_given, *soft, f"A{axis} (its software limit switches on the controller)")
+            except click.BadParameter:
+                client.close()
+                raise
         attrs.update(host=host, port=port)
         axis_id = axis
 

@@ -293,6 +293,29 @@ def test_rest_hold_moves_the_reference_to_where_the_axis_stopped_once():
 
 
 # -- parameter files that cannot hold at rest ----------------------------------------------------
+@pytest.mark.parametrize("error", ["gravity_sign", "n_mm"])
+def test_a_file_the_initiation_move_shows_grossly_wrong_guides_nothing(error):
+    """New-user trial 12: a file with the gravity term's sign flipped (Γr reached 32 N·m during the initiation
+    move and rest, 6 x the threshold) or in N·mm (3.2e4 N·m) was warned about and then guided anyway: the
+    axis ran against the person's pull at full speed.  Beyond what the threshold at rest can rise to (3 x),
+    the run now stops before control, holding, with a reason."""
+    p = plant("gms", seed=3)
+    params = json.loads(json.dumps(p.params))
+    if error == "gravity_sign":
+        params["inertial"]["Mx"] *= -1.0
+    else:
+        for sec, keys in (("friction", ("Fc", "Fs", "Fv")), ("inertial", ("Izz", "Mx"))):
+            for k in keys:
+                params[sec][k] *= 1000.0
+        params["maxwell_slip"] = {k: [1000.0 * v for v in vals] if k in ("k", "W") else vals
+                                  for k, vals in params["maxwell_slip"].items()}
+    cfg = LoopConfig(damping="constant", D=50.0, cycle=0.012, duration=3.0)
+    run = run_admittance(SimRobot(VirtualKRC4(p.cfg, seed=3), Q0, PushOperator(15.0, 2.0, 1.0)),
+                         model_from_params(params), cfg)
+    assert run.status.startswith("stopped: before control") and "would move by itself" in run.status
+    assert not np.any(run.data["phase"] == PHASE_ADMITTANCE)  # not one cycle of control
+    ok = run_admittance(SimRobot(VirtualKRC4(p.cfg, seed=3), Q0, None), model_from_params(p.params), cfg)
+    assert ok.status == "completed"  # the file identification would give is guided
 def test_a_file_without_maxwell_slip_elements_is_refused_before_anything_moves(tmp_path):
     p = SimConfig().truth_params()
     del p["maxwell_slip"]

@@ -338,6 +338,38 @@ def test_kvp_run_follows_a_push_and_hands_back_control(files, kvp_robot, tmp_pat
     assert np.median(control["gamma_r"][push]) == pytest.approx(amp, abs=1.5)
 
 
+@pytest.mark.parametrize("opt, value, said", [("--q-max", "300", "300 degrees is beyond the range of motion"),
+                                              ("--qd-max", "5000", "5000 deg/s is beyond the top speed"),
+                                              ("--tau-max", "1e6", "1e+06 N·m is beyond the drive torque")])
+def test_limits_beyond_the_simulated_axis_are_refused_and_the_default_window_is_cut_to_it(files, tmp_path, opt,
+                                                                                           value, said):
+    """New-user trial 12: the default window (--q0 -/+ 90) guided the virtual A3 to 169 degrees, past its
+    156; -300..300, 5000 deg/s and a 1e6 N·m torque stop were taken as given."""
+    r = _run(["--params", files / "params.json", "-o", tmp_path / "x.h5", "--duration", "1", opt, value])
+    assert r.exit_code == 2 and said in r.output and "A3" in r.output, r.output
+    assert not (tmp_path / "x.h5").exists()
+    if opt == "--q-max":  # a pull from 150 degrees: the default window stops at the axis's 156
+        out = tmp_path / "pull.h5"
+        r = _run(["--params", files / "params.json", "-o", out, "--q0", "150", "--operator", "pull",
+                  "--duration", "4"])
+        assert r.exit_code == 0, r.output
+        log, _, m = read_run(out)
+        assert m["clipped_cycles"] > 0 and math.degrees(log.q.max()) < 156.2
+
+
+def test_kvp_window_beyond_the_controllers_software_limit_switches_is_refused(files, kvp_robot, tmp_path):
+    """New-user trial 12: --backend kvp took --q-min -300 --q-max 300 for A3 without a word.  The window is now
+    checked against the controller's $SOFTN_END/$SOFTP_END (the virtual KR C4 serves a KR 6 R700 sixx's:
+    A3 -120..156 degrees) before the follower is switched on."""
+    port, client, _ = kvp_robot
+    assert client.read_real("$SOFTN_END[3]") == pytest.approx(-120.0) and client.read_real("$SOFTP_END[3]") == 156.0
+    out = tmp_path / "far.h5"
+    args = [a if a != "55" else "300" for a in _kvp_args(files, port, out)]
+    r = _run(args)
+    assert r.exit_code == 2 and "300 degrees is beyond the range of motion of A3 (its software limit switches" in r.output
+    assert not out.exists() and client.read("KID_RUN") == "FALSE"
+
+
 def test_kvp_controller_that_stops_answering_stops_the_run_and_keeps_the_log(files, kvp_robot, tmp_path):
     port, client, _ = kvp_robot
     out = tmp_path / "dead.h5"
@@ -351,6 +383,8 @@ def test_kvp_controller_that_stops_answering_stops_the_run_and_keeps_the_log(fil
     good: list[float] = []  # the torques read before the link goes silent
 
     def read_real(self, name):  # silent after 150 torque readings (about 1.8 s), at any speed
+        if not name.startswith("$TORQUE_AXIS_ACT"):  # the software limit switches, read before the run
+            return real_read(self, name)
         if len(good) >= 150:
             raise kvp.ControllerError(f"{name}: no reply within the timeout")
         good.append(real_read(self, name))

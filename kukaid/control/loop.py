@@ -276,6 +276,9 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
     v_hold = float(m.vs) if getattr(m, "friction_kind", None) == "stribeck" else 0.0
     n_cycles = int(math.ceil((t_adm + cfg.duration) / cfg.cycle - 1e-9))
     phase = PHASE_INIT
+    # the most a model's error at rest may be: what the start threshold at rest can rise to
+    init_cap = getattr(est, "floor_cap", 3.0) * cfg.threshold
+    init_max = abs(r.gamma_r)  # Γr's largest size during the loop's own move and rest, N·m
     for k in range(n_cycles):
         tr = (k + 1) * cfg.cycle  # time since start at the end of this cycle
         if tr <= t_adm:  # initiation move (eq. 12), then rest while Γu settles
@@ -289,6 +292,16 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             adm.reset(q_cmd)
             sd = 0.0
         else:
+            if phase != PHASE_ADMITTANCE and init_max > init_cap:
+                # with nobody touching, the model missed the loop's own move and rest by more than the threshold
+                # at rest can ever rise to: guided, the axis would move by itself (a file in N·mm, a gravity sign)
+                backend.hold()
+                return log, (f"stopped: before control, with nobody touching the axis, the model's error during the "
+                             f"initiation move and rest reached {init_max:.3g} N·m, beyond {init_cap:.3g} N·m "
+                             f"({init_cap / cfg.threshold:g} x the threshold, the most the threshold at rest can rise "
+                             "to): guided with this parameter file the axis would move by itself, so nothing was "
+                             "guided; check the file's units and signs (kukaid show), refit it on a recent log of this "
+                             "axis, or raise --threshold")
             if phase != PHASE_ADMITTANCE and hasattr(est, "nobody_was_there"):
                 est.nobody_was_there()  # the loop's own move and rest: nothing read there was a hand
             phase = PHASE_ADMITTANCE
@@ -334,6 +347,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             new, stop = [], str(e)
         for s in new:
             r = est.update(*_measured(s, est), (s.t - last.t) if s.t > last.t else None)
+            if phase != PHASE_ADMITTANCE:
+                init_max = max(init_max, abs(r.gamma_r))
             if r.detected and phase != PHASE_ADMITTANCE:
                 # the initiation move and the rest after it are the loop's own, before anyone may touch the
                 # axis: what the estimator detects there is its model's error, and a detection carried into

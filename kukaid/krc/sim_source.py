@@ -28,6 +28,24 @@ TIMER0_MS = 1_000_000
 FOLLOW_HZ = 3.0
 
 
+def _soft_limits(sim: Any) -> dict[str, str]:
+    """``$SOFTN_END[i]``/``$SOFTP_END[i]`` (degrees) of A1-A6: the simulated robot's URDF position limits, or (one
+    simulated axis) a KR 6 R700 sixx's ranges."""
+    from kukaid.models.limits import AxisLimits
+
+    m = getattr(sim, "model_nominal", None)
+    out = {}
+    for i in range(1, 7):
+        if m is not None and i <= len(m.lowerPositionLimit):
+            lo, hi = float(m.lowerPositionLimit[i - 1]), float(m.upperPositionLimit[i - 1])
+        else:
+            lim = AxisLimits.kr6_r700_sixx(i)
+            lo, hi = lim.q_min, lim.q_max
+        if math.isfinite(lo) and math.isfinite(hi):  # a continuous joint has none
+            out[f"$SOFTN_END[{i}]"], out[f"$SOFTP_END[{i}]"] = format_real(lo * _DEG), format_real(hi * _DEG)
+    return out
+
+
 class SimSource:
     """The virtual KR C4 served over KUKAVARPROXY, advanced in real time by a background thread.
 
@@ -53,7 +71,8 @@ class SimSource:
     keep_truth : keep every 12 ms sample (for :meth:`truth`).
 
     Served: ``$AXIS_ACT_MEAS`` (measured, E6AXIS deg), ``$AXIS_ACT`` (setpoint, E6AXIS deg),
-    ``$TORQUE_AXIS_ACT[i]`` (N·m), ``$MOT_TEMP[i]``, ``$OV_PRO`` (INT, writable), ``$ROB_TIMER``
+    ``$TORQUE_AXIS_ACT[i]`` (N·m), ``$MOT_TEMP[i]``, ``$SOFTN_END[i]``/``$SOFTP_END[i]`` (the software limit
+    switches, deg: the simulated robot's URDF limits, or a KR 6 R700 sixx's), ``$OV_PRO`` (INT, writable), ``$ROB_TIMER``
     (ms), ``$TIMER[i]``-free globals (any name written once becomes readable), ``KID_TGT``.
     """
 
@@ -70,7 +89,7 @@ class SimSource:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self.globals: dict[str, str] = {"$OV_PRO": "100", "KID_TGT": "0.0"}
+        self.globals: dict[str, str] = {"$OV_PRO": "100", "KID_TGT": "0.0", **_soft_limits(sim)}
         self._latest: dict[str, float] | None = None
         self._truth: list[dict[str, Any]] = []
         self.error: BaseException | None = None

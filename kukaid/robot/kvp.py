@@ -85,6 +85,18 @@ class KvpRobot:
         self._last = Sample(k * self.sample_time, q, tau, math.nan, q_all, tau_all)
         return Block([self._last])
 
+    def soft_limits(self) -> tuple[float, float] | None:
+        """The axis's software limit switches, ``$SOFTN_END[axis]`` and ``$SOFTP_END[axis]`` (degrees on the
+        KRC), in rad; None when the controller does not give them (a lost connection is an error)."""
+        from kukaid.krc.kvp import KvpValueError, KvpVariableError
+
+        try:
+            lo = self.client.read_real(f"$SOFTN_END[{self.axis}]")
+            hi = self.client.read_real(f"$SOFTP_END[{self.axis}]")
+        except (KvpVariableError, KvpValueError):
+            return None
+        return (math.radians(lo), math.radians(hi)) if lo < hi else None
+
     def _send(self, q: float) -> None:
         from kukaid.krc.kvp import format_real
 
