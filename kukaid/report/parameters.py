@@ -172,7 +172,7 @@ def page_parameters(data: ReportData):
     if data.truth is not None:
         prov_lines.append(f"  truth: simulator truth stored in {data.truth_source} (attrs['truth'])")
     if par.get("effects"):
-        prov_lines.append(f"  effects in the parameter file (not drawn in the predictions): {', '.join(par['effects'])}")
+        prov_lines.append(f"  effects in the parameter file (in the predictions): {', '.join(par['effects'])}")
     for ln in prov_lines:
         for sub in textwrap.wrap(ln, 130, subsequent_indent="      ") or [""]:
             if y < 0.035:  # above the footer

@@ -6,13 +6,13 @@ from typing import Any
 import numpy as np
 
 
-from kukaid.report.data import (PAPER_TORQUE_MSE, ReportData, _model, _runs)
+from kukaid.report.data import PAPER_TORQUE_MSE, ReportData, _runs, predicted
 from kukaid.report.layout import _new_figure, _subtitle
 
 
 def page_prediction(data: ReportData, log: Any, pr: Any, role: str = "inertia"):
     """Measured vs predicted torque over time, the residual, and the motion (paper's torque figure)."""
-    pred = _model(data.params).predict_dynamic(pr.q, pr.qd, pr.qdd)
+    pred = predicted(data, log, pr)
     res = pr.tau - pred
     m = pr.dynamic
     mse = float(np.mean(res[m] ** 2)) if m.any() else float("nan")
@@ -30,7 +30,9 @@ def page_prediction(data: ReportData, log: Any, pr: Any, role: str = "inertia"):
     a1.plot(t, pr.tau_raw, "-", color="0.75", lw=0.5, label="measured (raw)")
     a1.plot(t, pr.tau, "-", color="C0", lw=1.0, label="measured (filtered)")
     a1.plot(t, pred_d, "--", color="C3", lw=1.0,
-            label=f"predicted {'m' if data.prismatic else 'Izz'} q̈ + gravity + F(q̇) (dynamic samples)")
+            label=f"predicted {'m' if data.prismatic else 'Izz'} q̈ + gravity + F(q̇)"
+                  + (f" + {', '.join(data.params['effects'])}" if data.params.get("effects") else "")
+                  + " (dynamic samples)")
     a1.set_ylabel(f"force F ({tu})" if data.prismatic else f"torque Γ ({tu})")
     lo, hi = a1.get_ylim()
     a1.set_ylim(lo, hi + 0.25 * (hi - lo))  # headroom: the legend above the data, not over its peaks
