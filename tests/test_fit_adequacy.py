@@ -93,7 +93,8 @@ def test_a_torque_filtered_before_it_was_recorded_has_no_noise_floor(tmp_path):
     assert r.exit_code == 0 and "whether the model misses an effect is not judged" in r.output, r.output
     from kukaid.identify.adequacy import with_effects  # what diagnose -o does with the file's metrics
 
-    assert with_effects(m, ["coupling"], 3.0, 2.0) == m
+    refined = with_effects(m, ["coupling"], 3.0, 2.0, float("nan"))
+    assert refined["warnings"] == m["warnings"] and refined["residual_over_noise"] != refined["residual_over_noise"]
 
 
 def test_lwr4_axis2_writes_parameters_with_the_reason(tmp_path):

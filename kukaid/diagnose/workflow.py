@@ -380,8 +380,8 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
         prov["diagnose"]["undetermined"] = [{k: u[k] for k in ("candidates", "modelled_as", "settled_by")}
                                             for u in undetermined]
     out_params["provenance"] = jsonable(prov)
-    if added and floor > 0:  # the fit's residual warning was of the model without the effects
-        out_params["metrics"] = with_effects(out_params.get("metrics") or {}, added, rmse0 / floor, cur_rmse / floor)
+    if added:  # the fit's figures are of the model without the effects
+        out_params["metrics"] = jsonable(with_effects(out_params.get("metrics") or {}, added, rmse0, cur_rmse, floor))
     steps = [st for st in steps if st.test.p_adjusted < alpha]  # never a step with p >= alpha as found
     return Diagnosis(steps, rmse0, cur_rmse, floor, sigma, ambiguous, out_params, rel0, cur_rel, rmse_r, tests,
                      list(sigs), given, model, notes, tested=tested, rejected=rejected,

@@ -153,21 +153,39 @@ def _residual_warning(ratio: float) -> str:
     return f"residual {ratio:.3g} x the noise floor: the model misses an effect (run kukaid diagnose)"
 
 
-def with_effects(metrics: dict, added: Sequence[str], before: float, after: float) -> dict:
-    """The fit's ``metrics`` for the file diagnose writes with the effects ``added``: the fit's
-    residual warning was of the model without them, so it goes, or (the gap still far above the
-    noise: diagnose's ``before`` and ``after``, x its noise floor) says both figures."""
-    if metrics.get("residual_over_noise") is None:  # not judged (a noise floor not known): no such warning
-        return metrics
-    fit_warning = _residual_warning(float(metrics["residual_over_noise"]))
-    if fit_warning not in metrics.get("warnings", []):
-        return metrics
-    warnings = [w for w in metrics["warnings"] if w != fit_warning]
-    if after > FAR_ABOVE_NOISE:
-        warnings.append(f"residual {metrics['residual_over_noise']:.3g} x the noise floor in the fit; with the "
-                        f"effects diagnose added ({', '.join(added)}) {before:.3g} -> {after:.3g} x its noise floor: "
-                        "the model still misses an effect (run kukaid diagnose)")
-    return {**metrics, "warnings": warnings}
+#: metrics a file diagnose refined keeps as the fit wrote them: what the fit said about the data and
+#: the model's form (and the Maxwell-slip elements, which diagnose leaves as they are)
+OF_THE_DATA = ("warnings", "other_axes_moving", "single_axis_adequate", "friction_model_choice",
+               "maxwell_slip_rms", "maxwell_slip_sum_W", "maxwell_slip_samples")
+
+
+def with_effects(metrics: dict, added: Sequence[str], rmse_before: float, rmse_after: float, floor: float) -> dict:
+    """The ``metrics`` of the file diagnose writes with the effects ``added``.
+
+    The fit's figures of its model (MSEs, condition numbers, correlation matrix, parameters on a
+    bound, the residual correlation factor its white-residual standard deviations needed) are of the
+    model without the effects: they move, as the fit wrote them, under ``original_fit`` (a file
+    refined twice keeps the fit's).  In their place diagnose's figures of the refined model on the
+    logs it was given: ``torque_rmse`` (``torque_rmse_before``: the file's model before), N·m (N),
+    ``noise_floor``, ``residual_over_noise`` (NaN: the floor not known) and ``std_note`` (its
+    standard deviations are HAC).  What the fit said about the data stays (:data:`OF_THE_DATA`);
+    its residual warning was of the model without the effects, so it goes, and while the gap is still
+    far above the noise a warning says both figures."""
+    fit = metrics.get("original_fit") or {k: v for k, v in metrics.items() if k not in OF_THE_DATA}
+    ratio = rmse_after / floor if floor > 0 else math.nan
+    out = {k: v for k, v in metrics.items() if k in OF_THE_DATA}
+    out.update(torque_rmse=rmse_after, torque_rmse_before=rmse_before, noise_floor=floor, residual_over_noise=ratio,
+               std_note="HAC standard deviations of diagnose's refit with the effects (the residuals' correlation "
+                        "accounted for: no correlation factor applies)", original_fit=fit)
+    r_fit = fit.get("residual_over_noise")
+    if isinstance(r_fit, (int, float)) and math.isfinite(r_fit):  # the fit's residual warning, or an earlier diagnose's
+        stale = _residual_warning(r_fit).split(":")[0]
+        out["warnings"] = [w for w in out.get("warnings", []) if not w.startswith(stale)]
+        if ratio > FAR_ABOVE_NOISE:
+            out["warnings"].append(f"{stale} in the fit; with the effects diagnose added ({', '.join(added)}) "
+                                   f"{rmse_before / floor:.3g} -> {ratio:.3g} x its noise floor: the model still "
+                                   "misses an effect (run kukaid diagnose)")
+    return out
 
 
 def held_share(log: Any) -> float:

@@ -347,22 +347,32 @@ def format_table(params: dict) -> str:
         rows.append("  Maxwell-slip k = " + ", ".join(f"{x:.4g}" for x in ms["k"]) + f" {units['k']}")
         rows.append("               W = " + ", ".join(f"{x:.4g}" for x in ms["W"]) + f" {units['W']}")
     m = params.get("metrics", {})
+    refined = isinstance(m.get("original_fit"), dict)  # diagnose -o: the fit's figures are of the model without its effects
+    fm = m["original_fit"] if refined else m
     extra = []
     for key, label in (("friction_fit_mse", "friction fit MSE"), ("torque_prediction_mse", "torque MSE")):
-        if key in m and m[key] is not None:
-            extra.append(f"{label} {m[key]:.4g} {units['mse']}")
-    if "ipopt_status" in m:
-        extra.append(f"IPOPT: {m['ipopt_status']}")
+        if key in fm and fm[key] is not None:
+            extra.append(f"{label} {fm[key]:.4g} {units['mse']}")
+    if "ipopt_status" in fm:
+        extra.append(f"IPOPT: {fm['ipopt_status']}")
     tail = []
     cf = m.get("residual_correlation_factor")
     if unc and isinstance(cf, (int, float)) and math.isfinite(cf):  # the +- above assume white residuals
         tail.append(f"  +-: least-squares standard deviations, white residuals assumed; the filtered residuals are "
                     f"correlated: multiply by the residual correlation factor {cf:.3g} for a realistic one")
-    if m.get("at_bound"):
-        tail.append("  at a bound: " + ", ".join(f"{names.get(b['name'], b['name'])} ({b['side']} {b['bound']:.4g}"
-                                             + (", --bound" if b.get("given") else "") + ")" for b in m["at_bound"]))
+    if refined:
+        ratio = m.get("residual_over_noise")
+        tail.insert(0, f"  diagnose's refit with {', '.join(params.get('effects') or {})}: torque RMSE "
+                       f"{m['torque_rmse']:.4g} {units['Fc']} on the logs diagnose was given"
+                       + (f" ({ratio:.3g} x the noise floor)" if isinstance(ratio, (int, float)) else "")
+                       + f"; +-: {m.get('std_note')}")
+    at = " in the original fit" if refined else ""
+    if fm.get("at_bound"):
+        tail.append(f"  at a bound{at}: " + ", ".join(f"{names.get(b['name'], b['name'])} ({b['side']} {b['bound']:.4g}"
+                                                    + (", --bound" if b.get("given") else "") + ")"
+                                                    for b in fm["at_bound"]))
     else:
-        tail.append("  at a bound: none")
+        tail.append(f"  at a bound{at}: none")
     pre = (params.get("provenance") or {}).get("preprocess") or {}
     if pre:
         line = (f"  pre-processing: low-pass {pre.get('cutoff', 0):.4g} Hz (order {pre.get('order')}), "
@@ -371,8 +381,8 @@ def format_table(params: dict) -> str:
     if m.get("friction_model_choice"):
         tail.append(f"  friction model: {m['friction_model_choice']}")
     tail += [f"  warning: {w}" for w in m.get("warnings", [])]
-    return "\n".join([f"axis A{params['axis']}, friction model {params['friction']['model']}", *rows,
-                      "  " + "; ".join(extra), *tail])
+    fig = ("  original fit, without the effects diagnose added: " if refined else "  ") + "; ".join(extra)
+    return "\n".join([f"axis A{params['axis']}, friction model {params['friction']['model']}", *rows, fig, *tail])
 
 
 def format_params(params: dict) -> str:
