@@ -176,3 +176,21 @@ def test_role_warning_needs_the_attribute():
     (w,) = role_warnings(lg, "friction")
     assert "imported.csv was given as --friction but records the 'validation' experiment" in w
     assert "general log" in w
+
+
+def test_radians_under_a_degree_header_are_warned_naming_the_column(logs, tmp_path):
+    """New-user trial nu12 item 7: a CSV with radians under A3_deg fitted with no unit warning (Izz and
+    Fv 57 x the truth); now a warning names the column and the likely cause, and the fit still runs."""
+    from kukaid.logs import write_csv
+
+    d, p = logs
+    good = tmp_path / "good.csv"
+    write_csv(read_log(p["friction"]), good, angle_unit="rad")
+    bad = tmp_path / "radasdeg.csv"
+    lines = good.read_text().splitlines()
+    bad.write_text("\n".join([lines[0].replace("_rad", "_deg"), *lines[1:]]) + "\n")
+    params = fit_axis(friction=[bad], inertia=[p["inertia"]])
+    (w,) = [w for w in params["metrics"]["warnings"] if "degree header" in w]
+    assert w.startswith(f"{bad}: column A3_deg spans only ") and "radians written under a degree header?" in w
+    assert not [w for w in fit_axis(friction=[good], inertia=[p["inertia"]])["metrics"]["warnings"]
+                if "degree header" in w]

@@ -11,6 +11,7 @@
   its sample rate sets the filter and the differences, and the fit on it is wrong.
 * :func:`role_warnings`: a log whose ``experiment`` attribute (written by capture from the
   trajectory) is not the role it was given in (``--friction``, ``--inertia``, ``--presliding``).
+* :func:`unit_warnings`: a revolute axis that moves over under 2 degrees (radians under a degree header).
 """
 from __future__ import annotations
 
@@ -254,6 +255,28 @@ def run_logs_only(names: list[str]) -> FitError:
                     "the push of the person guiding the axis, which no model of the axis predicts; "
                     "fit logs of an excitation recorded with nobody touching the robot (kukaid excite, then kukaid "
                     "capture)")
+
+
+#: a revolute axis moving over less than this (rad: 2 degrees) in a log fitted for its friction and
+#: inertia looks like positions in radians read as degrees (57 x too small)
+MIN_MOTION = math.radians(2.0)
+
+
+def unit_warnings(log: Any, axis: int, name: str | None = None) -> list[str]:
+    """A warning when revolute axis ``axis`` of ``log`` moves over less than :data:`MIN_MOTION` in all:
+    radians written under a degree header (the reader's ``position_columns`` names it) read 57 x too
+    small, and so do the speeds, while Izz and Fv come out 57 x too large, with no other sign.  A
+    warning, never a refusal: an axis can move that little."""
+    k = log.index(axis)
+    span = float(np.ptp(np.asarray(log.q[:, k], dtype=float)))
+    if log.joint[k] != "revolute" or span >= MIN_MOTION:
+        return []
+    name = name or str(log.attrs.get("source_file", "log"))
+    col = (log.attrs.get("position_columns") or {}).get(str(axis))
+    col = f"column {col}" if col else f"the position of A{axis}"
+    return [f"{name}: {col} spans only {math.degrees(span):.3g} degrees over the whole log, too little to fit "
+            "friction and inertia: radians written under a degree header? (read as degrees, positions and speeds "
+            "are 57 x too small, Izz and Fv 57 x too large)"]
 
 
 def role_warnings(log: Any, role: str, name: str | None = None, command: str = "fit") -> list[str]:

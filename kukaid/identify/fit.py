@@ -162,7 +162,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     run_logs: list[str] = []
 
     def prep(x: Any, role: str | None = None) -> Any:
-        from kukaid.identify.adequacy import check_not_held, pushed_log_warnings, role_warnings
+        from kukaid.identify.adequacy import check_not_held, pushed_log_warnings, role_warnings, unit_warnings
 
         lg = _load(x, ro)
         name = str(lg.attrs.get("source_file") or (x if isinstance(x, (str, bytes)) or hasattr(x, "__fspath__")
@@ -178,7 +178,10 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         if role is not None and not pushed:
             role_warn.extend(role_warnings(lg, role, name))
         raw_logs.append(lg)
-        return preprocess(lg, **pre)
+        pr = preprocess(lg, **pre)
+        if role != "presliding":  # the pre-sliding experiment moves a fraction of a degree
+            role_warn.extend(unit_warnings(lg, pr.axis, name))
+        return pr
 
     general = [prep(x) for x in logs]
     fr = [prep(x, "friction") for x in friction]
