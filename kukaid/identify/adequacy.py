@@ -104,11 +104,18 @@ def moving_axes(log: Any, axis: int, min_range: float = MOVE_RANGE) -> list[int]
     return out
 
 
+#: parameters whose bounds are the limits of an admissible shape, not of what the data could show: the
+#: Stribeck exponent delta at 0.5 or 2 (the paper's range; its own fit ends at 2.0, as does the
+#: simulator's default truth) is the steepest or flattest rise the model has, found by the data
+SHAPE_LIMITS = ("delta",)
+
+
 def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], at_bound: Sequence[dict],
            converged: bool, status: str) -> tuple[list[str], dict[str, Any]]:
     """Warnings for a single-axis fit, and the figures behind them (for the parameter file).
 
-    ``at_bound``: ``{"name", "value", "bound", "side", "given"}``, ``given`` true for a bound the user gave.
+    ``at_bound``: ``{"name", "value", "bound", "side", "given"}``, ``given`` true for a bound the user gave;
+    one of :data:`SHAPE_LIMITS` on its own limit is not warned as undetermined (the table lists it).
     Returns (warnings, {"residual_over_noise", "other_axes_moving", "single_axis_adequate"}).
     ``floor`` NaN: not known (a torque filtered before it was recorded, :func:`smooth_at_source`), so
     the residual is not judged against it (``residual_over_noise`` NaN).
@@ -122,13 +129,15 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
     def listed(bs: Sequence[dict]) -> str:
         return ", ".join(f"{b['name']} = {b['value']:.4g} ({b['side']} bound)" for b in bs)
 
-    if any(not b.get("given") for b in at_bound):
-        warnings.append(f"on a bound: {listed([b for b in at_bound if not b.get('given')])}: the data do not "
-                        "determine these, or the model does not describe the data")
+    # on a bound the data set: a shape at a limit of its admissible range (the table lists it) is a shape
+    undetermined = [b for b in at_bound if not b.get("given") and b["name"] not in SHAPE_LIMITS]
+    if undetermined:
+        warnings.append(f"on a bound: {listed(undetermined)}: the data do not determine these, or the model does "
+                        "not describe the data")
     if any(b.get("given") for b in at_bound):
         warnings.append(f"on the bound --bound gave: {listed([b for b in at_bound if b.get('given')])}: the value "
                         "is that bound, not an estimate (the data pull it past the bound, or do not determine it)")
-    inadequate = bool(others) and (unknown or ratio > FAR_ABOVE_NOISE or bool(at_bound) or not converged)
+    inadequate = bool(others) and (unknown or ratio > FAR_ABOVE_NOISE or bool(undetermined) or not converged)
     if inadequate:
         warnings.append(
             f"the single-axis model cannot explain A{axis}: other axes ({', '.join(f'A{a}' for a in others)}) move "
