@@ -49,7 +49,7 @@ FIELDS: dict[str, tuple[str, float, float, str]] = {
     "lugre_sigma0": ("float", 1.0, 1e8, "LuGre bristle stiffness sigma0, N·m/rad"),
     "lugre_zeta": ("float", 0.0, 5.0, "LuGre bristle damping ratio (sigma1 = 2 zeta sqrt(sigma0 Izz))"),
     "fric_pos_amp": ("float", 0.0, 0.9, "position dependence of the friction magnitude: relative amplitude a of 1 + a sin(n q + phi)"),
-    "fric_pos_n": ("float", 0.0, 1e3, "position dependence of the friction: periods per rad n"),
+    "fric_pos_n": ("float", 0.0, 1e3, "position dependence of the friction: order n, rad/rad (n periods per revolution)"),
     "fric_pos_phi": ("float", -10.0, 10.0, "position dependence of the friction: phase phi, rad"),
     # truth: rigid body, eqs. (6)-(8)
     "Izz": ("float", 1e-4, 1e4, "moment of inertia, kg·m²"),
