@@ -279,6 +279,9 @@ def _validate(cfg: SimConfig, where: str) -> None:
                     raise SimConfigError(f"{where}: field '{name}[{i}]' = {x} is outside the allowed range [{lo}, {hi}]")
                 out.append(float(x))
             object.__setattr__(cfg, name, tuple(out))
+    if cfg.Fs < cfg.Fc:  # as a parameter file's reader refuses it (kukaid.params.axis)
+        raise SimConfigError(f"{where}: field 'Fs' = {cfg.Fs:g} must not be below field 'Fc' = {cfg.Fc:g} "
+                             "(Stribeck static friction is at least the Coulomb level)")
     n = len(cfg.ms_k)
     if len(cfg.ms_W) != n or len(cfg.ms_zeta0) != n:
         raise SimConfigError(f"{where}: fields 'ms_k', 'ms_W' and 'ms_zeta0' must have one length "
