@@ -127,7 +127,7 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
         warnings.append(f"IPOPT stopped before converging ('{status}'); the best parameters it found are written "
                         "(never worse than the start)")
     def listed(bs: Sequence[dict]) -> str:
-        return ", ".join(f"{b['name']} = {b['value']:.4g} ({b['side']} bound)" for b in bs)
+        return ", ".join(f"{b['name']} = {b['bound']:.4g} ({b['side']} bound)" for b in bs)  # on it, up to the solver
 
     # on a bound the data set: a shape at a limit of its admissible range (the table lists it) is a shape
     undetermined = [b for b in at_bound if not b.get("given") and b["name"] not in SHAPE_LIMITS]

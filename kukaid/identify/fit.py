@@ -277,6 +277,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     metrics["std_note"] = ("standard deviations from residual variance and Jacobian assume white residuals; "
                            "filtered data make them optimistic (see residual_correlation_factor)")
     out["metrics"] = jsonable(metrics)
+    given = [k for k, v in pre.items() if k != "axis" and v is not None and not (k == "decimate" and v == 1)]
     out["provenance"] = {
         "kukaid_version": __version__, "method": method, "friction_model": friction_model, "gravity": gravity,
         "offset": bool(offset), "joint": all_preps[0].joint,
@@ -284,8 +285,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
                  "inertia": [p.source for p in ine], "presliding": psl.source if psl is not None else None},
         # which recordings these are wherever they are later (validate's in-sample warning)
         "log_fingerprints": [log_fingerprint(lg) for lg in raw_logs],
-        "preprocess": jsonable({**all_preps[0].settings, "why": settings_reason(
-            all_preps[0].settings, [k for k in ("cutoff", "order", "edge", "reversal_window") if pre.get(k) is not None])}),
+        "preprocess": jsonable({**all_preps[0].settings, "why": settings_reason(all_preps[0].settings, given)}),
     }
     return out
 
@@ -315,6 +315,12 @@ def fit_axis_auto(**kw: Any) -> dict:
     return cv
 
 
+def solver_text(status: str) -> str:
+    """What solved the fit and how it ended: "IPOPT: Solve_Succeeded", or "linear least squares
+    (bounded)" for a fit linear in its parameters (``metrics.ipopt_status`` "linear ...": no IPOPT ran)."""
+    return f"linear least squares{status[len('linear'):]}" if status.startswith("linear") else f"IPOPT: {status}"
+
+
 def _relative(value: float, std: float) -> str:
     """The standard deviation relative to the estimate, "x.xx %", or "-" when the estimate is not
     distinguishable from 0 (|value| below its standard deviation, or 0): a percentage of ~0 is noise."""
@@ -339,7 +345,9 @@ def format_table(params: dict) -> str:
     items += list(params["inertial"].items())
     if "offset" in params:
         items.append(("offset", params["offset"]))
+    on_bound = {b["name"]: b["bound"] for b in (params.get("metrics") or {}).get("at_bound") or []}
     for k, v in items:
+        v = on_bound.get(k, v)  # within the solver's tolerance of its bound: the bound (0, not 5.5e-28)
         s = unc.get(k)
         rel = _relative(v, s) if s is not None else ""
         label = names.get(k, k)
@@ -357,7 +365,7 @@ def format_table(params: dict) -> str:
         if key in fm and fm[key] is not None:
             extra.append(f"{label} {fm[key]:.4g} {units['mse']}")
     if "ipopt_status" in fm:
-        extra.append(f"IPOPT: {fm['ipopt_status']}")
+        extra.append(solver_text(fm["ipopt_status"]))
     tail = []
     cf = m.get("residual_correlation_factor")
     if unc and isinstance(cf, (int, float)) and math.isfinite(cf):  # the +- above assume white residuals

@@ -14,6 +14,7 @@ from kukaid.report.layout import _add_table, _new_figure, _subtitle
 def page_parameters(data: ReportData):
     """Parameter table with uncertainties (and truth), metrics beside the paper's, caveat, provenance."""
     from kukaid import __version__
+    from kukaid.identify.fit import solver_text
 
     par = data.params
     met = par.get("metrics") or {}
@@ -97,12 +98,12 @@ def page_parameters(data: ReportData):
     fm = met["original_fit"] if refined else met
     of = "original fit (no effects): " if refined else ""
 
-    def add(label, key, unit, paper=None, fmt=lambda x: _fmt(x, 4), src=fm):
+    def add(label, key, unit, paper=None, fmt=lambda x: _fmt(x, 4) if isinstance(x, (int, float)) else str(x),
+            src=fm):
         v = src.get(key)
         if v is None:
             return
-        mrow.append([(of if src is fm else "") + label, fmt(v) if isinstance(v, (int, float)) else str(v), unit,
-                     _fmt(paper, 4) if paper is not None else ""])
+        mrow.append([(of if src is fm else "") + label, fmt(v), unit, _fmt(paper, 4) if paper is not None else ""])
     tu2 = data.tu2
     revolute = not data.prismatic  # the paper's figures are of a revolute axis, in N·m: no reference for a force
     if refined:
@@ -115,7 +116,7 @@ def page_parameters(data: ReportData):
     add("condition number (friction, staged)", "friction_condition_number", "-")
     add("condition number (inertia regressor)", "inertia_condition_number", "-")
     add("residual correlation factor", "residual_correlation_factor", "-")
-    add("IPOPT status", "ipopt_status", "")
+    add("solver", "ipopt_status", "", fmt=solver_text)
     add("dynamic-mode samples fitted", "n_dynamic_samples", "", fmt=lambda x: str(int(x)))
     add("friction pairs (staged)", "friction_pairs", "", fmt=lambda x: str(int(x)))
     add("Maxwell-slip fit RMS", "maxwell_slip_rms", data.tu, src=met)
