@@ -211,3 +211,20 @@ def test_prediction_pages_predict_with_the_files_effects_as_validate_does(fitted
     assert mse == pytest.approx(float(np.mean((tau - tau_hat) ** 2)), rel=1e-3)
     plain = page_prediction(load_report_data(params, inertia=[logs["inertia"]]), log, pr).axes[0].get_title(loc="left")
     assert plain != title  # the ripple is in the prediction: not the file's terms alone
+
+
+def test_a_prediction_page_of_a_log_the_model_was_fitted_on_is_not_called_a_validation(fitted):
+    """New-user trial nu12 item 18: the page of a general log the fit saw was titled "(validation)"
+    under the warning that its figures are in-sample; the residual legend said "not fitted" on a
+    page where nothing is fitted."""
+    from kukaid.report import load_report_data
+    from kukaid.report.prediction import page_prediction
+
+    _, p, logs, _ = fitted
+    unseen = VirtualKRC4(SimConfig().replace(**TRUTH), seed=99).run(excite.generate("inertia", period=3.0,
+                                                                                    ramp_periods=0.5, amplitude=0.5))
+    data = load_report_data(p["params"], logs=[p["inertia"], unseen])
+    titles = [page_prediction(data, log, pr, "general").texts[0].get_text() for log, pr in data.general]
+    assert titles[0].endswith("(in-sample)") and titles[1].endswith("(validation)"), titles
+    legend = page_prediction(data, *data.general[1], "general").axes[1].get_legend().get_title().get_text()
+    assert legend == "grey: not compared (quasi-static / near a reversal)"

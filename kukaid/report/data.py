@@ -38,6 +38,8 @@ class ReportData:
     warnings : lines for the user (a log given in a role whose experiment it does not record,
         as ``fit`` warns).
     model : the file as :class:`~kukaid.identify.fitted.AxisFile`, the predictor validate uses.
+    fitted_on : ids of the logs the model was fitted on (:func:`~kukaid.identify.fitted.in_sample`):
+        their prediction pages are in-sample, not a validation.
     """
 
     params: dict
@@ -50,6 +52,7 @@ class ReportData:
     truth_source: str = ""
     warnings: list = field(default_factory=list)
     model: Any = None
+    fitted_on: set = field(default_factory=set)
 
     @property
     def prismatic(self) -> bool:
@@ -141,7 +144,7 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
         axis = int(par.get("axis") or 3)
     else:
         check_model_of(par, source, axis=axis)
-    from kukaid.identify.fitted import AxisFile, use_warnings
+    from kukaid.identify.fitted import AxisFile, in_sample, use_warnings
 
     data = ReportData(par, source, model=AxisFile(par, axis, source))
     data.friction = [_load_one(x, axis, par, origin) for x in friction]
@@ -161,6 +164,8 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
     given = [*friction, *inertia, *logs] + ([presliding] if presliding is not None else [])  # the order of every
     names = [x if isinstance(x, (str, Path)) else log.attrs.get("source_file", "log") for x, (log, _) in zip(given, every)]
     data.warnings.extend(use_warnings(data.model, names, [log for log, _ in every]))  # validate's
+    fitted = in_sample(par, names, source, [log for log, _ in every])
+    data.fitted_on = {id(log) for n, (log, _) in zip(names, every) if n in fitted}
     for log, _ in every:
         t = log.attrs.get("truth")
         if isinstance(t, dict) and t.get("schema") == SCHEMA and int(t.get("axis", axis)) == int(axis):

@@ -18,8 +18,9 @@ def page_prediction(data: ReportData, log: Any, pr: Any, role: str = "inertia"):
     mse = float(np.mean(res[m] ** 2)) if m.any() else float("nan")
     tu = data.tu
     t = pr.time - pr.time[0]
-    title = ("Torque prediction on the inertia experiment (eqs. 6-8)" if role == "inertia"
-             else "Torque prediction on a general log (validation)")
+    seen = "in-sample" if id(log) in data.fitted_on else "validation"  # in-sample: the model was fitted on it
+    title = (f"Torque prediction, inertia experiment (eqs. 6-8, {seen})" if role == "inertia"
+             else f"Torque prediction on a general log ({seen})")
     fig = _new_figure(title, data)
     _subtitle(fig, str(pr.source))
     a1 = fig.add_axes([0.11, 0.62, 0.78, 0.30])
@@ -50,7 +51,7 @@ def page_prediction(data: ReportData, log: Any, pr: Any, role: str = "inertia"):
     if m.any():
         lim = 1.3 * float(np.max(np.abs(res[m]))) + 1e-9
         a2.set_ylim(-lim, lim)
-    a2.legend(fontsize=7, loc="upper right", title="grey: not fitted (quasi-static / near reversal)",
+    a2.legend(fontsize=7, loc="upper right", title="grey: not compared (quasi-static / near a reversal)",
               title_fontsize=6.5)
     a3.plot(t, pr.q, "-", color="C0", lw=1.0, label="position q")
     a3.set_ylabel("position q (m)" if data.prismatic else "position q (rad)")
