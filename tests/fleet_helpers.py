@@ -76,7 +76,7 @@ def fault_fleet(out: Path) -> tuple[Path, dict[str, str]]:
 
 def rippled_arm_log(path: Path, seed: int = 20) -> Path:
     """A 12 s six-axis log of the KR 6 R700 sixx (250 Hz, a seeded multi-sine, A2 about mid-range)
-    whose A4 carries a position ripple the URDF does not know (0.3 N·m at 11.3 periods per rad):
+    whose A4 carries a position ripple the URDF does not know (0.3 N·m at order 11.3 rad/rad):
     ``kukaid diagnose`` of its own whole-arm fit names ``position_ripple@A4``. (It was a 5 N·m gas
     counterbalance on A2, 4 % of A2's gravity torque: named only while the spring's geometry was
     chosen on every sample, the held-out block's too; one recording's blocks do not carry a

@@ -156,10 +156,37 @@ def test_show_of_a_refined_file(case, tmp_path):
     assert "misses an effect" not in s.stdout and "{" not in s.stdout
     assert re.search(r"position_ripple n [\d.]+, a [\d.]+ \+- [\d.]+, b -?[\d.]+ \+- [\d.]+", s.stdout), s.stdout
     # still far above the noise with the effect: both figures, and which effects they include
-    m = with_effects(fitted["metrics"], ["position_ripple"], 9.0, 6.0)
+    m = with_effects(fitted["metrics"], ["position_ripple"], 0.9, 0.6, 0.1)
     assert warning not in m["warnings"]
     assert any("5.69 x the noise floor in the fit; with the effects diagnose added (position_ripple) 9 -> 6 x" in w
                for w in m["warnings"])
+
+
+def test_a_refined_file_keeps_the_fits_figures_as_the_original_fits(case, tmp_path):
+    """New-user trial nu12 item 4: the refined file kept the fit's MSEs and residual correlation factor as
+    its own, so `show` and `report` printed error figures about 40 x too large for it and told the
+    reader to multiply its HAC standard deviations by the factor.  They are now under
+    metrics.original_fit, said to be of the model without the effects; the file's own figures are
+    diagnose's refit's."""
+    d, params, paths = case
+    fitted = json.loads(params.read_text())
+    refined = tmp_path / "refined.json"
+    r = CliRunner().invoke(cli, args(params, paths, "--json", "-o", str(refined)))
+    assert r.exit_code == 0, r.output
+    m = json.loads(refined.read_text())["metrics"]
+    assert m["original_fit"]["torque_prediction_mse"] == fitted["metrics"]["torque_prediction_mse"]
+    assert "torque_prediction_mse" not in m and "residual_correlation_factor" not in m and "correlation" not in m
+    assert m["torque_rmse"] == pytest.approx(json.loads(r.stdout)["rmse_after"])
+    s = CliRunner().invoke(cli, ["show", str(refined)]).stdout
+    assert "multiply by the residual correlation factor" not in s, s
+    assert "original fit, without the effects diagnose added: friction fit MSE" in s, s
+    assert f"torque RMSE {m['torque_rmse']:.4g} N·m on the logs diagnose was given" in s and "HAC" in s, s
+    # diagnosed again: the fit's figures stay the fit's, not the first refinement's
+    again = tmp_path / "again.json"
+    r = CliRunner().invoke(cli, args(refined, paths, "-o", str(again)))
+    assert r.exit_code == 0, r.output
+    m2 = json.loads(again.read_text())["metrics"]
+    assert m2["original_fit"] == m["original_fit"]
 
 
 def test_options_a_robot_file_refuses_say_why(tmp_path):

@@ -44,6 +44,14 @@ def test_emps_offset_is_found_and_error_drops():
     assert "torque_offset" in d.names and d.rel_after < 0.041, d.lines()
     # a sine of one period over the whole stroke is a slow position-dependent force, not a ripple
     assert "position_ripple" not in d.names and any("not a repeating ripple" in x for x in d.lines()), d.lines()
+    # new-user trial nu12 item 11: listed by size, the transient found after the offset comes first; its
+    # in-sample RMSE is of the chain as listed, its evidence and held-out check of the model it was found
+    # in: they say so
+    i = d.names.index("torque_offset")
+    assert d.steps[i].test.found_with == [] and all(s.test.found_with == ["torque_offset"] for s in d.steps[:i])
+    text = "\n".join(d.lines())
+    assert i == 0 or ("    evidence (when found, with torque_offset in the model): " in text
+                      and "    held out (when found, with torque_offset in the model) (" in text), text
 
 
 def test_emps_gravity_candidates_do_not_apply_to_a_prismatic_axis():

@@ -44,7 +44,7 @@ def _logs(kr6, effect=None, duration=10.0):
             tau[:, 2] += 0.12 * np.abs(np.einsum("sjk,k->sj", kr6.regressor(q, z, z), pi)[:, 2]) * np.sign(qd[:, 2])
         elif effect == "thermal_friction":               # A2: friction falling as the motor warms
             tau[:, 1] -= 0.01 * (temp[:, 1] - 25.0) * (fr["Fc"][1] * np.sign(qd[:, 1]) + fr["Fv"][1] * qd[:, 1])
-        elif effect == "position_ripple":                # A4: 0.3 N·m at 11.3 periods per rad
+        elif effect == "position_ripple":                # A4: 0.3 N·m at order 11.3 rad/rad
             tau[:, 3] += 0.3 * np.sin(11.3 * q[:, 3] + 0.4)
         elif effect == "counterbalance":                 # A2: a gas spring, geometry off the diagnosis' grid
             tau[:, 1] -= CB_FORCE * gas_spring(q[:, 1], -1.23, 0.37, 1.4)
@@ -138,7 +138,7 @@ def test_benchmark_quick_runs():
 
 
 def test_a_ripple_the_fit_took_in_is_closed_to_near_its_twin(kr6, robot_hidden_bench):
-    """The benchmark's dev ripple seed 0 (an A6 ripple of 0.39 N·m at 16.2 periods per rad): the
+    """The benchmark's dev ripple seed 0 (an A6 ripple of 0.39 N·m at order 16.2 rad/rad): the
     robot fit on the first recording took part of it into A6's spring (0.12 N·m/rad, held at that
     it extrapolates to the other recordings' angles), and the simulator held the ripple's torque
     over each 4 ms sample (10 % of it a lag of its position). A6 held out after the ripple was 3.5x

@@ -94,6 +94,9 @@ def test_two_effects_named_in_order_of_size(big, small):
     assert d.steps[0].rmse_before == pytest.approx(d.rmse_refit)  # the chain starts at the refitted model
     for a, b in zip(d.steps, d.steps[1:]):
         assert b.rmse_before == a.rmse_after
+    # a step listed elsewhere than found: its evidence says which model it was found in
+    moved = sum(sorted(s.test.found_with) != sorted(d.names[:i]) for i, s in enumerate(d.steps))
+    assert sum("(when found, " in x for x in d.lines()) == 2 * moved, d.lines()
 
 
 def test_narrow_range_offset_and_gravity_are_reported_ambiguous():

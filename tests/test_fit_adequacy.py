@@ -93,7 +93,8 @@ def test_a_torque_filtered_before_it_was_recorded_has_no_noise_floor(tmp_path):
     assert r.exit_code == 0 and "whether the model misses an effect is not judged" in r.output, r.output
     from kukaid.identify.adequacy import with_effects  # what diagnose -o does with the file's metrics
 
-    assert with_effects(m, ["coupling"], 3.0, 2.0) == m
+    refined = with_effects(m, ["coupling"], 3.0, 2.0, float("nan"))
+    assert refined["warnings"] == m["warnings"] and refined["residual_over_noise"] != refined["residual_over_noise"]
 
 
 def test_lwr4_axis2_writes_parameters_with_the_reason(tmp_path):
@@ -163,3 +164,21 @@ def test_diagnose_of_a_torque_filtered_before_it_was_recorded_reads_no_ratio(tmp
     assert "x noise floor" not in r.output and "the noise floor is not known" in r.output, r.output
     r = CliRunner().invoke(cli, [*args, "--json"])
     assert json.loads(r.stdout)["noise_floor"] is None
+
+
+def test_delta_at_a_limit_of_its_shape_range_is_not_warned_as_undetermined():
+    """New-user trial nu12 item 9: the README's fit warned "on a bound: delta = 2 (upper bound): the data
+    do not determine these" for the virtual KR C4, whose truth is delta = 2.0: a correct fit warned by
+    construction.  delta's bounds 0.5-2 are its admissible shape range; at a limit it is still listed
+    at a bound, not warned; another parameter on a bound still is."""
+    from kukaid.identify.adequacy import assess
+
+    delta = {"name": "delta", "value": 2.0, "bound": 2.0, "side": "upper", "given": False}
+    fc = {"name": "Fc", "value": 0.0, "bound": 0.0, "side": "lower", "given": False}
+    warnings, figures = assess(3, 1.0, 1.0, [], [delta], True, "Solve_Succeeded")
+    assert warnings == []
+    warnings, _ = assess(3, 1.0, 1.0, [], [delta, fc], True, "Solve_Succeeded")
+    assert warnings == ["on a bound: Fc = 0 (lower bound): the data do not determine these, or the model does not "
+                        "describe the data"]
+    warnings, _ = assess(3, 1.0, 1.0, [], [{**delta, "given": True}], True, "Solve_Succeeded")
+    assert warnings and warnings[0].startswith("on the bound --bound gave: delta = 2")

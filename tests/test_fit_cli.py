@@ -84,6 +84,30 @@ def test_staged_coulomb_viscous_keeps_the_bounds_given(logs, model):
     assert "at a bound: Fc (upper 1, --bound)" in r.output and "the data do not determine" not in r.output
 
 
+def test_the_table_of_a_linear_fit_at_a_bound_with_user_settings(logs):
+    """New-user trial nu12 item 17: a linear fit printed "IPOPT: linear" (no IPOPT ran), a parameter on
+    its bound 0 as "5.5062e-28" (table and warning), and --qd-thr, --decimate were missing from "(set
+    by the user: ...)"."""
+    from kukaid.identify.fit import format_params
+
+    d, p = logs
+    out = d / "linear.json"
+    r = CliRunner().invoke(cli, ["fit", str(p["friction"]), str(p["inertia"]), "--friction-model", "coulomb-viscous",
+                                 "--qd-thr", "0.002", "--decimate", "2", "--diff", "spectral", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "IPOPT" not in r.output and "; linear least squares" in r.output, r.output
+    assert "set by the user: --qd-thr 0.002, --decimate 2, --diff spectral" in r.output, r.output
+    par = json.loads(out.read_text())
+    par["friction"]["Fc"] = 5.5062e-28
+    par["metrics"]["at_bound"] = [{"name": "Fc", "value": 5.5062e-28, "bound": 0.0, "side": "lower", "given": False}]
+    (row,) = [x for x in format_params(par).splitlines() if x.startswith("  Fc ")]
+    assert row.split()[1] == "0" and "e-28" not in format_params(par), row
+    from kukaid.identify.adequacy import assess
+
+    warnings, _ = assess(3, 1.0, 1.0, [], par["metrics"]["at_bound"], True, "linear (bounded)")
+    assert warnings[0].startswith("on a bound: Fc = 0 (lower bound)"), warnings
+
+
 def _bad(tmp_path, log, name="bad.h5"):
     path = tmp_path / name
     write_hdf5(log, path)

@@ -176,3 +176,35 @@ def test_role_warning_needs_the_attribute():
     (w,) = role_warnings(lg, "friction")
     assert "imported.csv was given as --friction but records the 'validation' experiment" in w
     assert "general log" in w
+
+
+def test_radians_under_a_degree_header_are_warned_naming_the_column(logs, tmp_path):
+    """New-user trial nu12 item 7: a CSV with radians under A3_deg fitted with no unit warning (Izz and
+    Fv 57 x the truth); now a warning names the column and the likely cause, and the fit still runs."""
+    from kukaid.logs import write_csv
+
+    d, p = logs
+    good = tmp_path / "good.csv"
+    write_csv(read_log(p["friction"]), good, angle_unit="rad")
+    bad = tmp_path / "radasdeg.csv"
+    lines = good.read_text().splitlines()
+    bad.write_text("\n".join([lines[0].replace("_rad", "_deg"), *lines[1:]]) + "\n")
+    params = fit_axis(friction=[bad], inertia=[p["inertia"]])
+    (w,) = [w for w in params["metrics"]["warnings"] if "degree header" in w]
+    assert w.startswith(f"{bad}: column A3_deg spans only ") and "radians written under a degree header?" in w
+    assert not [w for w in fit_axis(friction=[good], inertia=[p["inertia"]])["metrics"]["warnings"]
+                if "degree header" in w]
+
+
+def test_a_presliding_log_given_as_a_general_log_says_to_give_it_as_presliding(tmp_path):
+    """New-user trial nu12 item 16: `fit presliding.h5` said the axis moves in one direction only, though
+    the log moves both ways (micro-reversals below qd_thr); now the line says it is at dynamic-mode
+    speeds only, and that the log records the pre-sliding experiment: --presliding."""
+    log = VirtualKRC4(SimConfig(), seed=3).run(excite.generate("presliding", hold=2.0, final_hold=2.0))
+    path = tmp_path / "presliding.h5"
+    write_hdf5(log, path)
+    with pytest.raises(FitError) as e:
+        fit_axis(logs=[path])
+    msg = str(e.value)
+    assert "presliding.h5 records the pre-sliding experiment (attribute 'experiment'): give it as --presliding" in msg
+    assert "dynamic-mode" in msg and "qd_thr 0.0017 rad/s" in msg, msg

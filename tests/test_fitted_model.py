@@ -276,3 +276,20 @@ def test_validate_preprocesses_a_log_once_for_a_one_axis_file(monkeypatch):
     monkeypatch.setattr(filtering, "preprocess", lambda *a, **k: calls.append(1) or real(*a, **k))
     scores = validate(params, [log])
     assert len(calls) == 1 and scores[3].noise_floor == pytest.approx(floor, rel=1e-12)
+
+
+def test_the_robot_reports_relative_sigma_is_fits_sigma_percent(robot_case):
+    """New-user trial nu12 item 5: the report divided σ by the least-squares value (100-1000 x the
+    estimate on the LWR4+), so it listed base parameters at 3 % that fit called not identifiable
+    (504 %); now its column is fit's sigma %: σ x the correlation factor over |estimate|."""
+    from kukaid.report.robot import page_base_parameters
+
+    params = json.loads(json.dumps(robot_case[0]))
+    bp = params["base_parameters"]
+    bp["values"][0], bp["least_squares"][0], bp["sigma"][0] = 0.014, -2.246, 0.0705
+    params["metrics"]["residual_correlation_factor"] = 5.75
+    fig = page_base_parameters(params, "p.json")
+    cells = {(r, c): cell.get_text().get_text() for ax in fig.axes for tab in ax.tables
+             for (r, c), cell in tab.get_celld().items()}
+    assert cells[(0, 5)] == "σ × cf / |est.|"
+    assert cells[(1, 5)] == f"{100 * 0.0705 * 5.75 / 0.014:.0f} %"  # 2896 %, not 3.1 %

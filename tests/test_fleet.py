@@ -500,6 +500,29 @@ def test_wear_table_gives_each_change_its_scatter_and_says_what_the_figures_are(
     assert any(line.startswith("evidence: the largest CUSUM over its threshold (above 1: flagged)") for line in out)
 
 
+def test_wear_trend_carries_its_standard_error():
+    """New-user trial nu12 item 20: a healthy axis showed "Fc per 30 d +9.7 %" (a slope over 5 noisy daily
+    logs, extrapolated 6 x) with no uncertainty while its change got a ±; now the trend carries its
+    standard error (one log's scatter over the days' spread) in wear.json and in the PDF's table."""
+    import matplotlib.pyplot as plt
+    from pdf_layout import layout_problems
+
+    from kukaid.fleet.wear import assess
+    from kukaid.report.wear import ranking_pages
+
+    res = assess(_synthetic_rows(5, 10, seed=1))
+    a = next(a for a in res["axes"] if "evidence" in a)
+    t, nb = a["trend_per_30d"], a["baseline"]["logs"]
+    days = np.arange(nb, 10, dtype=float)
+    assert t["days"] == np.ptp(days)
+    sxx = float(((days - days.mean()) ** 2).sum())
+    assert t["Fc_se"] == pytest.approx(30 * a["baseline"]["scatter_rel"][0] / sxx ** 0.5)
+    page = ranking_pages(res)[0]
+    cells = [c.get_text().get_text() for ax in page.axes for tab in ax.tables for c in tab.get_celld().values()]
+    assert f"{100 * t['Fc']:+.1f}±{100 * t['Fc_se']:.1f} %" in cells and not layout_problems(page)
+    plt.close(page)
+
+
 def test_wear_needs_a_temperature_spread_for_a_slope():
     """New-user trial 9: `fleet simulate --temp-swing 0` then `fleet wear` printed "temperature model:
     Fc +105.35 %/K, Fv +113.65 %/K": a slope fitted to the tenths of a kelvin a log's own heating moves

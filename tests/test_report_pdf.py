@@ -189,3 +189,42 @@ def test_a_six_axis_log_is_reported_with_a_one_axis_parameter_file(fitted):
         r = _run(["--params", p["params"], role, six, "-o", out])
         assert r.exit_code == 0, r.output
         assert _pages(out) >= 2
+
+
+def test_prediction_pages_predict_with_the_files_effects_as_validate_does(fitted):
+    """A file diagnose refined (an effect in ``effects``): the report's prediction page and residual
+    statistics use the effect, as validate does; its MSE is validate's on the same samples."""
+    import numpy as np
+
+    from kukaid.identify.fitted import AxisFile
+    from kukaid.report import load_report_data
+    from kukaid.report.prediction import page_prediction
+
+    _, _, logs, params = fitted
+    refined = json.loads(json.dumps(params))
+    refined["effects"] = {"position_ripple": {"model": "kukaid.diagnose/1", "n": 12.0, "a": 1.3, "b": 0.7}}
+    data = load_report_data(refined, inertia=[logs["inertia"]])
+    log, pr = data.inertia[0]
+    title = page_prediction(data, log, pr).axes[0].get_title(loc="left")
+    mse = float(re.search(r"samples: ([0-9.e+-]+)", title).group(1))
+    tau, tau_hat = AxisFile(refined).predict(log)[3]
+    assert mse == pytest.approx(float(np.mean((tau - tau_hat) ** 2)), rel=1e-3)
+    plain = page_prediction(load_report_data(params, inertia=[logs["inertia"]]), log, pr).axes[0].get_title(loc="left")
+    assert plain != title  # the ripple is in the prediction: not the file's terms alone
+
+
+def test_a_prediction_page_of_a_log_the_model_was_fitted_on_is_not_called_a_validation(fitted):
+    """New-user trial nu12 item 18: the page of a general log the fit saw was titled "(validation)"
+    under the warning that its figures are in-sample; the residual legend said "not fitted" on a
+    page where nothing is fitted."""
+    from kukaid.report import load_report_data
+    from kukaid.report.prediction import page_prediction
+
+    _, p, logs, _ = fitted
+    unseen = VirtualKRC4(SimConfig().replace(**TRUTH), seed=99).run(excite.generate("inertia", period=3.0,
+                                                                                    ramp_periods=0.5, amplitude=0.5))
+    data = load_report_data(p["params"], logs=[p["inertia"], unseen])
+    titles = [page_prediction(data, log, pr, "general").texts[0].get_text() for log, pr in data.general]
+    assert titles[0].endswith("(in-sample)") and titles[1].endswith("(validation)"), titles
+    legend = page_prediction(data, *data.general[1], "general").axes[1].get_legend().get_title().get_text()
+    assert legend == "grey: not compared (quasi-static / near a reversal)"

@@ -64,6 +64,9 @@ def test_load_flat_and_param_file_shapes(tmp_path):
     ({"effects": {"torque_offset": {}}}, ["missing parameter 'effects.torque_offset.offset'"]),
     ({"effects": {"backlash": {"A": 1.0, "tau": 9.0}}}, ["'effects.backlash.tau'", "outside"]),
     ({"effects": {"position_ripple": {"A": 1.0, "m": 3}}}, ["unknown parameter 'effects.position_ripple.m'"]),
+    # new-user trial nu12 item 15: refused as a parameter file's reader refuses it
+    ({"friction": {"model": "stribeck", "Fc": 15, "Fs": 10, "vs": 0.04, "delta": 2, "Fv": 14}},
+     ["'Fs' = 10 must not be below field 'Fc' = 15"]),
     ([1, 2], ["top level must be a JSON object"]),
 ])
 def test_validation_errors_name_file_and_field(tmp_path, content, words):

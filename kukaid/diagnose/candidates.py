@@ -155,7 +155,7 @@ class PositionRipple(Candidate, E.PositionRipple):
         return R, n_lo, n_hi
 
     def lowest_order(self, sigs) -> float:
-        """The lowest ripple order (1/rad) the logs resolve."""
+        """The lowest ripple order (rad/rad: n in sin(n q)) the logs resolve."""
         return self._limits(sigs)[1]
 
     def applies(self, sigs, model):
@@ -167,7 +167,7 @@ class PositionRipple(Candidate, E.PositionRipple):
         return True, ""
 
     def order_step(self, sigs) -> float:
-        """The order grid's step, 1/rad: a quarter period over the position range."""
+        """The order grid's step, rad/rad: a quarter period over the position range."""
         return 0.25 * 2 * math.pi / self._limits(sigs)[0]
 
     def options(self, sigs, model):

@@ -35,6 +35,8 @@ class CandidateTest:
     #: when it stands for a mechanism the data cannot determine: {"candidates", "modelled_as",
     #: "held_out" (name -> held-out figures or why not), "settled_by"} (see :mod:`.ambiguity`)
     undetermined: dict | None = None
+    #: the effects named before it when it was found (its evidence and held-out check are of that model)
+    found_with: list[str] | None = None
 
     def evidence(self) -> dict[str, Any]:
         return jsonable({
@@ -45,6 +47,7 @@ class CandidateTest:
             "effect_rms": float(self.effect_rms), "size": float(self.size),
             "rss_share": float(self.wald.delta_rss / self.wald.rss) if self.wald.rss > 0 else 0.0,
             "held_out": self.held_out.to_json() if self.held_out is not None else None,
+            "found_with": self.found_with,
         })
 
 

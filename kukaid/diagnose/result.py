@@ -116,16 +116,20 @@ class Diagnosis:
             par = ", ".join(_fmt_param(k, v, s.params.get("std", {}).get(k)) for k, v in s.params.items()
                             if k not in ("model", "std", "stored_as", "unit"))
             out.append(f"step {i}: {s.name} ({C.get(s.name).meaning}); size in the final fit {ev.size:.3g} {u}")
-            out.append(f"    parameters: {par}")
+            out.append(f"    parameters at this step: {par}")
+            before = self.names[:i - 1]
+            found = ("" if ev.found_with is None or sorted(ev.found_with) == sorted(before) else
+                     f" (when found, with {', '.join(ev.found_with)} in the model)" if ev.found_with else
+                     " (when found, before any other effect)")
             out.append(f"    RMSE {s.rmse_before:.4g} -> {s.rmse_after:.4g} {u}, "
                        + ("" if math.isnan(s.gap_closed) else
                           f"{100 * s.gap_closed:.0f} % of the gap to the noise floor closed; ")
                        + f"relative error {100 * s.rel_before:.2f} % -> {100 * s.rel_after:.2f} %")
-            out.append(f"    evidence: HAC Wald {ev.wald.stat:.1f} (dof {ev.wald.dof}), corrected p = "
+            out.append(f"    evidence{found}: HAC Wald {ev.wald.stat:.1f} (dof {ev.wald.dof}), corrected p = "
                        f"{ev.p_adjusted:.2g}, effect RMS {ev.effect_rms:.3g} {u}")
             if ev.held_out is not None:
                 h = ev.held_out
-                out.append(f"    held out ({h.scheme}): RMSE {h.rmse_without:.4g} -> {h.rmse_with:.4g} {u}, "
+                out.append(f"    held out{found} ({h.scheme}): RMSE {h.rmse_without:.4g} -> {h.rmse_with:.4g} {u}, "
                            f"better in {h.folds_improved}/{h.n_folds} folds, p = {h.p_value:.2g}")
             if ev.undetermined:
                 und = ev.undetermined

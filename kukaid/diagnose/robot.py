@@ -1014,7 +1014,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             # of those ways too, the better of them: the null given the same freedom, so that taking
             # the file's terms out is not what names it (a clean whole-arm log of the fleet tests:
             # A5's file terms out alone held A5 out 2 % better, the ripple beside them 7 %, a noise
-            # peak of 0.013 N·m at 25.6 periods per rad, half the noise floor, named)
+            # peak of 0.013 N·m at order 25.6 rad/rad, half the noise floor, named)
             ref, ref_res, without = mb, res0, cand.without(ctx, opt)
             if without is not None:
                 for aj in dict.fromkeys(tuple(v.angle_joints(ctx)) if v.without_replaces else () for v in ways):

@@ -348,6 +348,7 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
             if retry:
                 continue  # search the other candidates without the ambiguous pair
             break
+        step.test.found_with = list(added)  # the baseline its evidence is of, whatever order the steps are listed in
         added.append(step.name)
         rejected[:] = [r for r in rejected if r["name"] != step.name]
         steps.append(step)
@@ -361,8 +362,9 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
                          f"below {min_effect:g} x noise given them): dropped")
         steps = _in_order_of_size(steps, found_base, final, sigs, floor, n_candidates=len(first_round))
         if [s.name for s in steps] != [n for n in found if n not in dropped]:
-            notes.append(f"effects listed in order of size; found in the order {', '.join(found)} (most residual "
-                         "explained first)")
+            notes.append(f"effects listed in order of size (amplitude or peak in the final fit, not the residual "
+                         f"each explains); found in the order {', '.join(found)} (most residual explained first), "
+                         "each step's evidence and held-out check are of the model it was found in")
         model, cur_rmse, cur_rel = steps[-1].model_after, steps[-1].rmse_after, steps[-1].rel_after
     added = [s.name for s in steps]
     # nothing named: the parameter file stays as it was (a refit without new effects is no finding)
@@ -380,8 +382,8 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
         prov["diagnose"]["undetermined"] = [{k: u[k] for k in ("candidates", "modelled_as", "settled_by")}
                                             for u in undetermined]
     out_params["provenance"] = jsonable(prov)
-    if added and floor > 0:  # the fit's residual warning was of the model without the effects
-        out_params["metrics"] = with_effects(out_params.get("metrics") or {}, added, rmse0 / floor, cur_rmse / floor)
+    if added:  # the fit's figures are of the model without the effects
+        out_params["metrics"] = jsonable(with_effects(out_params.get("metrics") or {}, added, rmse0, cur_rmse, floor))
     steps = [st for st in steps if st.test.p_adjusted < alpha]  # never a step with p >= alpha as found
     return Diagnosis(steps, rmse0, cur_rmse, floor, sigma, ambiguous, out_params, rel0, cur_rel, rmse_r, tests,
                      list(sigs), given, model, notes, tested=tested, rejected=rejected,

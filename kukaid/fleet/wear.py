@@ -23,8 +23,9 @@ The method, per axis (rows of the fleet table with ``status == "ok"``; one frict
    for residuals that are not quite normal).
 
 Evidence of an axis: ``max S / h`` (> 1: flagged), the relative change of Fc and Fv at ``T_ref``
-(last week against the baseline), their trend per 30 days, and how far the axis's change stands
-from the fleet's changes (robust z).
+(last week against the baseline), their trend per 30 days with its standard error (the slope over
+the days after the baseline, extrapolated), and how far the axis's change stands from the fleet's
+changes (robust z).
 """
 from __future__ import annotations
 
@@ -302,9 +303,11 @@ def assess(rows: Sequence[dict], settings: WearSettings | None = None, source: s
         changes.append(change)
         days = _days(a.dates)
         post = slice(a.nb, None)
-        trend = np.zeros(2)
+        trend, trend_se = np.zeros(2), np.full(2, math.nan)
         if len(days[post]) >= 3 and np.ptp(days[post]) > 0:
             trend = np.array([np.polyfit(days[post], ys[post, j], 1)[0] for j in range(2)]) * 30.0
+            # a slope over a few noisy days extrapolated to 30: its standard error from one log's scatter
+            trend_se = 30.0 * s / math.sqrt(float(np.sum((days[post] - days[post].mean()) ** 2)))
         bi = tm["per_axis"].get(key, np.zeros(2))
         base_level = np.exp(ys[:a.nb].mean(axis=0))
         out_axes.append({
@@ -317,7 +320,10 @@ def assess(rows: Sequence[dict], settings: WearSettings | None = None, source: s
                          "scatter_rel": [float(x) for x in s]},
             "temperature_coefficient": {"Fc": float(bi[0]), "Fv": float(bi[1]), "unit": "1/K (relative)"},
             "change": {"Fc": float(change[0]), "Fv": float(change[1]), "unit": "relative, last week vs baseline, at T_ref"},
-            "trend_per_30d": {"Fc": float(trend[0]), "Fv": float(trend[1]), "unit": "relative per 30 days after the baseline"},
+            "trend_per_30d": {"Fc": float(trend[0]), "Fv": float(trend[1]), "Fc_se": float(trend_se[0]),
+                              "Fv_se": float(trend_se[1]), "days": float(np.ptp(days[post])),
+                              "unit": "relative per 30 days, the slope over the days after the baseline; _se: one "
+                                      "standard error from the baseline's day-to-day scatter"},
             "series": {"date": list(a.dates), "temp": [None if not math.isfinite(x) else float(x) for x in a.T],
                        "Fc": np.exp(a.y[:, 0]).tolist(), "Fv": np.exp(a.y[:, 1]).tolist(),
                        "Fc_ref": np.exp(ys[:, 0]).tolist(), "Fv_ref": np.exp(ys[:, 1]).tolist(),

@@ -11,6 +11,7 @@
   its sample rate sets the filter and the differences, and the fit on it is wrong.
 * :func:`role_warnings`: a log whose ``experiment`` attribute (written by capture from the
   trajectory) is not the role it was given in (``--friction``, ``--inertia``, ``--presliding``).
+* :func:`unit_warnings`: a revolute axis that moves over under 2 degrees (radians under a degree header).
 """
 from __future__ import annotations
 
@@ -103,11 +104,18 @@ def moving_axes(log: Any, axis: int, min_range: float = MOVE_RANGE) -> list[int]
     return out
 
 
+#: parameters whose bounds are the limits of an admissible shape, not of what the data could show: the
+#: Stribeck exponent delta at 0.5 or 2 (the paper's range; its own fit ends at 2.0, as does the
+#: simulator's default truth) is the steepest or flattest rise the model has, found by the data
+SHAPE_LIMITS = ("delta",)
+
+
 def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], at_bound: Sequence[dict],
            converged: bool, status: str) -> tuple[list[str], dict[str, Any]]:
     """Warnings for a single-axis fit, and the figures behind them (for the parameter file).
 
-    ``at_bound``: ``{"name", "value", "bound", "side", "given"}``, ``given`` true for a bound the user gave.
+    ``at_bound``: ``{"name", "value", "bound", "side", "given"}``, ``given`` true for a bound the user gave;
+    one of :data:`SHAPE_LIMITS` on its own limit is not warned as undetermined (the table lists it).
     Returns (warnings, {"residual_over_noise", "other_axes_moving", "single_axis_adequate"}).
     ``floor`` NaN: not known (a torque filtered before it was recorded, :func:`smooth_at_source`), so
     the residual is not judged against it (``residual_over_noise`` NaN).
@@ -119,15 +127,17 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
         warnings.append(f"IPOPT stopped before converging ('{status}'); the best parameters it found are written "
                         "(never worse than the start)")
     def listed(bs: Sequence[dict]) -> str:
-        return ", ".join(f"{b['name']} = {b['value']:.4g} ({b['side']} bound)" for b in bs)
+        return ", ".join(f"{b['name']} = {b['bound']:.4g} ({b['side']} bound)" for b in bs)  # on it, up to the solver
 
-    if any(not b.get("given") for b in at_bound):
-        warnings.append(f"on a bound: {listed([b for b in at_bound if not b.get('given')])}: the data do not "
-                        "determine these, or the model does not describe the data")
+    # on a bound the data set: a shape at a limit of its admissible range (the table lists it) is a shape
+    undetermined = [b for b in at_bound if not b.get("given") and b["name"] not in SHAPE_LIMITS]
+    if undetermined:
+        warnings.append(f"on a bound: {listed(undetermined)}: the data do not determine these, or the model does "
+                        "not describe the data")
     if any(b.get("given") for b in at_bound):
         warnings.append(f"on the bound --bound gave: {listed([b for b in at_bound if b.get('given')])}: the value "
                         "is that bound, not an estimate (the data pull it past the bound, or do not determine it)")
-    inadequate = bool(others) and (unknown or ratio > FAR_ABOVE_NOISE or bool(at_bound) or not converged)
+    inadequate = bool(others) and (unknown or ratio > FAR_ABOVE_NOISE or bool(undetermined) or not converged)
     if inadequate:
         warnings.append(
             f"the single-axis model cannot explain A{axis}: other axes ({', '.join(f'A{a}' for a in others)}) move "
@@ -153,21 +163,39 @@ def _residual_warning(ratio: float) -> str:
     return f"residual {ratio:.3g} x the noise floor: the model misses an effect (run kukaid diagnose)"
 
 
-def with_effects(metrics: dict, added: Sequence[str], before: float, after: float) -> dict:
-    """The fit's ``metrics`` for the file diagnose writes with the effects ``added``: the fit's
-    residual warning was of the model without them, so it goes, or (the gap still far above the
-    noise: diagnose's ``before`` and ``after``, x its noise floor) says both figures."""
-    if metrics.get("residual_over_noise") is None:  # not judged (a noise floor not known): no such warning
-        return metrics
-    fit_warning = _residual_warning(float(metrics["residual_over_noise"]))
-    if fit_warning not in metrics.get("warnings", []):
-        return metrics
-    warnings = [w for w in metrics["warnings"] if w != fit_warning]
-    if after > FAR_ABOVE_NOISE:
-        warnings.append(f"residual {metrics['residual_over_noise']:.3g} x the noise floor in the fit; with the "
-                        f"effects diagnose added ({', '.join(added)}) {before:.3g} -> {after:.3g} x its noise floor: "
-                        "the model still misses an effect (run kukaid diagnose)")
-    return {**metrics, "warnings": warnings}
+#: metrics a file diagnose refined keeps as the fit wrote them: what the fit said about the data and
+#: the model's form (and the Maxwell-slip elements, which diagnose leaves as they are)
+OF_THE_DATA = ("warnings", "other_axes_moving", "single_axis_adequate", "friction_model_choice",
+               "maxwell_slip_rms", "maxwell_slip_sum_W", "maxwell_slip_samples")
+
+
+def with_effects(metrics: dict, added: Sequence[str], rmse_before: float, rmse_after: float, floor: float) -> dict:
+    """The ``metrics`` of the file diagnose writes with the effects ``added``.
+
+    The fit's figures of its model (MSEs, condition numbers, correlation matrix, parameters on a
+    bound, the residual correlation factor its white-residual standard deviations needed) are of the
+    model without the effects: they move, as the fit wrote them, under ``original_fit`` (a file
+    refined twice keeps the fit's).  In their place diagnose's figures of the refined model on the
+    logs it was given: ``torque_rmse`` (``torque_rmse_before``: the file's model before), N·m (N),
+    ``noise_floor``, ``residual_over_noise`` (NaN: the floor not known) and ``std_note`` (its
+    standard deviations are HAC).  What the fit said about the data stays (:data:`OF_THE_DATA`);
+    its residual warning was of the model without the effects, so it goes, and while the gap is still
+    far above the noise a warning says both figures."""
+    fit = metrics.get("original_fit") or {k: v for k, v in metrics.items() if k not in OF_THE_DATA}
+    ratio = rmse_after / floor if floor > 0 else math.nan
+    out = {k: v for k, v in metrics.items() if k in OF_THE_DATA}
+    out.update(torque_rmse=rmse_after, torque_rmse_before=rmse_before, noise_floor=floor, residual_over_noise=ratio,
+               std_note="HAC standard deviations of diagnose's refit with the effects (the residuals' correlation "
+                        "accounted for: no correlation factor applies)", original_fit=fit)
+    r_fit = fit.get("residual_over_noise")
+    if isinstance(r_fit, (int, float)) and math.isfinite(r_fit):  # the fit's residual warning, or an earlier diagnose's
+        stale = _residual_warning(r_fit).split(":")[0]
+        out["warnings"] = [w for w in out.get("warnings", []) if not w.startswith(stale)]
+        if ratio > FAR_ABOVE_NOISE:
+            out["warnings"].append(f"{stale} in the fit; with the effects diagnose added ({', '.join(added)}) "
+                                   f"{rmse_before / floor:.3g} -> {ratio:.3g} x its noise floor: the model still "
+                                   "misses an effect (run kukaid diagnose)")
+    return out
 
 
 def held_share(log: Any) -> float:
@@ -236,6 +264,28 @@ def run_logs_only(names: list[str]) -> FitError:
                     "the push of the person guiding the axis, which no model of the axis predicts; "
                     "fit logs of an excitation recorded with nobody touching the robot (kukaid excite, then kukaid "
                     "capture)")
+
+
+#: a revolute axis moving over less than this (rad: 2 degrees) in a log fitted for its friction and
+#: inertia looks like positions in radians read as degrees (57 x too small)
+MIN_MOTION = math.radians(2.0)
+
+
+def unit_warnings(log: Any, axis: int, name: str | None = None) -> list[str]:
+    """A warning when revolute axis ``axis`` of ``log`` moves over less than :data:`MIN_MOTION` in all:
+    radians written under a degree header (the reader's ``position_columns`` names it) read 57 x too
+    small, and so do the speeds, while Izz and Fv come out 57 x too large, with no other sign.  A
+    warning, never a refusal: an axis can move that little."""
+    k = log.index(axis)
+    span = float(np.ptp(np.asarray(log.q[:, k], dtype=float)))
+    if log.joint[k] != "revolute" or span >= MIN_MOTION:
+        return []
+    name = name or str(log.attrs.get("source_file", "log"))
+    col = (log.attrs.get("position_columns") or {}).get(str(axis))
+    col = f"column {col}" if col else f"the position of A{axis}"
+    return [f"{name}: {col} spans only {math.degrees(span):.3g} degrees over the whole log, too little to fit "
+            "friction and inertia: radians written under a degree header? (read as degrees, positions and speeds "
+            "are 57 x too small, Izz and Fv 57 x too large)"]
 
 
 def role_warnings(log: Any, role: str, name: str | None = None, command: str = "fit") -> list[str]:

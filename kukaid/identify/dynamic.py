@@ -136,15 +136,21 @@ def fit_dynamic(prepared_list: Sequence[Any], friction_model: str = "stribeck", 
         vs.append(pr.qd[m])
     y, A, v = np.concatenate(ys), np.vstack(As), np.concatenate(vs)
     where = ", ".join(sorted({pr.source for pr in preps}))[:200]
+    # a pre-sliding log (its experiment attribute) moves a fraction of a degree, below qd_thr: its own role
+    ps = [pr.source for pr in preps if pr.kind == "presliding"]
+    hint = (f"; {', '.join(ps)} records the pre-sliding experiment (attribute 'experiment'): give it as "
+            "--presliding, beside a friction or inertia log" if ps else "")
+    thr = f"|qd| >= qd_thr {preps[0].qd_thr:g} {'m/s' if preps[0].joint == 'prismatic' else 'rad/s'}"
     if y.size == 0:
-        raise FitError(f"{where}: no dynamic-mode samples (|qd| >= qd_thr away from reversals); the axis must move")
+        raise FitError(f"{where}: no dynamic-mode samples ({thr} away from reversals); the axis must move{hint}")
     if y.size < len(names) + 5:  # before the directions: a handful of samples may all be of one
         dec = max(int(pr.settings.get("decimate", 1)) for pr in preps)
         raise FitError(f"{where}: only {y.size} dynamic-mode samples for {len(names)} parameters"
-                       + (f" (every {dec}th sample kept: --decimate {dec})" if dec > 1 else ""))
+                       + (f" (every {dec}th sample kept: --decimate {dec})" if dec > 1 else "") + hint)
     if not (np.any(v > 0) and np.any(v < 0)):
-        raise FitError(f"{where}: the axis moves in one direction only; friction and gravity cannot be "
-                       "separated (move both ways)")
+        raise FitError(f"{where}: the axis moves in one direction only at dynamic-mode speeds ({thr} away from "
+                       f"reversals: {y.size} samples); friction and gravity cannot be separated (move both ways)"
+                       + hint)
     if np.linalg.matrix_rank(A) < A.shape[1]:
         raise FitError(f"{where}: the regressor [{', '.join(names)}] is rank deficient on these data "
                        "(the motion does not excite every parameter)")

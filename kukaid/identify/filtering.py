@@ -76,17 +76,19 @@ def default_reversal_window(fs: float, cutoff: float) -> float:
 
 
 #: the settings a user can set, and the option of `kukaid fit` that sets each
-_OPTIONS = {"cutoff": "--cutoff", "order": "--order", "edge": "--edge", "reversal_window": "--reversal-window"}
+_OPTIONS = {"cutoff": "--cutoff", "order": "--order", "edge": "--edge", "reversal_window": "--reversal-window",
+            "qd_thr": "--qd-thr", "decimate": "--decimate", "diff": "--diff"}
 
 
 def settings_reason(settings: dict, given: Collection[str] = ()) -> str:
     """One line saying why the pre-processing settings are what they are (for the fit's output);
-    ``given``: the settings the user set (``cutoff``, ``order``, ``edge``, ``reversal_window``),
-    said to be the user's rather than given the default's reason."""
+    ``given``: the settings the user set (keys of :data:`_OPTIONS`), said to be the user's rather
+    than given the default's reason."""
     fs, fc = settings["fs"], settings["cutoff"]
     rate = "the paper's KR C4 recipe (up to 250 Hz)" if fs <= 250 else "fs/10 (the EMPS recipe above 250 Hz)"
     rw = settings["reversal_window"]
-    user = [f"{flag} {settings[k]:g}" for k, flag in _OPTIONS.items() if k in given]
+    user = [f"{flag} {settings[k]:g}" if isinstance(settings[k], (int, float)) else f"{flag} {settings[k]}"
+            for k, flag in _OPTIONS.items() if k in given]
     why = [f"set by the user: {', '.join(user)}"] if user else []
     if "cutoff" not in given:
         why.append(f"cut-off{'' if 'order' in given else ' and order'} from the {fs:.4g} Hz sample rate: {rate}")

@@ -162,7 +162,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     run_logs: list[str] = []
 
     def prep(x: Any, role: str | None = None) -> Any:
-        from kukaid.identify.adequacy import check_not_held, pushed_log_warnings, role_warnings
+        from kukaid.identify.adequacy import check_not_held, pushed_log_warnings, role_warnings, unit_warnings
 
         lg = _load(x, ro)
         name = str(lg.attrs.get("source_file") or (x if isinstance(x, (str, bytes)) or hasattr(x, "__fspath__")
@@ -178,7 +178,10 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         if role is not None and not pushed:
             role_warn.extend(role_warnings(lg, role, name))
         raw_logs.append(lg)
-        return preprocess(lg, **pre)
+        pr = preprocess(lg, **pre)
+        if role != "presliding":  # the pre-sliding experiment moves a fraction of a degree
+            role_warn.extend(unit_warnings(lg, pr.axis, name))
+        return pr
 
     general = [prep(x) for x in logs]
     fr = [prep(x, "friction") for x in friction]
@@ -274,6 +277,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
     metrics["std_note"] = ("standard deviations from residual variance and Jacobian assume white residuals; "
                            "filtered data make them optimistic (see residual_correlation_factor)")
     out["metrics"] = jsonable(metrics)
+    given = [k for k, v in pre.items() if k != "axis" and v is not None and not (k == "decimate" and v == 1)]
     out["provenance"] = {
         "kukaid_version": __version__, "method": method, "friction_model": friction_model, "gravity": gravity,
         "offset": bool(offset), "joint": all_preps[0].joint,
@@ -281,8 +285,7 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
                  "inertia": [p.source for p in ine], "presliding": psl.source if psl is not None else None},
         # which recordings these are wherever they are later (validate's in-sample warning)
         "log_fingerprints": [log_fingerprint(lg) for lg in raw_logs],
-        "preprocess": jsonable({**all_preps[0].settings, "why": settings_reason(
-            all_preps[0].settings, [k for k in ("cutoff", "order", "edge", "reversal_window") if pre.get(k) is not None])}),
+        "preprocess": jsonable({**all_preps[0].settings, "why": settings_reason(all_preps[0].settings, given)}),
     }
     return out
 
@@ -312,6 +315,12 @@ def fit_axis_auto(**kw: Any) -> dict:
     return cv
 
 
+def solver_text(status: str) -> str:
+    """What solved the fit and how it ended: "IPOPT: Solve_Succeeded", or "linear least squares
+    (bounded)" for a fit linear in its parameters (``metrics.ipopt_status`` "linear ...": no IPOPT ran)."""
+    return f"linear least squares{status[len('linear'):]}" if status.startswith("linear") else f"IPOPT: {status}"
+
+
 def _relative(value: float, std: float) -> str:
     """The standard deviation relative to the estimate, "x.xx %", or "-" when the estimate is not
     distinguishable from 0 (|value| below its standard deviation, or 0): a percentage of ~0 is noise."""
@@ -336,7 +345,9 @@ def format_table(params: dict) -> str:
     items += list(params["inertial"].items())
     if "offset" in params:
         items.append(("offset", params["offset"]))
+    on_bound = {b["name"]: b["bound"] for b in (params.get("metrics") or {}).get("at_bound") or []}
     for k, v in items:
+        v = on_bound.get(k, v)  # within the solver's tolerance of its bound: the bound (0, not 5.5e-28)
         s = unc.get(k)
         rel = _relative(v, s) if s is not None else ""
         label = names.get(k, k)
@@ -347,22 +358,32 @@ def format_table(params: dict) -> str:
         rows.append("  Maxwell-slip k = " + ", ".join(f"{x:.4g}" for x in ms["k"]) + f" {units['k']}")
         rows.append("               W = " + ", ".join(f"{x:.4g}" for x in ms["W"]) + f" {units['W']}")
     m = params.get("metrics", {})
+    refined = isinstance(m.get("original_fit"), dict)  # diagnose -o: the fit's figures are of the model without its effects
+    fm = m["original_fit"] if refined else m
     extra = []
     for key, label in (("friction_fit_mse", "friction fit MSE"), ("torque_prediction_mse", "torque MSE")):
-        if key in m and m[key] is not None:
-            extra.append(f"{label} {m[key]:.4g} {units['mse']}")
-    if "ipopt_status" in m:
-        extra.append(f"IPOPT: {m['ipopt_status']}")
+        if key in fm and fm[key] is not None:
+            extra.append(f"{label} {fm[key]:.4g} {units['mse']}")
+    if "ipopt_status" in fm:
+        extra.append(solver_text(fm["ipopt_status"]))
     tail = []
     cf = m.get("residual_correlation_factor")
     if unc and isinstance(cf, (int, float)) and math.isfinite(cf):  # the +- above assume white residuals
         tail.append(f"  +-: least-squares standard deviations, white residuals assumed; the filtered residuals are "
                     f"correlated: multiply by the residual correlation factor {cf:.3g} for a realistic one")
-    if m.get("at_bound"):
-        tail.append("  at a bound: " + ", ".join(f"{names.get(b['name'], b['name'])} ({b['side']} {b['bound']:.4g}"
-                                             + (", --bound" if b.get("given") else "") + ")" for b in m["at_bound"]))
+    if refined:
+        ratio = m.get("residual_over_noise")
+        tail.insert(0, f"  diagnose's refit with {', '.join(params.get('effects') or {})}: torque RMSE "
+                       f"{m['torque_rmse']:.4g} {units['Fc']} on the logs diagnose was given"
+                       + (f" ({ratio:.3g} x the noise floor)" if isinstance(ratio, (int, float)) else "")
+                       + f"; +-: {m.get('std_note')}")
+    at = " in the original fit" if refined else ""
+    if fm.get("at_bound"):
+        tail.append(f"  at a bound{at}: " + ", ".join(f"{names.get(b['name'], b['name'])} ({b['side']} {b['bound']:.4g}"
+                                                    + (", --bound" if b.get("given") else "") + ")"
+                                                    for b in fm["at_bound"]))
     else:
-        tail.append("  at a bound: none")
+        tail.append(f"  at a bound{at}: none")
     pre = (params.get("provenance") or {}).get("preprocess") or {}
     if pre:
         line = (f"  pre-processing: low-pass {pre.get('cutoff', 0):.4g} Hz (order {pre.get('order')}), "
@@ -371,8 +392,8 @@ def format_table(params: dict) -> str:
     if m.get("friction_model_choice"):
         tail.append(f"  friction model: {m['friction_model_choice']}")
     tail += [f"  warning: {w}" for w in m.get("warnings", [])]
-    return "\n".join([f"axis A{params['axis']}, friction model {params['friction']['model']}", *rows,
-                      "  " + "; ".join(extra), *tail])
+    fig = ("  original fit, without the effects diagnose added: " if refined else "  ") + "; ".join(extra)
+    return "\n".join([f"axis A{params['axis']}, friction model {params['friction']['model']}", *rows, fig, *tail])
 
 
 def format_params(params: dict) -> str:

@@ -220,25 +220,17 @@ class AxisFile:
     def predict(self, log: Any) -> Pairs:
         return self.compare(log)[0]
 
-    def compare(self, log: Any) -> tuple[Pairs, dict[int, float]]:
-        """Effects are evaluated on the whole log (their time and energy coordinates start with it).
-        The noise floor is the torque's white noise over the compared span through the fit's low-pass
-        (:func:`kukaid.identify.adequacy.noise_floor`); NaN for a torque filtered before it was recorded
-        (its noise not white)."""
-        from dataclasses import replace
-
-        from kukaid.identify.adequacy import noise_floor, smooth_at_source
+    def prediction(self, log: Any) -> tuple[Any, np.ndarray]:
+        """The log pre-processed with the fit's settings on its whole grid (edge 0: the effects' time and
+        energy coordinates start with the log) and the model's torque on every sample of it, the effects
+        diagnose added included: ``(prepared, tau_hat)``."""
         from kukaid.identify.filtering import preprocess
         from kukaid.params import model_from_params
 
         self.check(log)
         ax, params = self.axis, self.params
         st = fit_settings(params)
-        pr = preprocess(log, ax, edge=0, **st)  # the whole grid: effects start with the log
-        edge = int(math.ceil(5.0 * pr.fs / pr.settings["cutoff"]))
-        keep = pr.dynamic.copy()
-        keep[:edge] = False
-        keep[pr.n - edge:] = False
+        pr = preprocess(log, ax, edge=0, **st)
         model = model_from_params(params)
         tau_hat = model.predict_dynamic(pr.q, pr.qd, pr.qdd)
         if params.get("effects"):
@@ -246,6 +238,23 @@ class AxisFile:
             others = ({a: preprocess(log, a, edge=0, **st).q for a in log.axes if a != ax}
                       if "coupling" in params["effects"] else None)
             tau_hat = tau_hat + model.effects_torque(pr.time, pr.q, pr.qd, temp, others)
+        return pr, tau_hat
+
+    def compare(self, log: Any) -> tuple[Pairs, dict[int, float]]:
+        """:meth:`prediction` on the dynamic-mode samples away from the filter's edges.  The noise floor
+        is the torque's white noise over the compared span through the fit's low-pass
+        (:func:`kukaid.identify.adequacy.noise_floor`); NaN for a torque filtered before it was recorded
+        (its noise not white)."""
+        from dataclasses import replace
+
+        from kukaid.identify.adequacy import noise_floor, smooth_at_source
+
+        pr, tau_hat = self.prediction(log)
+        ax = self.axis
+        edge = int(math.ceil(5.0 * pr.fs / pr.settings["cutoff"]))
+        keep = pr.dynamic.copy()
+        keep[:edge] = False
+        keep[pr.n - edge:] = False
         floor = (math.nan if smooth_at_source(pr.tau_span) else  # edge=0: the whole log's torque
                  noise_floor([replace(pr, tau_span=pr.tau_span[edge:pr.tau_span.size - edge], dynamic=keep)]))
         return {ax: (pr.tau[keep], tau_hat[keep])}, {ax: floor}

@@ -1654,6 +1654,17 @@ def cutoff_line(co: dict) -> str:
             f"{table_number(co.get('default'), 3)} Hz unless another is {100 * (SIMPLER_WITHIN - 1):.0f} % better)")
 
 
+def relative_sigma(params: dict) -> np.ndarray:
+    """Per base parameter, its sigma times the residual correlation factor over |its estimate| (the
+    value the file predicts with, not the least-squares one): what ``fit`` and ``report`` print as
+    sigma %; inf for an estimate of 0, NaN without a sigma."""
+    bp = params["base_parameters"]
+    cf = float((params.get("metrics") or {}).get("residual_correlation_factor") or 1.0)
+    val = np.asarray(bp["values"], float)
+    sd = np.array([np.nan if x is None else x for x in bp.get("sigma", [None] * val.size)], float)
+    return np.where(np.abs(val) > 1e-12, cf * sd / np.maximum(np.abs(val), 1e-300), np.inf)
+
+
 def format_robot_table(params: dict) -> str:
     """Plain-text summary of a robot fit (at most 40 lines): per-joint friction and the choices made
     for it, link masses against the URDF, the base parameters the data determine (corrected
@@ -1729,8 +1740,7 @@ def format_robot_table(params: dict) -> str:
     # base parameters the data determine
     bp = params["base_parameters"]
     val = np.asarray(bp["values"], float)
-    sd = np.array([np.nan if x is None else x for x in bp.get("sigma", [None] * val.size)], float)
-    relsd = np.where(np.abs(val) > 1e-12, cf * sd / np.maximum(np.abs(val), 1e-300), np.inf)
+    relsd = relative_sigma(params)
     has = np.flatnonzero(np.isfinite(relsd))
     order = has[np.argsort(relsd[has])]
     ndet = int(np.sum(relsd[has] < DETERMINED))

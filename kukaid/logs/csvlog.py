@@ -102,7 +102,10 @@ def read_csv(path: str | Path) -> AxisLog:
     joint = tuple(joint_of.get(a, "revolute") for a in axes)
     labels: dict[Any, str] = {(chan, a): header[j] for (a, chan), (j, _) in cols.items()}
     check_units(time, data, axes, joint, str(path), labels={**labels, "time": "time_s"})
-    return AxisLog(time=time, axes=tuple(axes), joint=joint, attrs={"source_file": str(path)}, **data)
+    # the position columns by name, for a warning about their unit (kukaid.identify.adequacy.unit_warnings)
+    positions = {str(a): labels[("q", a)] for a in axes}
+    return AxisLog(time=time, axes=tuple(axes), joint=joint, attrs={"source_file": str(path),
+                                                                     "position_columns": positions}, **data)
 
 
 def _is_float(s: str) -> bool:

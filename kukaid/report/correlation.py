@@ -65,8 +65,8 @@ def residual_stats(data: ReportData, nseg: int = 256, max_lag_s: float = 2.0) ->
     fs = None
     maxrun = 0
     runs_all = []
-    for _, pr in items:
-        r = dynamic_residual(data, pr)
+    for log, pr in items:
+        r = dynamic_residual(data, log, pr)
         fs = fs or pr.fs / max(1, int(pr.settings.get("decimate", 1)))
         res_all.append(r[pr.dynamic])
         runs = _runs(pr.dynamic)

@@ -37,6 +37,9 @@ class ReportData:
         the whole robot, lists per axis, no Izz of one axis).
     warnings : lines for the user (a log given in a role whose experiment it does not record,
         as ``fit`` warns).
+    model : the file as :class:`~kukaid.identify.fitted.AxisFile`, the predictor validate uses.
+    fitted_on : ids of the logs the model was fitted on (:func:`~kukaid.identify.fitted.in_sample`):
+        their prediction pages are in-sample, not a validation.
     """
 
     params: dict
@@ -48,6 +51,8 @@ class ReportData:
     truth: dict | None = None
     truth_source: str = ""
     warnings: list = field(default_factory=list)
+    model: Any = None
+    fitted_on: set = field(default_factory=set)
 
     @property
     def prismatic(self) -> bool:
@@ -139,7 +144,9 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
         axis = int(par.get("axis") or 3)
     else:
         check_model_of(par, source, axis=axis)
-    data = ReportData(par, source)
+    from kukaid.identify.fitted import AxisFile, in_sample, use_warnings
+
+    data = ReportData(par, source, model=AxisFile(par, axis, source))
     data.friction = [_load_one(x, axis, par, origin) for x in friction]
     data.inertia = [_load_one(x, axis, par, origin) for x in inertia]
     data.general = [_load_one(x, axis, par, origin) for x in logs]
@@ -154,11 +161,11 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
     every = data.friction + data.inertia + data.general + ([data.presliding] if data.presliding else [])
     for log, _ in every:
         check_model_of(par, source, joint=log.joint[log.index(axis)])
-    from kukaid.identify.fitted import AxisFile, use_warnings
-
     given = [*friction, *inertia, *logs] + ([presliding] if presliding is not None else [])  # the order of every
     names = [x if isinstance(x, (str, Path)) else log.attrs.get("source_file", "log") for x, (log, _) in zip(given, every)]
-    data.warnings.extend(use_warnings(AxisFile(par, axis, source), names, [log for log, _ in every]))  # validate's
+    data.warnings.extend(use_warnings(data.model, names, [log for log, _ in every]))  # validate's
+    fitted = in_sample(par, names, source, [log for log, _ in every])
+    data.fitted_on = {id(log) for n, (log, _) in zip(names, every) if n in fitted}
     for log, _ in every:
         t = log.attrs.get("truth")
         if isinstance(t, dict) and t.get("schema") == SCHEMA and int(t.get("axis", axis)) == int(axis):
@@ -192,15 +199,21 @@ def _model(par: dict):
     return model_from_params(par)
 
 
+def predicted(data: ReportData, log: Any, pr: Any) -> np.ndarray:
+    """The parameter file's torque on the samples of ``pr`` (``log`` prepared as the fit did), N·m: the
+    dynamic-mode model and the effects diagnose added, as validate predicts
+    (:meth:`~kukaid.identify.fitted.AxisFile.prediction`, on the whole log, taken at ``pr``'s rows)."""
+    return data.model.prediction(log)[1][pr.rows]
+
+
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     idx = np.flatnonzero(np.diff(np.r_[0, np.asarray(mask, dtype=int), 0]))
     return [(int(a), int(b)) for a, b in zip(idx[::2], idx[1::2])]
 
 
-def dynamic_residual(data: ReportData, pr: Any) -> np.ndarray:
-    """Measured minus predicted torque (dynamic-mode model of the parameter file), every sample, N·m."""
-    m = _model(data.params)
-    return pr.tau - m.predict_dynamic(pr.q, pr.qd, pr.qdd)
+def dynamic_residual(data: ReportData, log: Any, pr: Any) -> np.ndarray:
+    """Measured minus predicted torque (:func:`predicted`), every sample of ``pr``, N·m."""
+    return pr.tau - predicted(data, log, pr)
 
 
 # -- page 1: parameters ----------------------------------------------------------------------------

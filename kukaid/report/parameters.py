@@ -14,9 +14,11 @@ from kukaid.report.layout import _add_table, _new_figure, _subtitle
 def page_parameters(data: ReportData):
     """Parameter table with uncertainties (and truth), metrics beside the paper's, caveat, provenance."""
     from kukaid import __version__
+    from kukaid.identify.fit import solver_text
 
     par = data.params
     met = par.get("metrics") or {}
+    refined = isinstance(met.get("original_fit"), dict)  # diagnose -o: the fit's figures are of the model without its effects
     unc = par.get("uncertainty") or {}
     prov = par.get("provenance") or {}
     units = data.units
@@ -24,7 +26,7 @@ def page_parameters(data: ReportData):
     cf = met.get("residual_correlation_factor")
     cf = float(cf) if isinstance(cf, (int, float)) and math.isfinite(cf) else None
     cf_src = "of this fit (metrics)"
-    if cf is None and (data.friction or data.inertia or data.general):
+    if cf is None and not refined and (data.friction or data.inertia or data.general):  # HAC std need none
         st = residual_stats(data)
         if st is not None:
             cf, cf_src = float(st["factor"]), "computed by the report from the logs given"
@@ -66,7 +68,8 @@ def page_parameters(data: ReportData):
     top = 0.925
     ax = fig.add_axes([0.04, top - h, 0.92, h])
     _add_table(ax, cells, cols, fontsize=8, scale_y=1.0)
-    ax.set_title("identified parameters (std: from residual variance and Jacobian)", fontsize=9, loc="left")
+    ax.set_title("identified parameters (std: " + ("HAC, of diagnose's refit with the effects" if refined else
+                                                   "from residual variance and Jacobian") + ")", fontsize=9, loc="left")
     y = top - h - 0.035
     # Maxwell-slip
     ms = par.get("maxwell_slip")
@@ -92,14 +95,20 @@ def page_parameters(data: ReportData):
         y = y - h2 - 0.035
     # metrics beside the paper
     mrow = []
-    def add(label, key, unit, paper=None, fmt=lambda x: _fmt(x, 4)):
-        v = met.get(key)
+    fm = met["original_fit"] if refined else met
+    of = "original fit (no effects): " if refined else ""
+
+    def add(label, key, unit, paper=None, fmt=lambda x: _fmt(x, 4) if isinstance(x, (int, float)) else str(x),
+            src=fm):
+        v = src.get(key)
         if v is None:
             return
-        mrow.append([label, fmt(v) if isinstance(v, (int, float)) else str(v), unit,
-                     _fmt(paper, 4) if paper is not None else ""])
+        mrow.append([(of if src is fm else "") + label, fmt(v), unit, _fmt(paper, 4) if paper is not None else ""])
     tu2 = data.tu2
     revolute = not data.prismatic  # the paper's figures are of a revolute axis, in N·m: no reference for a force
+    if refined:
+        add("torque RMSE, diagnose's refit with the effects", "torque_rmse", data.tu, src=met)
+        add("the same / noise floor", "residual_over_noise", "-", src=met)
     add("friction-fit MSE", "friction_fit_mse", tu2, PAPER_FRICTION_MSE if revolute else None)
     add("torque-prediction MSE", "torque_prediction_mse", tu2, PAPER_TORQUE_MSE if revolute else None)
     add("torque-prediction MSE, unfiltered torque", "torque_prediction_mse_raw", tu2)
@@ -107,20 +116,20 @@ def page_parameters(data: ReportData):
     add("condition number (friction, staged)", "friction_condition_number", "-")
     add("condition number (inertia regressor)", "inertia_condition_number", "-")
     add("residual correlation factor", "residual_correlation_factor", "-")
-    add("IPOPT status", "ipopt_status", "")
+    add("solver", "ipopt_status", "", fmt=solver_text)
     add("dynamic-mode samples fitted", "n_dynamic_samples", "", fmt=lambda x: str(int(x)))
     add("friction pairs (staged)", "friction_pairs", "", fmt=lambda x: str(int(x)))
-    add("Maxwell-slip fit RMS", "maxwell_slip_rms", data.tu)
+    add("Maxwell-slip fit RMS", "maxwell_slip_rms", data.tu, src=met)
     if mrow:
         h3 = 0.019 * (len(mrow) + 1)
         ax = fig.add_axes([0.04, y - h3, 0.92, h3])
         if revolute:
-            _add_table(ax, mrow, ["metric", "this fit", "unit", "paper (Yao et al. 2018, real KR C4)"], fontsize=7.5,
+            _add_table(ax, mrow, ["metric", "value", "unit", "paper (Yao et al. 2018, real KR C4)"], fontsize=7.5,
                        col_widths=[0.36, 0.2, 0.1, 0.34], scale_y=1.0)
             ax.set_title("metrics; the paper's values are a reference from real data, not targets", fontsize=9,
                          loc="left")
         else:  # the paper's figures are torques of a revolute axis: nothing to set beside a force
-            _add_table(ax, [r[:3] for r in mrow], ["metric", "this fit", "unit"], fontsize=7.5,
+            _add_table(ax, [r[:3] for r in mrow], ["metric", "value", "unit"], fontsize=7.5,
                        col_widths=[0.5, 0.3, 0.2], scale_y=1.0)
             ax.set_title("metrics", fontsize=9, loc="left")
         y = y - h3 - 0.03
@@ -128,7 +137,9 @@ def page_parameters(data: ReportData):
     cav = ("Uncertainty caveat: the standard deviations are s²(JᵀJ)⁻¹ from the residual variance and the Jacobian, "
            "which assumes white, independent residuals. The residuals of a fit on low-pass-filtered signals are "
            "correlated in time, so these standard deviations are OPTIMISTIC (too small).")
-    if cf is not None:
+    if refined:
+        cav = f"Uncertainty: {met.get('std_note')}; the original fit's figures are of the model without the effects."
+    elif cf is not None:
         cav += (f" The residual correlation factor sqrt(1 + 2 Σ ρk) ({cf_src}) is {cf:.2f}: multiply the standard "
                 f"deviations by about {cf:.2f} for a more realistic figure (column 'std × {cf:.2f}').")
     else:
@@ -172,7 +183,7 @@ def page_parameters(data: ReportData):
     if data.truth is not None:
         prov_lines.append(f"  truth: simulator truth stored in {data.truth_source} (attrs['truth'])")
     if par.get("effects"):
-        prov_lines.append(f"  effects in the parameter file (not drawn in the predictions): {', '.join(par['effects'])}")
+        prov_lines.append(f"  effects in the parameter file (in the predictions): {', '.join(par['effects'])}")
     for ln in prov_lines:
         for sub in textwrap.wrap(ln, 130, subsequent_indent="      ") or [""]:
             if y < 0.035:  # above the footer

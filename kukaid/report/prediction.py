@@ -6,20 +6,21 @@ from typing import Any
 import numpy as np
 
 
-from kukaid.report.data import (PAPER_TORQUE_MSE, ReportData, _model, _runs)
+from kukaid.report.data import PAPER_TORQUE_MSE, ReportData, _runs, predicted
 from kukaid.report.layout import _new_figure, _subtitle
 
 
 def page_prediction(data: ReportData, log: Any, pr: Any, role: str = "inertia"):
     """Measured vs predicted torque over time, the residual, and the motion (paper's torque figure)."""
-    pred = _model(data.params).predict_dynamic(pr.q, pr.qd, pr.qdd)
+    pred = predicted(data, log, pr)
     res = pr.tau - pred
     m = pr.dynamic
     mse = float(np.mean(res[m] ** 2)) if m.any() else float("nan")
     tu = data.tu
     t = pr.time - pr.time[0]
-    title = ("Torque prediction on the inertia experiment (eqs. 6-8)" if role == "inertia"
-             else "Torque prediction on a general log (validation)")
+    seen = "in-sample" if id(log) in data.fitted_on else "validation"  # in-sample: the model was fitted on it
+    title = (f"Torque prediction, inertia experiment (eqs. 6-8, {seen})" if role == "inertia"
+             else f"Torque prediction on a general log ({seen})")
     fig = _new_figure(title, data)
     _subtitle(fig, str(pr.source))
     a1 = fig.add_axes([0.11, 0.62, 0.78, 0.30])
@@ -30,7 +31,9 @@ def page_prediction(data: ReportData, log: Any, pr: Any, role: str = "inertia"):
     a1.plot(t, pr.tau_raw, "-", color="0.75", lw=0.5, label="measured (raw)")
     a1.plot(t, pr.tau, "-", color="C0", lw=1.0, label="measured (filtered)")
     a1.plot(t, pred_d, "--", color="C3", lw=1.0,
-            label=f"predicted {'m' if data.prismatic else 'Izz'} q̈ + gravity + F(q̇) (dynamic samples)")
+            label=f"predicted {'m' if data.prismatic else 'Izz'} q̈ + gravity + F(q̇)"
+                  + (f" + {', '.join(data.params['effects'])}" if data.params.get("effects") else "")
+                  + " (dynamic samples)")
     a1.set_ylabel(f"force F ({tu})" if data.prismatic else f"torque Γ ({tu})")
     lo, hi = a1.get_ylim()
     a1.set_ylim(lo, hi + 0.25 * (hi - lo))  # headroom: the legend above the data, not over its peaks
@@ -48,7 +51,7 @@ def page_prediction(data: ReportData, log: Any, pr: Any, role: str = "inertia"):
     if m.any():
         lim = 1.3 * float(np.max(np.abs(res[m]))) + 1e-9
         a2.set_ylim(-lim, lim)
-    a2.legend(fontsize=7, loc="upper right", title="grey: not fitted (quasi-static / near reversal)",
+    a2.legend(fontsize=7, loc="upper right", title="grey: not compared (quasi-static / near a reversal)",
               title_fontsize=6.5)
     a3.plot(t, pr.q, "-", color="C0", lw=1.0, label="position q")
     a3.set_ylabel("position q (m)" if data.prismatic else "position q (rad)")

@@ -2,12 +2,14 @@
 condition number and the physical-consistency check per link; with logs, the predicted against
 the measured torque of every axis.
 
-Pages: 1. base parameters (estimate, least squares, σ, σ times the residual correlation factor)
-and metrics; 2. friction, offset and spring per joint, consistency per link; 3.. one page per log
-given: measured and predicted torque of each axis over time, with the relative error.
+Pages: 1. base parameters (estimate, least squares, σ, σ times the residual correlation factor cf,
+and σ × cf over |estimate|, fit's sigma %) and metrics; 2. friction, offset and spring per joint,
+consistency per link; 3.. one page per log given: measured and predicted torque of each axis over
+time, with the relative error.
 """
 from __future__ import annotations
 
+import math
 import textwrap
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -30,7 +32,7 @@ def _pct(x: float) -> str:
 
 def page_base_parameters(params: dict, source: str):
     """Base-parameter table and the fit's metrics, the low-pass cut-off and how it was chosen."""
-    from kukaid.identify.robot_fit import cutoff_line
+    from kukaid.identify.robot_fit import cutoff_line, relative_sigma
 
     bp, mt = params["base_parameters"], params.get("metrics") or {}
     cf = mt.get("residual_correlation_factor") or 1.0
@@ -45,13 +47,14 @@ def page_base_parameters(params: dict, source: str):
     fig.text(0.05, 0.963, textwrap.fill(sub, 130), fontsize=7, va="top")
     cells = []
     sig = bp.get("sigma") or [None] * len(bp["values"])
-    for name, v, ls, s in zip(bp["names"], bp["values"], bp.get("least_squares", bp["values"]), sig):
+    rel = relative_sigma(params)  # as fit prints its sigma %
+    for name, v, ls, s, r in zip(bp["names"], bp["values"], bp.get("least_squares", bp["values"]), sig, rel):
         short = name if len(name) <= 70 else name[:67] + "..."
         cells.append([short, _g(v), _g(ls), _g(s, 3), _g(None if s is None else s * cf, 3),
-                      "-" if s is None or not ls else _pct(100 * s / abs(ls))])
+                      _pct(100 * r) if math.isfinite(r) else "-"])
     ax = fig.add_axes([0.03, 0.06, 0.94, 0.85])  # below the subtitle's four lines
     _add_table(ax, cells, ["base parameter (kg, kg·m, kg·m²)", "estimate", "least sq.", "σ", f"σ × {cf:.2f}",
-                           "rel. σ"], fontsize=5.5, col_widths=[0.55, 0.09, 0.09, 0.08, 0.09, 0.08])
+                           "σ × cf / |est.|"], fontsize=5.5, col_widths=[0.53, 0.09, 0.09, 0.08, 0.09, 0.10])
     return fig
 
 

@@ -23,6 +23,15 @@ def _pct(x: Any) -> str:
     return "-" if x is None else f"{100 * x:+.1f} %"
 
 
+def _trend(t: dict) -> str:
+    """The Fc trend per 30 days with its standard error: '+9.7±4.1 %' (a slope over a few days after the
+    baseline, extrapolated: without its error it reads as wear)."""
+    se = t.get("Fc_se")
+    if se is None or se != se:  # an older file, or too few logs for a slope
+        return _pct(t["Fc"])
+    return f"{100 * t['Fc']:+.1f}±{100 * se:.1f} %"
+
+
 def ranking_pages(result: dict, source: str = "") -> list:
     """Pages of the ranking table (every assessed axis, highest evidence first)."""
     axes = [a for a in result["axes"] if "evidence" in a]
@@ -41,10 +50,11 @@ def ranking_pages(result: dict, source: str = "") -> list:
         _subtitle(fig, f"{s['assessed']} {'axis' if s['assessed'] == 1 else 'axes'} assessed, {s['flagged']} flagged (of {s['axes']} in the table). {temp}. "
                        f"Evidence = largest CUSUM of the standardised residuals / threshold (flagged above 1; "
                        f"threshold set for at most {100 * st['alpha']:.1f} % of healthy axes ever flagged). "
-                       "ΔFc, ΔFv: last week against the baseline at the reference temperature.")
+                       "ΔFc, ΔFv: last week against the baseline at the reference temperature; Fc per 30 d: the "
+                       "slope after the baseline ± its standard error.")
         cells = [[a["robot"], f"A{a['axis']}", "yes" if a["flagged"] else "no", a["first_flagged"] or "-",
                   f"{a['evidence']:.2f}", _pct(a["change"]["Fc"]), _pct(a["change"]["Fv"]),
-                  _pct(a["trend_per_30d"]["Fc"]), f"{a.get('fleet_z', 0):+.1f}", str(a["n_logs"])] for a in chunk]
+                  _trend(a["trend_per_30d"]), f"{a.get('fleet_z', 0):+.1f}", str(a["n_logs"])] for a in chunk]
         if not cells:
             cells = [["-"] * 10]
         h = min(0.86, 0.021 * (len(cells) + 1))

@@ -49,7 +49,7 @@ FIELDS: dict[str, tuple[str, float, float, str]] = {
     "lugre_sigma0": ("float", 1.0, 1e8, "LuGre bristle stiffness sigma0, N·m/rad"),
     "lugre_zeta": ("float", 0.0, 5.0, "LuGre bristle damping ratio (sigma1 = 2 zeta sqrt(sigma0 Izz))"),
     "fric_pos_amp": ("float", 0.0, 0.9, "position dependence of the friction magnitude: relative amplitude a of 1 + a sin(n q + phi)"),
-    "fric_pos_n": ("float", 0.0, 1e3, "position dependence of the friction: periods per rad n"),
+    "fric_pos_n": ("float", 0.0, 1e3, "position dependence of the friction: order n, rad/rad (n periods per revolution)"),
     "fric_pos_phi": ("float", -10.0, 10.0, "position dependence of the friction: phase phi, rad"),
     # truth: rigid body, eqs. (6)-(8)
     "Izz": ("float", 1e-4, 1e4, "moment of inertia, kg·m²"),
@@ -279,6 +279,9 @@ def _validate(cfg: SimConfig, where: str) -> None:
                     raise SimConfigError(f"{where}: field '{name}[{i}]' = {x} is outside the allowed range [{lo}, {hi}]")
                 out.append(float(x))
             object.__setattr__(cfg, name, tuple(out))
+    if cfg.Fs < cfg.Fc:  # as a parameter file's reader refuses it (kukaid.params.axis)
+        raise SimConfigError(f"{where}: field 'Fs' = {cfg.Fs:g} must not be below field 'Fc' = {cfg.Fc:g} "
+                             "(Stribeck static friction is at least the Coulomb level)")
     n = len(cfg.ms_k)
     if len(cfg.ms_W) != n or len(cfg.ms_zeta0) != n:
         raise SimConfigError(f"{where}: fields 'ms_k', 'ms_W' and 'ms_zeta0' must have one length "

@@ -59,11 +59,12 @@ EFFECTS: dict[str, dict[str, Any]] = {
     "position_ripple": {
         "params": {
             "A": (0.0, 200.0, None, "ripple amplitude, N·m"),
-            "n": (0.1, 500.0, 12.0, "ripple cycles per radian of axis motion, 1/rad"),
+            "n": (0.1, 500.0, 12.0, "ripple order, rad/rad: n periods per revolution of the axis (n/(2 pi) "
+                                    "per radian)"),
             "phi": (-2 * math.pi, 2 * math.pi, 0.0, "phase, rad"),
         },
         "size": "A, N·m (amplitude)",
-        "draw": "n integer uniform in [4, 30] 1/rad, phi uniform in [-pi, pi]",
+        "draw": "n integer uniform in [4, 30] rad/rad, phi uniform in [-pi, pi]",
     },
     "thermal_drift": {
         "params": {

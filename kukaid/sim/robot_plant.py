@@ -408,7 +408,7 @@ class VirtualRobotKRC4:
 
         A function with ``fn.every_cycle = True`` is evaluated every servo cycle instead (a torque
         of the robot's own state, as a cogging torque or a gas spring is, acts continuously: held
-        over a 4 ms sample, a ripple of 16 periods per rad at 1.5 rad/s lags its position by 0.1 rad
+        over a 4 ms sample, a ripple of order 16 rad/rad at 1.5 rad/s lags its position by 0.1 rad
         of phase, 10 % of its size).
 
         A function may carry ``fn.inertia() -> kg·m² per axis``: inertia that moves rigidly with the
