@@ -362,14 +362,19 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             attrs.update(sim_config=scfg.to_dict(), truth={**scfg.truth_params(), "axis": scfg.axis})
             axis_id = scfg.axis
     else:
+        from kukaid.errors import ControllerError
         from kukaid.robot import KvpRobot
-        from kukaid.krc.kvp import KvpClient
+        from kukaid.krc.kvp import KvpClient, KvpError
 
         guidable()
         client = KvpClient(host=host, port=port, timeout=max(max_age, 2 * cycle))
-        client.connect()
-        be = KvpRobot(client, axis=axis, n_axes=model.n if robot_file else 0)
-        soft = be.soft_limits()  # the controller's software limit switches, before anything moves
+        try:
+            client.connect()
+            be = KvpRobot(client, axis=axis, n_axes=model.n if robot_file else 0)
+            soft = be.soft_limits()  # the controller's software limit switches, before anything moves
+        except KvpError as e:  # named as capture names it
+            client.close()
+            raise ControllerError(f"run-admittance: {e}") from None
         if soft is None:
             click.echo(f"kukaid: warning: run-admittance: $SOFTN_END[{axis}]/$SOFTP_END[{axis}] could not be read: the "
                        f"window [{q_min:g}, {q_max:g}] degrees is not checked against A{axis}'s software limit switches "

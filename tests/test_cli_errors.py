@@ -278,6 +278,16 @@ def test_option_errors_are_usage_errors(files, tmp_path, monkeypatch, args, piec
     assert os.listdir(tmp_path) == []
 
 
+def test_a_controller_not_answering_is_named_by_the_command_as_capture_names_it(files, tmp_path, monkeypatch):
+    """New-user trial 12: capture said 'capture: KUKAVARPROXY at ...: cannot connect', run-admittance the same
+    line without its name."""
+    monkeypatch.chdir(tmp_path)
+    r = _run("run-admittance", "--params", files / "params.json", "-o", "r.h5", "--backend", "kvp", "--port", "1",
+             "--enable-motion", "--q-min", "0", "--q-max", "10")
+    _one_line_error(r, "run-admittance: KUKAVARPROXY at 127.0.0.1:1: cannot connect", code=1)
+    assert os.listdir(tmp_path) == []
+
+
 def test_load_option_errors_are_usage_errors_and_data_errors_are_not(tmp_path):
     from scipy.io import savemat
     import numpy as np
