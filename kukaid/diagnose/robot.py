@@ -206,6 +206,33 @@ VELOCITY_BAND = 4.0
 PICK_WITH_PRIOR = True
 #: values (raw samples x columns) a candidate's columns are filtered in at once (memory: 8 bytes each)
 LOWPASS_VALUES = 2 ** 21
+#: values a diagnosis keeps of its filtered motor columns (:class:`_ColumnCache`; 8 bytes each)
+CACHED_VALUES = 2 ** 23
+
+
+class _ColumnCache:
+    """Filtered columns by key, the least recently used dropped beyond :data:`CACHED_VALUES` values:
+    the wrist's candidate is judged at every prior strength, and each strength's grids filter the
+    same columns again."""
+
+    def __init__(self, limit: int | None = None) -> None:
+        from collections import OrderedDict
+
+        self._d: OrderedDict = OrderedDict()
+        self._size, self._limit = 0, CACHED_VALUES if limit is None else limit
+
+    def get(self, key):
+        col = self._d.get(key)
+        if col is not None:
+            self._d.move_to_end(key)
+        return col
+
+    def put(self, key, col: np.ndarray) -> np.ndarray:
+        self._d[key] = col
+        self._size += col.size
+        while self._size > self._limit and len(self._d) > 1:
+            self._size -= self._d.popitem(last=False)[1].size
+        return col
 #: multiples of the prior's information (the file's uncertainty) tried for the rigid body's correction
 #: (1e6: the file's rigid body as it is)
 PRIOR_SCALES = (1e6, 1.0, 1e-2, 1e-4)
@@ -262,8 +289,8 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     (gravity, payload columns, times, temperatures), the rigid body's correction columns and the
     noise floor."""
     from kukaid.identify.robot_fit import (DriveModel, RobotFitSettings, _blocks, _cutoff, _samples, effect_signals,
-                                           extra_names, extras, filtered_coulomb, fit_lowpass, log_temperatures,
-                                           lowpassed_values, rigid_at, sample_rows, wide_velocity)
+                                           ZeroPhaseLowPass, extra_names, extras, filtered_coulomb, fit_lowpass,
+                                           log_temperatures, rigid_at, sample_rows, wide_velocity)
     from kukaid.models import robot_effects
 
     s = params["settings"]
@@ -346,26 +373,40 @@ def _signals(params: dict, logs: Sequence[Any], robot):
                       for j in range(n)], shape, [[names[k] for k in own[j]] for j in range(n)])
     fs = [1.0 / lg.sample_time for lg in logs]
 
+    # each log's fit low-pass and rows, made once: the candidates' columns are filtered thousands of times
+    filt = [ZeroPhaseLowPass(fit_lowpass(lg, settings)) for lg in logs]
+    at_rows = [sample_rows(lg, settings) for lg in logs]
+
     def lowpass(j, fn, width):
         out = []
-        for lg in logs:
+        for lg, f, rows in zip(logs, filt, at_rows):
             step = max(1, int(LOWPASS_VALUES // lg.n_samples))    # columns filtered at once
-            q, rows = np.asarray(lg.q[:, lg.index(j + 1)], float), sample_rows(lg, settings)
-            sos = fit_lowpass(lg, settings)
-            out.append(np.concatenate([lowpassed_values(lg, settings, fn(q, a, min(a + step, width)), rows, sos)
-                                       for a in range(0, width, step)], axis=1))
+            q = np.asarray(lg.q[:, lg.index(j + 1)], float)
+            out.append(np.concatenate([f(fn(q, a, min(a + step, width)))[rows] for a in range(0, width, step)], axis=1))
         return np.concatenate(out)
 
     wide = {}
+    motor = _ColumnCache()
 
     def motor_coulomb(mix, v):
+        """(N, k) each motor's Coulomb column (a row of ``mix``) through the fit's low-pass: a motor's
+        column depends on its own row and ``v`` alone, and the wrist's ratio grids share rows (125
+        options: 5 rows of motor 5, 25 of motor 6), so each is filtered once (:class:`_ColumnCache`)."""
         out = []
         for k, lg in enumerate(logs):
-            if k not in wide:     # every joint's velocity from the wider band and the fit's filter, once per log
-                wide[k] = (wide_velocity(lg, n, settings, VELOCITY_BAND * _cutoff(settings, 1.0 / lg.sample_time)),
-                           fit_lowpass(lg, settings))
-            qd_w, sos = wide[k]
-            out.append(lowpassed_values(lg, settings, np.tanh(qd_w @ mix.T / v), sample_rows(lg, settings), sos))
+            if k not in wide:     # every joint's velocity from the wider band, once per log
+                wide[k] = wide_velocity(lg, n, settings, VELOCITY_BAND * _cutoff(settings, 1.0 / lg.sample_time))
+            arg = None
+            cols = []
+            for i in range(mix.shape[0]):
+                key = (k, i, mix[i].tobytes(), float(v))
+                col = motor.get(key)
+                if col is None:
+                    if arg is None:
+                        arg = np.tanh(wide[k] @ mix.T / v)
+                    col = motor.put(key, filt[k](arg[:, i:i + 1])[at_rows[k]])
+                cols.append(col)
+            out.append(np.concatenate(cols, axis=1))
         return np.concatenate(out)
 
     pieces = dict(q=m.q, lowpass=lowpass, motor_coulomb=motor_coulomb, qd=m.qd, tau=m.tau, gravity=gravity, rigid=rigid, temp=temp, payload=payload,
