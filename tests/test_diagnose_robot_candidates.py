@@ -94,13 +94,23 @@ def test_a_hidden_joint_effect_is_named_first(kr6, effect, name):
         assert abs(st["params"]["q0_rad"] + 1.23) < 0.3 and 0.1 < st["params"]["share_of_gravity"] < 0.4, st["params"]
 
 
-def test_after_a_named_payload_the_baseline_is_chosen_again(kr6, robot_hidden_bench):
-    """The benchmark's quick payload case (a 1.5-5 kg box at the flange, its own inertia too): after
-    the payload is named, the joints' own choices (Coulomb transition, viscous form, rotor inertia)
-    and the prior's strength are made again with it beside. Made on a torque the payload dominated,
-    they left the held-out error at 4.4x the noise floor; made again, 3.4x."""
-    bench = robot_hidden_bench
-    row = bench.run_case(bench.draw("payload", 0, kr6), 4.0, kr6, twin=False, n_rec=3)
+@pytest.fixture(scope="module")
+def quick():
+    """``benchmarks/diagnose_robot_hidden.py --quick --json``, run once: its output."""
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "diagnose_robot_hidden.py"), "--quick", "--json"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return json.loads(r.stdout)
+
+
+def test_after_a_named_payload_the_baseline_is_chosen_again(quick):
+    """The benchmark's quick payload case (a 1.5-5 kg box at the flange, its own inertia too; seed 0,
+    three 4 s recordings: the quick run's row): after the payload is named, the joints' own choices
+    (Coulomb transition, viscous form, rotor inertia) and the prior's strength are made again with
+    it beside. Made on a torque the payload dominated, they left the held-out error at 4.4x the
+    noise floor; made again, 3.4x."""
+    row = next(r for r in quick["rows"] if r["effect"] == "payload")
+    assert (row["seed"], row["spec"]["seed"]) == (0, 0) and quick["duration_s"] == 4.0 and quick["recordings"] == 3
     assert row["named"] == ["payload"], row["named"]
     assert row["after_x_floor"] < 3.9, row["after_x_floor"]
 
@@ -127,11 +137,8 @@ def test_no_temperature_channel_no_thermal_candidate(kr6, clean):
     assert not any(t["name"].startswith("thermal_friction") for t in d.tried)
 
 
-def test_benchmark_quick_runs():
-    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "diagnose_robot_hidden.py"), "--quick", "--json"],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr[-2000:]
-    out = json.loads(r.stdout)
+def test_benchmark_quick_runs(quick):
+    out = quick
     s = out["summary"]
     assert set(s) >= {"counterbalance", "payload", "load_friction", "thermal_friction", "ripple", "clean", "all"}
     assert all(np.isfinite(x["before_x_floor"]) for x in out["rows"])
