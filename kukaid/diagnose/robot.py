@@ -558,6 +558,46 @@ def _context(pieces: dict, base: _Baseline, choice: list) -> Context:
                    friction_at=grid * Fc[None, :, None] + (visc * Fv)[:, :, None], **p)
 
 
+class _SharedRows:
+    """Per fold, the shared columns' rows of each joint and their block of the normal equations
+    (``sum_j w_j S_j^T S_j``, summed in :func:`_heldout`'s order: the same to the bit), kept for the
+    last :attr:`size` (shared columns, fold) pairs: a diagnosis fits the same shared columns (the
+    rigid body's correction) beside every candidate on one joint, hundreds of times. Keyed by the
+    arrays themselves (held by weak references: nothing is kept alive) and the weights."""
+
+    size = 16
+
+    def __init__(self) -> None:
+        import threading
+        from collections import OrderedDict
+
+        self._d: OrderedDict = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, shared: list, folds: np.ndarray, f: int, w: np.ndarray, rows: np.ndarray):
+        import weakref
+
+        key = (tuple(id(S) for S in shared), id(folds), int(f), np.asarray(w, float).tobytes())
+        with self._lock:
+            hit = self._d.get(key)
+            if hit is not None and all(ref() is x for ref, x in zip(hit[0], [*shared, folds])):
+                self._d.move_to_end(key)
+                return hit[1], hit[2]
+        S_rows = [S[rows] for S in shared]
+        ns = shared[0].shape[1]
+        SS = np.zeros((ns, ns))
+        for j, S in enumerate(S_rows):
+            SS += w[j] * S.T @ S
+        with self._lock:
+            self._d[key] = ([weakref.ref(x) for x in [*shared, folds]], S_rows, SS)
+            while len(self._d) > self.size:
+                self._d.popitem(last=False)
+        return S_rows, SS
+
+
+_SHARED_ROWS = _SharedRows()
+
+
 def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, local: dict | None, folds: np.ndarray,
              K: int, w: np.ndarray, evaluate: Sequence[int] | None = None,
              prior: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -582,19 +622,21 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
             parts.append(local[j][rows])
         return np.concatenate(parts, axis=1)
 
-    def normal(rows):
+    def normal(f):
+        rows = folds == f
         A, b = np.zeros((P, P)), np.zeros(P)
+        if shared is not None:      # the shared columns' rows and block: the same for every candidate of its own joint
+            S_rows, A[off[-1]:, off[-1]:] = _SHARED_ROWS.get(shared, folds, f, w, rows)
         for j in range(n):
             D = cols(j, rows)
             idx = np.arange(off[j], off[j + 1])
             A[np.ix_(idx, idx)] += w[j] * D.T @ D
             b[idx] += w[j] * D.T @ r[rows, j]
             if shared is not None:
-                S = shared[j][rows]
+                S = S_rows[j]
                 si = np.arange(off[-1], P)
                 A[np.ix_(idx, si)] += w[j] * D.T @ S
                 A[np.ix_(si, idx)] += w[j] * S.T @ D
-                A[np.ix_(si, si)] += w[j] * S.T @ S
                 b[si] += w[j] * S.T @ r[rows, j]
         return A, b
 
@@ -606,7 +648,7 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
         x[live] = d * np.linalg.lstsq(d[:, None] * A[np.ix_(live, live)] * d[None, :], d * b[live], rcond=1e-12)[0]
         return x
 
-    parts = [normal(folds == f) for f in range(K)]
+    parts = [normal(f) for f in range(K)]
     data_A, data_b = sum(p[0] for p in parts), sum(p[1] for p in parts)
     out = []
     for pr in (prior if isinstance(prior, list) else [prior]):
@@ -623,10 +665,11 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
         for f in (range(K) if evaluate is None else evaluate):
             x = solve(data_A + Pp - parts[f][0], data_b - parts[f][1])
             rows = folds == f
+            S_rows = _SHARED_ROWS.get(shared, folds, f, w, rows)[0] if shared is not None else None
             for j in range(n):
                 pred = cols(j, rows) @ x[off[j]:off[j + 1]]
                 if shared is not None:
-                    pred = pred + shared[j][rows] @ x[off[-1]:]
+                    pred = pred + S_rows[j] @ x[off[-1]:]
                 res[rows, j] = r[rows, j] - pred
                 num[f, j] = float(np.sum(res[rows, j] ** 2))
                 den[f, j] = float(np.sum(tau[rows, j] ** 2))
