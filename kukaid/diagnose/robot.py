@@ -197,6 +197,32 @@ class RobotDiagnosis:
         return out
 
 
+class _Batches:
+    """A candidate's columns of a list of options (:meth:`RobotCandidate.batch`), kept while it is
+    judged: its grid (the last one asked for) and its finer options' (the least recently used
+    dropped beyond :data:`CACHED_VALUES` values). A candidate judged at every prior strength, in the
+    place of its joint's angle terms and beside them, asks for the same grid each time (a
+    counterbalance's 720 gas-spring shapes, a ripple's orders through the fit's low-pass)."""
+
+    def __init__(self) -> None:
+        self._grid: tuple | None = None
+        self._fine = _ColumnCache()
+
+    @staticmethod
+    def _key(view, options: list) -> tuple:
+        stacked = (tuple(view.J), view.sw.tobytes()) if isinstance(view, _Stacked) else None
+        return stacked, tuple(tuple(sorted(o.items())) for o in options)
+
+    def batch(self, view, ctx: Context, options: list, grid: bool = False) -> np.ndarray:
+        key = self._key(view, options)
+        if grid:
+            if self._grid is None or self._grid[0] != key:
+                self._grid = (key, view.batch(ctx, options))
+            return self._grid[1]
+        B = self._fine.get(key)
+        return B if B is not None else self._fine.put(key, view.batch(ctx, options))
+
+
 #: transition velocities of the diagnosis' Coulomb column ``tanh(qd / v)`` (rad/s), chosen per joint by
 #: held-out error; the velocity is the positions' through a low-pass :data:`VELOCITY_BAND` times the
 #: fit's cut-off, so a stop shows as it happens (the column then goes through the fit's low-pass)
@@ -206,14 +232,14 @@ VELOCITY_BAND = 4.0
 PICK_WITH_PRIOR = True
 #: values (raw samples x columns) a candidate's columns are filtered in at once (memory: 8 bytes each)
 LOWPASS_VALUES = 2 ** 21
-#: values a diagnosis keeps of its filtered motor columns (:class:`_ColumnCache`; 8 bytes each)
-CACHED_VALUES = 2 ** 23
+#: values a diagnosis keeps of a candidate's finer options' columns (:class:`_Batches`), and a
+#: quarter of it of its filtered motor columns (:class:`_ColumnCache`); 8 bytes each
+CACHED_VALUES = 2 ** 21
 
 
 class _ColumnCache:
-    """Filtered columns by key, the least recently used dropped beyond :data:`CACHED_VALUES` values:
-    the wrist's candidate is judged at every prior strength, and each strength's grids filter the
-    same columns again."""
+    """Columns by key, the least recently used dropped beyond ``limit`` values (default
+    :data:`CACHED_VALUES`)."""
 
     def __init__(self, limit: int | None = None) -> None:
         from collections import OrderedDict
@@ -386,7 +412,7 @@ def _signals(params: dict, logs: Sequence[Any], robot):
         return np.concatenate(out)
 
     wide = {}
-    motor = _ColumnCache()
+    motor = _ColumnCache(CACHED_VALUES // 4)
 
     def motor_coulomb(mix, v):
         """(N, k) each motor's Coulomb column (a row of ``mix``) through the fit's low-pass: a motor's
@@ -565,7 +591,7 @@ class _SharedRows:
     rigid body's correction) beside every candidate on one joint, hundreds of times. Keyed by the
     arrays themselves (held by weak references: nothing is kept alive) and the weights."""
 
-    size = 16
+    size = 8
 
     def __init__(self) -> None:
         import threading
@@ -718,14 +744,15 @@ def _gains(Q: np.ndarray, e: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 
 def _pick(cand: RobotCandidate, ctx: Context, A: np.ndarray, y: np.ndarray, rows: np.ndarray, opts: list,
-          B: np.ndarray, prior_rows: np.ndarray | None = None) -> tuple[dict, np.ndarray | None]:
+          B: np.ndarray, prior_rows: np.ndarray | None = None, memo: "_Batches | None" = None
+          ) -> tuple[dict, np.ndarray | None]:
     """The option whose columns, fitted beside ``A`` on ``rows``, explain most of ``y`` there: the
     grid's best (``B``: every option's columns, (N, O, c)), then the candidate's finer options about
     it, then its settings moved continuously within :meth:`RobotCandidate.bounds` (bounded
     Nelder-Mead on the same squared residual). ``prior_rows`` (p, A's columns): the prior the
     candidate is judged under as rows of the least squares (:func:`_prior_rows`), so the option is
     chosen with the other terms as they are held. Returns the option and its columns on every sample
-    (None: the grid's own)."""
+    (None: the grid's own). ``memo``: the finer options' columns kept (:class:`_Batches`)."""
     from scipy.optimize import minimize
 
     p = 0 if prior_rows is None else prior_rows.shape[0]
@@ -737,7 +764,7 @@ def _pick(cand: RobotCandidate, ctx: Context, A: np.ndarray, y: np.ndarray, rows
     opt, cols = opts[o], None
     fine = cand.refine(ctx, opt)
     if fine:
-        Bf = cand.batch(ctx, fine)
+        Bf = cand.batch(ctx, fine) if memo is None else memo.batch(cand, ctx, fine)
         k = int(np.argmax(_gains(Q, e, at(Bf))))
         opt, cols = fine[k], Bf[:, k, :]
     bounds = cand.bounds(ctx, opt)
@@ -886,15 +913,17 @@ class _Stacked(RobotCandidate):
 
 
 def _try(cand: RobotCandidate, ctx: Context, r, tau, Fjs: dict, shared, local, folds, K, w, held, prior, base=None,
-         admissible=None):
+         admissible=None, memo: "_Batches | None" = None):
     """:func:`_try_at` at each prior strength of ``Fjs`` {multiple of the raw ``prior``: the joints'
     own columns chosen at it}: the one with the smallest weighted held-out error, and that strength
     (None when no option applies). With and without the candidate, the model is judged at the
     strength that predicts it best. ``admissible(num, den)``: the strengths whose held-out errors it
-    accepts (no joint made worse) are preferred; none accepted, the best of all."""
+    accepts (no joint made worse) are preferred; none accepted, the best of all. ``memo``: the
+    candidate's columns kept from one strength to the next (:class:`_Batches`; default: a new one)."""
     best, best_ok = None, None
+    memo = _Batches() if memo is None else memo
     for c, Fj in Fjs.items():
-        res = _try_at(cand, ctx, r, tau, Fj, shared, local, folds, K, w, held, _scaled(prior, c), base)
+        res = _try_at(cand, ctx, r, tau, Fj, shared, local, folds, K, w, held, _scaled(prior, c), base, memo)
         if res is None:
             return None
         e = _weighted(res[0], w)
@@ -913,10 +942,12 @@ def _worse(e: np.ndarray, err: np.ndarray, rms: np.ndarray, floor: np.ndarray) -
             if e[k] > (1 + MARGIN) * err[k] + 1e-12 and (e[k] - err[k]) * rms[k] > WORSE_FLOOR * floor[k]]
 
 
-def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds, K, w, held, prior, base=None):
+def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds, K, w, held, prior, base=None,
+            memo: "_Batches | None" = None):
     """Held-out relative error per joint with the candidate, its options chosen on the training folds;
     the option chosen on all samples and the candidate's coefficients fitted on all samples (None
     when no option applies). ``prior`` a list of priors: a list of results (options chosen once).
+    ``memo``: its options' columns kept (:class:`_Batches`).
     """
     n = r.shape[1]
     opts = cand.options(ctx)
@@ -938,10 +969,10 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
             view = _Stacked(cand, cand.joints(ctx), np.sqrt(w))
             A, y = view.equations(Fj, local, shared, r)
             Pr = view.prior_rows(Fj, local, shared, prior) if PICK_WITH_PRIOR else None
-            B = view.batch(ctx, opts)
+            B = view.batch(ctx, opts) if memo is None else memo.batch(view, ctx, opts, grid=True)
         else:
             view = cand
-            B = cand.batch(ctx, opts)
+            B = cand.batch(ctx, opts) if memo is None else memo.batch(cand, ctx, opts, grid=True)
             # the option by least squares of the joint's own terms and the shared ones (the rigid body's
             # correction among them) on the joint's equation
             parts = [Fj[j]] + ([local[j]] if j in local else []) + ([shared[j]] if shared is not None else [])
@@ -950,7 +981,7 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
                 else None
 
         def pick_on(rows):
-            opt, cols = _pick(view, ctx, A, y, np.tile(rows, y.size // rows.size), opts, B, Pr)
+            opt, cols = _pick(view, ctx, A, y, np.tile(rows, y.size // rows.size), opts, B, Pr, memo)
             if cols is None:
                 return opts.index(opt)
             extra.append((opt, cols))
@@ -1077,9 +1108,10 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             # a candidate that may take the place of the file's terms of its joint's angle is tried
             # in their place and beside them: the better by held-out error
             res, var, ways = None, cand, []
+            memo = _Batches()       # its grid's columns, the same each way and at each strength
             for v in [cand] + ([_AngleTermsHeld(cand)] if cand.angle_terms_optional else []):
                 rv = _try(v, ctx, r, tau, Fjs if cand.rigid_body_like else {scale: Fj}, shared, local, folds, K, w,
-                          held, pr, base, admissible=lambda a, b: not _worse(_rel(a, b), err, rms, floor))
+                          held, pr, base, admissible=lambda a, b: not _worse(_rel(a, b), err, rms, floor), memo=memo)
                 if rv is not None:
                     ways.append(v)
                 if rv is not None and (res is None or _weighted(rv[0], w) < _weighted(res[0], w)):
