@@ -760,7 +760,8 @@ def _gains(Q: np.ndarray, e: np.ndarray, B: np.ndarray) -> np.ndarray:
     columns ``Q`` spans, lower the squared residual ``e`` (:func:`_projection`)."""
     N, O, c = B.shape
     Bf = B.reshape(N, O * c)
-    Bp = (Bf - Q @ (Q.T @ Bf)).reshape(N, O, c)
+    Bp = Q @ (Q.T @ Bf)
+    Bp = np.subtract(Bf, Bp, out=Bp).reshape(N, O, c)      # in place: a grid's columns are tens of MB
     G = np.einsum("noc,nod->ocd", Bp, Bp) + 1e-12 * np.eye(c)[None] * (1.0 + np.einsum("noc,noc->o", Bp, Bp)[:, None, None])
     g = np.einsum("noc,n->oc", Bp, e)
     return np.einsum("oc,oc->o", g, np.linalg.solve(G, g[..., None])[..., 0])
@@ -779,9 +780,12 @@ def _pick(cand: RobotCandidate, ctx: Context, A: np.ndarray, y: np.ndarray, rows
     from scipy.optimize import minimize
 
     p = 0 if prior_rows is None else prior_rows.shape[0]
+    idx = np.flatnonzero(rows)
 
-    def at(X):      # the rows, then zeros for the prior's (the candidate has no prior)
-        return np.concatenate([X[rows], np.zeros((p,) + X.shape[1:])]) if p else X[rows]
+    def at(X):      # the rows, then zeros for the prior's (the candidate has no prior); copied once
+        out = np.zeros((idx.size + p,) + X.shape[1:])
+        np.take(X, idx, axis=0, out=out[:idx.size], mode="clip")
+        return out
     Q, e = _projection(np.concatenate([A[rows], prior_rows]) if p else A[rows], at(y))
     o = int(np.argmax(_gains(Q, e, at(B))))
     opt, cols = opts[o], None
