@@ -197,32 +197,6 @@ class RobotDiagnosis:
         return out
 
 
-class _Batches:
-    """A candidate's columns of a list of options (:meth:`RobotCandidate.batch`), kept while it is
-    judged: its grid (the last one asked for) and its finer options' (the least recently used
-    dropped beyond :data:`CACHED_VALUES` values). A candidate judged at every prior strength, in the
-    place of its joint's angle terms and beside them, asks for the same grid each time (a
-    counterbalance's 720 gas-spring shapes, a ripple's orders through the fit's low-pass)."""
-
-    def __init__(self) -> None:
-        self._grid: tuple | None = None
-        self._fine = _ColumnCache()
-
-    @staticmethod
-    def _key(view, options: list) -> tuple:
-        stacked = (tuple(view.J), view.sw.tobytes()) if isinstance(view, _Stacked) else None
-        return stacked, tuple(tuple(sorted(o.items())) for o in options)
-
-    def batch(self, view, ctx: Context, options: list, grid: bool = False) -> np.ndarray:
-        key = self._key(view, options)
-        if grid:
-            if self._grid is None or self._grid[0] != key:
-                self._grid = (key, view.batch(ctx, options))
-            return self._grid[1]
-        B = self._fine.get(key)
-        return B if B is not None else self._fine.put(key, view.batch(ctx, options))
-
-
 #: transition velocities of the diagnosis' Coulomb column ``tanh(qd / v)`` (rad/s), chosen per joint by
 #: held-out error; the velocity is the positions' through a low-pass :data:`VELOCITY_BAND` times the
 #: fit's cut-off, so a stop shows as it happens (the column then goes through the fit's low-pass)
@@ -235,6 +209,9 @@ LOWPASS_VALUES = 2 ** 21
 #: values a diagnosis keeps of a candidate's finer options' columns (:class:`_Batches`), and a
 #: quarter of it of its filtered motor columns (:class:`_ColumnCache`); 8 bytes each
 CACHED_VALUES = 2 ** 21
+#: multiples of the prior's information (the file's uncertainty) tried for the rigid body's correction
+#: (1e6: the file's rigid body as it is)
+PRIOR_SCALES = (1e6, 1.0, 1e-2, 1e-4)
 
 
 class _ColumnCache:
@@ -259,9 +236,32 @@ class _ColumnCache:
         while self._size > self._limit and len(self._d) > 1:
             self._size -= self._d.popitem(last=False)[1].size
         return col
-#: multiples of the prior's information (the file's uncertainty) tried for the rigid body's correction
-#: (1e6: the file's rigid body as it is)
-PRIOR_SCALES = (1e6, 1.0, 1e-2, 1e-4)
+
+
+class _Batches:
+    """A candidate's columns of a list of options (:meth:`RobotCandidate.batch`), kept while it is
+    judged: its grid (the last one asked for) and its finer options' (the least recently used
+    dropped beyond :data:`CACHED_VALUES` values). A candidate judged at every prior strength, in the
+    place of its joint's angle terms and beside them, asks for the same grid each time (a
+    counterbalance's 720 gas-spring shapes, a ripple's orders through the fit's low-pass)."""
+
+    def __init__(self) -> None:
+        self._grid: tuple | None = None
+        self._fine = _ColumnCache()
+
+    @staticmethod
+    def _key(view, options: list) -> tuple:
+        stacked = (tuple(view.J), view.sw.tobytes()) if isinstance(view, _Stacked) else None
+        return stacked, tuple(tuple(sorted(o.items())) for o in options)
+
+    def batch(self, view, ctx: Context, options: list, grid: bool = False) -> np.ndarray:
+        key = self._key(view, options)
+        if grid:
+            if self._grid is None or self._grid[0] != key:
+                self._grid = (key, view.batch(ctx, options))
+            return self._grid[1]
+        B = self._fine.get(key)
+        return B if B is not None else self._fine.put(key, view.batch(ctx, options))
 
 
 @dataclass
@@ -798,8 +798,13 @@ def _pick(cand: RobotCandidate, ctx: Context, A: np.ndarray, y: np.ndarray, rows
     if bounds:
         keys = list(bounds)
 
-        def cost(v):
-            return -float(_gains(Q, e, at(cand.batch(ctx, [{**opt, **dict(zip(keys, map(float, v)))}])))[0])
+        seen: dict = {}
+
+        def cost(v):        # each point once (the start is asked again below)
+            key = tuple(map(float, v))
+            if key not in seen:
+                seen[key] = -float(_gains(Q, e, at(cand.batch(ctx, [{**opt, **dict(zip(keys, key))}])))[0])
+            return seen[key]
         x0 = np.array([opt[k] for k in keys], float)
         res = minimize(cost, x0, method="Nelder-Mead", bounds=[bounds[k] for k in keys],
                        options={"xatol": 1e-4, "fatol": 1e-9 * float(e @ e), "maxfev": 60 * len(keys)})
