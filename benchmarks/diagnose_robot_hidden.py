@@ -311,7 +311,9 @@ def _floor_rms(params, logs, robot):
     return floor, np.sqrt(np.mean(m.tau ** 2, axis=0))
 
 
-def run_case(spec: dict, duration: float, robot, twin: bool = True, n_rec: int = 4) -> dict:
+def run_case(spec: dict, duration: float, robot, twin: bool = True, n_rec: int = 4, max_steps: int = 3) -> dict:
+    """One case: its recordings, the fit on the first, the diagnosis of all (at most ``max_steps``
+    effects named: the tests' one-step twins), and the clean twin's (``twin``)."""
     from kukaid.diagnose.robot import diagnose_robot
     from kukaid.identify.robot_fit import fit_robot
 
@@ -321,7 +323,7 @@ def run_case(spec: dict, duration: float, robot, twin: bool = True, n_rec: int =
     # fit on a recording with it takes it into the last link: nothing is then missing)
     fit_on = recordings(spec, duration, n_rec=1, hidden=False) if spec["effect"] == "payload" else logs[:1]
     p = fit_robot(fit_on, robot)
-    d = diagnose_robot(p, logs, robot)
+    d = diagnose_robot(p, logs, robot, max_steps=max_steps)
     floor, rms = (np.asarray(d.noise_floor), np.asarray(d.rms)) if getattr(d, "noise_floor", None) else \
         _floor_rms(p, logs, robot)
     J = effect_joints(spec, robot.n)
