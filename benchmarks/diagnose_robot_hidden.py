@@ -57,8 +57,10 @@ held-out RMSE of the effect's joints (payload: all) before and after the diagnos
 clean twin, in multiples of the noise floor (mean over the joints, then over cases); clean logs:
 anything named.
 
-``--quick``: one seed per effect, one clean case, three 4 s recordings, no twins (what the test
-suite runs, 90 s on the shared 2-core machine, 58 s before the wrist and elasticity cases). Seeds
+``--quick``: one seed per effect, one clean case, three 4 s recordings, no twins (43 s on the shared
+2-core machine; 90 s before the diagnosis kept its candidates' columns from one prior strength to
+the next, 58 s before the wrist and elasticity cases). The test suite runs ``--quick --effects
+payload`` (the payload case and the clean one, 12 s), every effect with ``-m slow``. Seeds
 0 1 2 were used while developing the robot candidates; 10 11 12 are
 the held-out check (``--seeds 10 11 12 --clean-seeds 10 11 12 13 14``).
 """

@@ -99,13 +99,19 @@ def test_a_hidden_joint_effect_is_named_first(kr6, effect, name, max_steps):
         assert abs(st["params"]["q0_rad"] + 1.23) < 0.3 and 0.1 < st["params"]["share_of_gravity"] < 0.4, st["params"]
 
 
-@pytest.fixture(scope="module")
-def quick():
-    """``benchmarks/diagnose_robot_hidden.py --quick --json``, run once: its output."""
-    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "diagnose_robot_hidden.py"), "--quick", "--json"],
-                       capture_output=True, text=True, timeout=300)
+def _quick(*args: str) -> dict:
+    """``benchmarks/diagnose_robot_hidden.py --quick --json`` with ``args``: its output."""
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "diagnose_robot_hidden.py"), "--quick", "--json",
+                        *args], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     return json.loads(r.stdout)
+
+
+@pytest.fixture(scope="module")
+def quick():
+    """The quick run of the payload case and the clean one (``--effects payload``), run once: 12 s;
+    every effect's quick run, 43 s, with -m slow (:func:`test_benchmark_quick_runs_every_effect`)."""
+    return _quick("--effects", "payload")
 
 
 def test_after_a_named_payload_the_baseline_is_chosen_again(quick):
@@ -145,10 +151,29 @@ def test_no_temperature_channel_no_thermal_candidate(kr6, clean):
 
 
 def test_benchmark_quick_runs(quick):
-    out = quick
+    s = quick["summary"]
+    assert set(s) == {"payload", "clean", "all"} and [r["effect"] for r in quick["rows"]] == ["payload", "clean"]
+    assert all(np.isfinite(x["before_x_floor"]) for x in quick["rows"])
+
+
+@pytest.mark.slow
+def test_benchmark_quick_runs_every_effect():
+    out = _quick()
     s = out["summary"]
     assert set(s) >= {"counterbalance", "payload", "load_friction", "thermal_friction", "ripple", "clean", "all"}
     assert all(np.isfinite(x["before_x_floor"]) for x in out["rows"])
+
+
+def test_every_hidden_effect_is_simulated(kr6, robot_hidden_bench):
+    """Each of the benchmark's effects (its quick run of all of them is -m slow) changes the measured
+    torque of the joints it acts on against its clean twin (2 s recordings, seed 0)."""
+    bench = robot_hidden_bench
+    for effect in bench.EFFECTS:
+        spec = bench.draw(effect, 0, kr6)
+        (lg,), (twin,) = bench.recordings(spec, 2.0, 1), bench.recordings(spec, 2.0, 1, hidden=False)
+        assert np.all(np.isfinite(lg.tau)) and lg.temp is not None and lg.tau_ext_true.shape == lg.tau.shape
+        change = np.sqrt(np.mean((lg.tau - twin.tau) ** 2, axis=0))
+        assert np.all(change[bench.effect_joints(spec)] > 0.0), (effect, change)
 
 
 @pytest.mark.parametrize("max_steps", [1, pytest.param(3, marks=pytest.mark.slow)])
