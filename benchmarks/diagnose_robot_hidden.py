@@ -57,8 +57,10 @@ held-out RMSE of the effect's joints (payload: all) before and after the diagnos
 clean twin, in multiples of the noise floor (mean over the joints, then over cases); clean logs:
 anything named.
 
-``--quick``: one seed per effect, one clean case, three 4 s recordings, no twins (what the test
-suite runs, 90 s on the shared 2-core machine, 58 s before the wrist and elasticity cases). Seeds
+``--quick``: one seed per effect, one clean case, three 4 s recordings, no twins (43 s on the shared
+2-core machine; 90 s before the diagnosis kept its candidates' columns from one prior strength to
+the next, 58 s before the wrist and elasticity cases). The test suite runs ``--quick --effects
+payload`` (the payload case and the clean one, 12 s), every effect with ``-m slow``. Seeds
 0 1 2 were used while developing the robot candidates; 10 11 12 are
 the held-out check (``--seeds 10 11 12 --clean-seeds 10 11 12 13 14``).
 """
@@ -311,7 +313,9 @@ def _floor_rms(params, logs, robot):
     return floor, np.sqrt(np.mean(m.tau ** 2, axis=0))
 
 
-def run_case(spec: dict, duration: float, robot, twin: bool = True, n_rec: int = 4) -> dict:
+def run_case(spec: dict, duration: float, robot, twin: bool = True, n_rec: int = 4, max_steps: int = 3) -> dict:
+    """One case: its recordings, the fit on the first, the diagnosis of all (at most ``max_steps``
+    effects named: the tests' one-step twins), and the clean twin's (``twin``)."""
     from kukaid.diagnose.robot import diagnose_robot
     from kukaid.identify.robot_fit import fit_robot
 
@@ -321,7 +325,7 @@ def run_case(spec: dict, duration: float, robot, twin: bool = True, n_rec: int =
     # fit on a recording with it takes it into the last link: nothing is then missing)
     fit_on = recordings(spec, duration, n_rec=1, hidden=False) if spec["effect"] == "payload" else logs[:1]
     p = fit_robot(fit_on, robot)
-    d = diagnose_robot(p, logs, robot)
+    d = diagnose_robot(p, logs, robot, max_steps=max_steps)
     floor, rms = (np.asarray(d.noise_floor), np.asarray(d.rms)) if getattr(d, "noise_floor", None) else \
         _floor_rms(p, logs, robot)
     J = effect_joints(spec, robot.n)

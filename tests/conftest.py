@@ -60,3 +60,13 @@ def robot_hidden_bench():
     sys.modules.setdefault("diagnose_robot_hidden", mod)
     spec.loader.exec_module(mod)
     return mod
+
+
+@pytest.fixture(scope="session")
+def doc_pages(tmp_path_factory):
+    """The shell examples of README.md and docs/*.md, each page run once per session
+    (:class:`test_docs_examples.PageRuns`): test_docs_examples.py runs every page, test_fleet_docs.py
+    reads docs/fleet.md's run (it ran the page again, 30 s)."""
+    from test_docs_examples import PageRuns
+
+    return PageRuns(tmp_path_factory.mktemp("doc_pages"))

@@ -72,28 +72,56 @@ def test_a_small_spring_the_file_took_in_is_not_named_as_a_large_counterbalance(
             assert st["params"]["peak_torque_Nm"] < 10.0, d.lines()
 
 
-def test_a_payload_at_the_flange_is_named_with_its_mass(kr6, clean_fit):
-    d = diagnose_robot(clean_fit, _logs(kr6, "payload"), kr6)
+@pytest.fixture(scope="module")
+def payload_cli(kr6, clean_fit, tmp_path_factory):
+    """The payload logs on disk and ``kukaid diagnose --params robot.json --log ... --json`` of them,
+    run once: its output and the diagnosis it printed (the two tests below read the same one; each
+    ran it again, in-process and twice through the CLI, 3 x 20 s)."""
+    import kukaid.diagnose.robot as robot_diagnosis
+    from kukaid.params import save_robot_params
+    from kukaid_cli.main import cli
+
+    d = tmp_path_factory.mktemp("payload")
+    pf = d / "robot.json"
+    save_robot_params(pf, clean_fit)
+    paths = []
+    for k, lg in enumerate(_logs(kr6, "payload")):
+        paths += ["--log", str(d / f"rec{k}.h5")]
+        write_hdf5(lg, d / f"rec{k}.h5")
+    made = []
+
+    def kept(*args, **kwargs):
+        made.append(real(*args, **kwargs))
+        return made[-1]
+    real = robot_diagnosis.diagnose_robot
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(robot_diagnosis, "diagnose_robot", kept)
+        r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths, "--json"])
+    assert r.exit_code == 0, r.output
+    assert len(made) == 1
+    return pf, paths, r, made[0]
+
+
+def test_a_payload_at_the_flange_is_named_with_its_mass(payload_cli):
+    d = payload_cli[3]
     assert [s["name"] for s in d.steps][:1] == ["payload"], d.lines()
     assert d.steps[0]["params"]["mass_kg"] == pytest.approx(2.0, rel=0.1)
     assert np.mean(d.after) < 0.5 * np.mean(d.before)
 
 
-def test_cli_accepts_a_robot_parameter_file(kr6, clean_fit, tmp_path):
-    from kukaid.params import save_robot_params
+def test_cli_accepts_a_robot_parameter_file(payload_cli, tmp_path, monkeypatch):
+    """The CLI's --json (the fixture's run: the diagnosis the CLI made), its text (the same diagnosis
+    printed: the diagnosis itself is not made again) and a one-axis option refused."""
+    import kukaid.diagnose.robot as robot_diagnosis
     from kukaid_cli.main import cli
 
-    pf = tmp_path / "robot.json"
-    save_robot_params(pf, clean_fit)
-    paths = []
-    for k, lg in enumerate(_logs(kr6, "payload")):
-        paths += ["--log", str(tmp_path / f"rec{k}.h5")]
-        write_hdf5(lg, tmp_path / f"rec{k}.h5")
+    pf, paths, r, d = payload_cli
+    assert json.loads(r.stdout)["steps"][0]["name"] == "payload"
+    assert json.loads(r.stdout)["heldout_relative_error_after"] == pytest.approx(d.after, rel=1e-12)
+    monkeypatch.setattr(robot_diagnosis, "diagnose_robot", lambda params, logs, robot=None, max_steps=3: d)
     r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths])
     assert r.exit_code == 0, r.output
     assert "step 1: payload" in r.stdout and "held out: each recording left out in turn" in r.stdout
-    r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths, "--json"])
-    assert r.exit_code == 0 and json.loads(r.stdout)["steps"][0]["name"] == "payload"
     r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths, "--alpha", "0.05", "-o",
                                  str(tmp_path / "out.json")])
     assert r.exit_code == 2 and "does not apply to a robot parameter file" in r.output

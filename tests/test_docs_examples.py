@@ -88,12 +88,29 @@ def test_readme_is_short_and_links_every_page():
     assert sorted(pages - links) == [], "pages of docs/ missing from README's \"Where to read on\""
 
 
-def test_shell_examples_run(tmp_path):
+class PageRuns:
+    """Pages run by :func:`run_page`, each once per session in its own scratch folder under ``root``,
+    two at a time: ``run(pages)`` -> {page: (failures, skipped, scratch folder)} (the session fixture
+    ``doc_pages`` of conftest.py; test_fleet_docs.py reads docs/fleet.md's run)."""
+
+    def __init__(self, root: Path) -> None:
+        self.root, self.done = root, {}
+
+    def run(self, pages: list[Path]) -> dict[Path, tuple[list[str], list[str], Path]]:
+        todo = [p for p in dict.fromkeys(pages) if p not in self.done]
+
+        def one(page: Path):
+            d = _scratch(self.root, page)
+            return page, (*run_page(page, d), d)
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            self.done.update(pool.map(one, todo))
+        return {p: self.done[p] for p in pages}
+
+
+def test_shell_examples_run(doc_pages):
     """Each page in its own scratch folder; two pages at a time."""
     pages = [p for p in PAGES if any(label == "sh" for label, _, _ in blocks(p))]
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        results = list(pool.map(lambda p: run_page(p, _scratch(tmp_path, p)), pages))
-    failures = [f for fs, _ in results for f in fs]
+    failures = [f for fs, _, _ in doc_pages.run(pages).values() for f in fs]
     assert failures == [], "\n\n".join(failures)
 
 

@@ -206,9 +206,62 @@ VELOCITY_BAND = 4.0
 PICK_WITH_PRIOR = True
 #: values (raw samples x columns) a candidate's columns are filtered in at once (memory: 8 bytes each)
 LOWPASS_VALUES = 2 ** 21
+#: values a diagnosis keeps of a candidate's finer options' columns (:class:`_Batches`), and a
+#: quarter of it of its filtered motor columns (:class:`_ColumnCache`); 8 bytes each
+CACHED_VALUES = 2 ** 21
 #: multiples of the prior's information (the file's uncertainty) tried for the rigid body's correction
 #: (1e6: the file's rigid body as it is)
 PRIOR_SCALES = (1e6, 1.0, 1e-2, 1e-4)
+
+
+class _ColumnCache:
+    """Columns by key, the least recently used dropped beyond ``limit`` values (default
+    :data:`CACHED_VALUES`)."""
+
+    def __init__(self, limit: int | None = None) -> None:
+        from collections import OrderedDict
+
+        self._d: OrderedDict = OrderedDict()
+        self._size, self._limit = 0, CACHED_VALUES if limit is None else limit
+
+    def get(self, key):
+        col = self._d.get(key)
+        if col is not None:
+            self._d.move_to_end(key)
+        return col
+
+    def put(self, key, col: np.ndarray) -> np.ndarray:
+        self._d[key] = col
+        self._size += col.size
+        while self._size > self._limit and len(self._d) > 1:
+            self._size -= self._d.popitem(last=False)[1].size
+        return col
+
+
+class _Batches:
+    """A candidate's columns of a list of options (:meth:`RobotCandidate.batch`), kept while it is
+    judged: its grid (the last one asked for) and its finer options' (the least recently used
+    dropped beyond :data:`CACHED_VALUES` values). A candidate judged at every prior strength, in the
+    place of its joint's angle terms and beside them, asks for the same grid each time (a
+    counterbalance's 720 gas-spring shapes, a ripple's orders through the fit's low-pass)."""
+
+    def __init__(self) -> None:
+        self._grid: tuple | None = None
+        self._fine = _ColumnCache()
+
+    @staticmethod
+    def _key(view, options: list) -> tuple:
+        stacked = (tuple(view.J), view.sw.tobytes()) if isinstance(view, _Stacked) else None
+        return stacked, tuple(tuple(sorted(o.items())) for o in options)
+
+    def batch(self, view, ctx: Context, options: list, grid: bool = False) -> np.ndarray:
+        key = self._key(view, options)
+        if grid:
+            if self._grid is None or self._grid[0] != key:
+                self._grid = (key, view.batch(ctx, options))
+            return self._grid[1]
+        B = self._fine.get(key)
+        return B if B is not None else self._fine.put(key, view.batch(ctx, options))
 
 
 @dataclass
@@ -262,8 +315,8 @@ def _signals(params: dict, logs: Sequence[Any], robot):
     (gravity, payload columns, times, temperatures), the rigid body's correction columns and the
     noise floor."""
     from kukaid.identify.robot_fit import (DriveModel, RobotFitSettings, _blocks, _cutoff, _samples, effect_signals,
-                                           extra_names, extras, filtered_coulomb, fit_lowpass, log_temperatures,
-                                           lowpassed_values, rigid_at, sample_rows, wide_velocity)
+                                           ZeroPhaseLowPass, extra_names, extras, filtered_coulomb, fit_lowpass,
+                                           log_temperatures, rigid_at, sample_rows, wide_velocity)
     from kukaid.models import robot_effects
 
     s = params["settings"]
@@ -346,27 +399,64 @@ def _signals(params: dict, logs: Sequence[Any], robot):
                       for j in range(n)], shape, [[names[k] for k in own[j]] for j in range(n)])
     fs = [1.0 / lg.sample_time for lg in logs]
 
+    # each log's fit low-pass and rows, made once: the candidates' columns are filtered thousands of times
+    filt = [ZeroPhaseLowPass(fit_lowpass(lg, settings)) for lg in logs]
+    at_rows = [sample_rows(lg, settings) for lg in logs]
+    # logs of one length and one filter are filtered together, columns side by side (each column
+    # alone: the same result to the bit); a call costs about what its checks do on a 10 s log
+    groups: dict = {}
+    for k, (lg, f) in enumerate(zip(logs, filt)):
+        groups.setdefault((lg.n_samples, f.sos.tobytes()), []).append(k)
+    groups = list(groups.values())
+
+    def filtered(cols: dict) -> dict:
+        """{log index: (M, c) values} -> {log index: (rows, c) through its fit low-pass}."""
+        out = {}
+        for g in groups:
+            ks = [k for k in g if k in cols]
+            if not ks:
+                continue
+            Y = filt[ks[0]](np.concatenate([cols[k] for k in ks], axis=1) if len(ks) > 1 else cols[ks[0]])
+            at = 0
+            for k in ks:
+                c = cols[k].shape[1]
+                out[k] = Y[:, at:at + c][at_rows[k]]
+                at += c
+        return out
+
     def lowpass(j, fn, width):
+        qs = [np.asarray(lg.q[:, lg.index(j + 1)], float) for lg in logs]
+        if sum(lg.n_samples for lg in logs) * width <= LOWPASS_VALUES:     # every log's columns at once
+            got = filtered({k: fn(q, 0, width) for k, q in enumerate(qs)})
+            return np.concatenate([got[k] for k in range(len(logs))])
         out = []
-        for lg in logs:
+        for lg, f, rows, q in zip(logs, filt, at_rows, qs):
             step = max(1, int(LOWPASS_VALUES // lg.n_samples))    # columns filtered at once
-            q, rows = np.asarray(lg.q[:, lg.index(j + 1)], float), sample_rows(lg, settings)
-            sos = fit_lowpass(lg, settings)
-            out.append(np.concatenate([lowpassed_values(lg, settings, fn(q, a, min(a + step, width)), rows, sos)
-                                       for a in range(0, width, step)], axis=1))
+            out.append(np.concatenate([f(fn(q, a, min(a + step, width)))[rows] for a in range(0, width, step)], axis=1))
         return np.concatenate(out)
 
     wide = {}
+    motor = _ColumnCache(CACHED_VALUES // 4)
 
     def motor_coulomb(mix, v):
-        out = []
+        """(N, k) each motor's Coulomb column (a row of ``mix``) through the fit's low-pass: a motor's
+        column depends on its own row and ``v`` alone, and the wrist's ratio grids share rows (125
+        options: 5 rows of motor 5, 25 of motor 6), so each is filtered once (:class:`_ColumnCache`)."""
+        keys = {(k, i): (k, i, mix[i].tobytes(), float(v)) for k in range(len(logs)) for i in range(mix.shape[0])}
+        have = {ki: motor.get(key) for ki, key in keys.items()}
+        todo: dict = {}
         for k, lg in enumerate(logs):
-            if k not in wide:     # every joint's velocity from the wider band and the fit's filter, once per log
-                wide[k] = (wide_velocity(lg, n, settings, VELOCITY_BAND * _cutoff(settings, 1.0 / lg.sample_time)),
-                           fit_lowpass(lg, settings))
-            qd_w, sos = wide[k]
-            out.append(lowpassed_values(lg, settings, np.tanh(qd_w @ mix.T / v), sample_rows(lg, settings), sos))
-        return np.concatenate(out)
+            miss = [i for i in range(mix.shape[0]) if have[k, i] is None]
+            if miss:
+                if k not in wide:     # every joint's velocity from the wider band, once per log
+                    wide[k] = wide_velocity(lg, n, settings, VELOCITY_BAND * _cutoff(settings, 1.0 / lg.sample_time))
+                todo[k] = (miss, np.tanh(wide[k] @ mix.T / v)[:, miss])
+        got = filtered({k: a for k, (_, a) in todo.items()})
+        for k, (miss, _) in todo.items():
+            for c, i in enumerate(miss):
+                have[k, i] = motor.put(keys[k, i], np.ascontiguousarray(got[k][:, c:c + 1]))
+        return np.concatenate([np.concatenate([have[k, i] for i in range(mix.shape[0])], axis=1)
+                               for k in range(len(logs))])
 
     pieces = dict(q=m.q, lowpass=lowpass, motor_coulomb=motor_coulomb, qd=m.qd, tau=m.tau, gravity=gravity, rigid=rigid, temp=temp, payload=payload,
                   total_mass=float(np.sum(np.maximum(robot.pi_nominal[0::10], 0))), log_rows=m.log_rows or (N,),
@@ -517,6 +607,46 @@ def _context(pieces: dict, base: _Baseline, choice: list) -> Context:
                    friction_at=grid * Fc[None, :, None] + (visc * Fv)[:, :, None], **p)
 
 
+class _SharedRows:
+    """Per fold, the shared columns' rows of each joint and their block of the normal equations
+    (``sum_j w_j S_j^T S_j``, summed in :func:`_heldout`'s order: the same to the bit), kept for the
+    last :attr:`size` (shared columns, fold) pairs: a diagnosis fits the same shared columns (the
+    rigid body's correction) beside every candidate on one joint, hundreds of times. Keyed by the
+    arrays themselves (held by weak references: nothing is kept alive) and the weights."""
+
+    size = 8
+
+    def __init__(self) -> None:
+        import threading
+        from collections import OrderedDict
+
+        self._d: OrderedDict = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, shared: list, folds: np.ndarray, f: int, w: np.ndarray, rows: np.ndarray):
+        import weakref
+
+        key = (tuple(id(S) for S in shared), id(folds), int(f), np.asarray(w, float).tobytes())
+        with self._lock:
+            hit = self._d.get(key)
+            if hit is not None and all(ref() is x for ref, x in zip(hit[0], [*shared, folds])):
+                self._d.move_to_end(key)
+                return hit[1], hit[2]
+        S_rows = [S[rows] for S in shared]
+        ns = shared[0].shape[1]
+        SS = np.zeros((ns, ns))
+        for j, S in enumerate(S_rows):
+            SS += w[j] * S.T @ S
+        with self._lock:
+            self._d[key] = ([weakref.ref(x) for x in [*shared, folds]], S_rows, SS)
+            while len(self._d) > self.size:
+                self._d.popitem(last=False)
+        return S_rows, SS
+
+
+_SHARED_ROWS = _SharedRows()
+
+
 def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, local: dict | None, folds: np.ndarray,
              K: int, w: np.ndarray, evaluate: Sequence[int] | None = None,
              prior: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -541,19 +671,21 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
             parts.append(local[j][rows])
         return np.concatenate(parts, axis=1)
 
-    def normal(rows):
+    def normal(f):
+        rows = folds == f
         A, b = np.zeros((P, P)), np.zeros(P)
+        if shared is not None:      # the shared columns' rows and block: the same for every candidate of its own joint
+            S_rows, A[off[-1]:, off[-1]:] = _SHARED_ROWS.get(shared, folds, f, w, rows)
         for j in range(n):
             D = cols(j, rows)
             idx = np.arange(off[j], off[j + 1])
             A[np.ix_(idx, idx)] += w[j] * D.T @ D
             b[idx] += w[j] * D.T @ r[rows, j]
             if shared is not None:
-                S = shared[j][rows]
+                S = S_rows[j]
                 si = np.arange(off[-1], P)
                 A[np.ix_(idx, si)] += w[j] * D.T @ S
                 A[np.ix_(si, idx)] += w[j] * S.T @ D
-                A[np.ix_(si, si)] += w[j] * S.T @ S
                 b[si] += w[j] * S.T @ r[rows, j]
         return A, b
 
@@ -565,7 +697,7 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
         x[live] = d * np.linalg.lstsq(d[:, None] * A[np.ix_(live, live)] * d[None, :], d * b[live], rcond=1e-12)[0]
         return x
 
-    parts = [normal(folds == f) for f in range(K)]
+    parts = [normal(f) for f in range(K)]
     data_A, data_b = sum(p[0] for p in parts), sum(p[1] for p in parts)
     out = []
     for pr in (prior if isinstance(prior, list) else [prior]):
@@ -582,10 +714,11 @@ def _heldout(r: np.ndarray, tau: np.ndarray, Fj: list, shared: list | None, loca
         for f in (range(K) if evaluate is None else evaluate):
             x = solve(data_A + Pp - parts[f][0], data_b - parts[f][1])
             rows = folds == f
+            S_rows = _SHARED_ROWS.get(shared, folds, f, w, rows)[0] if shared is not None else None
             for j in range(n):
                 pred = cols(j, rows) @ x[off[j]:off[j + 1]]
                 if shared is not None:
-                    pred = pred + shared[j][rows] @ x[off[-1]:]
+                    pred = pred + S_rows[j] @ x[off[-1]:]
                 res[rows, j] = r[rows, j] - pred
                 num[f, j] = float(np.sum(res[rows, j] ** 2))
                 den[f, j] = float(np.sum(tau[rows, j] ** 2))
@@ -627,41 +760,51 @@ def _gains(Q: np.ndarray, e: np.ndarray, B: np.ndarray) -> np.ndarray:
     columns ``Q`` spans, lower the squared residual ``e`` (:func:`_projection`)."""
     N, O, c = B.shape
     Bf = B.reshape(N, O * c)
-    Bp = (Bf - Q @ (Q.T @ Bf)).reshape(N, O, c)
+    Bp = Q @ (Q.T @ Bf)
+    Bp = np.subtract(Bf, Bp, out=Bp).reshape(N, O, c)      # in place: a grid's columns are tens of MB
     G = np.einsum("noc,nod->ocd", Bp, Bp) + 1e-12 * np.eye(c)[None] * (1.0 + np.einsum("noc,noc->o", Bp, Bp)[:, None, None])
     g = np.einsum("noc,n->oc", Bp, e)
     return np.einsum("oc,oc->o", g, np.linalg.solve(G, g[..., None])[..., 0])
 
 
 def _pick(cand: RobotCandidate, ctx: Context, A: np.ndarray, y: np.ndarray, rows: np.ndarray, opts: list,
-          B: np.ndarray, prior_rows: np.ndarray | None = None) -> tuple[dict, np.ndarray | None]:
+          B: np.ndarray, prior_rows: np.ndarray | None = None, memo: "_Batches | None" = None
+          ) -> tuple[dict, np.ndarray | None]:
     """The option whose columns, fitted beside ``A`` on ``rows``, explain most of ``y`` there: the
     grid's best (``B``: every option's columns, (N, O, c)), then the candidate's finer options about
     it, then its settings moved continuously within :meth:`RobotCandidate.bounds` (bounded
     Nelder-Mead on the same squared residual). ``prior_rows`` (p, A's columns): the prior the
     candidate is judged under as rows of the least squares (:func:`_prior_rows`), so the option is
     chosen with the other terms as they are held. Returns the option and its columns on every sample
-    (None: the grid's own)."""
+    (None: the grid's own). ``memo``: the finer options' columns kept (:class:`_Batches`)."""
     from scipy.optimize import minimize
 
     p = 0 if prior_rows is None else prior_rows.shape[0]
+    idx = np.flatnonzero(rows)
 
-    def at(X):      # the rows, then zeros for the prior's (the candidate has no prior)
-        return np.concatenate([X[rows], np.zeros((p,) + X.shape[1:])]) if p else X[rows]
+    def at(X):      # the rows, then zeros for the prior's (the candidate has no prior); copied once
+        out = np.zeros((idx.size + p,) + X.shape[1:])
+        np.take(X, idx, axis=0, out=out[:idx.size], mode="clip")
+        return out
     Q, e = _projection(np.concatenate([A[rows], prior_rows]) if p else A[rows], at(y))
     o = int(np.argmax(_gains(Q, e, at(B))))
     opt, cols = opts[o], None
     fine = cand.refine(ctx, opt)
     if fine:
-        Bf = cand.batch(ctx, fine)
+        Bf = cand.batch(ctx, fine) if memo is None else memo.batch(cand, ctx, fine)
         k = int(np.argmax(_gains(Q, e, at(Bf))))
         opt, cols = fine[k], Bf[:, k, :]
     bounds = cand.bounds(ctx, opt)
     if bounds:
         keys = list(bounds)
 
-        def cost(v):
-            return -float(_gains(Q, e, at(cand.batch(ctx, [{**opt, **dict(zip(keys, map(float, v)))}])))[0])
+        seen: dict = {}
+
+        def cost(v):        # each point once (the start is asked again below)
+            key = tuple(map(float, v))
+            if key not in seen:
+                seen[key] = -float(_gains(Q, e, at(cand.batch(ctx, [{**opt, **dict(zip(keys, key))}])))[0])
+            return seen[key]
         x0 = np.array([opt[k] for k in keys], float)
         res = minimize(cost, x0, method="Nelder-Mead", bounds=[bounds[k] for k in keys],
                        options={"xatol": 1e-4, "fatol": 1e-9 * float(e @ e), "maxfev": 60 * len(keys)})
@@ -802,15 +945,17 @@ class _Stacked(RobotCandidate):
 
 
 def _try(cand: RobotCandidate, ctx: Context, r, tau, Fjs: dict, shared, local, folds, K, w, held, prior, base=None,
-         admissible=None):
+         admissible=None, memo: "_Batches | None" = None):
     """:func:`_try_at` at each prior strength of ``Fjs`` {multiple of the raw ``prior``: the joints'
     own columns chosen at it}: the one with the smallest weighted held-out error, and that strength
     (None when no option applies). With and without the candidate, the model is judged at the
     strength that predicts it best. ``admissible(num, den)``: the strengths whose held-out errors it
-    accepts (no joint made worse) are preferred; none accepted, the best of all."""
+    accepts (no joint made worse) are preferred; none accepted, the best of all. ``memo``: the
+    candidate's columns kept from one strength to the next (:class:`_Batches`; default: a new one)."""
     best, best_ok = None, None
+    memo = _Batches() if memo is None else memo
     for c, Fj in Fjs.items():
-        res = _try_at(cand, ctx, r, tau, Fj, shared, local, folds, K, w, held, _scaled(prior, c), base)
+        res = _try_at(cand, ctx, r, tau, Fj, shared, local, folds, K, w, held, _scaled(prior, c), base, memo)
         if res is None:
             return None
         e = _weighted(res[0], w)
@@ -829,10 +974,12 @@ def _worse(e: np.ndarray, err: np.ndarray, rms: np.ndarray, floor: np.ndarray) -
             if e[k] > (1 + MARGIN) * err[k] + 1e-12 and (e[k] - err[k]) * rms[k] > WORSE_FLOOR * floor[k]]
 
 
-def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds, K, w, held, prior, base=None):
+def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds, K, w, held, prior, base=None,
+            memo: "_Batches | None" = None):
     """Held-out relative error per joint with the candidate, its options chosen on the training folds;
     the option chosen on all samples and the candidate's coefficients fitted on all samples (None
     when no option applies). ``prior`` a list of priors: a list of results (options chosen once).
+    ``memo``: its options' columns kept (:class:`_Batches`).
     """
     n = r.shape[1]
     opts = cand.options(ctx)
@@ -854,10 +1001,10 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
             view = _Stacked(cand, cand.joints(ctx), np.sqrt(w))
             A, y = view.equations(Fj, local, shared, r)
             Pr = view.prior_rows(Fj, local, shared, prior) if PICK_WITH_PRIOR else None
-            B = view.batch(ctx, opts)
+            B = view.batch(ctx, opts) if memo is None else memo.batch(view, ctx, opts, grid=True)
         else:
             view = cand
-            B = cand.batch(ctx, opts)
+            B = cand.batch(ctx, opts) if memo is None else memo.batch(cand, ctx, opts, grid=True)
             # the option by least squares of the joint's own terms and the shared ones (the rigid body's
             # correction among them) on the joint's equation
             parts = [Fj[j]] + ([local[j]] if j in local else []) + ([shared[j]] if shared is not None else [])
@@ -866,7 +1013,7 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
                 else None
 
         def pick_on(rows):
-            opt, cols = _pick(view, ctx, A, y, np.tile(rows, y.size // rows.size), opts, B, Pr)
+            opt, cols = _pick(view, ctx, A, y, np.tile(rows, y.size // rows.size), opts, B, Pr, memo)
             if cols is None:
                 return opts.index(opt)
             extra.append((opt, cols))
@@ -993,9 +1140,10 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
             # a candidate that may take the place of the file's terms of its joint's angle is tried
             # in their place and beside them: the better by held-out error
             res, var, ways = None, cand, []
+            memo = _Batches()       # its grid's columns, the same each way and at each strength
             for v in [cand] + ([_AngleTermsHeld(cand)] if cand.angle_terms_optional else []):
                 rv = _try(v, ctx, r, tau, Fjs if cand.rigid_body_like else {scale: Fj}, shared, local, folds, K, w,
-                          held, pr, base, admissible=lambda a, b: not _worse(_rel(a, b), err, rms, floor))
+                          held, pr, base, admissible=lambda a, b: not _worse(_rel(a, b), err, rms, floor), memo=memo)
                 if rv is not None:
                     ways.append(v)
                 if rv is not None and (res is None or _weighted(rv[0], w) < _weighted(res[0], w)):

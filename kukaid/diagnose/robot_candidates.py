@@ -529,9 +529,11 @@ class PositionRipple(RobotCandidate):
         ns = np.array([o["n"] for o in options], float)
 
         def sin_cos(q, a, b):      # columns a..b of sin(n_0 q), cos(n_0 q), sin(n_1 q), ...
-            k = np.arange(a, b)
-            ph = np.outer(q, ns[k // 2])
-            return np.where(k % 2 == 0, np.sin(ph), np.cos(ph))
+            o = np.arange(a // 2, (b + 1) // 2)       # their orders: each phase, sine and cosine once
+            ph = np.outer(q, ns[o])
+            out = np.empty((q.size, 2 * o.size))
+            out[:, 0::2], out[:, 1::2] = np.sin(ph), np.cos(ph)
+            return out[:, a - 2 * o[0]: b - 2 * o[0]]
         return ctx.lowpass(self.joint, sin_cos, 2 * ns.size).reshape(-1, ns.size, 2)
 
     def describe(self, ctx, option, coefs):
