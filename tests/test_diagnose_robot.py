@@ -72,11 +72,13 @@ def test_a_small_spring_the_file_took_in_is_not_named_as_a_large_counterbalance(
             assert st["params"]["peak_torque_Nm"] < 10.0, d.lines()
 
 
-@pytest.fixture(scope="module")
-def payload_cli(kr6, clean_fit, tmp_path_factory):
+@pytest.fixture(scope="module", params=[1, pytest.param(4, marks=pytest.mark.slow)])
+def payload_cli(request, kr6, clean_fit, tmp_path_factory):
     """The payload logs on disk and ``kukaid diagnose --params robot.json --log ... --json`` of them,
     run once: its output and the diagnosis it printed (the two tests below read the same one; each
-    ran it again, in-process and twice through the CLI, 3 x 20 s)."""
+    ran it again, in-process and twice through the CLI, 3 x 20 s). ``--max-steps 1`` in the default
+    suite (the second round names nothing: the same figures, 8 s of CPU, not 15), diagnose's
+    default (4) with -m slow."""
     import kukaid.diagnose.robot as robot_diagnosis
     from kukaid.params import save_robot_params
     from kukaid_cli.main import cli
@@ -96,7 +98,8 @@ def payload_cli(kr6, clean_fit, tmp_path_factory):
     real = robot_diagnosis.diagnose_robot
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(robot_diagnosis, "diagnose_robot", kept)
-        r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths, "--json"])
+        r = CliRunner().invoke(cli, ["diagnose", "--params", str(pf), *paths, "--json", "--max-steps",
+                                     str(request.param)])
     assert r.exit_code == 0, r.output
     assert len(made) == 1
     return pf, paths, r, made[0]
