@@ -761,9 +761,23 @@ def _gains(Q: np.ndarray, e: np.ndarray, B: np.ndarray) -> np.ndarray:
     N, O, c = B.shape
     Bf = B.reshape(N, O * c)
     Bp = Q @ (Q.T @ Bf)
-    Bp = np.subtract(Bf, Bp, out=Bp).reshape(N, O, c)      # in place: a grid's columns are tens of MB
-    G = np.einsum("noc,nod->ocd", Bp, Bp) + 1e-12 * np.eye(c)[None] * (1.0 + np.einsum("noc,noc->o", Bp, Bp)[:, None, None])
-    g = np.einsum("noc,n->oc", Bp, e)
+    Bp = np.subtract(Bf, Bp, out=Bp)      # in place: a grid's columns are tens of MB
+    if O > 1:
+        # a grid: each option's Gram matrix as a product of its samples-last copy, a few MB at a time
+        # (half einsum's time); only the best option is used, so the last bits of the others' gains
+        # do not matter
+        G, g = np.empty((O, c, c)), np.empty((O, c))
+        step = max(1, LOWPASS_VALUES // max(N * c, 1))
+        for a in range(0, O, step):
+            b = min(a + step, O)
+            Bt = np.ascontiguousarray(Bp[:, a * c:b * c].T).reshape(b - a, c, N)
+            G[a:b], g[a:b] = Bt @ Bt.transpose(0, 2, 1), Bt @ e
+        tr = np.trace(G, axis1=1, axis2=2)
+    else:
+        Bp = Bp.reshape(N, O, c)
+        G, g = np.einsum("noc,nod->ocd", Bp, Bp), np.einsum("noc,n->oc", Bp, e)
+        tr = np.einsum("noc,noc->o", Bp, Bp)
+    G = G + 1e-12 * np.eye(c)[None] * (1.0 + tr[:, None, None])
     return np.einsum("oc,oc->o", g, np.linalg.solve(G, g[..., None])[..., 0])
 
 
