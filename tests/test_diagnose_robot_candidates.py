@@ -176,18 +176,16 @@ def test_every_hidden_effect_is_simulated(kr6, robot_hidden_bench):
         assert np.all(change[bench.effect_joints(spec)] > 0.0), (effect, change)
 
 
-@pytest.mark.parametrize("max_steps", [1, pytest.param(3, marks=pytest.mark.slow)])
-def test_a_ripple_the_fit_took_in_is_closed_to_near_its_twin(kr6, robot_hidden_bench, max_steps):
+def test_a_ripple_the_fit_took_in_is_closed_to_near_its_twin(kr6, robot_hidden_bench):
     """The benchmark's dev ripple seed 0 (an A6 ripple of 0.39 N·m at order 16.2 rad/rad): the
     robot fit on the first recording took part of it into A6's spring (0.12 N·m/rad, held at that
     it extrapolates to the other recordings' angles), and the simulator held the ripple's torque
     over each 4 ms sample (10 % of it a lag of its position). A6 held out after the ripple was 3.5x
     the noise floor (its clean twin 2.0x); with the ripple carried every servo cycle 2.8x, and with
-    the ripple in place of the file's spring and ripple terms 2.1x. One step in the default suite
-    (the second round names nothing: the same figures, 10 s of CPU, not 17), three with -m slow."""
+    the ripple in place of the file's spring and ripple terms 2.1x."""
     bench = robot_hidden_bench
     spec = bench.draw("ripple", 0, kr6)
-    row = bench.run_case(spec, 10.0, kr6, twin=False, n_rec=4, max_steps=max_steps)
+    row = bench.run_case(spec, 10.0, kr6, twin=False, n_rec=4)
     assert row["named"] == ["position_ripple@A6"], row["named"]
     assert row["after_x_floor"] < 2.4, row["after_x_floor"]
     assert row["steps"][0]["params"]["amplitude_Nm"] == pytest.approx(spec["amplitude"], rel=0.1)
