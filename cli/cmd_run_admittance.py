@@ -54,11 +54,14 @@ def _check_start(q0: float, lo: float, hi: float, what: str) -> None:
 
 
 def _within_axis(cfg, given: tuple[bool, bool, bool, bool], lo: float, hi: float, what: str,
-                 qd_max: float = math.inf, tau_max: float = math.inf):
-    """``cfg`` (a LoopConfig) within the axis ``what``: its position window inside the range ``lo``..``hi`` (rad),
+                 qd_max: float = math.inf, tau_max: float = math.inf, q0: float | None = None):
+    """``cfg`` (a LoopConfig) within the axis ``what``: the simulated start ``q0`` (degrees, :func:`_check_start`)
+    and its position window inside the range ``lo``..``hi`` (rad),
     ``--qd-max`` at most the top speed ``qd_max`` (rad/s), ``--tau-max`` at most the drive's torque ``tau_max``
     (N·m; beyond it the torque stop could never trip).  A default beyond is cut to the axis; a value the user gave
     (``given``: --q-min, --q-max, --qd-max, --tau-max) beyond is refused."""
+    if q0 is not None:
+        _check_start(q0, lo, hi, what)
     L = cfg.limits
     checks = (("--q-min", L.q_min, lo, -1.0, "degrees", "the range of motion", math.degrees),
               ("--q-max", L.q_max, hi, 1.0, "degrees", "the range of motion", math.degrees),
@@ -323,11 +326,10 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                 if not isinstance(prog, RobotTrajectory) or tuple(prog.axes) != tuple(range(1, plant.n + 1)):
                     raise KukaidError(f"{program}: not a trajectory of every axis A1..A{plant.n} of the robot")
                 q_start = np.asarray(prog.q[0], float).copy()
-            _check_start(q0, float(lo_[axis - 1]), float(hi_[axis - 1]), f"the URDF's A{axis}")
-            q_start[axis - 1] = math.radians(q0)
             urdf_lim = plant.model_nominal
             cfg = _within_axis(cfg, limits_given, float(lo_[axis - 1]), float(hi_[axis - 1]), f"the URDF's A{axis}",
-                               float(urdf_lim.velocityLimit[axis - 1]), float(urdf_lim.effortLimit[axis - 1]))
+                               float(urdf_lim.velocityLimit[axis - 1]), float(urdf_lim.effortLimit[axis - 1]), q0)
+            q_start[axis - 1] = math.radians(q0)
         else:
             if program is not None:
                 raise click.UsageError("--program is for a robot parameter file")
@@ -341,9 +343,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             from kukaid.models.limits import AxisLimits
 
             rng = AxisLimits.kr6_r700_sixx(scfg.axis)
-            what = f"the virtual KR C4's A{scfg.axis} (a KR 6 R700 sixx)"
-            _check_start(q0, rng.q_min, rng.q_max, what)
-            cfg = _within_axis(cfg, limits_given, rng.q_min, rng.q_max, what, rng.qd_max, scfg.tau_max)
+            cfg = _within_axis(cfg, limits_given, rng.q_min, rng.q_max,
+                               f"the virtual KR C4's A{scfg.axis} (a KR 6 R700 sixx)", rng.qd_max, scfg.tau_max, q0)
             guidable()
 
         def sim_backend(cfg_):  # the same person and the same noise for every controller (paired)
