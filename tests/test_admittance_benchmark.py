@@ -32,3 +32,17 @@ def test_rest_benchmark_quick_reports_every_run():
     assert len(doc["runs"]) == 16 and len(doc["summary"]) == 4
     assert {r["plant"] for r in doc["runs"]} == {"gms", "lugre"}
     assert all(r["passes"] for r in doc["runs"]), [r for r in doc["runs"] if not r["passes"]]
+
+
+def test_rest_benchmark_outside_the_family_reports_a_row_per_change():
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "admittance_rest.py"), "--quick", "--json",
+                          "--jobs", "1", "--outside", "stiction,jitter"], capture_output=True, text=True, check=True,
+                         timeout=600)
+    doc = json.loads(out.stdout)
+    assert len(doc["runs"]) == 32
+    assert [(r["outside"], r["scenario"]) for r in doc["summary"]] == [
+        ("stiction", "rest"), ("stiction", "after a guided move"), ("jitter", "rest"), ("jitter", "after a guided move")]
+    assert all(r["passes"] for r in doc["runs"]), [r for r in doc["runs"] if not r["passes"]]
+    bad = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "admittance_rest.py"), "--outside", "frost"],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2 and "unknown change 'frost'" in bad.stderr
