@@ -125,3 +125,23 @@ def test_narrow_range_offset_and_gravity_are_reported_ambiguous():
         und = s.test.undetermined
         assert und and und["modelled_as"] == s.name and "gravity_sine" in und["candidates"], d.lines()
         assert "mechanism undetermined" in text and d.rmse_after < d.rmse_refit
+
+
+def test_on_a_torque_filtered_before_it_was_recorded_an_effect_is_sized_against_the_residual():
+    """A torque low-passed at its source carries almost no white noise in its second differences (raw
+    sigma 0.009 N·m here, for 0.5 N·m of noise), so "min_effect x noise" let any significant effect
+    through; without a noise floor an effect must reach min_effect x the refit model's residual RMSE."""
+    import dataclasses
+
+    from scipy.signal import butter, sosfilt
+
+    effects = draw_effects({"torque_offset": 2.0}, np.random.default_rng(541))
+    logs = hidden_effect_logs(effects, seed=41, noise=NOISE, short=True)
+    sos = butter(4, 5.0, fs=1.0 / 0.012, output="sos")
+    logs = [dataclasses.replace(lg, tau=sosfilt(sos, lg.tau, axis=0)) for lg in logs]
+    params = initial_fit(logs)
+    named = diagnose(params, logs)
+    assert not np.isfinite(named.noise_floor) and named.names[:1] == ["torque_offset"], named.lines()
+    d = diagnose(params, logs, min_effect=10.0)  # an offset of 2 N·m: above 10 x 0.009, below 10 x 0.7
+    assert d.names == [], d.lines()
+    assert any("the refit model's residual RMSE" in n for n in d.notes), d.notes

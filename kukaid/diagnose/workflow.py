@@ -248,6 +248,9 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     model = refit(given, sigs)
     model.std = hac_std(model, sigs)
     rmse_r, rel_r = rmse_of(model, sigs)
+    # the size an effect must have: min_effect x the raw noise, or, when the torque was filtered before it
+    # was recorded (no noise floor: its second differences hold almost no noise), x the refit's residual
+    scale, per = (sigma, "noise") if math.isfinite(floor) else (rmse_r, "the refit model's residual RMSE")
     found_base = model
     names = list(candidates) if candidates is not None else list(C.NAMES)
     for n in names:
@@ -255,6 +258,9 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     steps: list[Step] = []
     ambiguous: list[dict] = []
     notes = [f"effect '{n}' in the parameter file is not in the diagnosis format; ignored" for n in given.ignored_effects]
+    if not math.isfinite(floor):
+        notes.append(f"the torque's noise is not known: an effect is named from {min_effect:g} x {per} "
+                     f"({min_effect * scale:.3g} N·m RMS) on")
     added: list[str] = []
     cur_rmse, cur_rel = rmse_r, rel_r
     tests: list[CandidateTest] = []
@@ -278,11 +284,11 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
         adj = S.holm({t.name: t.p_candidate for t in tests})
         for t in tests:
             t.p_adjusted = adj[t.name]
-            big = t.effect_rms >= min_effect * sigma
+            big = t.effect_rms >= min_effect * scale
             t.significant = t.p_adjusted < alpha and big
             t.reason = ("significant" if t.significant else
                         "not significant" if t.p_adjusted >= alpha else
-                        f"effect RMS below {min_effect:g} x noise")
+                        f"effect RMS below {min_effect:g} x {per}")
         sig_tests = sorted([t for t in tests if t.significant], key=lambda t: -t.wald.delta_rss)
         if not sig_tests:
             break
@@ -355,11 +361,11 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
         model, cur_rmse, cur_rel = step.model_after, step.rmse_after, step.rel_after
     if len(steps) > 1:
         found = [s.name for s in steps]
-        final, dropped = _prune(steps, model, sigs, alpha, min_effect * sigma)
+        final, dropped = _prune(steps, model, sigs, alpha, min_effect * scale)
         steps = [s for s in steps if s.name not in dropped] or steps[:1]
         for n in dropped:
             notes.append(f"{n} was found first but the effects found after it explain it (not significant or "
-                         f"below {min_effect:g} x noise given them): dropped")
+                         f"below {min_effect:g} x {per} given them): dropped")
         steps = _in_order_of_size(steps, found_base, final, sigs, floor, n_candidates=len(first_round))
         if [s.name for s in steps] != [n for n in found if n not in dropped]:
             notes.append(f"effects listed in order of size (amplitude or peak in the final fit, not the residual "
