@@ -51,10 +51,7 @@ Online, causal version (what a controller can do):
   overshoot) that must not move the axis (a start is not guarded: a push at rest starts the axis);
   while moving, the start threshold is at least ``MOVING_MARGIN`` times the RMS of Γr moving out
   of contact (:attr:`moving_threshold`: a slow coast after a release is where a model's friction is
-  least sure); and against a coast out of contact (no detection for ``QUIET_BEFORE_REST`` s) below
-  ``HUMP_SPEEDS`` Stribeck velocities, the threshold plus the model's Stribeck hump Fs - Fc: a plant
-  whose breakaway is above the model's reads there as a push against the motion, and detected it
-  reversed the axis into a stick-slip cycle with nobody there;
+  least sure);
 * a hand, or the model, at rest: at rest a torque that stands still is a hand left on the axis or
   the model's friction off by that much, and one cannot tell which.  So at rest the residual is
   read two ways until the axis moves again: Γr, relative to what Γu has taken in, and Γr plus the
@@ -95,7 +92,6 @@ import numpy as np
 
 from kukaid.control.filters import CausalButterworth
 from kukaid.errors import KukaidError
-from kukaid.models.friction import Stribeck
 from kukaid.models.torque import JointTorqueModel
 
 DYNAMIC = "dynamic"
@@ -109,9 +105,6 @@ RELEASE_SHARE = 0.3
 QUIET_BEFORE_REST = 0.3
 #: while moving, a start needs this many times the RMS of the residual moving out of contact
 MOVING_MARGIN = 2.0
-#: below this many Stribeck velocities a residual opposing a coast is the friction hump, the part of a
-#: model the plant is least sure to share (a breakaway grows with dwell time, and in the cold)
-HUMP_SPEEDS = 3.0
 #: memory (s) of the residual read while moving, taken as the hand's torque when the axis stops
 DYN_MEMORY = 0.1
 #: at rest, out of contact, the fastest drift (N·m/s) Γu follows beyond half the start threshold: a
@@ -226,8 +219,6 @@ class TorqueResidual:
         # the travel within which a "move" is the pre-sliding deflection of a push (every element not yet
         # broken away), not a move that ends in a new rest
         self._presliding_range = max((lim for _, lim in self._k_lim), default=0.0)
-        fr = model.friction  # the Stribeck hump (Fs - Fc, N·m) and the speed below which it acts (rad/s)
-        self._hump = ((max(fr.Fs - fr.Fc, 0.0), HUMP_SPEEDS * fr.vs) if isinstance(fr, Stribeck) else (0.0, 0.0))
         # effects a diagnosis stored in the rigid body (inertial.My, offset; marked stored_as) are
         # already in the model
         eff = {k: v for k, v in model.stored_effects.items() if "stored_as" not in v}
@@ -297,7 +288,6 @@ class TorqueResidual:
         self._since_switch = math.inf  # s since the axis last started or stopped
         self._since_stop = math.inf  # s since the axis last stopped
         self._quiet = math.inf  # s since |Γr| was last at the threshold (or detected)
-        self._undetected = math.inf  # s since the last detection ended
         self._rest_age = math.inf  # s of close following since the present rest began
         self._hand = 0.0  # at rest: the part of the residual that may be a hand still on the axis, N·m
         self._u_span = (0.0, 0.0)  # at rest: the lowest and highest Γu held since the rest's first window, N·m
@@ -540,7 +530,6 @@ class TorqueResidual:
             self._dyn_n += 1  # moving out of contact (the initiation move, coasting): the model's own error
             self._dyn_ms += max(h / self.floor_tau, 1.0 / self._dyn_n) * (gamma_r * gamma_r - self._dyn_ms)
         self._quiet = 0.0 if (self._detected or abs(r1) >= self.threshold) else self._quiet + h
-        self._undetected = 0.0 if self._detected else self._undetected + h
         if self._detected:
             self._detected = a >= self.release_now
             self._start_prev = math.inf
@@ -555,11 +544,6 @@ class TorqueResidual:
                 start = self.rest_threshold
                 self.rest_threshold_max = max(self.rest_threshold_max, start)
                 self.rest_rms_max = max(self.rest_rms_max, math.sqrt(self._rest_ms))
-            elif self._undetected >= QUIET_BEFORE_REST and gamma_r * qd_f < 0.0 and abs(qd_f) < self._hump[1]:
-                # coasting out of contact into the friction hump: a plant whose breakaway is above the model's
-                # reads as a push against the motion, and detected it reversed the axis, then again the other
-                # way (a stick-slip cycle with nobody there); a hand braking it there needs the hump's size more
-                start = max(start, self.threshold + self._hump[0])
             if self._since_stop < self.switch_quiet:  # a stop: friction settles, the servo overshoots
                 start = max(start, self.switch_share * self.threshold)
             if quasi and start <= a < self._start_prev:
