@@ -261,6 +261,32 @@ def test_torques_in_newton_millimetres_are_refused_by_fit_and_validate(kr6, tmp_
     _refused_on_the_command_line(nmm, tmp_path, sim_fit, [["validate"], ["diagnose", "--log"]], "wrong unit (N·mm")
 
 
+def test_radians_under_a_degree_header_are_named_by_the_robot_fit(kr6, tmp_path):
+    """New-user trial 13: a CSV whose A<i>_deg columns hold radians (every joint 57 x too small and
+    slow) fitted without a word when the joints still moved fast enough (the one-axis fit warns), and
+    else was refused with "too few samples away from velocity reversals; lower the reversal window": no
+    log, no joint, and an option that does not apply with --robot. Now a warning naming the column,
+    and the refusal names the log, the joints and the unit."""
+    from click.testing import CliRunner
+
+    from kukaid.logs import write_csv
+    from kukaid_cli.main import cli
+
+    log, _ = simulated_log(kr6, duration=5.0, seed=0, f0=0.03)
+    csv = tmp_path / "raddeg.csv"
+    write_csv(log, csv, angle_unit="rad")
+    text = csv.read_text().splitlines()
+    csv.write_text("\n".join([text[0].replace("_rad", "_deg"), *text[1:]]) + "\n")
+    out = tmp_path / "p.json"
+    r = CliRunner().invoke(cli, ["fit", str(csv), "--robot", "kr6-r700-sixx", "-o", str(out)])
+    assert r.exit_code == 1 and not out.exists(), r.output
+    *warnings, error = r.stderr.splitlines()
+    assert warnings and all(w.startswith("kukaid: warning: fit: ") and "raddeg.csv: column A" in w for w in warnings), r.stderr
+    assert "column A1_deg spans only" in r.stderr and "radians written under a degree header" in warnings[0]
+    assert error.startswith("kukaid: error: ") and "raddeg.csv: too few samples to fit A1" in error, error
+    assert "radians written under a degree header" in error and "reversal window" not in error, error
+
+
 def test_settings_are_checked():
     with pytest.raises(FitError, match="friction model"):
         RobotFitSettings(friction="dahl")

@@ -1178,6 +1178,25 @@ def predictions(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive:
     return out
 
 
+def _too_few_moving(logs: Sequence[AxisLog], counts: np.ndarray) -> str:
+    """Why joints with fewer than 10 samples to fit (``counts``) cannot be fitted: each such
+    joint's equations are fitted only where it moves faster than :data:`STANDSTILL` away from its
+    reversals and stops; a joint that barely moves (positions in radians under a degree header:
+    57 x too small) has none."""
+    from kukaid.identify.adequacy import unit_warnings
+
+    names = ", ".join(str(lg.attrs.get("source_file", "log")) for lg in logs)
+    few = [j for j in range(counts.size) if counts[j] < 10]
+    said = ", ".join(f"A{j + 1} {int(counts[j])}" for j in few)
+    units = [w for lg in logs for j in few if (j + 1) in lg.axes for w in unit_warnings(lg, j + 1)]
+    if len(logs) == 1:  # the log is named first
+        units = [w.removeprefix(f"{names}: ") for w in units]
+    why = units[0] if units else "record a motion in which every joint moves (kukaid excite fourier --robot)"
+    return (f"{names}: too few samples to fit {', '.join(f'A{j + 1}' for j in few)}: a joint's equations are fitted "
+            f"where it moves faster than {STANDSTILL:g} rad/s away from its reversals and stops, and there are "
+            f"fewer than 10 such samples ({said}); {why}")
+
+
 @dataclass
 class _Terms:
     """One cut-off's samples, fold equations and per-joint held-out choices (:func:`_terms`)."""
@@ -1204,9 +1223,9 @@ def _terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSetting
     m = _samples(logs, n, settings, drive, raw=raw)
     N = m.q.shape[0]
     kw = m.keep.astype(float)
-    if np.any(kw.sum(axis=0) < 10):
-        raise FitError("too few samples away from velocity reversals; lower the reversal window")
     counts = kw.sum(axis=0)
+    if np.any(counts < 10):
+        raise FitError(_too_few_moving(logs, counts))
     # per-joint normal equations of all columns (standard parameters + extras), accumulated over
     # blocks of samples (never the (N, n, p) regressor), per candidate Coulomb transition velocity
     # and per fold when one is to be chosen: everything below works on these small matrices,
