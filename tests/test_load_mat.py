@@ -209,6 +209,14 @@ def test_mat_unit_mistakes_name_the_variable(tmp_path):
                                  "--q-scale", "0.017453292519943295", "--time-scale", "0.001", "-o", str(out)])
     assert r.exit_code == 0, r.output
     assert np.allclose(read_hdf5(out).time, t)
+    # new-user trial 13: --time-scale 0.001 on a time in seconds (EMPS) gave a 1 MHz log of 0.02 s, and
+    # fit wrote a mass of 9.5e-05 kg (95 kg) without a word
+    out = tmp_path / "us.h5"
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "u.mat"), "--time", "t", "--q", "deg", "--tau", "u",
+                                 "--q-scale", "0.017453292519943295", "--time-scale", "0.001", "-o", str(out)])
+    _one_line_error(r, "u.mat: time variable 't' has a median sample interval of 1.2e-05 s; under 5e-05 s",
+                    "seconds divided by 1000")
+    assert r.exit_code == 1 and not out.exists()
 
 
 def test_sample_time_option_builds_the_time_base(tmp_path):
