@@ -313,7 +313,7 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
                               f"{model.nv} joints (A1..A{model.nv}): write the trajectory without --krl")
     limits = robot_limits(model, None if qdd_max_deg is None else qdd_max_deg * _DEG, robot=robot)
     if limits_file is not None:
-        over = read_json(limits_file, TrajectoryError, "limits file (JSON)")
+        over = read_json(limits_file, TrajectoryError, "limits file (JSON)", schemas=())
         known = {lim.name for lim in limits}
         if not isinstance(over, dict) or any(k not in known for k in over):
             raise TrajectoryError(f"{limits_file}: expected an object {{axis name: limits}} with axis names among "

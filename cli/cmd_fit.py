@@ -222,7 +222,7 @@ def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decima
         from kukaid.errors import ParamFileError
         from kukaid.jsonfile import read_json
 
-        cpl = read_json(coupling, ParamFileError, "coupling matrix (JSON)")
+        cpl = read_json(coupling, ParamFileError, "coupling matrix (JSON)", schemas=())
         try:
             cpl = np.asarray(cpl, dtype=float)
         except (TypeError, ValueError):

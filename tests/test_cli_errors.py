@@ -463,6 +463,32 @@ def test_a_kukaid_file_given_as_limits_is_named_so(files, tmp_path, monkeypatch)
     assert os.listdir(tmp_path) == []
 
 
+def test_a_kukaid_file_given_as_another_json_input_is_named_so(files, tmp_path, monkeypatch):
+    """New-user trial 13: a trajectory given as --sim-config said "unknown field 'schema' (known: ...)", as a
+    gear-ratio file "'schema' is not an axis (A1 to A12)", as --coupling "must be a 6 x 6 matrix of numbers",
+    and a parameter file as a fourier --limits file "expected an object {axis name: limits}"."""
+    from trace_set import write_kr_c4_set
+
+    monkeypatch.chdir(tmp_path)
+    traj, params = files / "inertia.json", files / "params.json"
+    robot_traj = tmp_path / "robot.json"
+    robot_traj.write_text(json.dumps({"schema": "kukaid.robot-trajectory/1"}))
+    write_kr_c4_set(tmp_path, duration=0.1)
+    for args, what in (
+            (["capture", traj, "-o", "c.h5", "--sim-config", traj], f"{traj}: is a kukaid.trajectory/1 file, not a "
+             "simulator configuration (JSON)"),
+            (["run-admittance", "--params", params, "-o", "r.h5", "--sim-config", robot_traj],
+             f"{robot_traj}: is a kukaid.robot-trajectory/1 file, not a simulator configuration (JSON)"),
+            (["excite", "fourier", "-o", "f.json", "--limits", params], f"{params}: is a kukaid.params/1 file, not a "
+             "limits file (JSON)"),
+            (["fit", files / "inertia.h5", "--robot", "kr6-r700-sixx", "--rotor-inertia", "--coupling", params, "-o",
+              "p.json"], f"{params}: is a kukaid.params/1 file, not a coupling matrix (JSON)"),
+            (["load", tmp_path / "Rec_NextGenDrive#1.dat", "--gear-ratio", traj, "-o", "g.h5"],
+             f"{traj}: is a kukaid.trajectory/1 file, not a JSON file of gear ratios")):
+        _one_line_error(_run(*args), what, code=1)
+    assert not [f for f in os.listdir(tmp_path) if not f.startswith(("Rec_", "robot.json"))]
+
+
 def test_fit_cutoff_above_the_logs_nyquist_names_the_option(files):
     """Its limit depends on the log's sample rate: found with the data, but an option out of range
     (exit 2) that says --cutoff and the log; the defaults' limits stay data errors (exit 1)."""

@@ -135,13 +135,10 @@ def parse_gear_ratios(text: str | Path | dict | None) -> dict[int, float]:
     if isinstance(text, dict):
         raw = text
     elif str(text).lower().endswith(".json") or Path(str(text)).is_file():
-        import json
+        from kukaid.jsonfile import read_json
 
         where = str(text)
-        try:
-            raw = json.loads(Path(str(text)).read_text(encoding="utf-8-sig"))  # a byte order mark first is allowed
-        except (OSError, ValueError) as e:
-            raise LogFormatError(f"{text}: not a readable JSON file of gear ratios: {str(e)[:120]}") from None
+        raw = read_json(text, LogFormatError, "JSON file of gear ratios", schemas=())
         if isinstance(raw, dict) and isinstance(raw.get("gear_ratio"), dict):
             raw = raw["gear_ratio"]
         if not isinstance(raw, dict):

@@ -148,7 +148,8 @@ class RobotSimConfig:
     def load(cls, path: str | Path) -> "RobotSimConfig":
         from kukaid.jsonfile import read_json
 
-        return cls.from_dict(read_json(path, SimConfigError), str(path))
+        return cls.from_dict(read_json(path, SimConfigError, "robot simulator configuration (JSON)", schemas=()),
+                             str(path))
 
 
 # rows of the parameter array of :func:`servo_step`
