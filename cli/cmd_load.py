@@ -93,6 +93,11 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
                        joint=joint if given("joint") else None,
                        axis=_axes(source, axis), hints=hints)
     elif is_trace:
+        from kukaid.logs.trace import is_gear_ratio_file, parse_gear_ratios
+
+        if gear_ratio is not None and not is_gear_ratio_file(gear_ratio):
+            with usage_errors():  # the ratios themselves, typed as the option's value
+                gear_ratio = parse_gear_ratios(gear_ratio)
         options = dict(gear_ratio=gear_ratio, time_base=time_base)
     if source.suffix.lower() in (".h5", ".hdf5"):
         from kukaid.logs import read_hdf5

@@ -489,6 +489,21 @@ def test_a_kukaid_file_given_as_another_json_input_is_named_so(files, tmp_path, 
     assert not [f for f in os.listdir(tmp_path) if not f.startswith(("Rec_", "robot.json"))]
 
 
+@pytest.mark.parametrize("ratios, said", [("A1=0", "gear ratio of A1 must be finite and non-zero; got 0"),
+                                           ("A1=x", "gear ratio of A1 is not a number: 'x'"),
+                                           ("A13=100", "'A13' is not an axis (A1 to A12)"),
+                                           ("A1:100", "'A1:100' is not AXIS=RATIO")])
+def test_gear_ratios_typed_on_the_command_line_are_usage_errors(ratios, said, tmp_path):
+    """New-user trial 13: `load rec.dat --gear-ratio A1=0` was exit status 1, a problem of the data; the
+    ratios typed as the option's value are the option's (exit 2), as every option out of range."""
+    from trace_set import write_kr_c4_set
+
+    write_kr_c4_set(tmp_path, duration=0.1)
+    r = _run("load", tmp_path / "Rec_NextGenDrive#1.dat", "--gear-ratio", ratios, "-o", tmp_path / "g.h5")
+    _one_line_error(r, "--gear-ratio", said, code=2)
+    assert not (tmp_path / "g.h5").exists()
+
+
 def test_fit_cutoff_above_the_logs_nyquist_names_the_option(files):
     """Its limit depends on the log's sample rate: found with the data, but an option out of range
     (exit 2) that says --cutoff and the log; the defaults' limits stay data errors (exit 1)."""

@@ -123,6 +123,11 @@ def _is_drive(module: str) -> bool:
     return "drive" in module.lower()
 
 
+def is_gear_ratio_file(text: str | Path) -> bool:
+    """``--gear-ratio``'s value names a JSON file (else it is ``A1=120.5,...`` itself)."""
+    return str(text).lower().endswith(".json") or Path(str(text)).is_file()
+
+
 def parse_gear_ratios(text: str | Path | dict | None) -> dict[int, float]:
     """Gear ratios (motor turns per axis turn, sign included) per axis.
 
@@ -134,7 +139,7 @@ def parse_gear_ratios(text: str | Path | dict | None) -> dict[int, float]:
     where = "--gear-ratio"
     if isinstance(text, dict):
         raw = text
-    elif str(text).lower().endswith(".json") or Path(str(text)).is_file():
+    elif is_gear_ratio_file(text):
         from kukaid.jsonfile import read_json
 
         where = str(text)
