@@ -261,6 +261,25 @@ def test_torques_in_newton_millimetres_are_refused_by_fit_and_validate(kr6, tmp_
     _refused_on_the_command_line(nmm, tmp_path, sim_fit, [["validate"], ["diagnose", "--log"]], "wrong unit (N·mm")
 
 
+def test_torques_in_kilonewton_metres_are_refused_by_fit(kr6):
+    """New-user trial 13: a CSV whose A<i>_Nm columns hold kN·m fitted every link's mass to 0.00 x the
+    URDF's without a word (the mass bounds released: 561 % held-out error bounded); now one line naming
+    the joint, the torque the URDF's gravity needs and the unit. Motor-side torques are judged on the
+    joint side."""
+    from kukaid.identify.robot_fit import check_torque_size
+
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    knm = type(log)(time=log.time, q=log.q, tau=log.tau / 1000.0, axes=log.axes, attrs={"source_file": "knm.csv"})
+    with pytest.raises(FitError, match=r"knm\.csv: the torques are far below what the gravity of kr6_r700_sixx\.urdf's "
+                                       r"links needs .*\(A2: RMS .* N·m against .* N·m.*wrong unit \(kN·m"):
+        fit_robot([knm], kr6)
+    drive = DriveModel(np.full(6, 100.0), np.zeros((6, 6)), np.zeros(6))
+    motor = type(log)(time=log.time, q=log.q, tau=drive.motor_torque(log.tau), axes=log.axes)
+    check_torque_size(motor, kr6, drive, "motor")   # a hundredth of the joint torques, on the motor side
+    with pytest.raises(FitError, match="far below"):
+        check_torque_size(motor, kr6, DriveModel.direct(6), "joint")
+
+
 def test_radians_under_a_degree_header_are_named_by_the_robot_fit(kr6, tmp_path):
     """New-user trial 13: a CSV whose A<i>_deg columns hold radians (every joint 57 x too small and
     slow) fitted without a word when the joints still moved fast enough (the one-axis fit warns), and

@@ -315,6 +315,37 @@ def check_torque_scale(log: AxisLog, robot: RobotModel) -> None:
                            "or a torque in another unit under a column named N·m)?")
 
 
+#: every joint that carries weight measuring under this fraction of the torque the URDF's gravity
+#: alone needs at the logged positions is a unit mistake (kN·m), not a robot
+GRAVITY_FACTOR = 0.05
+
+
+def check_torque_size(log: AxisLog, robot: RobotModel, drive: DriveModel, torque_side: str = "joint",
+                      samples: int = 200) -> None:
+    """Refuse a log whose torques are far below what the URDF's gravity needs where the log holds
+    the arm (FitError naming the joint that carries most): torques in kN·m under a column named N·m
+    fitted every link's mass to 0.00 x the URDF's without a word (the mass bounds, 560 % held-out
+    error, released). Joints that carry under 5 % of the most loaded joint's gravity are not judged
+    (a counterbalanced or vertical axis); ``samples`` positions, evenly spread, are enough."""
+    cols = _joint_columns(log, robot.n)
+    rows = np.unique(np.linspace(0, log.n_samples - 1, min(samples, log.n_samples)).astype(int))
+    q = log.q[rows][:, cols]
+    g = robot.rnea(q, np.zeros_like(q), np.zeros_like(q))
+    tau = log.tau[rows][:, cols]
+    tau = drive.joint_torque(tau) if torque_side == "motor" else tau
+    g_rms, t_rms = np.sqrt(np.mean(g ** 2, axis=0)), np.sqrt(np.mean(tau ** 2, axis=0))
+    if not g_rms.max() > 0:
+        return
+    carry = g_rms >= 0.05 * g_rms.max()
+    if np.max(t_rms[carry] / g_rms[carry]) < GRAVITY_FACTOR:
+        j = int(np.argmax(g_rms))
+        raise FitError(f"{log.attrs.get('source_file', 'axis log')}: the torques are far below what the gravity of "
+                       f"{Path(robot.path).name}'s links needs at the logged positions (A{j + 1}: RMS {t_rms[j]:.3g} "
+                       f"N·m against {g_rms[j]:.3g} N·m; every joint that carries weight under {GRAVITY_FACTOR:g} x): "
+                       "wrong unit (kN·m, or a torque in another unit under a column named N·m), or another robot's "
+                       "URDF?")
+
+
 def _cutoff(settings: RobotFitSettings, fs: float) -> float:
     fc = settings.cutoff if settings.cutoff is not None else CUTOFF
     return min(fc, 0.1 * fs) if settings.cutoff is None else fc
@@ -1435,6 +1466,8 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
                  "torque sensor does not see the rotors")
     settings = replace(settings, rotor=motor_currents if settings.rotor is None else settings.rotor)
     drive = _drive(robot, settings, coupling)
+    for lg in logs:
+        check_torque_size(lg, robot, drive, settings.torque_side)
     base = robot.base_parameters()
     t = _cutoff_terms(logs, robot, settings, drive, base)
     settings, m, fe, K, p, ib, harmonic, spring_col, pick, choices = (
