@@ -349,6 +349,28 @@ def test_cli_fit_robot_validate_and_report(tmp_path, kr6, monkeypatch):
     assert r.exit_code == 2 and "--prior-weight needs --robot" in r.stderr
 
 
+def test_friction_page_of_seven_axes_with_rotors_holds_its_text():
+    """New-user trial 13: a 7-axis file with rotor inertias (the LWR4+ URDF on the virtual KR C4) drew
+    14 columns on the friction page: 'parameter', 'rotor_inertia', 'ripple_cos1' and the values' σ cut
+    off by their cells. The rotors are a row under their axes now, the names' column wider."""
+    from kukaid.report.robot import page_friction_consistency
+
+    n, names = 7, ["Fc", "Fv", "offset", "k", *(f"ripple_{c}{h}" for c in ("cos", "sin") for h in range(1, 5))]
+    values = {f"A{j}.{p}": 1.2345 * j for j in range(1, n + 1) for p in names}
+    values.update({f"M{j}.rotor_inertia": 0.06615 for j in range(1, n + 1)})
+    sigma = {k: 0.00093 for k in values}
+    params = {"friction": {"model": "coulomb-viscous", "values": values, "sigma": sigma},
+              "metrics": {"consistency": [{"mass": 2.0, "triangle_margin": 1e-3, "pseudo_inertia_min_eig": 1e-4,
+                                           "ok": True}] * n},
+              "robot": {"links": [f"lwr_{j}_link" for j in range(1, n + 1)]}}
+    fig = page_friction_consistency(params, "lwr.json")
+    assert not layout_problems(fig)
+    from matplotlib.table import Table
+
+    texts = {c.get_text().get_text() for tab in fig.findobj(Table) for c in tab.get_celld().values()}
+    assert "rotor_inertia (motor)" in texts and "M1" not in texts and "A7" in texts
+
+
 @pytest.mark.skipif(not LWR4.is_dir(), reason="real LWR4+ data (../shared/datasets/lwr4) not present")
 def test_lwr4_fit_generalises_to_the_other_trajectory():
     """Fit on lwr4_1, predict lwr4_3 (a different trajectory): the issue's acceptance figures."""
