@@ -58,6 +58,12 @@ def files(tmp_path_factory):
     (["fleet", "fit"], ["kukaid: error: fleet fit: Missing argument 'INPUT'"]),  # not `fit:`, another command
     (["capture", "x.json", "-o", "y.h5", "--seed", "-1"], ["capture: Invalid value for '--seed'"]),
     (["fit", "a.h5", "-o", "p.json", "--order", "60"], ["fit: Invalid value for '--order'"]),
+    # new-user trial 13: a negative seed was an internal error (exit 70), the fourier acceleration limit's
+    # error named no option ("axis limits: 'qdd_max' must be positive", exit 1)
+    (["excite", "fourier", "-o", "x.json", "--seed", "-1"], ["excite: Invalid value for '--seed'"]),
+    (["fleet", "simulate", "-o", "fleet", "--seed", "-1"], ["fleet simulate: Invalid value for '--seed'"]),
+    (["excite", "fourier", "-o", "x.json", "--qdd-max-deg", "0"], ["Invalid value for --qdd-max-deg", "> 0"]),
+    (["excite", "fourier", "-o", "x.json", "--qdd-max-deg", "nan"], ["Invalid value for --qdd-max-deg", "> 0"]),
     (["excite", "inertia", "-o", "x.json", "--lead", "1e9"], ["--lead", "longer than an hour"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--q0", "nan"], ["--q0", "not a position"]),
     # options of serve-sim that did nothing, without a word: a simulated A3 served for --axis 4, a
