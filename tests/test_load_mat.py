@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import json
-
+import os
 
 import numpy as np
 import pytest
@@ -96,6 +96,22 @@ def test_emps_stribeck_runs(emps, tmp_path):
     assert p["metrics"]["ipopt_status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
     save_params(tmp_path / "emps.json", p)
     assert p["inertial"]["Izz"] == pytest.approx(95.1, rel=0.05)
+
+
+def test_a_mat_file_without_q_and_tau_names_kukaid_load(small_mat, tmp_path):
+    """New-user trial 13: `kukaid fit DATA_EMPS.mat` and `kukaid validate DATA_EMPS_PULSES.mat` said "name the
+    position and torque variables (--q, --tau)", options neither command has: kukaid load names them."""
+    from kukaid.params import save_params
+    from kukaid.sim import SimConfig
+
+    save_params(tmp_path / "p.json", SimConfig().truth_params())
+    for args in (["fit", str(small_mat), "-o", str(tmp_path / "q.json")],
+                 ["validate", str(small_mat), "--params", str(tmp_path / "p.json")],
+                 ["load", str(small_mat), "-o", str(tmp_path / "x.h5")]):
+        r = CliRunner().invoke(cli, args)
+        _one_line_error(r, f"{small_mat}: no variables 'q' and 'tau'", f"kukaid load {small_mat} --q VAR --tau VAR -o "
+                        "LOG.h5, and give LOG.h5; variables: g, pos, tt, u")
+    assert sorted(os.listdir(tmp_path)) == ["p.json", "x.mat"]
 
 
 # -- audit: text variables, scales, the torque scale given twice, unit mistakes --------------------
