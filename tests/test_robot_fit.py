@@ -306,6 +306,21 @@ def test_radians_under_a_degree_header_are_named_by_the_robot_fit(kr6, tmp_path)
     assert "radians written under a degree header" in error and "reversal window" not in error, error
 
 
+def test_a_file_without_a_friction_term_its_settings_fit_is_named(tmp_path, sim_fit):
+    """New-user trial 13: a robot parameter file without 'A3.Fc' (edited by hand) was an internal error
+    (KeyError: 'A3.Fc', exit 70) in validate and report --log; now one line naming the file and the field."""
+    log, _ = simulated_log(RobotModel("kr6-r700-sixx"), duration=3.0, seed=5)
+    params = json.loads(json.dumps(sim_fit[0]))
+    del params["friction"]["values"]["A3.Fc"]
+    pfile = tmp_path / "cut.json"
+    pfile.write_text(json.dumps(params))
+    with pytest.raises(ParamFileError, match=r"^cut\.json: missing field 'friction\.values\.A3\.Fc'$"):
+        RobotFile(params, source="cut.json").predict(log)
+    _refused_on_the_command_line(type(log)(time=log.time, q=log.q, tau=log.tau, axes=log.axes,
+                                           attrs={"source_file": "other.csv"}), tmp_path, (params,),
+                                 [["validate"]], "missing field 'friction.values.A3.Fc'")
+
+
 def test_settings_are_checked():
     with pytest.raises(FitError, match="friction model"):
         RobotFitSettings(friction="dahl")

@@ -1621,12 +1621,13 @@ def _nonneg(names: Sequence[str]) -> list[bool]:
     return [nm.endswith((".Fc", ".Fv", ".rotor_inertia")) for nm in names]
 
 
-def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -> dict[int, np.ndarray]:
-    """Predicted joint torques of a robot parameter file on ``log``: {axis: (N,) N·m}.
+def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None,
+                  where: str = "robot parameter file") -> dict[int, np.ndarray]:
+    """Predicted joint torques of a robot parameter file (named ``where``) on ``log``: {axis: (N,) N·m}.
 
     The positions are filtered and differentiated as in the fit; the prediction is compared with
     the raw measured torques by the caller (:meth:`kukaid.identify.fitted.RobotFile.predict`)."""
-    validate_robot_params(params)
+    validate_robot_params(params, where)
     robot = robot or RobotModel(params["robot"]["urdf"])
     sha = params["robot"].get("sha256")
     if sha and sha != robot.sha256:
@@ -1643,6 +1644,10 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     drive = DriveModel.direct(n) if not settings.rotor else DriveModel(
         np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
     names = extra_names(robot, settings)
+    missing = [k for k in names if k not in params["friction"]["values"]]
+    if missing:  # a term the file's settings fit
+        raise ParamFileError(f"{where}: missing field 'friction.values.{missing[0]}'"
+                             + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
     extra = np.array([params["friction"]["values"][k] for k in names])
     effects = params.get("effects") or {}
     temp = log_temperatures(log, n) if any(k.startswith("thermal") for k in effects) else None
