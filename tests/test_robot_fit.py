@@ -170,6 +170,23 @@ def test_robot_params_file_round_trip_and_errors(tmp_path, sim_fit):
         validate_robot_params(bad, "p.json")
 
 
+def test_robot_params_with_a_broken_drive_or_base_numbering_are_refused(sim_fit):
+    """New-user trial 13: a file whose rotor inertias have no 'drive' (null), or whose base parameters
+    number a standard parameter beyond the robot's, was an internal error in validate (TypeError,
+    IndexError, exit 70); now one line naming the field."""
+    params, _ = sim_fit
+    bad = json.loads(json.dumps(params))
+    bad["settings"]["rotor"], bad["drive"] = True, None
+    with pytest.raises(ParamFileError, match=r"^p\.json: 'drive' must be an object \{ratio, coupling\}"):
+        validate_robot_params(bad, "p.json")
+    bad = json.loads(json.dumps(params))
+    bad["base_parameters"]["independent"][0] = 999
+    with pytest.raises(ParamFileError, match=r"^p\.json: 'base_parameters.independent' and 'dependent' must together "
+                                             r"number the 60 standard parameters 0 to 59, each once"):
+        validate_robot_params(bad, "p.json")
+    validate_robot_params(json.loads(json.dumps(params)), "p.json")
+
+
 def test_log_without_all_axes_is_refused(kr6):
     log, _ = simulated_log(kr6, duration=5.0, seed=0)
     part = type(log)(time=log.time, q=log.q[:, :3], tau=log.tau[:, :3], axes=(1, 2, 3))
