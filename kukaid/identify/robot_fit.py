@@ -1846,7 +1846,8 @@ def format_robot_table(params: dict) -> str:
             lines.append("link masses / URDF: " + " ".join(f"{r:.2f}{flag(r)}" for r in ratio)
                          + (f" (bounds {mb[0]:g}-{mb[1]:g}x, * on a bound)" if mb else " (no bounds)"))
         except Exception:  # noqa: BLE001 (the URDF moved: the masses alone)
-            lines.append("link masses kg: " + " ".join(table_number(std[lk]["m"]) for lk in std))
+            lines.append("link masses kg: " + " ".join(table_number(std[lk]["m"]) for lk in std)
+                         + f" (its URDF {rob['urdf']} not found: --urdf PATH gives them as multiples of the URDF's)")
     mcheck = ch.get("mass_bounds")
     if mcheck and mcheck.get("why"):
         lines.append(f"masses on a bound ({', '.join(mcheck.get('links_on_bound') or [])}): {mcheck['why']}")
