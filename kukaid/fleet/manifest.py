@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from kukaid.errors import KukaidError
-from kukaid.logs import COMPRESSIONS
+from kukaid.logs import COMPRESSIONS, format_suffix
 
 #: columns a manifest must have (``axis`` may be empty for a whole-arm log)
 MANIFEST_COLUMNS = ("robot", "axis", "date", "path")
@@ -146,8 +146,7 @@ def scan_folder(root: str | Path, pattern: str = DEFAULT_PATTERN) -> list[Entry]
     rx = pattern_regex(pattern)
     out = []
     for p in sorted(root.rglob("*")):
-        inner = p.with_suffix("") if p.suffix.lower() in COMPRESSIONS else p   # log.csv.gz: a CSV log
-        if not p.is_file() or inner.suffix.lower() not in LOG_SUFFIXES or any(s.startswith(".") for s in p.parts[-3:]):
+        if not p.is_file() or format_suffix(p) not in LOG_SUFFIXES or any(s.startswith(".") for s in p.parts[-3:]):
             continue
         rel = p.relative_to(root).as_posix()
         m = rx.match(rel)
