@@ -510,6 +510,20 @@ def test_gear_ratios_typed_on_the_command_line_are_usage_errors(ratios, said, tm
     assert not (tmp_path / "g.h5").exists()
 
 
+def test_a_robot_sim_config_whose_coupling_is_of_another_size_is_named(tmp_path, monkeypatch):
+    """New-user trial 13: `capture fourier.json --sim-config c.json` with a 1 x 1 coupling said "robot sim
+    config: field 'coupling' must be 6 x 6 for this robot", not which file."""
+    monkeypatch.chdir(tmp_path)
+    traj = tmp_path / "robot.json"
+    traj.write_text(json.dumps({"schema": "kukaid.robot-trajectory/1", "kind": "fourier", "robot": "kr6-r700-sixx",
+                                "axes": [1, 2, 3, 4, 5, 6], "sample_time": 0.012, "t": [0.0, 0.012],
+                                "q": [[0.0] * 6, [0.0] * 6]}))
+    (tmp_path / "c.json").write_text(json.dumps({"coupling": [[1.0]]}))
+    r = _run("capture", traj, "-o", "c.h5", "--sim-config", "c.json")
+    _one_line_error(r, "c.json: field 'coupling' must be 6 x 6 for this robot, got (1, 1)", code=1)
+    assert not (tmp_path / "c.h5").exists()
+
+
 def test_fit_cutoff_above_the_logs_nyquist_names_the_option(files):
     """Its limit depends on the log's sample rate: found with the data, but an option out of range
     (exit 2) that says --cutoff and the log; the defaults' limits stay data errors (exit 1)."""
