@@ -102,6 +102,7 @@ def _write(result, as_json: bool, output, report, check, save, draw, stage) -> N
     else:
         for line in result.lines():
             click.echo(line)
-    for path, what in ((output, "refined parameters"), (report, "report")):
+    refined = "refined parameters written" if result.steps else "parameters written as given (no effect named)"
+    for path, what in ((output, refined), (report, "report written")):
         if path is not None:
-            click.echo(f"{path}: {what} written", err=True)
+            click.echo(f"{path}: {what}", err=True)

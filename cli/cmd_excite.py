@@ -146,7 +146,7 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
 @click.option("--margin", type=float, help="fourier: fraction of the velocity/acceleration limits used [0.9].")
 @click.option("--span", type=float, help="fourier: fraction of each joint's range used around its centre [0.6].")
 @click.option("--iterations", type=int, help="fourier: optimiser iterations (L-BFGS-B) [10].")
-@click.option("--seed", type=int, help="fourier: seed of the optimiser's random starts [0].")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), help="fourier: seed of the optimiser's random starts [0].")
 @click.option("--centres-deg", help="fourier: centre of each joint's motion, deg, comma-separated [middle of the ranges].")
 def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: float | None,
             force: bool, as_json: bool, axis: int, limits_file: Path | None, q_min_deg: float | None, q_max_deg: float | None,
@@ -299,8 +299,9 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
     from kukaid.jsonfile import read_json
     from kukaid.models.limits import AxisLimits
     from kukaid.models.urdf import load_model
-    from kukaid_cli._util import check_outputs, echo_json, given, krl_texts, progress, usage_errors
+    from kukaid_cli._util import check_outputs, echo_json, given, krl_texts, progress, require_positive, usage_errors
 
+    require_positive(("--qdd-max-deg", qdd_max_deg))
     if given("axis"):
         raise click.UsageError("option --axis does not apply to 'fourier' (it moves every axis of --robot)")
     for flag, v in (("--q-min-deg", q_min_deg), ("--q-max-deg", q_max_deg), ("--qd-max-deg", qd_max_deg)):
@@ -313,7 +314,7 @@ def _fourier(output: Path, krl_dir: Path | None, krl_name: str | None, krl_tol: 
                               f"{model.nv} joints (A1..A{model.nv}): write the trajectory without --krl")
     limits = robot_limits(model, None if qdd_max_deg is None else qdd_max_deg * _DEG, robot=robot)
     if limits_file is not None:
-        over = read_json(limits_file, TrajectoryError, "limits file (JSON)")
+        over = read_json(limits_file, TrajectoryError, "limits file (JSON)", schemas=())
         known = {lim.name for lim in limits}
         if not isinstance(over, dict) or any(k not in known for k in over):
             raise TrajectoryError(f"{limits_file}: expected an object {{axis name: limits}} with axis names among "

@@ -195,6 +195,7 @@ def _mass_bounds(text: str | None):
 def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decimate, prior_weight, torque_side,
                stribeck_vs, rotor_inertia, coupling, as_json=False, mass_bounds=None, viscous_beyond=None) -> None:
     """``kukaid fit LOG... --robot``: the whole robot, written as kukaid.robot_params/1."""
+    from kukaid.identify.adequacy import unit_warnings
     from kukaid.identify.robot_fit import PRIOR_WEIGHT, RobotFitSettings, fit_robot, format_robot_table
     from kukaid.logs import read_log
     from kukaid.models.robot import RobotModel
@@ -221,7 +222,7 @@ def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decima
         from kukaid.errors import ParamFileError
         from kukaid.jsonfile import read_json
 
-        cpl = read_json(coupling, ParamFileError, "coupling matrix (JSON)")
+        cpl = read_json(coupling, ParamFileError, "coupling matrix (JSON)", schemas=())
         try:
             cpl = np.asarray(cpl, dtype=float)
         except (TypeError, ValueError):
@@ -232,6 +233,8 @@ def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decima
     stage = stages("fit")
     stage("reading the logs")
     data = [read_log(p) for p in logs]
+    for w in [w for lg in data for a in lg.axes for w in unit_warnings(lg, a)]:
+        click.echo(f"kukaid: warning: fit: {w}", err=True)
     stage(f"fitting A1..A{model.n} of {robot} (base parameters, then the physically consistent estimate)")
     with option_in_data_error(("--cutoff", cutoff is not None, "filter cut-off")):
         params = fit_robot(data, model, settings, coupling=cpl)

@@ -146,7 +146,7 @@ def fit_cmd(source, output, pattern, workers, scheduler, robot, friction_model) 
               help="Friction growth of a wearing axis over the period, relative.")
 @click.option("--temp-swing", type=click.FloatRange(0, 60), default=15.0, show_default=True,
               help="Day-to-day motor temperature swing, ± °C around 32 °C.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of every draw.")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True, help="Seed of every draw.")
 @_WORKERS
 @_SCHEDULER
 @click.option("--force", is_flag=True, help="Write into a folder that already holds files.")

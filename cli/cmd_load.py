@@ -62,6 +62,7 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
 
     Trace example (KR C4): kukaid load Rec_NextGenDrive#1.dat --gear-ratio gear.json -o rec.h5
     """
+    from kukaid.logs import format_suffix, read_log, write_csv, write_hdf5
     from kukaid_cli._util import check_outputs, check_suffix, given, refuse_overwrite, usage_errors
 
     # before anything is read or written: the output's format, that it is not the input, no overwrite
@@ -69,15 +70,13 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
     check_outputs([output], [source])
     refuse_overwrite(output, force)
     fmt = OUTPUT_FORMATS[output.suffix.lower()]
-    is_mat = source.suffix.lower() == ".mat"
-    is_trace = source.suffix.lower() in TRACE_SUFFIXES
+    is_mat = format_suffix(source) == ".mat"   # also compressed: rec.mat.bz2
+    is_trace = format_suffix(source) in TRACE_SUFFIXES
     for options, applies, kind in ((MAT_OPTIONS, is_mat, "MAT (.mat)"),
                                    (TRACE_OPTIONS, is_trace, "KUKA Trace (.dat, .r64)")):
         typed = [opt for name, opt in options.items() if given(name)]
         if typed and not applies:
             raise click.UsageError(f"{source}: option {typed[0]} is for {kind} sources")
-
-    from kukaid.logs import read_log, write_csv, write_hdf5
 
     options, hints = {}, []
     if is_mat:
@@ -93,6 +92,11 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
                        joint=joint if given("joint") else None,
                        axis=_axes(source, axis), hints=hints)
     elif is_trace:
+        from kukaid.logs.trace import is_gear_ratio_file, parse_gear_ratios
+
+        if gear_ratio is not None and not is_gear_ratio_file(gear_ratio):
+            with usage_errors():  # the ratios themselves, typed as the option's value
+                gear_ratio = parse_gear_ratios(gear_ratio)
         options = dict(gear_ratio=gear_ratio, time_base=time_base)
     if source.suffix.lower() in (".h5", ".hdf5"):
         from kukaid.logs import read_hdf5

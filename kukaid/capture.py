@@ -304,6 +304,10 @@ def robot_sim_config(path: str | Path | None = None, robot: str = "") -> Any:
     cfg = RobotSimConfig.load(path) if path is not None else RobotSimConfig()
     if robot and (path is None or cfg.robot == RobotSimConfig.robot):
         cfg = cfg.replace(robot=robot)
+    if path is not None and cfg.coupling is not None:  # its size is the robot's: the file is named
+        from kukaid.models.urdf import load_model
+
+        cfg.coupling_matrix(load_model(cfg.robot).nv, str(path))
     return cfg
 
 

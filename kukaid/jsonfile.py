@@ -11,9 +11,12 @@ import numpy as np
 from kukaid.errors import KukaidError, ParamFileError, SimConfigError, TrajectoryError
 
 
-def read_json(path: str | Path, error: type[KukaidError] = KukaidError, what: str | None = None) -> Any:
+def read_json(path: str | Path, error: type[KukaidError] = KukaidError, what: str | None = None,
+              schemas: tuple[str, ...] | None = None) -> Any:
     """Parse the JSON file ``path``; raise ``error`` with one line naming the file and the problem
-    (an axis log given instead: said so, ``what`` the file should have been, by default from ``error``)."""
+    (an axis log given instead: said so, ``what`` the file should have been, by default from ``error``).
+    ``schemas``: the toolkit's files (``"schema"``) the reader also takes; another of them is refused
+    as what it is (``"is a kukaid.robot-trajectory/1 file, not a simulator configuration (JSON)"``)."""
     path = Path(path)
     try:
         raw = path.read_bytes()
@@ -25,12 +28,16 @@ def read_json(path: str | Path, error: type[KukaidError] = KukaidError, what: st
     if not text.strip():
         raise error(f"{path}: empty file")
     try:
-        return json.loads(text)
+        d = json.loads(text)
     except json.JSONDecodeError as e:
         kind = _output_kind(raw) or _urdf_kind(raw)
         if kind is not None:
             raise error(f"{path}: is {kind}, not a {what or _expected(error)}") from None
         raise error(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
+    schema = d.get("schema") if isinstance(d, dict) else None
+    if schemas is not None and isinstance(schema, str) and schema not in schemas:
+        raise error(f"{path}: is a {schema} file, not a {what or _expected(error)}")
+    return d
 
 
 def _log_format(raw: bytes) -> str | None:

@@ -58,6 +58,12 @@ def files(tmp_path_factory):
     (["fleet", "fit"], ["kukaid: error: fleet fit: Missing argument 'INPUT'"]),  # not `fit:`, another command
     (["capture", "x.json", "-o", "y.h5", "--seed", "-1"], ["capture: Invalid value for '--seed'"]),
     (["fit", "a.h5", "-o", "p.json", "--order", "60"], ["fit: Invalid value for '--order'"]),
+    # new-user trial 13: a negative seed was an internal error (exit 70), the fourier acceleration limit's
+    # error named no option ("axis limits: 'qdd_max' must be positive", exit 1)
+    (["excite", "fourier", "-o", "x.json", "--seed", "-1"], ["excite: Invalid value for '--seed'"]),
+    (["fleet", "simulate", "-o", "fleet", "--seed", "-1"], ["fleet simulate: Invalid value for '--seed'"]),
+    (["excite", "fourier", "-o", "x.json", "--qdd-max-deg", "0"], ["Invalid value for --qdd-max-deg", "> 0"]),
+    (["excite", "fourier", "-o", "x.json", "--qdd-max-deg", "nan"], ["Invalid value for --qdd-max-deg", "> 0"]),
     (["excite", "inertia", "-o", "x.json", "--lead", "1e9"], ["--lead", "longer than an hour"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--q0", "nan"], ["--q0", "not a position"]),
     # options of serve-sim that did nothing, without a word: a simulated A3 served for --axis 4, a
@@ -461,6 +467,61 @@ def test_a_kukaid_file_given_as_limits_is_named_so(files, tmp_path, monkeypatch)
         _one_line_error(r, f"{files / name}: is a {schema} file, not a limits file (JSON: q_min, q_max, qd_max, "
                            "qdd_max, optionally with _deg)", code=1)
     assert os.listdir(tmp_path) == []
+
+
+def test_a_kukaid_file_given_as_another_json_input_is_named_so(files, tmp_path, monkeypatch):
+    """New-user trial 13: a trajectory given as --sim-config said "unknown field 'schema' (known: ...)", as a
+    gear-ratio file "'schema' is not an axis (A1 to A12)", as --coupling "must be a 6 x 6 matrix of numbers",
+    and a parameter file as a fourier --limits file "expected an object {axis name: limits}"."""
+    from trace_set import write_kr_c4_set
+
+    monkeypatch.chdir(tmp_path)
+    traj, params = files / "inertia.json", files / "params.json"
+    robot_traj = tmp_path / "robot.json"
+    robot_traj.write_text(json.dumps({"schema": "kukaid.robot-trajectory/1"}))
+    write_kr_c4_set(tmp_path, duration=0.1)
+    for args, what in (
+            (["capture", traj, "-o", "c.h5", "--sim-config", traj], f"{traj}: is a kukaid.trajectory/1 file, not a "
+             "simulator configuration (JSON)"),
+            (["run-admittance", "--params", params, "-o", "r.h5", "--sim-config", robot_traj],
+             f"{robot_traj}: is a kukaid.robot-trajectory/1 file, not a simulator configuration (JSON)"),
+            (["excite", "fourier", "-o", "f.json", "--limits", params], f"{params}: is a kukaid.params/1 file, not a "
+             "limits file (JSON)"),
+            (["fit", files / "inertia.h5", "--robot", "kr6-r700-sixx", "--rotor-inertia", "--coupling", params, "-o",
+              "p.json"], f"{params}: is a kukaid.params/1 file, not a coupling matrix (JSON)"),
+            (["load", tmp_path / "Rec_NextGenDrive#1.dat", "--gear-ratio", traj, "-o", "g.h5"],
+             f"{traj}: is a kukaid.trajectory/1 file, not a JSON file of gear ratios")):
+        _one_line_error(_run(*args), what, code=1)
+    assert not [f for f in os.listdir(tmp_path) if not f.startswith(("Rec_", "robot.json"))]
+
+
+@pytest.mark.parametrize("ratios, said", [("A1=0", "gear ratio of A1 must be finite and non-zero; got 0"),
+                                           ("A1=x", "gear ratio of A1 is not a number: 'x'"),
+                                           ("A13=100", "'A13' is not an axis (A1 to A12)"),
+                                           ("A1:100", "'A1:100' is not AXIS=RATIO")])
+def test_gear_ratios_typed_on_the_command_line_are_usage_errors(ratios, said, tmp_path):
+    """New-user trial 13: `load rec.dat --gear-ratio A1=0` was exit status 1, a problem of the data; the
+    ratios typed as the option's value are the option's (exit 2), as every option out of range."""
+    from trace_set import write_kr_c4_set
+
+    write_kr_c4_set(tmp_path, duration=0.1)
+    r = _run("load", tmp_path / "Rec_NextGenDrive#1.dat", "--gear-ratio", ratios, "-o", tmp_path / "g.h5")
+    _one_line_error(r, "--gear-ratio", said, code=2)
+    assert not (tmp_path / "g.h5").exists()
+
+
+def test_a_robot_sim_config_whose_coupling_is_of_another_size_is_named(tmp_path, monkeypatch):
+    """New-user trial 13: `capture fourier.json --sim-config c.json` with a 1 x 1 coupling said "robot sim
+    config: field 'coupling' must be 6 x 6 for this robot", not which file."""
+    monkeypatch.chdir(tmp_path)
+    traj = tmp_path / "robot.json"
+    traj.write_text(json.dumps({"schema": "kukaid.robot-trajectory/1", "kind": "fourier", "robot": "kr6-r700-sixx",
+                                "axes": [1, 2, 3, 4, 5, 6], "sample_time": 0.012, "t": [0.0, 0.012],
+                                "q": [[0.0] * 6, [0.0] * 6]}))
+    (tmp_path / "c.json").write_text(json.dumps({"coupling": [[1.0]]}))
+    r = _run("capture", traj, "-o", "c.h5", "--sim-config", "c.json")
+    _one_line_error(r, "c.json: field 'coupling' must be 6 x 6 for this robot, got (1, 1)", code=1)
+    assert not (tmp_path / "c.h5").exists()
 
 
 def test_fit_cutoff_above_the_logs_nyquist_names_the_option(files):

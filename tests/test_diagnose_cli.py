@@ -122,6 +122,19 @@ def test_a_refit_the_steps_start_from_is_printed_as_before(case):
     assert out[1] == "refit without new effects: RMSE 1.042 N·m" and "RMSE 1.042 -> " in r.output, r.output
 
 
+def test_a_file_with_nothing_named_is_not_called_refined(case, tmp_path):
+    """New-user trial 13: diagnose -o printed "refined parameters written" when no effect was named and
+    the file written held the given parameters, unchanged (its provenance records the diagnosis)."""
+    d, params, paths = case
+    out = tmp_path / "same.json"
+    r = CliRunner().invoke(cli, args(params, paths, "--max-steps", "0", "-o", str(out)))
+    assert r.exit_code == 0 and "step 1" not in r.stdout, r.output
+    assert f"{out}: parameters written as given (no effect named)" in r.stderr and "refined" not in r.stderr, r.stderr
+    written, given = json.loads(out.read_text()), json.loads(params.read_text())
+    assert written["provenance"]["diagnose"]["effects_added"] == []    # the diagnosis is recorded
+    assert {k: v for k, v in written.items() if k != "provenance"} == {k: v for k, v in given.items() if k != "provenance"}
+
+
 def test_bad_inputs_give_one_line_errors(case, tmp_path):
     d, params, paths = case
     bad = tmp_path / "bad.json"

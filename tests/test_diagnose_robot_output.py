@@ -140,7 +140,7 @@ def test_a_robot_file_names_its_effects_right():
 
 def _minimal(effects):
     return {"schema": "kukaid.robot_params/1", "robot": {"urdf": "kr6-r700-sixx"}, "axes": [1, 2],
-            "base_parameters": {"names": ["a"], "values": [1.0], "independent": [0], "dependent": list(range(19)),
+            "base_parameters": {"names": ["a"], "values": [1.0], "independent": [0], "dependent": list(range(1, 20)),
                                 "R": [[0.0] * 19]},
             "friction": {"model": "coulomb-viscous", "values": {}}, "settings": {}, "effects": effects}
 

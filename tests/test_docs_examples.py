@@ -77,6 +77,16 @@ def test_every_block_is_labelled():
     assert bad == []
 
 
+def test_trace_loads_shown_give_the_gear_ratios():
+    """New-user trial 13: real-controller.md showed `kukaid load REC_NextGenDrive#1.dat -o trace.h5`, which a
+    KR C4's recording refuses (its drives record motor-side positions, beyond 720 degrees: 'give the gear
+    ratios'); every KUKA Trace load shown (not run: sh-robot) gives --gear-ratio."""
+    shown = [(f"{page.relative_to(ROOT)}:{line}", cmd) for page in PAGES for label, body, line in blocks(page)
+             if label.startswith("sh") for cmd in body.splitlines()
+             if re.match(r"\s*kukaid load \S+\.(dat|r64)\b", cmd)]
+    assert shown and not [w for w, cmd in shown if "--gear-ratio" not in cmd], shown
+
+
 def test_readme_is_short_and_links_every_page():
     """README.md stays a front page (at most 250 lines); its "Where to read on" links every page
     of docs/ (a new page gets a row there) and no page that does not exist."""

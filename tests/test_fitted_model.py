@@ -226,6 +226,13 @@ def test_a_robot_file_finds_its_urdf_after_the_project_moved_or_says_how_to_give
     assert r.exit_code == 1 and "(robot.urdf) is not there" in r.stderr and not (tmp_path / "run.h5").exists()
     r = CliRunner().invoke(cli, ["show", par])                             # the table needs no URDF
     assert r.exit_code == 0 and Path(par).name not in r.stderr, r.output
+    # new-user trial 13: it printed the masses in kg where the table has them as multiples of the URDF's,
+    # without a word why
+    (masses,) = [x for x in r.stdout.splitlines() if x.startswith("link masses")]
+    assert masses.startswith("link masses kg: ") and masses.endswith(
+        f"(its URDF {proj / 'robot' / 'kr6.urdf'} not found: --urdf PATH gives them as multiples of the URDF's)"), masses
+    r = CliRunner().invoke(cli, ["show", par, "--urdf", str(tmp_path / "kr6.urdf")])
+    assert r.exit_code == 0 and "link masses / URDF: " in r.stdout, r.output
 
 
 def test_the_robot_report_says_the_cut_off_and_how_it_was_chosen(robot_case):

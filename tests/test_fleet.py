@@ -39,6 +39,24 @@ def test_manifest_and_folder_give_the_same_logs(tmp_path):
     assert len(read_input(tmp_path / "logs")) == 4  # default pattern {robot}/{date}/*
 
 
+def test_a_folder_of_compressed_logs_is_scanned(tmp_path):
+    """New-user trial 13: `fleet fit FOLDER` of A3.csv.gz logs said "no log matches the pattern" while a
+    manifest naming them, and every other command, read them."""
+    import gzip
+
+    small_fleet(tmp_path, robots=1, days=2)
+    for p in sorted((tmp_path / "logs").rglob("*.h5")):
+        p.with_name(p.name + ".gz").write_bytes(gzip.compress(p.read_bytes()))
+        p.unlink()
+    got = scan_folder(tmp_path / "logs", "{robot}/{date}/A{axis}.h5.gz")
+    assert len(got) == 2 and all(e.path.endswith("A3.h5.gz") and e.axis == 3 for e in got)
+    assert len(read_input(tmp_path / "logs")) == 2  # the default pattern {robot}/{date}/*
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt.gz").write_bytes(gzip.compress(b"x"))
+    with pytest.raises(ManifestError, match=r"no log matches .* optionally compressed: \.gz, \.bz2, \.xz"):
+        scan_folder(tmp_path / "other")
+
+
 @pytest.mark.parametrize("text, phrase", [
     ("robot,date,path\nR1,2026-01-01,a.h5\n", "lacks column(s) axis"),
     ("robot,axis,date,path\nR1,3,01/02/2026,a.h5\n", "not a date"),

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import json
-
+import os
 
 import numpy as np
 import pytest
@@ -96,6 +96,22 @@ def test_emps_stribeck_runs(emps, tmp_path):
     assert p["metrics"]["ipopt_status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
     save_params(tmp_path / "emps.json", p)
     assert p["inertial"]["Izz"] == pytest.approx(95.1, rel=0.05)
+
+
+def test_a_mat_file_without_q_and_tau_names_kukaid_load(small_mat, tmp_path):
+    """New-user trial 13: `kukaid fit DATA_EMPS.mat` and `kukaid validate DATA_EMPS_PULSES.mat` said "name the
+    position and torque variables (--q, --tau)", options neither command has: kukaid load names them."""
+    from kukaid.params import save_params
+    from kukaid.sim import SimConfig
+
+    save_params(tmp_path / "p.json", SimConfig().truth_params())
+    for args in (["fit", str(small_mat), "-o", str(tmp_path / "q.json")],
+                 ["validate", str(small_mat), "--params", str(tmp_path / "p.json")],
+                 ["load", str(small_mat), "-o", str(tmp_path / "x.h5")]):
+        r = CliRunner().invoke(cli, args)
+        _one_line_error(r, f"{small_mat}: no variables 'q' and 'tau'", f"kukaid load {small_mat} --q VAR --tau VAR -o "
+                        "LOG.h5, and give LOG.h5; variables: g, pos, tt, u")
+    assert sorted(os.listdir(tmp_path)) == ["p.json", "x.mat"]
 
 
 # -- audit: text variables, scales, the torque scale given twice, unit mistakes --------------------
@@ -209,6 +225,14 @@ def test_mat_unit_mistakes_name_the_variable(tmp_path):
                                  "--q-scale", "0.017453292519943295", "--time-scale", "0.001", "-o", str(out)])
     assert r.exit_code == 0, r.output
     assert np.allclose(read_hdf5(out).time, t)
+    # new-user trial 13: --time-scale 0.001 on a time in seconds (EMPS) gave a 1 MHz log of 0.02 s, and
+    # fit wrote a mass of 9.5e-05 kg (95 kg) without a word
+    out = tmp_path / "us.h5"
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "u.mat"), "--time", "t", "--q", "deg", "--tau", "u",
+                                 "--q-scale", "0.017453292519943295", "--time-scale", "0.001", "-o", str(out)])
+    _one_line_error(r, "u.mat: time variable 't' has a median sample interval of 1.2e-05 s; under 5e-05 s",
+                    "seconds divided by 1000")
+    assert r.exit_code == 1 and not out.exists()
 
 
 def test_sample_time_option_builds_the_time_base(tmp_path):

@@ -50,3 +50,24 @@ def test_broken_or_unknown_compressed_log_is_one_clear_error(plain):
 
     r = CliRunner().invoke(cli, ["validate", "--params", str(plain / "nope.json"), str(bad)])
     assert r.exit_code != 0 and "Traceback" not in r.output
+
+
+@pytest.mark.parametrize("ext, mod", [(".gz", gzip), (".bz2", bz2), (".xz", lzma)])
+def test_a_compressed_mat_file_takes_the_mat_options(tmp_path, ext, mod):
+    """New-user trial 13: `kukaid load DATA_EMPS.mat.bz2 --time t --q qm --tau vir ...` said "option --time is
+    for MAT (.mat) sources", though every reader opens a compressed MAT file."""
+    from scipy.io import savemat
+
+    from kukaid.logs import read_hdf5
+    from kukaid_cli.main import cli
+
+    t = np.arange(300) * 0.001
+    savemat(tmp_path / "rec.mat", {"tt": t[:, None], "pos": np.sin(t)[:, None], "u": np.cos(t)[:, None]})
+    src = tmp_path / f"rec.mat{ext}"
+    src.write_bytes(mod.compress((tmp_path / "rec.mat").read_bytes()))
+    out = tmp_path / "rec.h5"
+    r = CliRunner().invoke(cli, ["load", str(src), "--time", "tt", "--q", "pos", "--tau", "u", "--joint", "revolute",
+                                 "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    log = read_hdf5(out)
+    assert np.allclose(log.time, t) and np.allclose(log.q[:, 0], np.sin(t)) and np.allclose(log.tau[:, 0], np.cos(t))

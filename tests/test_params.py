@@ -225,6 +225,34 @@ def test_command_refuses_broken_file_in_one_line_and_writes_nothing(tmp_path, ed
     assert len(r.output.strip().splitlines()) == 1 and not out.exists()
 
 
+@pytest.mark.parametrize("pre, message", [
+    ({"cutoff": "x"}, "provenance.preprocess.cutoff must be a number, got \"x\""),
+    ({"cutoff": 0}, "provenance.preprocess.cutoff = 0 is outside the allowed range"),
+    ({"order": 99}, "provenance.preprocess.order = 99 is outside the allowed range [1, 8]"),
+    ({"order": 3.5}, "provenance.preprocess.order must be a whole number, got 3.5"),
+    ({"decimate": 0}, "provenance.preprocess.decimate = 0 is outside the allowed range"),
+    ({"diff": "fancy"}, "provenance.preprocess.diff must be \"central\" or \"spectral\""),
+])
+def test_the_fits_preprocessing_the_readers_take_is_checked(tmp_path, pre, message):
+    """New-user trial 13: provenance.preprocess.cutoff "x" was an internal error in show, validate and
+    report (exit 70), an order of 99 filtered new logs with it, a decimation of 0 was ignored; the rest of
+    provenance stays free-form."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    d = good()
+    d["provenance"] = {"note": "hand-made", "preprocess": {"cutoff": 5.0, "order": 3, "edge": 84, "decimate": 1,
+                                                           "diff": "central", "why": "anything"}}
+    save_params(tmp_path / "ok.json", d)
+    d["provenance"]["preprocess"].update(pre)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(d))
+    r = CliRunner().invoke(cli, ["show", str(bad)])
+    assert r.exit_code == 1 and r.output.startswith(f"kukaid: error: {bad}: ") and message in r.output, r.output
+    assert len(r.output.strip().splitlines()) == 1
+
+
 def test_broken_json(tmp_path):
     (tmp_path / "p.json").write_text('{"schema": "kukaid.params/1",\n "friction": {')
     with pytest.raises(ParamFileError, match=r"p.json: not valid JSON \(line 2"):

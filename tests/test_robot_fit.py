@@ -170,6 +170,23 @@ def test_robot_params_file_round_trip_and_errors(tmp_path, sim_fit):
         validate_robot_params(bad, "p.json")
 
 
+def test_robot_params_with_a_broken_drive_or_base_numbering_are_refused(sim_fit):
+    """New-user trial 13: a file whose rotor inertias have no 'drive' (null), or whose base parameters
+    number a standard parameter beyond the robot's, was an internal error in validate (TypeError,
+    IndexError, exit 70); now one line naming the field."""
+    params, _ = sim_fit
+    bad = json.loads(json.dumps(params))
+    bad["settings"]["rotor"], bad["drive"] = True, None
+    with pytest.raises(ParamFileError, match=r"^p\.json: 'drive' must be an object \{ratio, coupling\}"):
+        validate_robot_params(bad, "p.json")
+    bad = json.loads(json.dumps(params))
+    bad["base_parameters"]["independent"][0] = 999
+    with pytest.raises(ParamFileError, match=r"^p\.json: 'base_parameters.independent' and 'dependent' must together "
+                                             r"number the 60 standard parameters 0 to 59, each once"):
+        validate_robot_params(bad, "p.json")
+    validate_robot_params(json.loads(json.dumps(params)), "p.json")
+
+
 def test_log_without_all_axes_is_refused(kr6):
     log, _ = simulated_log(kr6, duration=5.0, seed=0)
     part = type(log)(time=log.time, q=log.q[:, :3], tau=log.tau[:, :3], axes=(1, 2, 3))
@@ -261,6 +278,66 @@ def test_torques_in_newton_millimetres_are_refused_by_fit_and_validate(kr6, tmp_
     _refused_on_the_command_line(nmm, tmp_path, sim_fit, [["validate"], ["diagnose", "--log"]], "wrong unit (N·mm")
 
 
+def test_torques_in_kilonewton_metres_are_refused_by_fit(kr6):
+    """New-user trial 13: a CSV whose A<i>_Nm columns hold kN·m fitted every link's mass to 0.00 x the
+    URDF's without a word (the mass bounds released: 561 % held-out error bounded); now one line naming
+    the joint, the torque the URDF's gravity needs and the unit. Motor-side torques are judged on the
+    joint side."""
+    from kukaid.identify.robot_fit import check_torque_size
+
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    knm = type(log)(time=log.time, q=log.q, tau=log.tau / 1000.0, axes=log.axes, attrs={"source_file": "knm.csv"})
+    with pytest.raises(FitError, match=r"knm\.csv: the torques are far below what the gravity of kr6_r700_sixx\.urdf's "
+                                       r"links needs .*\(A2: RMS .* N·m against .* N·m.*wrong unit \(kN·m"):
+        fit_robot([knm], kr6)
+    drive = DriveModel(np.full(6, 100.0), np.zeros((6, 6)), np.zeros(6))
+    motor = type(log)(time=log.time, q=log.q, tau=drive.motor_torque(log.tau), axes=log.axes)
+    check_torque_size(motor, kr6, drive, "motor")   # a hundredth of the joint torques, on the motor side
+    with pytest.raises(FitError, match="far below"):
+        check_torque_size(motor, kr6, DriveModel.direct(6), "joint")
+
+
+def test_radians_under_a_degree_header_are_named_by_the_robot_fit(kr6, tmp_path):
+    """New-user trial 13: a CSV whose A<i>_deg columns hold radians (every joint 57 x too small and
+    slow) fitted without a word when the joints still moved fast enough (the one-axis fit warns), and
+    else was refused with "too few samples away from velocity reversals; lower the reversal window": no
+    log, no joint, and an option that does not apply with --robot. Now a warning naming the column,
+    and the refusal names the log, the joints and the unit."""
+    from click.testing import CliRunner
+
+    from kukaid.logs import write_csv
+    from kukaid_cli.main import cli
+
+    log, _ = simulated_log(kr6, duration=5.0, seed=0, f0=0.03)
+    csv = tmp_path / "raddeg.csv"
+    write_csv(log, csv, angle_unit="rad")
+    text = csv.read_text().splitlines()
+    csv.write_text("\n".join([text[0].replace("_rad", "_deg"), *text[1:]]) + "\n")
+    out = tmp_path / "p.json"
+    r = CliRunner().invoke(cli, ["fit", str(csv), "--robot", "kr6-r700-sixx", "-o", str(out)])
+    assert r.exit_code == 1 and not out.exists(), r.output
+    *warnings, error = r.stderr.splitlines()
+    assert warnings and all(w.startswith("kukaid: warning: fit: ") and "raddeg.csv: column A" in w for w in warnings), r.stderr
+    assert "column A1_deg spans only" in r.stderr and "radians written under a degree header" in warnings[0]
+    assert error.startswith("kukaid: error: ") and "raddeg.csv: too few samples to fit A1" in error, error
+    assert "radians written under a degree header" in error and "reversal window" not in error, error
+
+
+def test_a_file_without_a_friction_term_its_settings_fit_is_named(tmp_path, sim_fit):
+    """New-user trial 13: a robot parameter file without 'A3.Fc' (edited by hand) was an internal error
+    (KeyError: 'A3.Fc', exit 70) in validate and report --log; now one line naming the file and the field."""
+    log, _ = simulated_log(RobotModel("kr6-r700-sixx"), duration=3.0, seed=5)
+    params = json.loads(json.dumps(sim_fit[0]))
+    del params["friction"]["values"]["A3.Fc"]
+    pfile = tmp_path / "cut.json"
+    pfile.write_text(json.dumps(params))
+    with pytest.raises(ParamFileError, match=r"^cut\.json: missing field 'friction\.values\.A3\.Fc'$"):
+        RobotFile(params, source="cut.json").predict(log)
+    _refused_on_the_command_line(type(log)(time=log.time, q=log.q, tau=log.tau, axes=log.axes,
+                                           attrs={"source_file": "other.csv"}), tmp_path, (params,),
+                                 [["validate"]], "missing field 'friction.values.A3.Fc'")
+
+
 def test_settings_are_checked():
     with pytest.raises(FitError, match="friction model"):
         RobotFitSettings(friction="dahl")
@@ -302,6 +379,28 @@ def test_cli_fit_robot_validate_and_report(tmp_path, kr6, monkeypatch):
     assert "Traceback" not in r.stderr and not (tmp_path / "q.json").exists()
     r = run(cli, ["fit", str(csv), "--prior-weight", "0.1", "-o", str(tmp_path / "q.json")])
     assert r.exit_code == 2 and "--prior-weight needs --robot" in r.stderr
+
+
+def test_friction_page_of_seven_axes_with_rotors_holds_its_text():
+    """New-user trial 13: a 7-axis file with rotor inertias (the LWR4+ URDF on the virtual KR C4) drew
+    14 columns on the friction page: 'parameter', 'rotor_inertia', 'ripple_cos1' and the values' σ cut
+    off by their cells. The rotors are a row under their axes now, the names' column wider."""
+    from kukaid.report.robot import page_friction_consistency
+
+    n, names = 7, ["Fc", "Fv", "offset", "k", *(f"ripple_{c}{h}" for c in ("cos", "sin") for h in range(1, 5))]
+    values = {f"A{j}.{p}": 1.2345 * j for j in range(1, n + 1) for p in names}
+    values.update({f"M{j}.rotor_inertia": 0.06615 for j in range(1, n + 1)})
+    sigma = {k: 0.00093 for k in values}
+    params = {"friction": {"model": "coulomb-viscous", "values": values, "sigma": sigma},
+              "metrics": {"consistency": [{"mass": 2.0, "triangle_margin": 1e-3, "pseudo_inertia_min_eig": 1e-4,
+                                           "ok": True}] * n},
+              "robot": {"links": [f"lwr_{j}_link" for j in range(1, n + 1)]}}
+    fig = page_friction_consistency(params, "lwr.json")
+    assert not layout_problems(fig)
+    from matplotlib.table import Table
+
+    texts = {c.get_text().get_text() for tab in fig.findobj(Table) for c in tab.get_celld().values()}
+    assert "rotor_inertia (motor)" in texts and "M1" not in texts and "A7" in texts
 
 
 @pytest.mark.skipif(not LWR4.is_dir(), reason="real LWR4+ data (../shared/datasets/lwr4) not present")

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from kukaid.errors import KukaidError
+from kukaid.logs import COMPRESSIONS, format_suffix
 
 #: columns a manifest must have (``axis`` may be empty for a whole-arm log)
 MANIFEST_COLUMNS = ("robot", "axis", "date", "path")
@@ -139,12 +140,13 @@ def pattern_regex(pattern: str) -> re.Pattern:
 
 def scan_folder(root: str | Path, pattern: str = DEFAULT_PATTERN) -> list[Entry]:
     """Entries of the logs under ``root`` whose relative path matches ``pattern`` (see
-    :func:`pattern_regex`); only files with a log suffix (.h5, .hdf5, .csv, .mat)."""
+    :func:`pattern_regex`); only files with a log suffix (.h5, .hdf5, .csv, .mat), optionally
+    compressed (``A3.csv.gz``, ``.bz2``, ``.xz``: read as every command reads them)."""
     root = Path(root)
     rx = pattern_regex(pattern)
     out = []
     for p in sorted(root.rglob("*")):
-        if not p.is_file() or p.suffix.lower() not in LOG_SUFFIXES or any(s.startswith(".") for s in p.parts[-3:]):
+        if not p.is_file() or format_suffix(p) not in LOG_SUFFIXES or any(s.startswith(".") for s in p.parts[-3:]):
             continue
         rel = p.relative_to(root).as_posix()
         m = rx.match(rel)
@@ -154,7 +156,8 @@ def scan_folder(root: str | Path, pattern: str = DEFAULT_PATTERN) -> list[Entry]
         where = f"{root}/{rel}"
         out.append(Entry(g["robot"], _axis(g.get("axis") or "", where), _date(g["date"], where), str(p.resolve()), rel))
     if not out:
-        raise ManifestError(f"{root}: no log matches the pattern '{pattern}' (logs: {', '.join(LOG_SUFFIXES)})")
+        raise ManifestError(f"{root}: no log matches the pattern '{pattern}' (logs: {', '.join(LOG_SUFFIXES)}, "
+                            f"optionally compressed: {', '.join(COMPRESSIONS)})")
     return out
 
 

@@ -307,7 +307,7 @@ class RobotFile:
         """The raw measured torques against the prediction, two cut-off periods from either end."""
         from kukaid.identify.robot_fit import RobotFitSettings, _cutoff, predict_robot
 
-        pred = predict_robot(self.params, log, self.robot)
+        pred = predict_robot(self.params, log, self.robot, self.source)
         fs = 1.0 / log.sample_time
         fc = _cutoff(RobotFitSettings(cutoff=self.params["settings"].get("cutoff")), fs)
         edge = int(math.ceil(2.0 * fs / fc))

@@ -315,6 +315,37 @@ def check_torque_scale(log: AxisLog, robot: RobotModel) -> None:
                            "or a torque in another unit under a column named N·m)?")
 
 
+#: every joint that carries weight measuring under this fraction of the torque the URDF's gravity
+#: alone needs at the logged positions is a unit mistake (kN·m), not a robot
+GRAVITY_FACTOR = 0.05
+
+
+def check_torque_size(log: AxisLog, robot: RobotModel, drive: DriveModel, torque_side: str = "joint",
+                      samples: int = 200) -> None:
+    """Refuse a log whose torques are far below what the URDF's gravity needs where the log holds
+    the arm (FitError naming the joint that carries most): torques in kN·m under a column named N·m
+    fitted every link's mass to 0.00 x the URDF's without a word (the mass bounds, 560 % held-out
+    error, released). Joints that carry under 5 % of the most loaded joint's gravity are not judged
+    (a counterbalanced or vertical axis); ``samples`` positions, evenly spread, are enough."""
+    cols = _joint_columns(log, robot.n)
+    rows = np.unique(np.linspace(0, log.n_samples - 1, min(samples, log.n_samples)).astype(int))
+    q = log.q[rows][:, cols]
+    g = robot.rnea(q, np.zeros_like(q), np.zeros_like(q))
+    tau = log.tau[rows][:, cols]
+    tau = drive.joint_torque(tau) if torque_side == "motor" else tau
+    g_rms, t_rms = np.sqrt(np.mean(g ** 2, axis=0)), np.sqrt(np.mean(tau ** 2, axis=0))
+    if not g_rms.max() > 0:
+        return
+    carry = g_rms >= 0.05 * g_rms.max()
+    if np.max(t_rms[carry] / g_rms[carry]) < GRAVITY_FACTOR:
+        j = int(np.argmax(g_rms))
+        raise FitError(f"{log.attrs.get('source_file', 'axis log')}: the torques are far below what the gravity of "
+                       f"{Path(robot.path).name}'s links needs at the logged positions (A{j + 1}: RMS {t_rms[j]:.3g} "
+                       f"N·m against {g_rms[j]:.3g} N·m; every joint that carries weight under {GRAVITY_FACTOR:g} x): "
+                       "wrong unit (kN·m, or a torque in another unit under a column named N·m), or another robot's "
+                       "URDF?")
+
+
 def _cutoff(settings: RobotFitSettings, fs: float) -> float:
     fc = settings.cutoff if settings.cutoff is not None else CUTOFF
     return min(fc, 0.1 * fs) if settings.cutoff is None else fc
@@ -1178,6 +1209,25 @@ def predictions(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive:
     return out
 
 
+def _too_few_moving(logs: Sequence[AxisLog], counts: np.ndarray) -> str:
+    """Why joints with fewer than 10 samples to fit (``counts``) cannot be fitted: each such
+    joint's equations are fitted only where it moves faster than :data:`STANDSTILL` away from its
+    reversals and stops; a joint that barely moves (positions in radians under a degree header:
+    57 x too small) has none."""
+    from kukaid.identify.adequacy import unit_warnings
+
+    names = ", ".join(str(lg.attrs.get("source_file", "log")) for lg in logs)
+    few = [j for j in range(counts.size) if counts[j] < 10]
+    said = ", ".join(f"A{j + 1} {int(counts[j])}" for j in few)
+    units = [w for lg in logs for j in few if (j + 1) in lg.axes for w in unit_warnings(lg, j + 1)]
+    if len(logs) == 1:  # the log is named first
+        units = [w.removeprefix(f"{names}: ") for w in units]
+    why = units[0] if units else "record a motion in which every joint moves (kukaid excite fourier --robot)"
+    return (f"{names}: too few samples to fit {', '.join(f'A{j + 1}' for j in few)}: a joint's equations are fitted "
+            f"where it moves faster than {STANDSTILL:g} rad/s away from its reversals and stops, and there are "
+            f"fewer than 10 such samples ({said}); {why}")
+
+
 @dataclass
 class _Terms:
     """One cut-off's samples, fold equations and per-joint held-out choices (:func:`_terms`)."""
@@ -1204,9 +1254,9 @@ def _terms(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSetting
     m = _samples(logs, n, settings, drive, raw=raw)
     N = m.q.shape[0]
     kw = m.keep.astype(float)
-    if np.any(kw.sum(axis=0) < 10):
-        raise FitError("too few samples away from velocity reversals; lower the reversal window")
     counts = kw.sum(axis=0)
+    if np.any(counts < 10):
+        raise FitError(_too_few_moving(logs, counts))
     # per-joint normal equations of all columns (standard parameters + extras), accumulated over
     # blocks of samples (never the (N, n, p) regressor), per candidate Coulomb transition velocity
     # and per fold when one is to be chosen: everything below works on these small matrices,
@@ -1416,6 +1466,8 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
                  "torque sensor does not see the rotors")
     settings = replace(settings, rotor=motor_currents if settings.rotor is None else settings.rotor)
     drive = _drive(robot, settings, coupling)
+    for lg in logs:
+        check_torque_size(lg, robot, drive, settings.torque_side)
     base = robot.base_parameters()
     t = _cutoff_terms(logs, robot, settings, drive, base)
     settings, m, fe, K, p, ib, harmonic, spring_col, pick, choices = (
@@ -1569,12 +1621,13 @@ def _nonneg(names: Sequence[str]) -> list[bool]:
     return [nm.endswith((".Fc", ".Fv", ".rotor_inertia")) for nm in names]
 
 
-def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -> dict[int, np.ndarray]:
-    """Predicted joint torques of a robot parameter file on ``log``: {axis: (N,) N·m}.
+def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None,
+                  where: str = "robot parameter file") -> dict[int, np.ndarray]:
+    """Predicted joint torques of a robot parameter file (named ``where``) on ``log``: {axis: (N,) N·m}.
 
     The positions are filtered and differentiated as in the fit; the prediction is compared with
     the raw measured torques by the caller (:meth:`kukaid.identify.fitted.RobotFile.predict`)."""
-    validate_robot_params(params)
+    validate_robot_params(params, where)
     robot = robot or RobotModel(params["robot"]["urdf"])
     sha = params["robot"].get("sha256")
     if sha and sha != robot.sha256:
@@ -1591,6 +1644,10 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None) -
     drive = DriveModel.direct(n) if not settings.rotor else DriveModel(
         np.asarray(params["drive"]["ratio"]), np.asarray(params["drive"]["coupling"]), np.zeros(n))
     names = extra_names(robot, settings)
+    missing = [k for k in names if k not in params["friction"]["values"]]
+    if missing:  # a term the file's settings fit
+        raise ParamFileError(f"{where}: missing field 'friction.values.{missing[0]}'"
+                             + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
     extra = np.array([params["friction"]["values"][k] for k in names])
     effects = params.get("effects") or {}
     temp = log_temperatures(log, n) if any(k.startswith("thermal") for k in effects) else None
@@ -1789,7 +1846,8 @@ def format_robot_table(params: dict) -> str:
             lines.append("link masses / URDF: " + " ".join(f"{r:.2f}{flag(r)}" for r in ratio)
                          + (f" (bounds {mb[0]:g}-{mb[1]:g}x, * on a bound)" if mb else " (no bounds)"))
         except Exception:  # noqa: BLE001 (the URDF moved: the masses alone)
-            lines.append("link masses kg: " + " ".join(table_number(std[lk]["m"]) for lk in std))
+            lines.append("link masses kg: " + " ".join(table_number(std[lk]["m"]) for lk in std)
+                         + f" (its URDF {rob['urdf']} not found: --urdf PATH gives them as multiples of the URDF's)")
     mcheck = ch.get("mass_bounds")
     if mcheck and mcheck.get("why"):
         lines.append(f"masses on a bound ({', '.join(mcheck.get('links_on_bound') or [])}): {mcheck['why']}")

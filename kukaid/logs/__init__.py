@@ -32,6 +32,12 @@ COMPRESSIONS = {".gz": "gzip", ".bz2": "bzip2", ".xz": "xz"}
 _MODULES = {"gzip": "gzip", "bzip2": "bz2", "xz": "lzma"}
 
 
+def format_suffix(path: str | Path) -> str:
+    """The suffix naming a log's format, lower case: ``.csv`` of ``log.csv`` and of ``log.csv.gz``."""
+    path = Path(path)
+    return (Path(path.stem) if path.suffix.lower() in COMPRESSIONS else path).suffix.lower()
+
+
 def read_log(path: str | Path, **options: Any) -> AxisLog:
     """Read an axis log, choosing the reader by file suffix (.h5/.hdf5, .csv, .mat, .dat/.r64);
     a log compressed with gzip, bzip2 or xz (``log.csv.gz``, ``.bz2``, ``.xz``) is decompressed
@@ -39,11 +45,11 @@ def read_log(path: str | Path, **options: Any) -> AxisLog:
     path = Path(path)
     comp = COMPRESSIONS.get(path.suffix.lower())
     inner = Path(path.stem) if comp else path
-    if inner.suffix.lower() not in READERS:
+    if format_suffix(path) not in READERS:
         expected = ", ".join(READERS)
         raise LogFormatError(f"{path}: unknown log format '{''.join(path.suffixes[-2:]).lower() or path.suffix}' "
                              f"(expected {expected}, optionally compressed: {', '.join(COMPRESSIONS)})")
-    fmt, reader = READERS[inner.suffix.lower()]
+    fmt, reader = READERS[format_suffix(path)]
     if comp is None:
         return _read(reader, path, fmt, options)
     return _read_compressed(path, comp, inner.name, lambda plain, **o: _read(reader, plain, fmt, o), options)
@@ -86,5 +92,5 @@ def _read_compressed(path: Path, comp: str, name: str, reader: Callable[..., Axi
     return log
 
 
-__all__ = ["AxisLog", "AxisLogWriter", "COMPRESSIONS", "READERS", "check_each_recording_once", "check_samples", "check_units", "log_fingerprint", "read_csv", "read_hdf5",
+__all__ = ["AxisLog", "AxisLogWriter", "COMPRESSIONS", "READERS", "format_suffix", "check_each_recording_once", "check_samples", "check_units", "log_fingerprint", "read_csv", "read_hdf5",
            "read_log", "read_mat", "read_trace", "write_csv", "write_hdf5"]

@@ -34,6 +34,10 @@ MAX_PRISMATIC_M = 100.0
 #: Median sample interval, s, from which on the times are probably milliseconds (a drive's 1 ms
 #: samples written in ms are exactly 1 "s" apart).
 MAX_SAMPLE_INTERVAL_S = 1.0
+#: Median sample interval, s, below which the times are probably seconds divided by 1000 (a 12, 4
+#: or 1 ms controller log scaled as if in ms: 12, 4 or 1 µs); no controller's trace samples faster
+#: than 20 kHz (a drive's finest, 125 µs)
+MIN_SAMPLE_INTERVAL_S = 5e-5
 
 
 def channel_unit(channel: str, joint: str) -> str:
@@ -212,7 +216,7 @@ def check_units(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: 
 
     A revolute position (``q``, ``q_cmd``) beyond +-720 degrees (4 pi rad) is millidegrees or
     degrees stored as radians; a median sample interval of 1 s or more is milliseconds stored as
-    seconds (1 ms samples are 1 "s" apart).  Prismatic positions are not bounded (linear tracks are long).
+    seconds (1 ms samples are 1 "s" apart), one under 50 µs seconds divided by 1000.  Prismatic positions are not bounded (linear tracks are long).
 
     Parameters
     ----------
@@ -229,6 +233,12 @@ def check_units(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: 
             raise LogFormatError(
                 f"{where}: {labels.get('time', 'time')} has a median sample interval of {dt:.6g} s; "
                 f"{MAX_SAMPLE_INTERVAL_S:g} s or more: milliseconds written as seconds?"
+            )
+        if 0 < dt < MIN_SAMPLE_INTERVAL_S:
+            raise LogFormatError(
+                f"{where}: {labels.get('time', 'time')} has a median sample interval of {dt:.6g} s; under "
+                f"{MIN_SAMPLE_INTERVAL_S:g} s (faster than 20 kHz, faster than a controller records): seconds "
+                "divided by 1000 (a time in seconds scaled as milliseconds)?"
             )
     for name in ("q", "q_cmd"):
         x = channels.get(name)

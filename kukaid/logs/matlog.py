@@ -219,7 +219,10 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     qn = q or ("q" if "q" in v else None)
     tn = tau or ("tau" if "tau" in v else None)
     if qn is None or tn is None:
-        raise LogFormatError(f"{path}: name the position and torque variables (--q, --tau); variables: {', '.join(names)}")
+        # the other commands read a MAT file with the defaults alone: the options are kukaid load's
+        raise LogFormatError(f"{path}: no variables 'q' and 'tau': name the position and torque variables, "
+                             f"kukaid load {path} --q VAR --tau VAR -o LOG.h5, and give LOG.h5; variables: "
+                             f"{', '.join(names)}")
     qa = per_axis(qn, "position") * q_scale
     ta = per_axis(tn, "torque")
     if tau_scale_var is not None:

@@ -123,6 +123,11 @@ def _is_drive(module: str) -> bool:
     return "drive" in module.lower()
 
 
+def is_gear_ratio_file(text: str | Path) -> bool:
+    """``--gear-ratio``'s value names a JSON file (else it is ``A1=120.5,...`` itself)."""
+    return str(text).lower().endswith(".json") or Path(str(text)).is_file()
+
+
 def parse_gear_ratios(text: str | Path | dict | None) -> dict[int, float]:
     """Gear ratios (motor turns per axis turn, sign included) per axis.
 
@@ -134,14 +139,11 @@ def parse_gear_ratios(text: str | Path | dict | None) -> dict[int, float]:
     where = "--gear-ratio"
     if isinstance(text, dict):
         raw = text
-    elif str(text).lower().endswith(".json") or Path(str(text)).is_file():
-        import json
+    elif is_gear_ratio_file(text):
+        from kukaid.jsonfile import read_json
 
         where = str(text)
-        try:
-            raw = json.loads(Path(str(text)).read_text(encoding="utf-8-sig"))  # a byte order mark first is allowed
-        except (OSError, ValueError) as e:
-            raise LogFormatError(f"{text}: not a readable JSON file of gear ratios: {str(e)[:120]}") from None
+        raw = read_json(text, LogFormatError, "JSON file of gear ratios", schemas=())
         if isinstance(raw, dict) and isinstance(raw.get("gear_ratio"), dict):
             raw = raw["gear_ratio"]
         if not isinstance(raw, dict):

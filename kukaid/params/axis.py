@@ -4,7 +4,8 @@ Validation is driven by small tables of (field, range) so every error names the 
 allowed range: the numbers of the fixed sections (:data:`_FIELDS`), the keys those sections may
 hold (:data:`_KEYS`; a misspelt field is refused), and the parameters of the diagnosed
 ``effects`` (:data:`_EFFECT_KEYS`; every other effect parameter is a finite number).  ``metrics``
-and ``provenance`` are free-form objects, ``uncertainty`` maps any name to a standard deviation.
+and ``provenance`` are free-form objects but for ``provenance.preprocess``'s settings the readers
+filter new logs with (:data:`_PREPROCESS`), ``uncertainty`` maps any name to a standard deviation.
 
 Physical ceilings: no real KUKA axis comes near them (the KR 1000 titan, the heaviest arm, has
 joint torques of order 1e5 N·m and link inertias of order 1e4 kg·m² about its base axis; a linear
@@ -113,6 +114,30 @@ def _number(where: str, v: Any, lo: float, hi: float) -> float:
         why = " (beyond any real KUKA axis: a unit or typing mistake?)" if beyond else ""
         raise ParamFileError(f"{where} = {v} is outside the allowed range [{lo:g}, {hi:g}]{why}")
     return float(v)
+
+
+#: the fit's pre-processing (provenance.preprocess) that validate, report and diagnose filter new logs
+#: with: name -> (low, high, a whole number); "diff" is a word
+_PREPROCESS = {"cutoff": (1e-9, 1e6, False), "order": (1, 8, True), "edge": (0, 1e9, True), "decimate": (1, 1e6, True),
+               "qd_thr": (0.0, 100.0, False), "reversal_window": (0.0, 3600.0, False)}
+
+
+def _preprocess(where: str, pre: Any) -> None:
+    """``provenance.preprocess`` (free-form but for the settings the readers take): each a number in
+    its range, or null."""
+    if pre is None:
+        return
+    pre = _object(where, "provenance.preprocess", pre)
+    for k, (lo, hi, whole) in _PREPROCESS.items():
+        v = pre.get(k)
+        if v is None:
+            continue
+        if whole and (isinstance(v, bool) or not isinstance(v, int)):
+            raise ParamFileError(f"{where}: provenance.preprocess.{k} must be a whole number, got {_show(v)}")
+        _number(f"{where}: provenance.preprocess.{k}", v, lo, hi)
+    if pre.get("diff") not in (None, "central", "spectral"):
+        raise ParamFileError(f"{where}: provenance.preprocess.diff must be \"central\" or \"spectral\", got "
+                             f"{_show(pre['diff'])}")
 
 
 def _object(where: str, name: str, v: Any, what: str = "a JSON object") -> dict:
@@ -226,6 +251,7 @@ def validate_params(d: Any, where: str = "parameter file") -> dict:
     for sec in ("metrics", "provenance"):
         if sec in d:
             _object(where, sec, d[sec])
+    _preprocess(where, (d.get("provenance") or {}).get("preprocess"))
     if "uncertainty" in d:
         unc = _object(where, "uncertainty", d["uncertainty"], "an object {parameter: standard deviation}")
         for k, v in unc.items():

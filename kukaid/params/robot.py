@@ -96,6 +96,9 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
     _numbers(where, "base_parameters.dependent", bp["dependent"])
     if b + nd != 10 * n:
         _fail(where, f"base_parameters: {b} independent + {nd} dependent must be 10 per axis ({10 * n})")
+    if sorted(bp["independent"] + bp["dependent"]) != list(range(10 * n)):  # each standard parameter once
+        _fail(where, f"'base_parameters.independent' and 'dependent' must together number the {10 * n} standard "
+                     f"parameters 0 to {10 * n - 1}, each once")
     for i, row in enumerate(bp["R"]):
         _numbers(where, f"base_parameters.R[{i}]", row, nd)
     std = d.get("standard_parameters")
@@ -156,6 +159,9 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
         if key in st and not isinstance(st[key], bool):
             _fail(where, f"'settings.{key}' must be true or false")
     drive = d.get("drive")
+    if drive is None and (st.get("rotor") or d.get("torque_side", "joint") == "motor"):
+        _fail(where, "'drive' must be an object {ratio, coupling}: the file's rotor inertias or motor-side torques "
+                     "go through it")
     if drive is not None:
         _object(where, "drive", drive)
         _numbers(where, "drive.ratio", drive.get("ratio"), n)

@@ -67,12 +67,15 @@ def page_friction_consistency(params: dict, source: str):
     joints: dict[str, dict[str, str]] = {}
     for k, v in fr["values"].items():
         j, p = k.split(".", 1)
+        if j.startswith("M"):   # motor k's rotor: a row under its axis (a column each overflowed the cells)
+            j, p = f"A{j[1:]}", f"{p} (motor)"
         s = (fr.get("sigma") or {}).get(k)
         joints.setdefault(j, {})[p] = table_number(v) + (f"\n± {s:.2g}" if s is not None else "")
     names = sorted({p for d in joints.values() for p in d})
     ax = fig.add_axes([0.05, 0.55, 0.9, 0.38])  # a row per parameter: a column each would overflow the cells
+    first = 0.2   # the parameter's name
     _add_table(ax, [[p] + [d.get(p, "-") for d in joints.values()] for p in names], ["parameter"] + list(joints),
-               fontsize=7)
+               fontsize=7 if len(joints) <= 6 else 6, col_widths=[first] + [(1 - first) / len(joints)] * len(joints))
     ax.set_title(f"friction model {fr['model']} (N·m, N·m·s/rad, N·m/rad; ± least-squares σ)", fontsize=8)
     chk = mt.get("consistency") or []
     links = params["robot"].get("links") or [f"link {i + 1}" for i in range(len(chk))]

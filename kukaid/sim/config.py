@@ -362,4 +362,5 @@ def sim_config_from_dict(d: Any, where: str = "sim config", base: SimConfig | No
 
 def load_sim_config(path: str | Path) -> SimConfig:
     """Read a JSON file of overrides of the paper defaults; validated, errors name file and field."""
-    return sim_config_from_dict(read_json(path, SimConfigError), str(path))
+    # a one-axis parameter file is a configuration too (the plant of a fit)
+    return sim_config_from_dict(read_json(path, SimConfigError, schemas=("kukaid.params/1",)), str(path))

@@ -125,6 +125,14 @@ class RobotSimConfig:
         if self.sample_time * self.servo_rate < 1 - 1e-9:
             raise SimConfigError(f"robot sim config: field 'sample_time' = {self.sample_time} is shorter than a servo cycle")
 
+    def coupling_matrix(self, n: int, where: str = "robot sim config") -> np.ndarray:
+        """The drives' coupling as an n x n matrix (zeros when none), refused naming ``where`` when it
+        is of another size than the robot's ``n`` joints."""
+        C = np.zeros((n, n)) if self.coupling is None else np.asarray(self.coupling, dtype=float)
+        if C.shape != (n, n):
+            raise SimConfigError(f"{where}: field 'coupling' must be {n} x {n} for this robot, got {C.shape}")
+        return C
+
     def replace(self, **changes: Any) -> "RobotSimConfig":
         names = set(ROBOT_FIELDS) | {"robot", "torque_side", "coupling"}
         for k in changes:
@@ -148,7 +156,8 @@ class RobotSimConfig:
     def load(cls, path: str | Path) -> "RobotSimConfig":
         from kukaid.jsonfile import read_json
 
-        return cls.from_dict(read_json(path, SimConfigError), str(path))
+        return cls.from_dict(read_json(path, SimConfigError, "robot simulator configuration (JSON)", schemas=()),
+                             str(path))
 
 
 # rows of the parameter array of :func:`servo_step`
@@ -258,9 +267,7 @@ class VirtualRobotKRC4:
         # motors, so their inertia on the joint side is G^T diag(I_rotor) G (the truth's armature
         # is its diagonal without coupling)
         ratio = gear_ratios(c.robot, tuple(self.model_nominal.names[1:]))
-        C = np.zeros((n, n)) if c.coupling is None else np.asarray(c.coupling, dtype=float)
-        if C.shape != (n, n):
-            raise SimConfigError(f"robot sim config: field 'coupling' must be {n} x {n} for this robot, got {C.shape}")
+        C = c.coupling_matrix(n)
         self.ratio, self.coupling = ratio, C
         self.G = np.diag(ratio) @ (np.eye(n) + C)
         self.rotor_inertia = self.truth.armature / ratio ** 2  # motor side, kg·m²
