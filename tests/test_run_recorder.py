@@ -51,3 +51,20 @@ def test_the_signals_are_counted_while_open_and_given_back(tmp_path):
             rec.guard(Backend()).cycle(0.0, 0.012)
         assert rec.guard(Backend(), seen=1).cycle(0.0, 0.012) == "moved"
     assert signal.getsignal(signal.SIGTERM) == before
+
+
+def test_a_comparison_run_that_stopped_on_the_torque_limit_says_when_once(tmp_path):
+    """A torque stop's status says when ("... at t = 3.672 s"); the note added " at t = 3.67 s" again."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from kukaid.control.loop import LoopConfig
+
+    stop = "stopped: measured torque 101.2 N·m beyond the limit 100 N·m at t = 3.672 s"
+    run = SimpleNamespace(status="completed", data={"time": np.arange(0.0, 5.0, 0.012)}, metrics={})
+    other = SimpleNamespace(status=stop, data={"time": np.arange(0.0, 3.68, 0.012)}, metrics={})
+    notes: list[str] = []
+    with RunRecorder(tmp_path / "r.h5", axis=3, channels=("q",), attrs={}) as rec:
+        rec.comparison(run, LoopConfig(damping="constant"), lambda cfg, seen: other, notes)
+    assert notes == [f"the report's comparison run (adaptive damping) {stop}; the report shows it until then"]

@@ -290,8 +290,9 @@ class RunRecorder:
         cut = ""
         if not run2.status.startswith("completed"):
             t2 = float(run2.data["time"][-1]) if run2.data["time"].size else 0.0
-            notes.append(f"the report's comparison run ({other} damping) {run2.status} at t = {t2:.2f} s; the report "
-                         "shows it until then")
+            at = "" if " at t = " in run2.status else f" at t = {t2:.2f} s"  # a torque stop says when itself
+            notes.append(f"the report's comparison run ({other} damping) {run2.status}{at}; the report shows it until "
+                         "then")
             cut = run2.metrics["status"] = run2.status
         elif interrupted:
             notes.append(f"the report's comparison run ({other} damping) is cut at t = {t_end:.2f} s, where this run "
