@@ -71,3 +71,18 @@ def test_a_compressed_mat_file_takes_the_mat_options(tmp_path, ext, mod):
     assert r.exit_code == 0, r.output
     log = read_hdf5(out)
     assert np.allclose(log.time, t) and np.allclose(log.q[:, 0], np.sin(t)) and np.allclose(log.tau[:, 0], np.cos(t))
+
+
+def test_a_compressed_kuka_trace_file_says_the_recording_is_several_files(tmp_path):
+    """A Trace .dat.gz was decompressed alone, and the reader then said '.r64 not found beside .dat'
+    though the user had it there (compressed or not)."""
+    import gzip
+
+    from kukaid.errors import LogFormatError
+    from kukaid.logs import read_log
+
+    p = tmp_path / "REC_NextGenDrive#1.dat.gz"
+    p.write_bytes(gzip.compress(b"DIAEXTENDED  {@:ENGLISH\n"))
+    (tmp_path / "REC_NextGenDrive#1.r64").write_bytes(b"\0" * 16)
+    with pytest.raises(LogFormatError, match="several files .* decompress them into one folder and give its .dat"):
+        read_log(p)

@@ -52,6 +52,9 @@ def read_log(path: str | Path, **options: Any) -> AxisLog:
     fmt, reader = READERS[format_suffix(path)]
     if comp is None:
         return _read(reader, path, fmt, options)
+    if fmt == "KUKA Trace":  # its data are in other files beside it, which one decompressed file does not bring
+        raise LogFormatError(f"{path}: a KUKA Trace recording is several files (a .dat and a .r64 per module); "
+                             "decompress them into one folder and give its .dat")
     return _read_compressed(path, comp, inner.name, lambda plain, **o: _read(reader, plain, fmt, o), options)
 
 
