@@ -165,6 +165,11 @@ def _one_axis_backend(traj, trajectory: Path, sim_config: Path | None, noise: fl
     from kukaid.errors import SimConfigError
     from kukaid_cli._util import check_noise, config_axis
 
+    from kukaid.errors import TrajectoryError
+
+    if traj.axis > 6:  # a trajectory file allows the external axes E1-E6 (7-12) a real controller drives
+        raise TrajectoryError(f"{trajectory}: axis {traj.axis} is the external axis E{traj.axis - 6}; the virtual KR C4 "
+                              "has axes 1 to 6 (record an external axis on a real controller: --backend kvp)")
     parsed = [parse_effect(e) for e in effects]
     names = [e[0] for e in parsed]
     if len(set(names)) != len(names):

@@ -352,3 +352,15 @@ def test_a_forced_capture_replaces_the_old_log_when_it_has_ended(short_traj, tmp
     code, text = run("capture", short_traj, "-o", out, "--seed", "2", "--force")
     assert code == 0 and text.startswith(f"{out}: ") and text.strip().endswith("(sim, seed 2)"), text
     assert read_hdf5(out).attrs["seed"] == 2 and sorted(p.name for p in tmp_path.iterdir()) == ["old.h5"]
+
+
+def test_an_external_axis_trajectory_is_refused_by_the_virtual_kr_c4(short_traj, tmp_path):
+    """A trajectory file may name axes 7-12 (the external axes a real controller drives); the virtual KR C4
+    recorded the paper's A3 physics labelled A9."""
+    d = json.loads(Path(short_traj).read_text())
+    d["axis"] = 9
+    traj = tmp_path / "e3.json"
+    traj.write_text(json.dumps(d))
+    code, text = run("capture", traj, "-o", tmp_path / "e3.h5")
+    assert code == 1 and "axis 9 is the external axis E3; the virtual KR C4 has axes 1 to 6" in text, text
+    assert "Traceback" not in text and not (tmp_path / "e3.h5").exists()
