@@ -112,6 +112,10 @@ class Series:
     residuals: list
 
 
+#: the file's terms refitted held out below this share of the file's own error: the file is said to be worth refitting
+REFIT_BETTER = 0.7
+
+
 @dataclass
 class RobotDiagnosis:
     """Result of :func:`diagnose_robot`: ``lines()`` for the terminal, ``to_json()`` for a machine,
@@ -185,6 +189,11 @@ class RobotDiagnosis:
             if smooth:
                 out.append(f"  noise floor n/a on {', '.join(smooth)}: the torques are smooth sample to sample (filtered "
                            "before they were recorded), so their noise cannot be told from them")
+        b, f = float(np.mean(self.before)) if self.before else 0.0, float(np.mean(self.in_sample)) if self.in_sample else 0.0
+        if b < REFIT_BETTER * f:  # a stale or under-determined file: the user's remedy is a refit, not an effect
+            out.append(f"  the file's own terms refitted on these logs predict them held out at {100 * b:.1f} % against "
+                       f"{100 * f:.1f} % for the file as it is: `kukaid fit --robot` on these logs gives that model (the "
+                       "diagnosis names missing effects; it keeps the file's terms)")
         if self.steps:
             for k, st in enumerate(self.steps, 1):
                 par = ", ".join(f"{k2} {v:.4g}" if isinstance(v, float) else f"{k2} {v}" for k2, v in st["params"].items())
