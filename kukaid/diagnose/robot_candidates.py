@@ -563,9 +563,11 @@ class CoupledWristFriction(RobotCandidate):
     at 6.5x the noise floor; in their place within 0.006, 2.1x). A fit on a recording with the coupled
     friction took part of it into the wrist links' inertial parameters and A4-A6's spring and ripple
     terms (dev seed 0: A5's spring -0.66 N·m/rad, its rotor inertias at 0): the candidate is judged
-    with the wrist links' inertial parameters free of the file's prior (of the last link its inertia
-    tensor: its mass and first moments are a payload's) and in place of those angle terms, and
-    against the same without the coupling. Only on a six-axis robot (A4-A6 the last three joints)."""
+    with the wrist links' inertial parameters free of the file's prior (the last link's first moments
+    too: held as a payload's, dev seed 2 ended at 5.7x the noise floor on A4-A6, its twin 1.5x; freed
+    1.96x), its ratios chosen with the last link's first moments held (free, they trade with motor
+    6's Coulomb column: seed 61 c65 -0.443 for -0.377, A6 14x the floor), in place of those angle
+    terms, and against the same without the coupling (the same freedom). Only on a six-axis robot (A4-A6 the last three joints)."""
 
     name = "coupled_wrist_friction"
     replaces_angle_terms = True
