@@ -2,7 +2,7 @@
 initiation move up and down, and after a guided move has ended.
 
 Usage: python benchmarks/admittance_rest.py [--seeds 0-9] [--duration 60] [--vibration 5e-5] [--json] [--quick]
-                                            [--outside NAME[,NAME...] | --outside all]
+                                            [--outside NAME[,NAME...] | --outside all] [--files fitted]
 
 For every member of kukaid.sim.family (seeded), damping (constant at 24 ms, adaptive at 12 ms) and
 initiation move (+1 / -1 degree) two runs with the member's own parameter file:
@@ -16,6 +16,10 @@ detected cycles, the largest start threshold at rest the estimator needed (N·m)
 with drift < 0.05 degree and no detection.  ``--vibration A`` overrides every plant's ambient
 vibration RMS (rad; the family draws 0-1e-5, the paper's A6 experiment is about 5e-5): the
 stress rows of docs/admittance.md.
+
+``--files fitted``: instead of the member's parameter file (its truth with identification errors),
+the file the toolkit's own identification gives on that plant: ``excite`` friction, inertia and
+pre-sliding experiments run on it (the changed one with ``--outside``), then ``fit``.
 
 ``--outside``: every member is changed by what the family does not draw (each drawn from the run's
 seed; the parameter file stays the member's own), one row per change and scenario:
@@ -39,6 +43,7 @@ seed; the parameter file stays the member's own), one row per change and scenari
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import os
@@ -67,6 +72,32 @@ OUTSIDE = {
 }
 
 
+@functools.lru_cache(maxsize=8)
+def fitted_params(name: str, seed: int, outside: str | None, vibration: float | None) -> dict:
+    """The parameter file ``kukaid fit`` gives on the plant: the default friction, inertia and
+    pre-sliding experiments captured on it, fitted together."""
+    from kukaid import excite
+    from kukaid.identify import fit_axis
+    from kukaid.sim import VirtualKRC4
+
+    cfg = plant_config(name, seed, outside, vibration)
+    logs = [VirtualKRC4(cfg, seed=1000 + 3 * seed + k, axis=3).run(traj)
+            for k, traj in enumerate((excite.friction(), excite.inertia(), excite.presliding()))]
+    return fit_axis(friction=[logs[0]], inertia=[logs[1]], presliding=logs[2])
+
+
+def plant_config(name: str, seed: int, outside: str | None, vibration: float | None):
+    """The simulator of member ``name`` drawn from ``seed``, with ``--vibration`` and ``--outside``'s change."""
+    from kukaid.sim.family import plant
+
+    cfg = plant(name, seed).cfg
+    if vibration is not None:
+        cfg = cfg.replace(vibration=vibration > 0, vib_amplitude=vibration)
+    if outside:
+        cfg = OUTSIDE[outside](cfg, np.random.default_rng([seed, 7, list(OUTSIDE).index(outside)]))
+    return cfg
+
+
 def one(args):
     from kukaid.control.loop import PHASE_ADMITTANCE, LoopConfig, run_admittance
     from kukaid.params import model_from_params
@@ -75,18 +106,16 @@ def one(args):
     from kukaid.sim.family import plant
     from kukaid.sim.operator import PushOperator
 
-    name, seed, damping, cycle, move, scenario, duration, vibration, outside = args
-    p = plant(name, seed)
-    cfg_sim = p.cfg if vibration is None else p.cfg.replace(vibration=vibration > 0, vib_amplitude=vibration)
-    if outside:
-        cfg_sim = OUTSIDE[outside](cfg_sim, np.random.default_rng([seed, 7, list(OUTSIDE).index(outside)]))
+    name, seed, damping, cycle, move, scenario, duration, vibration, outside, files = args
+    cfg_sim = plant_config(name, seed, outside, vibration)
+    params = fitted_params(name, seed, outside, vibration) if files == "fitted" else plant(name, seed).params
     op, t_from = None, 0.0
     if scenario == "after a guided move":
         op = PushOperator(amplitude=15.0 * move, t_start=2.0, duration=2.0, ramp=0.3)
         duration = max(duration / 2, 10.0)
     cfg = LoopConfig(damping=damping, cycle=cycle, duration=duration, init_move=math.radians(move))
     run = run_admittance(SimRobot(VirtualKRC4(cfg_sim, seed=seed), math.radians(30.0), op),
-                         model_from_params(p.params), cfg)
+                         model_from_params(params), cfg)
     d = run.data
     if op is not None:  # from when the reference stands after the release (the guided move has ended)
         t_from = float(d["time"][(d["time"] > op.t_end) & (d["sigma_dot"] == 0.0)][0])
@@ -110,6 +139,8 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=0, help="worker processes [the machine's cores]")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--quick", action="store_true", help="one seed, two members (gms, lugre), 10 s")
+    ap.add_argument("--files", choices=("family", "fitted"), default="family",
+                    help="the member's parameter file, or the one the toolkit's own identification gives [family]")
     ap.add_argument("--outside", help="change every member by what the family does not draw: names from "
                                       f"{', '.join(OUTSIDE)}, comma-separated, or 'all' (a row per change)")
     a = ap.parse_args()
@@ -125,14 +156,14 @@ def main() -> None:
     members = FAMILY
     if a.quick:
         seeds, a.duration, members = seeds[:1], 10.0, ("gms", "lugre")
-    plan = [(name, s, damping, cycle, move, scenario, a.duration, a.vibration, o)
+    plan = [(name, s, damping, cycle, move, scenario, a.duration, a.vibration, o, a.files)
             for o in outside for name in members for s in seeds for damping, cycle in (("constant", 0.024), ("adaptive", 0.012))
             for move in (1.0, -1.0) for scenario in ("rest", "after a guided move")]
     t = time.perf_counter()
     jobs = a.jobs or os.cpu_count() or 1
     if jobs > 1:
         with ProcessPoolExecutor(jobs) as ex:
-            rows = list(ex.map(one, plan, chunksize=2))
+            rows = list(ex.map(one, plan, chunksize=8 if a.files == "fitted" else 2))  # a plant's runs, one fit
     else:
         rows = [one(p) for p in plan]
     summary = []  # a row per member, or with --outside per change (over every member)
@@ -145,7 +176,8 @@ def main() -> None:
                             "drift_max_deg": max(r["drift_deg"] for r in rs),
                             "detected_runs": sum(r["detected_cycles"] > 0 for r in rs),
                             "rest_threshold_max": max(r["rest_threshold_max"] for r in rs)})
-    doc = {"seeds": seeds, "duration": a.duration, "vibration": a.vibration, "outside": a.outside, "summary": summary,
+    doc = {"seeds": seeds, "duration": a.duration, "vibration": a.vibration, "outside": a.outside, "files": a.files,
+           "summary": summary,
            "runs": rows,
            "seconds": time.perf_counter() - t}
     if a.json:
@@ -154,7 +186,7 @@ def main() -> None:
         return
     vib = "each member's" if a.vibration is None else f"{a.vibration:g} rad RMS"
     print(f"nobody touching: seeds {seeds[0]}-{seeds[-1]}, {a.duration:g} s at rest, vibration {vib}, both dampings, "
-          f"moves up and down")
+          "moves up and down, " + ("files fitted on each plant" if a.files == "fitted" else "the members' files"))
     print(f"{'outside' if a.outside else 'plant':>14} {'scenario':>20} | {'pass':>7} | {'drift max':>9} | "
           f"{'runs w/ det':>11} | {'thr at rest max':>15}")
     for r in summary:

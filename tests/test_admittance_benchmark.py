@@ -46,3 +46,11 @@ def test_rest_benchmark_outside_the_family_reports_a_row_per_change():
     bad = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "admittance_rest.py"), "--outside", "frost"],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and "unknown change 'frost'" in bad.stderr
+
+
+def test_rest_benchmark_with_the_files_the_toolkits_identification_gives():
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "admittance_rest.py"), "--quick", "--json",
+                          "--jobs", "1", "--files", "fitted"], capture_output=True, text=True, check=True, timeout=600)
+    doc = json.loads(out.stdout)
+    assert doc["files"] == "fitted" and len(doc["runs"]) == 16
+    assert all(r["passes"] for r in doc["runs"]), [r for r in doc["runs"] if not r["passes"]]
