@@ -47,9 +47,10 @@ Online, causal version (what a controller can do):
   ``release`` (hysteresis), so a residual hovering at the threshold does not chatter; within
   ``switch_quiet`` s of the axis stopping (a change to quasi-static mode, or the differenced
   speed falling below ``qd_thr``) the start threshold is ``switch_share`` x ``threshold``, or the
-  threshold plus :attr:`stop_drop` when that is more: a stop leaves spikes in Γr (the paper's
+  threshold plus :attr:`blend_gap` when that is more (also while the axis creeps slower than the
+  blend's upper end, out of contact): a stop leaves spikes in Γr (the paper's
   backlash spikes, the friction settling, the servo's overshoot, and the model's own friction
-  falling from its sliding curve to its elements' saturation before the servo's torque follows)
+  going from its sliding curve to its elements' saturation before the servo's torque follows)
   that must not move the axis (a start is not guarded: a push at rest starts the axis);
   while moving, the start threshold is at least ``MOVING_MARGIN`` times the RMS of Γr moving out
   of contact (:attr:`moving_threshold`: a slow coast after a release is where a model's friction is
@@ -206,12 +207,13 @@ class TorqueResidual:
         self.floor_cap = _check("floor_cap", floor_cap, 1.0, 100.0, open_lo=False)
         self.switch_share = _check("switch_share", switch_share, 0.0, 100.0)
         self.qd_thr = _check("qd_thr", model.qd_thr if qd_thr is None else qd_thr, 0.0, open_lo=False)
-        # what the model's own friction falls by at a stop, N·m: from the sliding curve where the blend begins
-        # to the elements' saturation (the paper's A3: 2.6; a breakaway 1.5 x Coulomb whose elements hold
-        # 0.85 x it at rest: 12, and the stop alone read as a push, a stick-slip cycle with nobody there)
+        # what the model's own friction changes by as the axis stops, N·m: from the sliding curve where the blend
+        # begins to the elements' saturation (the paper's A3: 2.6 down; a breakaway 1.5 x Coulomb whose elements
+        # hold 0.85 x it at rest: 12 down, the stop alone read as a push against the motion; elements that hold
+        # 1.24 x the breakaway: 7 up, a creep read as a push along it; each a stick-slip cycle with nobody there)
         ms = model.maxwell_slip
-        self.stop_drop = max(abs(float(model.friction.at(BLEND[1] * self.qd_thr)))
-                             - (float(np.sum(ms.W)) if ms is not None else 0.0), 0.0) if ms is not None else 0.0
+        self.blend_gap = (abs(abs(float(model.friction.at(BLEND[1] * self.qd_thr))) - float(np.sum(ms.W)))
+                          if ms is not None else 0.0)
         self.cutoff, self.order = float(cutoff), int(order)
         fs = 1.0 / self.sample_time
         # q, qd, qdd, tau, predicted torque
@@ -552,9 +554,11 @@ class TorqueResidual:
                 start = self.rest_threshold
                 self.rest_threshold_max = max(self.rest_threshold_max, start)
                 self.rest_rms_max = max(self.rest_rms_max, math.sqrt(self._rest_ms))
-            if self._since_stop < self.switch_quiet:  # a stop: friction settles, the servo overshoots, and the
-                # model's friction falls from its sliding curve to its elements' saturation
-                start = max(start, self.switch_share * self.threshold, self.threshold + self.stop_drop)
+            if self._since_stop < self.switch_quiet:  # a stop: friction settles, the servo overshoots
+                start = max(start, self.switch_share * self.threshold)
+            if self._since_stop < self.switch_quiet or (not quasi and v < BLEND[1] * thr):
+                # a stop or a creep: the model's friction between its sliding curve and its elements' saturation
+                start = max(start, self.threshold + self.blend_gap)
             if quasi and start <= a < self._start_prev:
                 # the start threshold fell under a residual standing at rest (a stop's 2 x ended, the
                 # floor came down): not a push, rather a model off at this rest, or a hand that stayed
