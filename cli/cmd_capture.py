@@ -162,10 +162,8 @@ def _one_axis_backend(traj, trajectory: Path, sim_config: Path | None, noise: fl
                       seed: int, chunk: float, settle: float):
     """The one-axis virtual KR C4 with the requested noise and hidden effects."""
     from kukaid.capture import SimCapture, parse_effect, sim_config as make_config
-    from kukaid.errors import SimConfigError
+    from kukaid.errors import SimConfigError, TrajectoryError
     from kukaid_cli._util import check_noise, config_axis
-
-    from kukaid.errors import TrajectoryError
 
     if traj.axis > 6:  # a trajectory file allows the external axes E1-E6 (7-12) a real controller drives
         raise TrajectoryError(f"{trajectory}: axis {traj.axis} is the external axis E{traj.axis - 6}; the virtual KR C4 "

@@ -45,11 +45,12 @@ def read_log(path: str | Path, **options: Any) -> AxisLog:
     path = Path(path)
     comp = COMPRESSIONS.get(path.suffix.lower())
     inner = Path(path.stem) if comp else path
-    if format_suffix(path) not in READERS:
+    suffix = format_suffix(path)
+    if suffix not in READERS:
         expected = ", ".join(READERS)
         raise LogFormatError(f"{path}: unknown log format '{''.join(path.suffixes[-2:]).lower() or path.suffix}' "
                              f"(expected {expected}, optionally compressed: {', '.join(COMPRESSIONS)})")
-    fmt, reader = READERS[format_suffix(path)]
+    fmt, reader = READERS[suffix]
     if comp is None:
         return _read(reader, path, fmt, options)
     if fmt == "KUKA Trace":  # its data are in other files beside it, which one decompressed file does not bring
