@@ -79,22 +79,22 @@ def fitted_params(name: str, seed: int, outside: str | None, vibration: float | 
     from kukaid import excite
     from kukaid.identify import fit_axis
     from kukaid.sim import VirtualKRC4
+    from kukaid.sim.family import plant
 
-    cfg = plant_config(name, seed, outside, vibration)
+    cfg = plant_config(plant(name, seed), outside, vibration)
     logs = [VirtualKRC4(cfg, seed=1000 + 3 * seed + k, axis=3).run(traj)
             for k, traj in enumerate((excite.friction(), excite.inertia(), excite.presliding()))]
     return fit_axis(friction=[logs[0]], inertia=[logs[1]], presliding=logs[2])
 
 
-def plant_config(name: str, seed: int, outside: str | None, vibration: float | None):
-    """The simulator of member ``name`` drawn from ``seed``, with ``--vibration`` and ``--outside``'s change."""
-    from kukaid.sim.family import plant
-
-    cfg = plant(name, seed).cfg
+def plant_config(p, outside: str | None, vibration: float | None):
+    """The simulator of family member ``p`` (a :class:`kukaid.sim.family.Plant`), with ``--vibration`` and
+    ``--outside``'s change (drawn from its seed)."""
+    cfg = p.cfg
     if vibration is not None:
         cfg = cfg.replace(vibration=vibration > 0, vib_amplitude=vibration)
     if outside:
-        cfg = OUTSIDE[outside](cfg, np.random.default_rng([seed, 7, list(OUTSIDE).index(outside)]))
+        cfg = OUTSIDE[outside](cfg, np.random.default_rng([p.seed, 7, list(OUTSIDE).index(outside)]))
     return cfg
 
 
@@ -107,8 +107,9 @@ def one(args):
     from kukaid.sim.operator import PushOperator
 
     name, seed, damping, cycle, move, scenario, duration, vibration, outside, files = args
-    cfg_sim = plant_config(name, seed, outside, vibration)
-    params = fitted_params(name, seed, outside, vibration) if files == "fitted" else plant(name, seed).params
+    p = plant(name, seed)
+    cfg_sim = plant_config(p, outside, vibration)
+    params = fitted_params(name, seed, outside, vibration) if files == "fitted" else p.params
     op, t_from = None, 0.0
     if scenario == "after a guided move":
         op = PushOperator(amplitude=15.0 * move, t_start=2.0, duration=2.0, ramp=0.3)

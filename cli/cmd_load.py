@@ -70,8 +70,8 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
     check_outputs([output], [source])
     refuse_overwrite(output, force)
     fmt = OUTPUT_FORMATS[output.suffix.lower()]
-    is_mat = format_suffix(source) == ".mat"   # also compressed: rec.mat.bz2
-    is_trace = format_suffix(source) in TRACE_SUFFIXES
+    kind = format_suffix(source)  # also compressed: rec.mat.bz2
+    is_mat, is_trace = kind == ".mat", kind in TRACE_SUFFIXES
     for options, applies, kind in ((MAT_OPTIONS, is_mat, "MAT (.mat)"),
                                    (TRACE_OPTIONS, is_trace, "KUKA Trace (.dat, .r64)")):
         typed = [opt for name, opt in options.items() if given(name)]

@@ -45,7 +45,7 @@ def read_log(path: str | Path, **options: Any) -> AxisLog:
     path = Path(path)
     comp = COMPRESSIONS.get(path.suffix.lower())
     inner = Path(path.stem) if comp else path
-    suffix = format_suffix(path)
+    suffix = inner.suffix.lower()  # format_suffix(path)
     if suffix not in READERS:
         expected = ", ".join(READERS)
         raise LogFormatError(f"{path}: unknown log format '{''.join(path.suffixes[-2:]).lower() or path.suffix}' "
