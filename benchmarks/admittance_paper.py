@@ -168,7 +168,8 @@ def run_one(model, seed: int, damping: str, D: float, cycle: float, rbf=None, gr
              end_error=float(abs(d["q"][-1] - op.p.goal) / abs(move)),
              released_on_target=bool(op.released_on_target), K_peak=float(op.K_peak),
              oscillating=bool(sustained), damp_time=float(damp),
-             stab_events=int(run.metrics.get("stability_events", 0)))
+             stab_events=int(run.metrics.get("stability_events", 0)),
+             stick_slip=float(run.metrics.get("stick_slip_margin", 0.0)))
     return (m, run) if with_run else m
 
 

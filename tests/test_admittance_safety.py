@@ -459,6 +459,53 @@ def test_a_stop_or_a_creep_between_the_models_sliding_curve_and_its_elements_is_
     assert drift < 0.05 and n_det == 0, (drift, n_det)
 
 
+def test_a_stick_slip_cycle_with_nobody_there_ends():
+    """gms-sensor seed 4 with a breakaway of 1.59 x its Coulomb friction (its file's: 1.11 x), adaptive
+    damping, after a guided move up: at every stop the plant stuck at a torque its file's friction cannot
+    hold, read as a push back, and the axis cycled 0.2 degree every 0.56 s with nobody there (1344
+    detected cycles in 30 s).  Three such reversals in a row raise the start threshold at a stop to what
+    they read; the cycle ends, and the run says why."""
+    p = plant("gms-sensor", seed=4)
+    p = dataclasses.replace(p, cfg=p.cfg.replace(Fs=29.685649934843497))
+    op = PushOperator(amplitude=15.0, t_start=2.0, duration=2.0, ramp=0.3)
+    run = _quiet_run(p, "adaptive", 0.012, 1.0, 30.0, op)
+    assert run.status == "completed", run.status
+    assert run.metrics["stick_slip_margin"] > run.config.threshold
+    assert any("stick-slip cycle" in w for w in run.metrics["warnings"])
+    drift, n_det = _drift_and_detections(run, t_from=15.0)  # the cycle went on to the end
+    assert drift < 0.05 and n_det == 0, (drift, n_det)
+
+
+def test_a_stick_slip_cycle_that_goes_on_stops_the_run():
+    """The watch itself: three detections in a row against the reference's last motion just after it
+    stood raise the margin to their largest |Γr| (at most the cap); three more stop the run."""
+    from kukaid.control.stability import StickSlipWatch
+
+    w = StickSlipWatch(0.012, cap=15.0)
+
+    def half_cycle(direction, peak):  # the reference moves 0.2 s, stands 60 ms, a push back is detected
+        for _ in range(17):
+            w.step(0.02 * direction, True, peak * direction)
+        for _ in range(5):
+            w.step(0.0, False, 0.0)
+        return w.step(0.0, True, -peak * direction)
+
+    assert half_cycle(1, 11.0) == 0.0 and half_cycle(-1, 12.0) == 0.0
+    assert half_cycle(1, 13.0) == 13.0 and w.stop is None
+    for direction in (-1, 1):
+        half_cycle(direction, 20.0)
+    assert w.stop is None
+    assert half_cycle(-1, 20.0) == 13.0 and "stick-slip cycle" in w.stop
+    slow = StickSlipWatch(0.012, cap=15.0)  # a person's corrections, each a second after the axis stood
+    for direction in (1, -1, 1, -1):
+        for _ in range(17):
+            slow.step(0.02 * direction, True, 8.0 * direction)
+        for _ in range(90):
+            slow.step(0.0, False, 0.0)
+        slow.step(0.0, True, -8.0 * direction)
+    assert slow.margin == 0.0
+
+
 def test_a_pushs_breakaway_at_rest_is_no_stop_and_the_push_is_not_taken_in():
     """gms-gravity seed 40 (the estimator's own friction law, a gravity error; found on held-out seeds
     40-49), a 15 N·m push down at rest: its breakaway (150 µrad, within the elements' pre-sliding range of

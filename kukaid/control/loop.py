@@ -32,7 +32,7 @@ from kukaid.control.filters import CausalButterworth
 from kukaid.control.rbf import RBFConfig, RBFDamping
 from kukaid.control.robot_residual import GuidedAxisResidual, RobotTorqueModel
 from kukaid.control.safety import ReferenceLimiter, SafetyLimits, Watchdog
-from kukaid.control.stability import CouplingConfig, CouplingFloor, OscillationMonitor, StabilityConfig
+from kukaid.control.stability import CouplingConfig, CouplingFloor, OscillationMonitor, StabilityConfig, StickSlipWatch
 from kukaid.control.torque_residual import DYNAMIC, RELEASE_SHARE, TorqueResidual
 from kukaid.errors import KukaidError
 
@@ -160,7 +160,8 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
         if cfg.damping == "adaptive" and cfg.coupling.enabled:  # the constant damping stays the paper's
             lp = CausalButterworth(est.cutoff, 1.0 / est.sample_time, est.order)  # the estimator's low-pass
             grip = CouplingFloor(cfg.coupling, cfg.cycle, cfg.I, D_cap=mon.D_cap, filter_delay=lp.phase_delay, D0=cfg.D)
-        log, status = _loop(backend, est, r, limiter, mon, grip, samples[-1], cfg, progress, on_row)
+        slip = StickSlipWatch(cfg.cycle, cap=getattr(est, "floor_cap", 3.0) * cfg.threshold)
+        log, status = _loop(backend, est, r, limiter, mon, grip, slip, samples[-1], cfg, progress, on_row)
     except BaseException:
         backend.hold()
         backend.close()
@@ -210,6 +211,13 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     # the axis stood): a push against it needed that much more; not a warning: a held hand makes one in
     # most guided runs on a LuGre plant (2-12 N·m)
     metrics["rest_drift_max"] = float(getattr(est, "drift_max", 0.0))
+    metrics["stick_slip_margin"] = slip.margin
+    if slip.margin > 0.0:
+        metrics.setdefault("warnings", []).append(
+            f"a stick-slip cycle with nobody there: {slip.starts} detections in a row started against the axis's last "
+            f"motion just after it stopped, so the start threshold at a stop was raised to {slip.margin:.3g} N·m for "
+            "the rest of the run: the parameter file's friction at a stop is not this axis's (a breakaway above the "
+            "file's); refit it on a recent log (kukaid fit ... --presliding LOG)")
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
 
 
@@ -253,7 +261,7 @@ _KEYS = ("time", "q", "tau", "tau_ext_true", "gamma_r", "gamma_p", "sigma", "sig
 
 
 def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, mon: OscillationMonitor,
-          grip: CouplingFloor | None,
+          grip: CouplingFloor | None, slip: StickSlipWatch,
           first: Any, cfg: LoopConfig,
           progress: Callable[[float], None] | None,
           on_row: Callable[[dict[str, Any]], None] | None) -> tuple[dict[str, list], str]:
@@ -306,6 +314,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
                 est.nobody_was_there()  # the loop's own move and rest: nothing read there was a hand
             phase = PHASE_ADMITTANCE
             sd0 = adm.sigma_dot
+            if hasattr(est, "cycle_margin"):  # a one-axis model: its friction at a stop
+                est.cycle_margin = slip.step(sd0, r.detected, r.gamma_r)
             if r.detected and abs(r.gamma_r) < min(cfg.threshold, D_now * v_hold):
                 # below the start threshold a detection holds only while what it commands is faster than
                 # the Stribeck velocity: slower, the model's friction is at its least certain, and a
@@ -361,6 +371,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             grip.observe_robot(q_cmd, last.q)
         if stop is None and not dog.check(backend.now()):
             stop = dog.tripped
+        if stop is None and slip.stop is not None:
+            stop = f"{slip.stop} at t = {last.t - t0:.3f} s"
         if stop is None and abs(last.tau) > cfg.limits.tau_max:
             stop = (f"measured torque {last.tau:.1f} N·m beyond the limit {cfg.limits.tau_max:g} N·m "
                     f"at t = {last.t - t0:.3f} s")

@@ -406,3 +406,65 @@ class CouplingFloor:
             self.events.append({"time": self._t, "index": self.K_est, "D_floor": new,
                                 "reason": (f"coupled mode at {w / (2 * math.pi):.2f} Hz: grip stiffness about "
                                            f"{self.K_est:.0f} N·m/rad, {why}: damping floor {new:.0f} N·m·s/rad")})
+
+
+class StickSlipWatch:
+    """A stick-slip cycle with nobody there: the loop's own stop read as a push back.
+
+    On a plant whose friction at a stop is not what the parameter file says (a breakaway well above
+    the file's, friction that grows as the axis sticks), the torque as the axis stops reads as a push
+    against the way it moved; detected, it drives the axis back, and the next stop does the same: a
+    cycle of a few tenths of a degree every 0.3-0.6 s that goes on with nobody there (gms-sensor
+    seed 4 with a breakaway 1.6 x its Coulomb friction, the file's 1.1 x: 1344 detected cycles in
+    30 s).  A person may push back just after a stop too, but not ``starts`` times in a row, each
+    within ``gap`` s of the last.
+
+    :meth:`step`, once per control cycle of the admittance, counts detections that start against
+    the way the reference last moved, within ``stand_window`` s of it standing.  ``starts`` in a row
+    are a cycle: the first time, the start threshold at a stop is raised to the largest |Γr| those
+    detections read (``margin``, at most ``cap``: the estimator's
+    :attr:`~kukaid.control.torque_residual.TorqueResidual.cycle_margin`); a cycle after that stops
+    the run (:attr:`stop` says why)."""
+
+    def __init__(self, cycle: float, cap: float, starts: int = 3, stand_window: float = 0.3,
+                 gap: float = 1.5) -> None:
+        self.cycle, self.cap = float(cycle), float(cap)
+        self.starts, self.stand_window, self.gap = int(starts), float(stand_window), float(gap)
+        self.margin = 0.0
+        self.stop: str | None = None
+        self._t = 0.0
+        self._dir = 0.0  # the way the reference last moved
+        self._standing = math.inf  # s the reference has stood (inf: never moved)
+        self._last = -math.inf  # when the last detection started, s
+        self._n = 0  # reversals at a stand in a row
+        self._peak = 0.0  # the largest |Γr| since the first of them, N·m
+        self._was = False
+
+    def step(self, sigma_dot: float, detected: bool, gamma_r: float) -> float:
+        """This cycle's reference speed (before the step), detection and Γr; returns the margin, N·m."""
+        self._t += self.cycle
+        if detected and not self._was:
+            reversal = (sigma_dot == 0.0 and self._standing <= self.stand_window
+                        and gamma_r * self._dir < 0.0)
+            self._n = self._n + 1 if reversal and self._t - self._last <= self.gap else int(reversal)
+            if self._n == 1:
+                self._peak = 0.0
+            self._last = self._t
+        self._was = detected
+        if self._n:
+            self._peak = max(self._peak, abs(gamma_r))
+        if sigma_dot != 0.0:
+            self._dir, self._standing = math.copysign(1.0, sigma_dot), 0.0
+        else:
+            self._standing += self.cycle
+        if self._n >= self.starts:
+            self._n = 0
+            if self.margin > 0.0:
+                self.stop = (f"a stick-slip cycle with nobody there: {self.starts} detections in a row started "
+                             f"against the reference's last motion within {self.stand_window:g} s of it standing "
+                             f"(up to {self._peak:.3g} N·m), again after the start threshold at a stop was raised to "
+                             f"{self.margin:.3g} N·m: the parameter file's friction at a stop is not this axis's "
+                             "(refit it on a recent log: kukaid fit ... --presliding LOG)")
+            else:
+                self.margin = min(self._peak, self.cap)
+        return self.margin

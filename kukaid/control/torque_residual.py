@@ -214,6 +214,9 @@ class TorqueResidual:
         ms = model.maxwell_slip
         self.blend_gap = (abs(abs(float(model.friction.at(BLEND[1] * self.qd_thr))) - float(np.sum(ms.W)))
                           if ms is not None else 0.0)
+        # the start threshold at a stop or a creep after a stick-slip cycle with nobody there, N·m (the loop's
+        # :class:`~kukaid.control.stability.StickSlipWatch` sets it; 0: none seen)
+        self.cycle_margin = 0.0
         self.cutoff, self.order = float(cutoff), int(order)
         fs = 1.0 / self.sample_time
         # q, qd, qdd, tau, predicted torque
@@ -558,7 +561,7 @@ class TorqueResidual:
                 start = max(start, self.switch_share * self.threshold)
             if self._since_stop < self.switch_quiet or (not quasi and v < BLEND[1] * thr):
                 # a stop or a creep: the model's friction between its sliding curve and its elements' saturation
-                start = max(start, self.threshold + self.blend_gap)
+                start = max(start, self.threshold + self.blend_gap, self.cycle_margin)
             if quasi and start <= a < self._start_prev:
                 # the start threshold fell under a residual standing at rest (a stop's 2 x ended, the
                 # floor came down): not a push, rather a model off at this rest, or a hand that stayed
