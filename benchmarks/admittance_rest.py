@@ -12,7 +12,8 @@ initiation move (+1 / -1 degree) two runs with the member's own parameter file:
   move, let go; measured from when the reference has coasted to a stop.
 
 Per run: drift (largest |q - q at the window's start|, degrees, the ambient vibration included),
-detected cycles, the largest start threshold at rest the estimator needed (N·m).  A run passes
+detected cycles, the largest start threshold at rest the estimator needed (N·m), and whether the
+loop's stick-slip watch raised the threshold at a stop (``stick-slip``: runs where it acted).  A run passes
 with drift < 0.05 degree and no detection.  ``--vibration A`` overrides every plant's ambient
 vibration RMS (rad; the family draws 0-1e-5, the paper's A6 experiment is about 5e-5): the
 stress rows of docs/admittance.md.
@@ -127,6 +128,7 @@ def one(args):
     return {"plant": name, "outside": outside, "seed": seed, "damping": damping, "cycle": cycle, "move": move, "scenario": scenario,
             "vibration": float(cfg_sim.vib_amplitude if cfg_sim.vibration else 0.0), "drift_deg": drift,
             "detected_cycles": n_det, "rest_threshold_max": run.metrics["rest_threshold_max"],
+            "stick_slip_margin": run.metrics["stick_slip_margin"],
             "passes": drift < 0.05 and n_det == 0, "status": run.status}
 
 
@@ -176,6 +178,7 @@ def main() -> None:
                             "pass": sum(r["passes"] for r in rs),
                             "drift_max_deg": max(r["drift_deg"] for r in rs),
                             "detected_runs": sum(r["detected_cycles"] > 0 for r in rs),
+                            "stick_slip_runs": sum(r["stick_slip_margin"] > 0 for r in rs),
                             "rest_threshold_max": max(r["rest_threshold_max"] for r in rs)})
     doc = {"seeds": seeds, "duration": a.duration, "vibration": a.vibration, "outside": a.outside, "files": a.files,
            "summary": summary,
@@ -189,10 +192,10 @@ def main() -> None:
     print(f"nobody touching: seeds {seeds[0]}-{seeds[-1]}, {a.duration:g} s at rest, vibration {vib}, both dampings, "
           "moves up and down, " + ("files fitted on each plant" if a.files == "fitted" else "the members' files"))
     print(f"{'outside' if a.outside else 'plant':>14} {'scenario':>20} | {'pass':>7} | {'drift max':>9} | "
-          f"{'runs w/ det':>11} | {'thr at rest max':>15}")
+          f"{'runs w/ det':>11} | {'stick-slip':>10} | {'thr at rest max':>15}")
     for r in summary:
         print(f"{r['outside'] or r['plant']:>14} {r['scenario']:>20} | {r['pass']:3d}/{r['runs']:<3d} | {r['drift_max_deg']:7.4f} ° |"
-              f" {r['detected_runs']:11d} | {r['rest_threshold_max']:11.2f} N·m")
+              f" {r['detected_runs']:11d} | {r['stick_slip_runs']:10d} | {r['rest_threshold_max']:11.2f} N·m")
     for r in rows:
         if a.outside and not r["passes"]:
             print(f"  fails: {r['outside']} {r['plant']} seed {r['seed']} {r['damping']} move {r['move']:+g} "
