@@ -133,7 +133,8 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
               help="Reference speed limit, deg/s (sim: at most the axis's top speed).")
 @click.option("--qdd-max", type=float, default=300.0, show_default=True, help="Reference acceleration limit, deg/s².")
 @click.option("--tau-max", type=float, default=100.0, show_default=True,
-              help="Motion stops when the measured torque exceeds this, N·m (sim: at most the drive's torque).")
+              help="Motion stops when the external torque |Γr| (the model's torque minus the measured one: a push, a "
+                   "collision; not the gravity load) exceeds this, N·m (sim: at most the drive's torque).")
 @click.option("--max-age", type=float, default=0.1, show_default=True,
               help="Motion stops when the latest measurement is older than this, s (kvp: also the longest a "
                    "reply of KUKAVARPROXY is awaited, at least 2 cycles).")
