@@ -160,7 +160,7 @@ def run_one(model, seed: int, damping: str, D: float, cycle: float, rbf=None, gr
     damp, sustained = damping_delay(m["osc_runs"], [e["time"] for e in run.metrics.get("stability_log", [])])
     move = op.p.goal - op.p.q_start
     m.update(seed=seed, grip=op.p.grip, status=run.status, plant=plant.name if plant is not None else "paper",
-             torque_stop=run.status.startswith("stopped: measured torque"),
+             torque_stop=run.status.startswith("stopped: external torque"),
              false_after_release=int(np.sum(d["detected"][after])) if math.isfinite(t_rel) else 0,
              # of those, Γr against the hand's last torque: its release read as a push the other way (the rest:
              # the push itself, still seen through the estimator's delay)

@@ -133,7 +133,8 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
               help="Reference speed limit, deg/s (sim: at most the axis's top speed).")
 @click.option("--qdd-max", type=float, default=300.0, show_default=True, help="Reference acceleration limit, deg/s².")
 @click.option("--tau-max", type=float, default=100.0, show_default=True,
-              help="Motion stops when the measured torque exceeds this, N·m (sim: at most the drive's torque).")
+              help="Motion stops when the external torque |Γr| (the model's torque minus the measured one: a push, a "
+                   "collision; not the gravity load) exceeds this, N·m (sim: at most the drive's torque).")
 @click.option("--max-age", type=float, default=0.1, show_default=True,
               help="Motion stops when the latest measurement is older than this, s (kvp: also the longest a "
                    "reply of KUKAVARPROXY is awaited, at least 2 cycles).")
@@ -172,7 +173,8 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
 @PORT
 @click.option("--axis", type=AXIS, default=3, show_default=True,
-              help="kvp (A1..A6), or a robot parameter file (any of its axes): axis to control.")
+              help="Axis to control: kvp (A1..A6), a robot parameter file (any of its axes), or the axis the "
+                   "one-axis virtual KR C4 simulates (A1..A6; its parameter file's axis).")
 @URDF
 def command(params_path: Path, output: Path, report: Path | None, as_json: bool, force: bool, damping: str,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
@@ -334,12 +336,17 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             if program is not None:
                 raise click.UsageError("--program is for a robot parameter file")
             q_start = prog = None
-            # the virtual KR C4 simulates one revolute axis, A3 unless --sim-config says another
+            # the virtual KR C4 simulates one revolute axis: A3, or the one --axis names (as capture simulates the
+            # trajectory's), or the one --sim-config says
+            if given("axis") and sim_config is None:
+                if axis > 6:
+                    raise click.BadParameter(f"{axis}: the virtual KR C4 has axes 1 to 6", param_hint="--axis")
+                scfg = scfg.replace(axis=axis)
             if given("axis") and axis != scfg.axis:
                 raise click.BadParameter(f"{axis}: the virtual KR C4 simulates A{scfg.axis} (a --sim-config's "
                                          "\"axis\" sets another)", param_hint="--axis")
             _check_axis_kind(params, params_path, scfg.axis, f"the virtual KR C4's A{scfg.axis}",
-                             f" (a --sim-config with \"axis\": {params.get('axis')} simulates that axis)")
+                             f" (--axis {params.get('axis')} simulates that axis)")
             from kukaid.models.limits import AxisLimits
 
             rng = AxisLimits.kr6_r700_sixx(scfg.axis)

@@ -63,7 +63,7 @@ def test_firm_grip_is_damped_instead_of_oscillating():
     fail); with them the damping is raised within about a second, logged, and the torque stop is
     never reached."""
     off, m_off = _human_run(0, "firm", stability=False)
-    assert off.status.startswith("stopped: measured torque") or m_off["osc_seconds"] > 5.0
+    assert off.status.startswith("stopped: external torque") or m_off["osc_seconds"] > 5.0
     on, m_on = _human_run(0, "firm")
     assert on.status == "completed"
     assert m_on["osc_ptp"] < 0.5 * m_off["osc_ptp"]  # the oscillation is much smaller ...

@@ -124,10 +124,23 @@ def test_a_detection_on_before_the_hand_touched_gives_no_detection_delay():
 
 
 def test_torque_limit_stops_motion():
-    run = _run(_push(15.0), duration=6.0, limits=SafetyLimits(tau_max=25.0))
-    assert run.status.startswith("stopped: measured torque") and "25 N·m" in run.status
-    assert abs(run.data["tau"][-1]) > 25.0
+    run = _run(_push(30.0), duration=6.0, limits=SafetyLimits(tau_max=25.0))
+    assert run.status.startswith("stopped: external torque Γr") and "25 N·m" in run.status
+    assert abs(run.data["gamma_r"][-1]) > 25.0
     assert run.data["phase"][-1] == 3
+
+
+def test_torque_limit_bounds_the_push_not_the_gravity_load():
+    """New-user trial 14: on A2 of a KR 6 the gravity load is about 45 N·m, and the default 100 N·m stop on the
+    measured torque tripped under a 55 N·m push from above (it would have let one from below reach 145 N·m).
+    The stop bounds the external torque Γr: a gravity load beyond --tau-max with a push below it runs on."""
+    cfg = SimConfig().replace(**{**TRUTH, "Mx": 60.0})  # 52 N·m of gravity at 30 degrees
+    model = model_from_params(cfg.truth_params())
+    run = run_admittance(SimRobot(VirtualKRC4(cfg, seed=3), Q0, _push(-12.0)), model,
+                         LoopConfig(duration=6.0, limits=SafetyLimits(tau_max=40.0)))
+    assert run.status == "completed", run.status
+    assert np.max(np.abs(run.data["tau"])) > 60.0  # the measured torque: the gravity load and the push
+    assert np.max(np.abs(run.data["gamma_r"])) < 20.0
 
 
 class _Failing(SimRobot):

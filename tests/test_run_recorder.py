@@ -61,7 +61,8 @@ def test_a_comparison_run_that_stopped_on_the_torque_limit_says_when_once(tmp_pa
 
     from kukaid.control.loop import LoopConfig
 
-    stop = "stopped: measured torque 101.2 N·m beyond the limit 100 N·m at t = 3.672 s"
+    stop = ("stopped: external torque Γr 101.2 N·m (the model's torque minus the measured -82.3 N·m) beyond the limit "
+            "100 N·m at t = 3.672 s")
     run = SimpleNamespace(status="completed", data={"time": np.arange(0.0, 5.0, 0.012)}, metrics={})
     other = SimpleNamespace(status=stop, data={"time": np.arange(0.0, 3.68, 0.012)}, metrics={})
     notes: list[str] = []

@@ -1,8 +1,8 @@
 """Safety of the admittance loop: every reference that can move a robot is bounded and watched.
 
 * :class:`SafetyLimits` — position window (rad), velocity (rad/s), acceleration (rad/s²) limits on
-  the reference, the largest measured torque (N·m) and the largest age of a measurement (s) the
-  loop may act on.
+  the reference, the largest external torque Γr (N·m: the model's torque minus the measured one) and the
+  largest age of a measurement (s) the loop may act on.
 * :class:`ReferenceLimiter` — clips a new reference to the window and to the velocity and
   acceleration limits relative to the previous reference (so a step never reaches the robot).
 * :class:`Watchdog` — a stale or missing measurement (older than ``max_age``) stops motion: the
@@ -29,8 +29,10 @@ class SafetyLimits:
 
     q_min, q_max : position window, rad (errors name it in degrees, the unit of the options).   qd_max : reference speed limit, rad/s.
     qdd_max : reference acceleration limit, rad/s².
-    tau_max : largest measured motor torque, N·m: beyond it motion stops (a collision, a jammed
-        axis or a model far off; the KRC's own torque monitoring stays in force).
+    tau_max : largest external torque |Γr|, N·m (the model's torque minus the measured one: what a person
+        or an obstacle exerts, not the gravity load or the other axes' motion): beyond it motion stops (a
+        collision, a jammed axis, a push too hard or a model far off; the KRC's own torque monitoring and
+        collision detection stay in force).
     max_age : largest age of the latest measurement, s, before motion stops.
     """
 
