@@ -93,6 +93,17 @@ def test_position_window_is_never_left():
     assert np.max(np.abs(v)) <= 0.5 + 1e-9  # the default speed limit of SafetyLimits
 
 
+def test_the_reference_peak_speed_is_the_speed_sent_within_the_limit():
+    """New-user trial 14: with a push the admittance wanted faster than --qd-max, the summary's
+    "reference peak speed" read 0.5097 rad/s against the 0.5027 limit: the admittance's own σ̇ at the
+    end of a cycle, before the next one clipped it; the reference sent never went beyond the limit."""
+    qd_max = math.radians(10.0)
+    run = _run(_push(25.0), duration=5.0, D=20.0, limits=SafetyLimits(qd_max=qd_max))
+    assert run.metrics["clipped_cycles"] > 0
+    assert np.max(np.abs(run.data["sigma_dot"])) > qd_max + 1e-3  # what the admittance wanted
+    assert qd_max * 0.95 < run.metrics["peak_speed"] <= qd_max + 1e-9
+
+
 def test_an_initiation_move_cut_by_the_window_is_said():
     """New-user trial 11: a start 0.5 degree from the window's edge cut the 1-degree initiation move in half,
     and the run said only "clipped_cycles 75"; now a warning says how far it went."""

@@ -452,8 +452,9 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
       the truth) nobody pushes: the true external torque over the last 0.25 s is below the
       detection threshold on average (a push still on but never detected is not a settled run);
     * ``displacement`` rad: the measured q at the end minus q when the admittance started (the summary's
-      "measured displacement"); ``peak_speed`` rad/s: the largest |σ̇|, the reference's speed, not the
-      axis's ("reference peak speed": 0 when nothing was detected, though the axis may creep);
+      "measured displacement"); ``peak_speed`` rad/s: the largest speed of the reference sent while it
+      moved (within --qd-max), not the axis's ("reference peak speed": 0 when nothing was detected,
+      though the axis may creep);
     * ``false_after_release`` (with the truth): detected cycles from 0.3 s after the last cycle
       with |tau_ext_true| >= 1 N·m on (nobody touching);
     * ``warnings``: the run did not settle; (with the truth) the estimate disagreed grossly with
@@ -509,7 +510,12 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     else:
         out["mean_sq_dgamma"] = out["mean_cost"] = math.nan
     out["displacement"] = float(data["q"][idx[-1]] - data["q"][idx[0]])
-    out["peak_speed"] = float(np.max(np.abs(data["sigma_dot"][ph])))
+    # the speed of the reference sent while it moved (the limiter's: the admittance's own σ̇ at the end of a
+    # cycle may be beyond --qd-max before the next cycle clips it; a rest's one shift to where the axis
+    # stopped is no motion)
+    step = np.abs(np.diff(data["q_cmd"], prepend=data["q_cmd"][:1])) / cfg.cycle
+    moving = ph & (data["sigma_dot"] != 0.0)
+    out["peak_speed"] = float(np.max(step[moving])) if moving.any() else 0.0
     out["settled"] = bool(abs(data["sigma_dot"][idx[-1]]) < 1e-3 and not det[idx[-1]])
     warnings: list[str] = []
     if not out["settled"]:
