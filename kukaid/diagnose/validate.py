@@ -173,6 +173,6 @@ def table(scores: dict[int, AxisScore], unit: str = "N·m") -> list[str]:
     unknown = [f"A{ax}" for ax, s in scores.items() if not s.noise_floor > 0 and not _flat(s)]
     if unknown:
         out.append(f"x noise: the RMSE over the noise floor (what a perfect model would reach); n/a for "
-                   f"{', '.join(unknown)}: the torque was filtered before it was recorded, so its noise is not "
+                   f"{', '.join(unknown)}: the torque was filtered or resampled before it was recorded, so its noise is not "
                    "white and cannot be told from it")
     return out

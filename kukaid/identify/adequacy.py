@@ -64,12 +64,30 @@ def raw_noise_sigma(x: np.ndarray) -> float:
 
 def smooth_at_source(x: np.ndarray) -> bool:
     """Whether the samples ``x`` were low-pass filtered before they were recorded (successive second
-    differences correlated above :data:`SMOOTH_D2_CORRELATION`): what noise they carry is then not
-    white, and :func:`raw_noise_sigma` does not measure it (it sees almost nothing)."""
+    differences correlated above :data:`SMOOTH_D2_CORRELATION`), or interpolated to a finer rate
+    (:func:`interpolated`): what noise they carry is then not white, and :func:`raw_noise_sigma`
+    does not measure it (it sees almost nothing)."""
     d2 = np.diff(np.asarray(x, dtype=float), 2)
+    if interpolated(d2):
+        return True
     d2 = d2 - d2.mean() if d2.size else d2
     den = float(d2 @ d2)
     return d2.size > 2 and den > 0 and float(d2[:-1] @ d2[1:]) / den > SMOOTH_D2_CORRELATION
+
+
+def interpolated(d2: np.ndarray, longest: int = 16) -> bool:
+    """Whether the second differences ``d2`` are those of samples interpolated linearly to a finer rate
+    (MATLAB's ``interp1`` of a 12 ms log to 4 ms): between the recorded samples they vanish to rounding
+    (a noise read from them: 1e-13 N·m, a model "6e12 x the noise floor"), so what is left of them never
+    falls on some phase of the pattern the rate ratio repeats with (2 to ``longest`` samples: 12 ms to
+    4 ms, every third; to 8 ms, two of three).  A coarsely quantised signal has many zero second
+    differences too, but its others fall on every phase."""
+    d2 = np.abs(np.asarray(d2, dtype=float))
+    big = np.flatnonzero(d2 > 1e-9 * max(float(d2.max(initial=0.0)), 1e-300))
+    if big.size > 0.8 * d2.size:
+        return False
+    return any(np.bincount(big % p, minlength=p).min() < 0.05 * big.size / p
+               for p in range(2, longest + 1) if big.size >= 20 * p)
 
 
 def filter_noise_gain(fs: float, cutoff: float, order: int) -> float:
@@ -155,8 +173,8 @@ def assess(axis: int, residual_rms: float, floor: float, others: Sequence[int], 
 
 
 #: why a fit's noise floor is not known
-UNKNOWN_FLOOR = ("the noise floor is not known: the torque was filtered before it was recorded (its noise is not "
-                  "white)")
+UNKNOWN_FLOOR = ("the noise floor is not known: the torque was filtered or resampled before it was recorded (its "
+                 "noise is not white)")
 
 
 def _residual_warning(ratio: float) -> str:
