@@ -512,7 +512,8 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     # the speed of the reference sent while it moved (the limiter's: the admittance's own σ̇ at the end of a
     # cycle may be beyond --qd-max before the next cycle clips it; a rest's one shift to where the axis
     # stopped is no motion)
-    step = np.abs(np.diff(data["q_cmd"], prepend=data["q_cmd"][:1])) / cfg.cycle
+    sent = data.get("q_cmd")  # a record without it (an older log): the admittance's own σ̇
+    step = (np.abs(np.diff(sent, prepend=sent[:1])) / cfg.cycle if sent is not None else np.abs(data["sigma_dot"]))
     moving = ph & (data["sigma_dot"] != 0.0)
     out["peak_speed"] = float(np.max(step[moving])) if moving.any() else 0.0
     out["settled"] = bool(abs(data["sigma_dot"][idx[-1]]) < 1e-3 and not det[idx[-1]])
