@@ -44,6 +44,17 @@ def _check_window(lo: float, hi: float, q0: float | None, defaulted: bool) -> No
                                f"[{lo:.4g}, {hi:.4g}] degrees ({where})")
 
 
+def _default_start(axis: int) -> float:
+    """The simulated start of a KR 6 R700 sixx's ``axis`` when --q0 is not given, degrees: 30, or the middle of
+    the axis's range when 30 lies within 40 degrees of an end (A2: 15 from its upper end, and a person guiding
+    0.2-0.5 rad from there left the window: 199 clipped cycles, new-user trial 14)."""
+    from kukaid.models.limits import AxisLimits
+
+    r = AxisLimits.kr6_r700_sixx(axis)
+    lo, hi = math.degrees(r.q_min), math.degrees(r.q_max)
+    return 30.0 if lo + 40.0 <= 30.0 <= hi - 40.0 else 0.5 * (lo + hi)
+
+
 def _check_start(q0: float, lo: float, hi: float, what: str) -> None:
     """The simulated start --q0 (degrees) within the simulated axis's range of motion ``lo``..``hi`` (rad;
     an infinite bound: none): the virtual robot has no hard stops, a start beyond them simulates no robot."""
@@ -152,7 +163,8 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
               help="sim: seed of noise, vibration and operator.")
 @click.option("--q0", type=float, default=30.0, show_default=True,
               help="sim: start position, degrees, within the simulated axis's range of motion (A3 of a KR 6 R700 "
-                   "sixx: -120 to 156).")
+                   "sixx: -120 to 156); by default 30, or the middle of the axis's range when 30 is within 40 "
+                   "degrees of its end (A2: -72.5).")
 @click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
               help="sim, one-axis parameter file: JSON overriding the simulator's truth and settings.")
 @click.option("--noise", type=float, help="sim, one-axis parameter file: torque noise sigma, N·m [0.5].")
@@ -261,6 +273,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     if backend == "sim":
         if not math.isfinite(q0):
             raise click.BadParameter(f"{q0} is not a position in degrees", param_hint="--q0")
+        if not given("q0") and sim_config is None and 1 <= axis <= 6 and (
+                not robot_file or params["robot"]["urdf"] == "kr6-r700-sixx"):
+            q0 = _default_start(axis)
         lo_deg = q0 - 90.0 if q_min is None else q_min
         hi_deg = q0 + 90.0 if q_max is None else q_max
     else:

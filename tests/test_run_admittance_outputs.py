@@ -283,6 +283,9 @@ def test_axis_names_the_simulated_axis_of_a_one_axis_file(params, tmp_path):
     assert r.exit_code == 0, r.output
     log = read_run(tmp_path / "r.h5")[0]
     assert log.axes == (2,) and log.attrs["truth"]["axis"] == 2
+    # and starts mid-range: the default 30 degrees is 15 from A2's upper end, and a person guiding 0.2-0.5 rad
+    # from there left the window (199 clipped cycles)
+    assert np.degrees(log.q[0, 0]) == pytest.approx(-72.5, abs=0.1)
     assert "the parameters are of axis A2, not A1" in _one_line(
         _run(["--params", a2, "--axis", "1", "--duration", "1", "-o", tmp_path / "r1.h5"]), 2)
     par = json.loads(params.read_text())
