@@ -97,12 +97,12 @@ _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
 # limits
 @click.option("--limits", "limits_file", type=click.Path(dir_okay=False, path_type=Path),
               help="JSON with axis limits (q_min, q_max rad; qd_max rad/s; qdd_max rad/s^2; or *_deg).")
-@click.option("--q-min-deg", type=float, help="Lower position limit, deg [KR 6 R700 sixx A3: -120].")
-@click.option("--q-max-deg", type=float, help="Upper position limit, deg [A3: +156].")
+@click.option("--q-min-deg", type=float, help="Lower position limit, deg [the KR 6 R700 sixx's for --axis; A3: -120, A2: -190].")
+@click.option("--q-max-deg", type=float, help="Upper position limit, deg [A3: +156, A2: +45].")
 @click.option("--qd-max-deg", type=float, help="Velocity limit, deg/s [A3: 360].")
 @click.option("--qdd-max-deg", type=float, help="Acceleration limit, deg/s^2 [assumed 573 = 10 rad/s^2].")
 # all kinds
-@click.option("--centre-deg", type=float, help="Centre of the motion, deg [middle of the axis range: 18].")
+@click.option("--centre-deg", type=float, help="Centre of the motion, deg [middle of the axis range; A3: 18, A2: -72.5].")
 @click.option("--lead", type=float, help="Standstill at the start, s [1].")
 # friction
 @click.option("--speeds", help="friction: plateau speeds, rad/s, comma-separated [log-spaced v-min..v-max].")
