@@ -99,6 +99,27 @@ def test_a_one_axis_files_recording_is_in_sample_wherever_it_is_and_another_of_i
     assert [w.split(": ")[3] for w in _warnings(r) if "in-sample" in w] == [str(fit_dir / "a.h5")], r.stderr
 
 
+def test_a_recording_converted_to_another_format_is_the_same_recording(fitted, tmp_path):
+    """New-user trial 13: the fitted a.h5 written as CSV (`kukaid load a.h5 -o a.csv`: positions in degrees,
+    read back in radians, the last bit of a sample changed) got another fingerprint, and validate called its
+    figures a validation.  A file written before (the bytes' hash) still knows its recording."""
+    from kukaid.logs import fingerprints, read_log
+
+    assert _run("load", fitted / "a.h5", "-o", tmp_path / "a.csv").exit_code == 0
+    h5, csv = read_log(fitted / "a.h5"), read_log(tmp_path / "a.csv")
+    assert not np.array_equal(h5.q, csv.q)  # the conversion changed the samples' last bits
+    assert fingerprints(h5)[0] == fingerprints(csv)[0] and fingerprints(h5)[1] != fingerprints(csv)[1]
+    r = _run("validate", "--params", fitted / "p.json", tmp_path / "a.csv", fitted / "b.h5")
+    assert [w for w in _warnings(r) if "in-sample" in w and "a.csv" in w], r.stderr
+    old = json.loads((fitted / "p.json").read_text())
+    old["provenance"]["log_fingerprints"] = [fingerprints(h5)[1]]  # as fit wrote it before
+    (tmp_path / "old.json").write_text(json.dumps(old))
+    r = _run("validate", "--params", tmp_path / "old.json", fitted / "a.h5", fitted / "b.h5")
+    assert [w for w in _warnings(r) if "in-sample" in w and "a.h5" in w], r.stderr
+    r = _run("fit", fitted / "a.h5", tmp_path / "a.csv", "--friction-model", "coulomb-viscous", "-o", tmp_path / "p.json")
+    assert r.exit_code != 0 and "the same recording as" in r.output, r.output  # one recording twice
+
+
 def test_report_warns_of_a_log_given_in_another_role_as_fit_does(fitted, tmp_path):
     """The issue's case: a friction capture given as --presliding draws a hysteresis page from a
     short quasi-static stretch; now with the role warning `fit` gives."""

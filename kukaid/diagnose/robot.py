@@ -887,12 +887,12 @@ def _unseen(params: dict, logs: Sequence[Any]) -> tuple[list[Any], list[str]]:
     in-sample: small where the others' is not, and a candidate that tells that recording from the
     others, as a temperature that differs per recording does, would seem to predict the others);
     all of them otherwise. Returns the recordings and the names of those left out."""
-    from kukaid.logs import log_fingerprint
+    from kukaid.logs import fingerprints
 
     fps = set((params.get("provenance") or {}).get("log_fingerprints") or [])
     if len(logs) < 3 or not fps:
         return list(logs), []
-    seen = [log_fingerprint(lg) in fps for lg in logs]
+    seen = [bool(fps.intersection(fingerprints(lg))) for lg in logs]
     if sum(not x for x in seen) < 2:
         return list(logs), []
     return ([lg for lg, x in zip(logs, seen) if not x],

@@ -163,11 +163,11 @@ def in_sample(params: dict, logs: Sequence[Any], params_path: Any = None, loaded
     import os
     from pathlib import Path
 
-    from kukaid.logs import log_fingerprint
+    from kukaid.logs import fingerprints
 
     prints = set((params.get("provenance") or {}).get("log_fingerprints") or ())
     if prints and len(loaded) == len(logs):
-        return [p for p, lg in zip(logs, loaded) if log_fingerprint(lg) in prints]
+        return [p for p, lg in zip(logs, loaded) if prints.intersection(fingerprints(lg))]
     bases = [Path.cwd()] + ([Path(params_path).resolve().parent] if params_path is not None else [])
     fitted = {(b / f).resolve() for f in fitted_logs(params) for b in bases}
     out = []

@@ -9,7 +9,7 @@ from typing import Any, Callable
 
 from kukaid.errors import LogFormatError
 from kukaid.logs.core import (AxisLog, OtherKindError, check_each_recording_once, check_samples, check_units,
-                              log_fingerprint, other_kind)
+                              log_fingerprint, fingerprints, other_kind)
 from kukaid.logs.csvlog import read_csv, write_csv
 from kukaid.logs.hdf5 import read_hdf5, write_hdf5
 from kukaid.logs.matlog import read_mat
@@ -96,5 +96,5 @@ def _read_compressed(path: Path, comp: str, name: str, reader: Callable[..., Axi
     return log
 
 
-__all__ = ["AxisLog", "AxisLogWriter", "COMPRESSIONS", "READERS", "format_suffix", "check_each_recording_once", "check_samples", "check_units", "log_fingerprint", "read_csv", "read_hdf5",
+__all__ = ["AxisLog", "AxisLogWriter", "COMPRESSIONS", "READERS", "format_suffix", "check_each_recording_once", "check_samples", "check_units", "fingerprints", "log_fingerprint", "read_csv", "read_hdf5",
            "read_log", "read_mat", "read_trace", "write_csv", "write_hdf5"]

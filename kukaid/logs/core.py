@@ -8,6 +8,7 @@ See ``../shared/DESIGN.md`` "File formats" for the contract.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import re
 from dataclasses import dataclass, field, replace
@@ -55,15 +56,45 @@ def channel_unit(channel: str, joint: str) -> str:
 
 
 def log_fingerprint(log: "AxisLog") -> str:
-    """A short hash of a log's samples (time, positions, torques): which logs a fit saw, whatever
-    their file names or folders (``kukaid validate`` calls a recording the file keeps in its
-    ``provenance.log_fingerprints`` in-sample; ``kukaid diagnose`` holds it out of nothing)."""
+    """A short hash of a log's samples (time, positions, torques of its axes): which logs a fit saw,
+    whatever their file names, folders or format (``kukaid validate`` calls a recording the file keeps
+    in its ``provenance.log_fingerprints`` in-sample; ``kukaid diagnose`` holds it out of nothing).
+
+    It hashes sums over the samples, each rounded to 1e-9 of its channel's size, not the samples'
+    bytes: a log converted to another format (``kukaid load run.h5 -o run.csv``: positions written in
+    degrees, read back in radians) differs in the last bit of its samples, and the same recording got
+    another fingerprint (new-user trial 13).  Files written before keep the bytes' hash
+    (:func:`legacy_fingerprint`); :func:`fingerprints` gives both to match them."""
+    import hashlib
+
+    n = int(np.asarray(log.time).size)
+    ramp = np.linspace(-1.0, 1.0, n)
+    terms: list = [n, tuple(int(a) for a in log.axes)]
+    for x in (np.asarray(log.time, float)[:, None], np.asarray(log.q, float), np.asarray(log.tau, float)):
+        for col in x.reshape(n, -1).T:
+            size = float(np.abs(col).sum())
+            if size == 0.0 or not math.isfinite(size):
+                terms.append(repr(size))
+                continue
+            terms += [round(float(col.sum()) / (1e-9 * size)), round(float(col @ ramp) / (1e-9 * size)),
+                      f"{float(col @ col):.9g}"]
+    return hashlib.sha256(repr(terms).encode()).hexdigest()[:16]
+
+
+def legacy_fingerprint(log: "AxisLog") -> str:
+    """The fingerprint files written before stop 39 keep: a hash of the samples' bytes (time, q, tau)."""
     import hashlib
 
     h = hashlib.sha256()
     for x in (log.time, log.q, log.tau):
         h.update(np.ascontiguousarray(np.asarray(x, float)).tobytes())
     return h.hexdigest()[:16]
+
+
+def fingerprints(log: "AxisLog") -> tuple[str, str]:
+    """The log's :func:`log_fingerprint` and its :func:`legacy_fingerprint`: a parameter file keeps one or
+    the other of the logs it was fitted on."""
+    return log_fingerprint(log), legacy_fingerprint(log)
 
 
 def check_each_recording_once(logs: Sequence["AxisLog"], error: type[KukaidError] = KukaidError) -> None:
