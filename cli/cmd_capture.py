@@ -22,7 +22,9 @@ from kukaid_cli._util import progress as progress_bar
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="sim: seed of noise, vibration and effects.")
 @click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
-              help="sim: JSON overriding the simulator's truth and settings.")
+              help="sim: JSON overriding the simulator's truth and settings (a one-axis trajectory's axis "
+                   "has the paper's A3 dynamics, Izz 2.28 kg·m², Mx 18.5 N·m, whatever its number: for another "
+                   "axis's gravity give its Izz and Mx here).")
 @click.option("--noise", type=float, help="sim: torque noise sigma, N·m [0.5].")
 @click.option("--effect", "effects", multiple=True, metavar="NAME[=SIZE]",
               help="sim: hide an effect (gravity_sine, torque_offset, position_ripple, thermal_drift, "

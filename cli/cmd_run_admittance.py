@@ -166,7 +166,9 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
                    "sixx: -120 to 156); by default 30, or the middle of the axis's range when 30 is within 40 "
                    "degrees of its end (A2: -72.5).")
 @click.option("--sim-config", type=click.Path(dir_okay=False, path_type=Path),
-              help="sim, one-axis parameter file: JSON overriding the simulator's truth and settings.")
+              help="sim, one-axis parameter file: JSON overriding the simulator's truth and settings (the "
+                   "simulated axis has the paper's A3 dynamics whatever its number, --axis 2 too: for A2's "
+                   "gravity give its Izz and Mx here).")
 @click.option("--noise", type=float, help="sim, one-axis parameter file: torque noise sigma, N·m [0.5].")
 @click.option("--plant-friction", type=click.Choice(["gms", "lugre"]),
               help="sim, one-axis parameter file: the simulated axis's friction law [gms, the estimator's own: "
