@@ -120,7 +120,9 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--D-max", "D_max", type=float,
               help="adaptive: upper bound of the network's D [2 D]; to damp an oscillation the stability monitor "
                    "may raise D above it, up to 10 D (logged with when and why).")
-@click.option("--threshold", type=float, default=5.0, show_default=True, help="Detection threshold on |Γr|, N·m.")
+@click.option("--threshold", type=float, default=None,
+              help="Detection threshold on |Γr|, N·m [5, the paper's; a quarter of a one-axis file's Coulomb "
+                   "friction when that is more: an axis with more friction than the paper's A3, e.g. an A2].")
 @click.option("--release", type=float,
               help="|Γr| below which a detection ends, N·m [0.3 threshold: once in contact the axis follows "
                    "down to this holding torque].")
@@ -293,6 +295,10 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                               tau_max=tau_max, max_age=max_age)
         check_motion_allowed(backend, enable_motion, limits)
         # LoopConfig checks the admittance's stability (also at D-max) and the detection thresholds
+        if threshold is None:
+            from kukaid.control.loop import default_threshold
+
+            threshold = default_threshold(model)
         cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
                          sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf,
                          cutoff=cutoff, limits=limits, no_rest_model=no_rest_model)

@@ -506,6 +506,62 @@ def test_a_stick_slip_cycle_that_goes_on_stops_the_run():
     assert slow.margin == 0.0
 
 
+def _fitted(cfg, seed, reversals=None):
+    """The file the toolkit's own identification gives on the plant ``cfg`` (friction, inertia and pre-sliding
+    experiments, then fit), and the fit's warnings."""
+    from kukaid import excite
+    from kukaid.identify import fit_axis
+
+    pre = excite.presliding() if reversals is None else excite.presliding(reversals=reversals)
+    logs = [VirtualKRC4(cfg, seed=1000 + 3 * seed + k, axis=3).run(traj)
+            for k, traj in enumerate((excite.friction(), excite.inertia(), pre))]
+    return fit_axis(friction=[logs[0]], inertia=[logs[1]], presliding=logs[2])
+
+
+def _heavy(cfg, g, j, f):
+    """A gravity-loaded axis (an A2): gravity g x, inertia j x, friction f x (the servo's machine data too)."""
+    return cfg.replace(Mx=cfg.Mx * g, My=cfg.My * g, ctrl_Mx=cfg.ctrl_Mx * g, Izz=cfg.Izz * j, ctrl_Izz=cfg.ctrl_Izz * j,
+                       Fc=cfg.Fc * f, Fs=cfg.Fs * f, Fv=cfg.Fv * f, ms_W=tuple(w * f for w in cfg.ms_W),
+                       tau_max=max(cfg.tau_max, 4.0 * abs(cfg.Mx * g)))
+
+
+def test_on_a_gravity_loaded_axis_the_default_threshold_follows_the_files_friction():
+    """lugre seed 2 made an A2 (gravity 3.0 x, inertia 2.4 x, friction 1.28 x), its file fitted on it: at rest
+    after the initiation move down, with the paper's 5 N·m the residual of the loaded bristles' creep crossed
+    the threshold and the axis moved 0.8 degree with nobody there.  The default threshold is now a quarter of
+    the file's Coulomb friction when that is more than 5 N·m (6.2 here; 5 on every axis of the A3's size)."""
+    from kukaid.control.loop import default_threshold
+
+    p = plant("lugre", seed=2)
+    cfg = _heavy(p.cfg, 3.012242640232763, 2.352790889620822, 1.2844121657489707)
+    fitted = _fitted(cfg, 2)
+    model = model_from_params(fitted)
+    assert default_threshold(model) == pytest.approx(0.25 * fitted["friction"]["Fc"])
+    assert default_threshold(model) > 6.0
+    assert default_threshold(model_from_params(p.params)) == 5.0  # the member's own, A3-sized
+    loop = LoopConfig(damping="constant", cycle=0.024, duration=60.0, init_move=math.radians(-1.0),
+                      threshold=default_threshold(model))
+    run = run_admittance(SimRobot(VirtualKRC4(cfg, seed=2), Q0, None), model, loop)
+    drift, n_det = _drift_and_detections(run)
+    assert run.status == "completed" and drift < 0.05 and n_det == 0, (drift, n_det)
+
+
+def test_a_presliding_element_the_experiment_does_not_saturate_is_said_and_not_inflated():
+    """gms seed 0 made an A2 (gravity 4.4 x, inertia 2.4 x, friction 1.17 x): its stiffest-capacity Maxwell-slip
+    element needs more travel than the default pre-sliding experiment's reversals give; the fit made it a
+    spring to three times the data's largest deflection, W 65 N·m (all elements 73 for 18 true), and
+    run-admittance refused the file before control.  An element now saturates within the data, the fit
+    says when one saturates only at its end, and the larger reversals it names determine it."""
+    p = plant("gms", seed=0)
+    cfg = _heavy(p.cfg, 4.3847663275111906, 2.381314387451817, 1.1667791871203859)
+    fitted = _fitted(cfg, 0)
+    assert any("--reversals-deg" in w for w in fitted["metrics"]["warnings"]), fitted["metrics"]["warnings"]
+    assert sum(fitted["maxwell_slip"]["W"]) < 2.5 * sum(cfg.ms_W)
+    wide = _fitted(cfg, 0, reversals=tuple(math.radians(r) for r in (0.1, 0.05, 0.025, 0.0125)))
+    assert not any("--reversals-deg" in w for w in wide["metrics"]["warnings"])
+    assert sum(wide["maxwell_slip"]["W"]) == pytest.approx(sum(cfg.ms_W), rel=0.1)
+
+
 def test_a_pushs_breakaway_at_rest_is_no_stop_and_the_push_is_not_taken_in():
     """gms-gravity seed 40 (the estimator's own friction law, a gravity error; found on held-out seeds
     40-49), a 15 N·m push down at rest: its breakaway (150 µrad, within the elements' pre-sliding range of

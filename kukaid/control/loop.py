@@ -221,6 +221,21 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
 
 
+#: the default detection threshold, N·m (the paper's), and, on an axis with more friction, its share of the
+#: file's Coulomb friction (on every axis of the paper's A3's size, Coulomb friction up to 19.6 N·m, below 5)
+THRESHOLD, THRESHOLD_SHARE = 5.0, 0.25
+
+
+def default_threshold(model: Any) -> float:
+    """The detection threshold when none is given, N·m: 5 (the paper's), or a quarter of a one-axis model's
+    Coulomb friction when that is more.  A model's error at rest grows with the axis's friction, and on a
+    gravity-loaded axis (an A2, gravity 3-5 x the paper's A3's, friction 1-2 x) 5 N·m left LuGre plants moving
+    by themselves in 18 of 480 runs with nobody there (`admittance_rest.py --files fitted --outside heavy`),
+    10 of them not with this."""
+    fc = getattr(getattr(model, "friction", None), "Fc", None)
+    return max(THRESHOLD, THRESHOLD_SHARE * abs(float(fc))) if fc is not None else THRESHOLD
+
+
 def check_guidable(model: Any, no_rest_model: bool = False) -> None:
     """Refuse, before anything moves, a model whose friction at rest cannot tell static friction from a
     push, so that the axis would move by itself with nobody touching it: a one-axis model without

@@ -270,6 +270,14 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         ms = fit_maxwell_slip(psl, n_elements, gravity=model.rigid.gravity)
         model.maxwell_slip, model.zeta0 = MaxwellSlip(ms.k, ms.W), tuple(ms.zeta0)
         metrics.update(maxwell_slip_rms=ms.rms, maxwell_slip_sum_W=sum(ms.W), maxwell_slip_samples=ms.n_samples)
+        if ms.unsaturated:
+            metrics["warnings"].append(
+                f"{psl.source}: Maxwell-slip element{'s' if len(ms.unsaturated) > 1 else ''} "
+                f"{', '.join(str(i + 1) for i in ms.unsaturated)} saturate{'' if len(ms.unsaturated) > 1 else 's'} "
+                f"only at the pre-sliding experiment's largest deflection ({ms.swing:.3g} rad): its breakaway W is not "
+                "determined by the data (it is set to its torque there), nor is the friction the axis holds at rest "
+                "(a heavier axis's elements need more travel); a pre-sliding experiment of larger reversals "
+                "determines it (kukaid excite presliding --reversals-deg, default 0.03,0.015,0.0075,0.00375)")
     out: dict[str, Any] = {"schema": "kukaid.params/1", "axis": int(ax), **model_sections(model, digits=8)}
     values = {**fp, **rigid}
     out["uncertainty"] = {k: _r(v, 4) for k, v in std.items() if k in values}

@@ -18,6 +18,7 @@ of the log), filtered as every other log; ``z`` is the displacement from the sto
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -106,6 +107,13 @@ class MaxwellSlipFit:
     direction: float
     n_samples: int
     stop_time: float
+    swing: float = math.inf  # the largest deflection the fitted stretch shows, rad: no element saturates beyond it
+
+    @property
+    def unsaturated(self) -> list[int]:
+        """Elements that saturate only at the data's largest deflection: the data show no more of their
+        breakaway W than the torque at that deflection (a larger one is not determined)."""
+        return [i for i, (k, w) in enumerate(zip(self.k, self.W)) if w / k >= 0.99 * self.swing]
 
     def to_dict(self) -> dict:
         return {"k": self.k, "W": self.W, "zeta0": self.zeta0}
@@ -160,7 +168,10 @@ def fit_maxwell_slip(pr: Any, n_elements: int = 3, gravity: Callable[[np.ndarray
     if keep.size == 0:
         raise FitError(f"{pr.source}: pre-sliding fit: no hysteresis found (all element saturations zero)")
     d = np.sort(grid[keep])
-    lg_lo, lg_hi = np.log(dmin / 3), np.log(swing * 3)
+    # an element saturates within the data: beyond their largest deflection it is a spring whose breakaway the
+    # data do not show, and its W was whatever the grid's end made it (a gravity-loaded axis whose stiffest
+    # element needs more travel than the experiment's: W 65 N·m for 7 true, its file refused before control)
+    lg_lo, lg_hi = np.log(dmin / 3), np.log(swing)
     # refinement: one element at a time, a local grid of candidates evaluated in one pass
     # (the element columns of all candidates come from one simulation), the grid shrinking
     for sweep in range(sweeps):
@@ -180,4 +191,4 @@ def fit_maxwell_slip(pr: Any, n_elements: int = 3, gravity: Callable[[np.ndarray
     k = W / d
     zeta0 = -direction * d
     return MaxwellSlipFit([float(x) for x in k], [float(x) for x in W], [float(x) for x in zeta0], c,
-                          float(np.sqrt(rss / y.size)), direction, int(y.size), float(pr.time[a]))
+                          float(np.sqrt(rss / y.size)), direction, int(y.size), float(pr.time[a]), swing)
