@@ -273,9 +273,9 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         if ms.unsaturated:
             metrics["warnings"].append(
                 f"{psl.source}: Maxwell-slip element{'s' if len(ms.unsaturated) > 1 else ''} "
-                f"{', '.join(str(i + 1) for i in ms.unsaturated)} saturate{'' if len(ms.unsaturated) > 1 else 's'} "
-                f"only at the pre-sliding experiment's largest deflection ({ms.swing:.3g} rad): its breakaway W is not "
-                "determined by the data (it is set to its torque there), nor is the friction the axis holds at rest "
+                f"{', '.join(str(i + 1) for i in ms.unsaturated)} break{'' if len(ms.unsaturated) > 1 else 's'} away "
+                f"only at half the pre-sliding experiment's swing ({ms.swing / 2:.3g} rad), the most it shows: the "
+                "break-away W is not determined by the data beyond it, nor is the friction the axis holds at rest "
                 "(a heavier axis's elements need more travel); a pre-sliding experiment of larger reversals "
                 "determines it (kukaid excite presliding --reversals-deg, default 0.03,0.015,0.0075,0.00375)")
     out: dict[str, Any] = {"schema": "kukaid.params/1", "axis": int(ax), **model_sections(model, digits=8)}

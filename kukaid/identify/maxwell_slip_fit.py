@@ -107,13 +107,14 @@ class MaxwellSlipFit:
     direction: float
     n_samples: int
     stop_time: float
-    swing: float = math.inf  # the largest deflection the fitted stretch shows, rad: no element saturates beyond it
+    swing: float = math.inf  # the fitted stretch's range of motion, rad: an element reverses within half of it
 
     @property
     def unsaturated(self) -> list[int]:
-        """Elements that saturate only at the data's largest deflection: the data show no more of their
-        breakaway W than the torque at that deflection (a larger one is not determined)."""
-        return [i for i, (k, w) in enumerate(zip(self.k, self.W)) if w / k >= 0.99 * self.swing]
+        """Elements whose break-away displacement is half the data's swing, the most the data can show (an
+        element goes from one saturation to the other over twice it): their W, and the friction the axis
+        holds at rest, are not determined beyond it."""
+        return [i for i, (k, w) in enumerate(zip(self.k, self.W)) if w / k >= 0.99 * self.swing / 2.0]
 
     def to_dict(self) -> dict:
         return {"k": self.k, "W": self.W, "zeta0": self.zeta0}
@@ -168,10 +169,13 @@ def fit_maxwell_slip(pr: Any, n_elements: int = 3, gravity: Callable[[np.ndarray
     if keep.size == 0:
         raise FitError(f"{pr.source}: pre-sliding fit: no hysteresis found (all element saturations zero)")
     d = np.sort(grid[keep])
-    # an element saturates within the data: beyond their largest deflection it is a spring whose breakaway the
-    # data do not show, and its W was whatever the grid's end made it (a gravity-loaded axis whose stiffest
-    # element needs more travel than the experiment's: W 65 N·m for 7 true, its file refused before control)
-    lg_lo, lg_hi = np.log(dmin / 3), np.log(swing)
+    # an element's break-away W shows only where it goes from one saturation to the other, over twice its
+    # break-away displacement: beyond half the data's swing it is a spring (or a constant) whose W they do not
+    # show, and the grid's end made it (a gravity-loaded axis whose elements need more travel than the default
+    # experiment's reversals: W 65-70 N·m for 7-15 true, the file refused before control); the refinement
+    # keeps every element within it
+    reach = swing / 2.0
+    lg_lo, lg_hi = np.log(min(dmin, reach) / 3), np.log(reach)
     # refinement: one element at a time, a local grid of candidates evaluated in one pass
     # (the element columns of all candidates come from one simulation), the grid shrinking
     for sweep in range(sweeps):
