@@ -82,6 +82,32 @@ def test_a_folder_date_that_is_no_day_is_one_clear_error(tmp_path):
         scan_folder(tmp_path / "logs", "{robot}/{date}/A{axis}.h5")
 
 
+def test_a_log_the_folder_pattern_does_not_match_is_named_not_dropped(tmp_path):
+    """New-user trial 15: a log in a folder not named as a date (R1/notadate/A3.h5, R1/2026-1-7/A3.h5) was
+    left out of `fleet fit FOLDER` without a word; now the scan lists it and the command names it in one
+    warning line before the run."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    small_fleet(tmp_path, robots=1, days=2)
+    logs = tmp_path / "logs"
+    day = sorted((logs / "R001").iterdir())[0]
+    (logs / "R001" / "2026-1-7").mkdir()
+    (logs / "R001" / "2026-1-7" / "A3.h5").write_bytes((day / "A3.h5").read_bytes())
+    (logs / "R001" / "A3.h5").write_bytes(b"x")
+    (logs / "R001" / "notes.txt").write_text("not a log")
+    unmatched: list[str] = []
+    assert len(read_input(logs, None, unmatched)) == 2
+    assert unmatched == ["R001/2026-1-7/A3.h5", "R001/A3.h5"]
+    r = CliRunner().invoke(cli, ["fleet", "fit", str(logs), "-o", str(tmp_path / "t.parquet"), "--workers", "1"])
+    assert r.exit_code == 0, r.output
+    assert r.stderr.splitlines()[0] == (
+        f"kukaid: warning: fleet fit: {logs}: 2 log files do not match the pattern '{{robot}}/{{date}}/*' and are "
+        "not fitted: R001/2026-1-7/A3.h5, R001/A3.h5 ({robot} and {date} YYYY-MM-DD are one folder each; --pattern "
+        "for another layout)"), r.stderr
+
+
 # -- faults, resume ------------------------------------------------------------------------------
 
 def test_bad_logs_become_error_rows_and_the_rest_is_fitted(faults, tmp_path, kukaid_cmd):
