@@ -162,13 +162,16 @@ def _fit_robot(job: Job, opts: FitOptions, log) -> list[dict]:
     fr = p["friction"]
     vals, sig = fr["values"], fr.get("sigma") or {}
     noise = (p.get("metrics") or {}).get("noise_sigma") or []
+    # a friction term on its bound 0 is the bound's value (the solver leaves -1e-8: show and report print 0)
+    at_bound = set((p.get("metrics") or {}).get("at_bound") or [])
     text = json.dumps(p)
     rows = []
     for k, a in enumerate(log.axes):
         r = _base(job, "fit")
         g = lambda name, d=vals: d.get(f"A{a}.{name}")  # noqa: E731
-        r.update(status="ok", axis=int(a), friction_model=fm, Fc=g("Fc"), Fv=g("Fv"), offset=g("offset"),
-                 Fs=g("Fs"), Fc_std=g("Fc", sig), Fv_std=g("Fv", sig),
+        fric = {n: 0.0 if f"A{a}.{n}" in at_bound and g(n) is not None else g(n) for n in ("Fc", "Fv", "Fs")}
+        r.update(status="ok", axis=int(a), friction_model=fm, **fric, offset=g("offset"),
+                 Fc_std=g("Fc", sig), Fv_std=g("Fv", sig),
                  rmse=noise[k] if k < len(noise) else None, n_samples=log.n_samples, log_duration=log.duration,
                  result=text if k == 0 else None, **_temp(log, a))
         rows.append(r)
