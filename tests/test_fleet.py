@@ -774,3 +774,26 @@ def test_wear_picks_the_same_friction_model_of_a_tie_in_every_run():
                           capture_output=True, text=True, env={**os.environ, "PYTHONHASHSEED": str(seed)}).stdout.strip()
            for seed in range(8)}
     assert len(got) == 1, got
+
+
+def test_an_error_row_names_the_log_as_the_manifest_does(tmp_path):
+    """New-user trial 15: the error row of a log cut short (its header unreadable) named it by its absolute path
+    (/tmp/.../logs/R4/2026-01-05/A3.h5: not a readable HDF5 file ...), and so did a fit's refusal of a whole-arm
+    log, while every other row names the log as the manifest or the folder does (R4/2026-01-05/A3.h5)."""
+    from kukaid.fleet.manifest import content_hash
+    from kukaid.fleet.tasks import FitOptions, Job, fit_task
+
+    small_fleet(tmp_path, robots=1, days=1)
+    (good,) = sorted((tmp_path / "logs").rglob("*.h5"))
+    cut = tmp_path / "logs" / "R4" / "2026-01-05" / "A3.h5"
+    cut.parent.mkdir(parents=True)
+    cut.write_bytes(good.read_bytes()[:3000])
+    job = Job("R4", 3, "2026-01-05", str(cut), "R4/2026-01-05/A3.h5", content_hash(cut))
+    (row,) = fit_task(job, FitOptions())
+    assert row["status"] == "error" and row["error"].startswith("R4/2026-01-05/A3.h5: not a readable HDF5 file"), row
+    assert str(tmp_path) not in row["error"]
+    from kukaid.fleet.tasks import duplicate_row
+
+    dup = Job("R5", 3, "2026-01-05", str(good), "R5/2026-01-05/A3.h5", content_hash(good))
+    assert duplicate_row(dup, "validate", "R001/x.h5")["error"] == ("duplicate: the same content as R001/x.h5 (not "
+                                                                    "validated twice)")

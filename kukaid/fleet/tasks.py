@@ -85,8 +85,8 @@ def guarded(kind: str, body: Callable[[Job, Any], list[dict]], job: Job, options
     t0, c0 = time.perf_counter(), time.process_time()
     try:
         rows = body(job, options)
-    except KukaidError as e:
-        rows = [error_row(job, kind, str(e))]
+    except KukaidError as e:  # the log named as the manifest or the folder names it, as the other rows do
+        rows = [error_row(job, kind, str(e).replace(job.path, job.name) if job.name else str(e))]
     except MemoryError:
         rows = [error_row(job, kind, "out of memory on the worker")]
     except Exception as e:  # a bug or a library failure: the batch goes on, the row says what
@@ -183,9 +183,14 @@ def fit_task(job: Job, options: FitOptions) -> list[dict]:
     return guarded("fit", _fit_body, job, options)
 
 
+#: what a task does to a log, as the duplicate row says it ("not validated twice")
+_DONE = {"fit": "fitted", "validate": "validated", "diagnose": "diagnosed"}
+
+
 def duplicate_row(job: Job, kind: str, first: str) -> dict:
     """The row of a log whose content is that of ``first`` (not fitted again)."""
-    return _finish([error_row(job, kind, f"duplicate: the same content as {first} (not fitted twice)")],
+    return _finish([error_row(job, kind, f"duplicate: the same content as {first} "
+                                            f"(not {_DONE.get(kind, kind)} twice)")],
                    time.perf_counter())[0]
 
 
