@@ -75,6 +75,23 @@ def _table_output(output: Path, source: Path) -> None:
     check_outputs([output], [source] if source.is_file() else [])
 
 
+def _entries(source: Path, pattern: str | None, command: str, verb: str) -> list:
+    """The fleet's logs (:func:`kukaid.fleet.manifest.read_input`); log files in the folder that the
+    pattern does not match are not run, and a warning line names them (the first three)."""
+    from kukaid.fleet.manifest import DEFAULT_PATTERN, read_input
+
+    unmatched: list[str] = []
+    entries = read_input(source, pattern, unmatched)
+    if unmatched:
+        n = len(unmatched)
+        names = ", ".join(unmatched[:3]) + (f" and {n - 3} more" if n > 3 else "")
+        click.echo(f"kukaid: warning: fleet {command}: {source}: {_n(n, 'log file')} "
+                   f"{'does' if n == 1 else 'do'} not match the pattern '{pattern or DEFAULT_PATTERN}' and "
+                   f"{'is' if n == 1 else 'are'} not {verb}: {names} ({{robot}} and {{date}} YYYY-MM-DD are one "
+                   "folder each; --pattern for another layout)", err=True)
+    return entries
+
+
 def _n(count: int, noun: str, plural: str | None = None) -> str:
     """``1 error row``, ``2 error rows`` (``plural``: when it is not ``noun`` + s)."""
     return f"{count} {noun if count == 1 else plural or noun + 's'}"
@@ -114,14 +131,13 @@ def fit_cmd(source, output, pattern, workers, scheduler, robot, friction_model) 
     Columns: robot, axis, date, path, sha256, status, error, Fc, Fv, Fs, vs, Izz, Mx, offset,
     their sigma, rmse, temperature (mean, min, max), the full parameter file (result), the worker,
     its peak memory and the time."""
-    from kukaid.fleet.manifest import read_input
     from kukaid.fleet.run import run_tasks
     from kukaid.fleet.tasks import FitOptions, fit_task
 
     _check_workers(workers, scheduler)
     _check_pattern(source, pattern)
     _table_output(output, source)
-    entries = read_input(source, pattern)
+    entries = _entries(source, pattern, "fit", "fitted")
     opts = FitOptions(friction_model=friction_model, robot=robot)
     bar = _Progress("fleet fit")
     try:
@@ -240,7 +256,6 @@ def wear_cmd(table, output, report, alpha, baseline, as_json, force) -> None:
 
 
 def _check(kind: str, source, table, output, pattern, workers, scheduler) -> None:
-    from kukaid.fleet.manifest import read_input
     from kukaid.fleet.run import run_tasks
     from kukaid.fleet.tasks import CheckOptions, check_task
 
@@ -262,7 +277,7 @@ def _check(kind: str, source, table, output, pattern, workers, scheduler) -> Non
 
     # a table that is not a fit table: one line, before any work, naming it as typed (the workers get its full path)
     _fits(str(table), table.stat().st_mtime)
-    entries = read_input(source, pattern)
+    entries = _entries(source, pattern, kind, "validated" if kind == "validate" else "diagnosed")
     opts = CheckOptions(table=str(table.resolve()), kind=kind, run=run)
     bar = _Progress(f"fleet {kind}")
     try:

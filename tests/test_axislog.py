@@ -80,6 +80,10 @@ def test_csv_radians_and_prismatic(tmp_path):
 
 BAD_CSV = {
     "missing_column": ("time_s,A3_deg\n0,1\n0.012,2\n", "missing column A3_Nm"),
+    # new-user trial 15: a log in radians without A4's position named 'A4_deg', a column no other axis has
+    "missing_position_in_radians": ("time_s,A3_rad,A3_Nm,A4_Nm\n0,1,2,3\n0.012,2,3,4\n",
+                                    "missing column A4_rad (axis A4 has no 'q')"),
+    "missing_prismatic_force": ("time_s,A1_m,A1_N,A2_m\n0,1,2,3\n0.012,2,3,4\n", "missing column A2_N (axis"),
     "unknown_unit": ("time_s,A3_grad,A3_Nm\n0,1,2\n0.012,2,3\n", "unknown column 'A3_grad'"),
     "nan": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,nan,3\n", "not a finite number (NaN or inf) at line 3"),
     "duplicated_time": ("time_s,A3_deg,A3_Nm\n0,1,2\n0,2,3\n", "duplicated) at line 3"),

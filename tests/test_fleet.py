@@ -82,6 +82,32 @@ def test_a_folder_date_that_is_no_day_is_one_clear_error(tmp_path):
         scan_folder(tmp_path / "logs", "{robot}/{date}/A{axis}.h5")
 
 
+def test_a_log_the_folder_pattern_does_not_match_is_named_not_dropped(tmp_path):
+    """New-user trial 15: a log in a folder not named as a date (R1/notadate/A3.h5, R1/2026-1-7/A3.h5) was
+    left out of `fleet fit FOLDER` without a word; now the scan lists it and the command names it in one
+    warning line before the run."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    small_fleet(tmp_path, robots=1, days=2)
+    logs = tmp_path / "logs"
+    day = sorted((logs / "R001").iterdir())[0]
+    (logs / "R001" / "2026-1-7").mkdir()
+    (logs / "R001" / "2026-1-7" / "A3.h5").write_bytes((day / "A3.h5").read_bytes())
+    (logs / "R001" / "A3.h5").write_bytes(b"x")
+    (logs / "R001" / "notes.txt").write_text("not a log")
+    unmatched: list[str] = []
+    assert len(read_input(logs, None, unmatched)) == 2
+    assert unmatched == ["R001/2026-1-7/A3.h5", "R001/A3.h5"]
+    r = CliRunner().invoke(cli, ["fleet", "fit", str(logs), "-o", str(tmp_path / "t.parquet"), "--workers", "1"])
+    assert r.exit_code == 0, r.output
+    assert r.stderr.splitlines()[0] == (
+        f"kukaid: warning: fleet fit: {logs}: 2 log files do not match the pattern '{{robot}}/{{date}}/*' and are "
+        "not fitted: R001/2026-1-7/A3.h5, R001/A3.h5 ({robot} and {date} YYYY-MM-DD are one folder each; --pattern "
+        "for another layout)"), r.stderr
+
+
 # -- faults, resume ------------------------------------------------------------------------------
 
 def test_bad_logs_become_error_rows_and_the_rest_is_fitted(faults, tmp_path, kukaid_cmd):
@@ -704,3 +730,70 @@ def test_validate_and_diagnose_over_the_fleet(tmp_path, kukaid_cmd):
     assert all(row["status"] == "ok" and row["rmse"] > 0 and row["effects"] is not None for row in rows)
     r = _run(kukaid_cmd, "fleet", "validate", man, "--table", val, "-o", tmp_path / "x.parquet")
     assert r.returncode == 1 and "not a table of fleet fit" in r.stderr and r.stderr.count("\n") == 1
+
+
+def _two_model_rows(n_cv: int, n_st: int) -> list[dict]:
+    """One axis fitted on n_cv + n_st days, alternately coulomb-viscous and stribeck (fleet fit's default
+    friction model, auto, chooses per log)."""
+    rows = _synthetic_rows(1, n_cv + n_st, seed=2)
+    models = np.random.default_rng(0).permutation(["coulomb-viscous"] * n_cv + ["stribeck"] * n_st)
+    for r, m in zip(rows, models):
+        r["friction_model"] = str(m)
+    return rows
+
+
+def test_wear_says_which_logs_another_friction_model_left_out(tmp_path):
+    """New-user trial 15: six daily logs of an axis fitted with fleet fit's default friction model (auto:
+    stribeck on four days, coulomb-viscous on two) gave 'no axis has logs enough to assess: the most, 4
+    (R1 A3)', the other two dropped without a word; now the line says how many were left out and why, and
+    an assessed axis with logs left out says so below the table."""
+    from kukaid.errors import KukaidError
+    from kukaid.fleet.wear import assess, lines
+
+    with pytest.raises(KukaidError) as e:
+        assess(_two_model_rows(2, 4), source="t.parquet")
+    assert str(e.value) == ("t.parquet: no axis has logs enough to assess: the most, 4 (R000 A3), are fewer than a "
+                            "baseline of 5 and one more; 2 of its 6 fitted logs are of coulomb-viscous, not mixed "
+                            "with its 4 stribeck fits (fleet fit --friction-model stribeck or coulomb-viscous fits "
+                            "every log with one model)")
+    res = assess(_two_model_rows(3, 8) + _synthetic_rows(3, 11, seed=4)[11:])
+    a = next(a for a in res["axes"] if a["robot"] == "R000")
+    assert a["n_logs"] == 8 and a["rows_not_used"] == 3 and "3 of its 11 fitted logs are of coulomb-viscous" in a["left_out"]
+    assert any(line.startswith("R000         A3 assessed on 8 logs: 3 of its 11 fitted logs") for line in lines(res))
+    assert not any("assessed on" in line for line in lines(assess(_synthetic_rows(3, 11, seed=4))))
+
+
+def test_wear_picks_the_same_friction_model_of_a_tie_in_every_run():
+    """Equally many logs of two friction models: the axis's model was max() over a set of names, whose
+    order is the string hashes' (PYTHONHASHSEED differs per process), so runs of fleet wear on one table
+    could assess different logs."""
+    code = ("import sys; sys.path.insert(0, 'tests'); from test_fleet import _two_model_rows; "
+            "from kukaid.fleet.wear import assess; print(assess(_two_model_rows(6, 6))['axes'][0]['friction_model'])")
+    root = Path(__file__).resolve().parent.parent
+    got = {subprocess.run([os.environ.get("PYTHON", __import__("sys").executable), "-c", code], cwd=root, check=True,
+                          capture_output=True, text=True, env={**os.environ, "PYTHONHASHSEED": str(seed)}).stdout.strip()
+           for seed in range(8)}
+    assert len(got) == 1, got
+
+
+def test_an_error_row_names_the_log_as_the_manifest_does(tmp_path):
+    """New-user trial 15: the error row of a log cut short (its header unreadable) named it by its absolute path
+    (/tmp/.../logs/R4/2026-01-05/A3.h5: not a readable HDF5 file ...), and so did a fit's refusal of a whole-arm
+    log, while every other row names the log as the manifest or the folder does (R4/2026-01-05/A3.h5)."""
+    from kukaid.fleet.manifest import content_hash
+    from kukaid.fleet.tasks import FitOptions, Job, fit_task
+
+    small_fleet(tmp_path, robots=1, days=1)
+    (good,) = sorted((tmp_path / "logs").rglob("*.h5"))
+    cut = tmp_path / "logs" / "R4" / "2026-01-05" / "A3.h5"
+    cut.parent.mkdir(parents=True)
+    cut.write_bytes(good.read_bytes()[:3000])
+    job = Job("R4", 3, "2026-01-05", str(cut), "R4/2026-01-05/A3.h5", content_hash(cut))
+    (row,) = fit_task(job, FitOptions())
+    assert row["status"] == "error" and row["error"].startswith("R4/2026-01-05/A3.h5: not a readable HDF5 file"), row
+    assert str(tmp_path) not in row["error"]
+    from kukaid.fleet.tasks import duplicate_row
+
+    dup = Job("R5", 3, "2026-01-05", str(good), "R5/2026-01-05/A3.h5", content_hash(good))
+    assert duplicate_row(dup, "validate", "R001/x.h5")["error"] == ("duplicate: the same content as R001/x.h5 (not "
+                                                                    "validated twice)")

@@ -113,3 +113,25 @@ def test_a_whole_arm_log_whose_diagnosis_fails_is_an_error_row(arms, tmp_path, m
     assert [r["status"] for r in cb] == ["error"] and "not the one the parameters were fitted with" in cb[0]["error"]
     assert [r["status"] for r in got.pop(BAD_LOG)] == ["error"]
     assert len(got) == 3 and all([r["status"] for r in rs] == ["ok"] * 6 for rs in got.values())
+
+
+def test_a_friction_term_on_its_bound_is_zero_in_the_fleet_table():
+    """New-user trial 15: `fleet fit --robot kuka_lwr4.urdf` of the LWR4+ recordings wrote Fv = -8.4e-09 N·m·s/rad
+    (a negative viscous friction) for the joints whose Fv ended on its bound 0, which fit, show and report print
+    as 0: the table now holds the bound's value."""
+    from shared_data import SHARED
+
+    from kukaid.fleet.manifest import content_hash
+    from kukaid.fleet.tasks import FitOptions, Job, fit_task
+
+    lwr4 = SHARED / "datasets" / "lwr4"
+    if not lwr4.is_dir():
+        pytest.skip("real LWR4+ data (../shared/datasets/lwr4) not present")
+    log = lwr4 / "lwr4_1.csv"
+    job = Job("lwr", None, "2026-01-01", str(log), "lwr/2026-01-01/arm.csv", content_hash(log))
+    rows = fit_task(job, FitOptions(robot=str(lwr4 / "kuka_lwr4.urdf")))
+    assert [r["status"] for r in rows] == ["ok"] * 7, rows[0]["error"]
+    at = set(json.loads(rows[0]["result"])["metrics"]["at_bound"])
+    on = [(r["axis"], n) for r in rows for n in ("Fc", "Fv") if f"A{r['axis']}.{n}" in at]
+    assert on and all(rows[a - 1][n] == 0.0 for a, n in on), on
+    assert all(r[n] >= 0 for r in rows for n in ("Fc", "Fv"))

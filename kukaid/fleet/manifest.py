@@ -138,10 +138,12 @@ def pattern_regex(pattern: str) -> re.Pattern:
     return re.compile(out + r"\Z")
 
 
-def scan_folder(root: str | Path, pattern: str = DEFAULT_PATTERN) -> list[Entry]:
+def scan_folder(root: str | Path, pattern: str = DEFAULT_PATTERN, unmatched: list[str] | None = None) -> list[Entry]:
     """Entries of the logs under ``root`` whose relative path matches ``pattern`` (see
     :func:`pattern_regex`); only files with a log suffix (.h5, .hdf5, .csv, .mat), optionally
-    compressed (``A3.csv.gz``, ``.bz2``, ``.xz``: read as every command reads them)."""
+    compressed (``A3.csv.gz``, ``.bz2``, ``.xz``: read as every command reads them).  The relative
+    paths of files with a log suffix that do not match are appended to ``unmatched`` (when given):
+    a log in a misnamed folder is not run, and the caller says so."""
     root = Path(root)
     rx = pattern_regex(pattern)
     out = []
@@ -151,6 +153,8 @@ def scan_folder(root: str | Path, pattern: str = DEFAULT_PATTERN) -> list[Entry]
         rel = p.relative_to(root).as_posix()
         m = rx.match(rel)
         if m is None:
+            if unmatched is not None:
+                unmatched.append(rel)
             continue
         g = m.groupdict()
         where = f"{root}/{rel}"
@@ -161,11 +165,12 @@ def scan_folder(root: str | Path, pattern: str = DEFAULT_PATTERN) -> list[Entry]
     return out
 
 
-def read_input(source: str | Path, pattern: str | None = None) -> list[Entry]:
-    """The fleet's logs from a manifest CSV file or a folder (scanned with ``pattern``)."""
+def read_input(source: str | Path, pattern: str | None = None, unmatched: list[str] | None = None) -> list[Entry]:
+    """The fleet's logs from a manifest CSV file or a folder (scanned with ``pattern``; the log files
+    it does not match are appended to ``unmatched``, see :func:`scan_folder`)."""
     source = Path(source)
     if source.is_dir():
-        return scan_folder(source, pattern or DEFAULT_PATTERN)
+        return scan_folder(source, pattern or DEFAULT_PATTERN, unmatched)
     if pattern is not None:
         raise ManifestError(f"{source}: --pattern applies to a folder, not to a manifest file")
     if not source.exists():

@@ -85,8 +85,8 @@ def guarded(kind: str, body: Callable[[Job, Any], list[dict]], job: Job, options
     t0, c0 = time.perf_counter(), time.process_time()
     try:
         rows = body(job, options)
-    except KukaidError as e:
-        rows = [error_row(job, kind, str(e))]
+    except KukaidError as e:  # the log named as the manifest or the folder names it, as the other rows do
+        rows = [error_row(job, kind, str(e).replace(job.path, job.name) if job.name else str(e))]
     except MemoryError:
         rows = [error_row(job, kind, "out of memory on the worker")]
     except Exception as e:  # a bug or a library failure: the batch goes on, the row says what
@@ -162,13 +162,16 @@ def _fit_robot(job: Job, opts: FitOptions, log) -> list[dict]:
     fr = p["friction"]
     vals, sig = fr["values"], fr.get("sigma") or {}
     noise = (p.get("metrics") or {}).get("noise_sigma") or []
+    # a friction term on its bound 0 is the bound's value (the solver leaves -1e-8: show and report print 0)
+    at_bound = set((p.get("metrics") or {}).get("at_bound") or [])
     text = json.dumps(p)
     rows = []
     for k, a in enumerate(log.axes):
         r = _base(job, "fit")
         g = lambda name, d=vals: d.get(f"A{a}.{name}")  # noqa: E731
-        r.update(status="ok", axis=int(a), friction_model=fm, Fc=g("Fc"), Fv=g("Fv"), offset=g("offset"),
-                 Fs=g("Fs"), Fc_std=g("Fc", sig), Fv_std=g("Fv", sig),
+        fric = {n: 0.0 if f"A{a}.{n}" in at_bound and g(n) is not None else g(n) for n in ("Fc", "Fv", "Fs")}
+        r.update(status="ok", axis=int(a), friction_model=fm, **fric, offset=g("offset"),
+                 Fc_std=g("Fc", sig), Fv_std=g("Fv", sig),
                  rmse=noise[k] if k < len(noise) else None, n_samples=log.n_samples, log_duration=log.duration,
                  result=text if k == 0 else None, **_temp(log, a))
         rows.append(r)
@@ -180,9 +183,14 @@ def fit_task(job: Job, options: FitOptions) -> list[dict]:
     return guarded("fit", _fit_body, job, options)
 
 
+#: what a task does to a log, as the duplicate row says it ("not validated twice")
+_DONE = {"fit": "fitted", "validate": "validated", "diagnose": "diagnosed"}
+
+
 def duplicate_row(job: Job, kind: str, first: str) -> dict:
     """The row of a log whose content is that of ``first`` (not fitted again)."""
-    return _finish([error_row(job, kind, f"duplicate: the same content as {first} (not fitted twice)")],
+    return _finish([error_row(job, kind, f"duplicate: the same content as {first} "
+                                            f"(not {_DONE.get(kind, kind)} twice)")],
                    time.perf_counter())[0]
 
 

@@ -120,6 +120,7 @@ class _Axis:
     nb: int
     model: str
     dropped: int
+    left_out: str = ""
 
 
 def _axes(rows: Sequence[dict], settings: WearSettings) -> tuple[list[_Axis], list[dict]]:
@@ -130,8 +131,8 @@ def _axes(rows: Sequence[dict], settings: WearSettings) -> tuple[list[_Axis], li
         groups.setdefault((str(r["robot"]), int(r["axis"])), []).append(r)
     out, short = [], []
     for (robot, axis), rs in sorted(groups.items()):
-        models = [r.get("friction_model") for r in rs]
-        model = max(set(models), key=models.count)
+        models = [str(r.get("friction_model")) for r in rs]
+        model = max(sorted(set(models)), key=models.count)  # the most common; a tie the same in every run
         use = [r for r in rs if r.get("friction_model") == model and _pos(r.get("Fc")) and _pos(r.get("Fv"))]
         byday: dict[str, dict] = {}
         for r in sorted(use, key=lambda r: r["date"]):
@@ -140,14 +141,37 @@ def _axes(rows: Sequence[dict], settings: WearSettings) -> tuple[list[_Axis], li
         dropped = len(rs) - len(use)
         n = len(use)
         nb = baseline_size(n, settings)
+        why = _left_out(rs, model)
         if n < nb + 1:
             short.append({"robot": robot, "axis": axis, "flagged": False, "first_flagged": None, "n_logs": n,
-                          "note": f"too few logs ({n}; a baseline of {nb} and at least one more are needed)"})
+                          "note": f"too few logs ({n}; a baseline of {nb} and at least one more are needed)"
+                                  + (f"; {why}" if why else ""), **({"left_out": why} if why else {})})
             continue
         T = np.array([r["temp_mean"] if r.get("temp_mean") is not None else np.nan for r in use], dtype=float)
         y = np.log(np.array([[r["Fc"], r["Fv"]] for r in use], dtype=float))
-        out.append(_Axis(robot, axis, [r["date"] for r in use], T, y, nb, model, dropped))
+        out.append(_Axis(robot, axis, [r["date"] for r in use], T, y, nb, model, dropped, why))
     return out, short
+
+
+def _left_out(rs: Sequence[dict], model: str) -> str:
+    """Why some of an axis's fitted rows are not used, when some are of another friction model than
+    ``model`` (its most common) or have Fc or Fv on its bound 0 (their logarithm is compared); "" when
+    none is left out for those reasons."""
+    other: dict[str, int] = {}
+    for r in rs:
+        if str(r.get("friction_model")) != model:
+            other[str(r.get("friction_model"))] = other.get(str(r.get("friction_model")), 0) + 1
+    zero = sum(1 for r in rs if str(r.get("friction_model")) == model
+               and not (_pos(r.get("Fc")) and _pos(r.get("Fv"))))
+    parts = []
+    if other:
+        n = sum(other.values())
+        parts.append(f"{n} of its {len(rs)} fitted logs are of {' and '.join(sorted(other))}, not mixed with its "
+                     f"{len(rs) - n} {model} fits (fleet fit --friction-model stribeck or coulomb-viscous fits "
+                     "every log with one model)")
+    if zero:
+        parts.append(f"{zero} with Fc or Fv at 0 (on its bound: no relative change to follow)")
+    return "; ".join(parts)
 
 
 def _pos(v: Any) -> bool:
@@ -230,9 +254,10 @@ def assess(rows: Sequence[dict], settings: WearSettings | None = None, source: s
         raise KukaidError(f"{source}: the table has no fitted rows (status ok) to assess")
     if not axes:  # a verdict of no axis would read as "none flagged": no wear seen, where none was looked for
         most = max(short, key=lambda a: a["n_logs"])
+        why = f"; {most['left_out']}" if most.get("left_out") else ""
         raise KukaidError(f"{source}: no axis has logs enough to assess: the most, {most['n_logs']} ({most['robot']} "
                           f"A{most['axis']}), are fewer than a baseline of {baseline_size(most['n_logs'], settings)} "
-                          "and one more")
+                          f"and one more{why}")
     tm = _temperature_model(axes)
     T_ref = tm["T_ref"]
     # friction at T_ref, relative to the axis's baseline mean
@@ -314,7 +339,7 @@ def assess(rows: Sequence[dict], settings: WearSettings | None = None, source: s
             "robot": a.robot, "axis": a.axis, "flagged": first is not None, "first_flagged": first,
             "evidence": round(Smax / h, 4) if math.isfinite(h) else 0.0,
             "cusum_max": round(Smax, 4), "threshold": round(h, 4), "n_logs": len(a.dates),
-            "friction_model": a.model, "rows_not_used": a.dropped,
+            "friction_model": a.model, "rows_not_used": a.dropped, **({"left_out": a.left_out} if a.left_out else {}),
             "baseline": {"from": a.dates[0], "to": a.dates[a.nb - 1], "logs": a.nb,
                          "Fc": float(base_level[0]), "Fv": float(base_level[1]),
                          "scatter_rel": [float(x) for x in s]},
@@ -370,6 +395,11 @@ def lines(result: dict, top: int = 20) -> list[str]:
     if ranked:  # what the figures are, so a reader can weigh them
         out.append("evidence: the largest CUSUM over its threshold (above 1: flagged); ΔFc, ΔFv: the last week "
                    "against the baseline at T_ref, ± the baseline's day-to-day scatter (one log's)")
+    left = [a for a in ranked if a.get("left_out")]
+    for a in left[:5]:  # assessed on fewer logs than were fitted, and why
+        out.append(f"{a['robot']:<10} {'A' + str(a['axis']):>4} assessed on {a['n_logs']} logs: {a['left_out']}")
+    if len(left) > 5:
+        out.append(f"... and {len(left) - 5} more assessed axes with logs left out (the verdict file lists them)")
     short = [a for a in result["axes"] if "evidence" not in a]
     for a in short[:5]:  # not assessed, and why (a baseline needs that many logs and one more)
         out.append(f"{a['robot']:<10} {'A' + str(a['axis']):>4} not assessed: {a.get('note', '')}")

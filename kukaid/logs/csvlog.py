@@ -68,9 +68,10 @@ def read_csv(path: str | Path) -> AxisLog:
     if not axes:
         raise LogFormatError(f"{path}: no axis columns in the header")
     for a in axes:
-        for need, hint in (("q", "A{a}_deg"), ("tau", "A{a}_Nm")):
+        for need in ("q", "tau"):
             if (a, need) not in cols:
-                raise LogFormatError(f"{path}: missing column {hint.format(a=a)} (axis A{a} has no '{need}')")
+                raise LogFormatError(f"{path}: missing column A{a}_{_missing_suffix(header, cols, need, joint_of.get(a))} (axis A{a} "
+                                     f"has no '{need}')")
     body = [ln for ln in lines[1:]]
     rows = []
     for k, ln in enumerate(body, start=2):
@@ -106,6 +107,21 @@ def read_csv(path: str | Path) -> AxisLog:
     positions = {str(a): labels[("q", a)] for a in axes}
     return AxisLog(time=time, axes=tuple(axes), joint=joint, attrs={"source_file": str(path),
                                                                      "position_columns": positions}, **data)
+
+
+def _missing_suffix(header: list[str], cols: dict, need: str, joint: str | None) -> str:
+    """The unit suffix a missing ``need`` column ("q" or "tau") of an axis of type ``joint`` (None: its
+    other column says none) would have: ``m``, ``N`` for a prismatic axis, ``Nm`` for a revolute torque,
+    else that of the log's other revolute positions (``rad`` in a log of ``A1_rad``, ...) or degrees."""
+    if joint == "prismatic":
+        return "m" if need == "q" else "N"
+    if need == "tau":
+        return "Nm"
+    for (_, chan), (j, _) in sorted(cols.items()):
+        suffix = _CSV_COL.match(header[j]).group(2)
+        if chan == "q" and _CSV_SUFFIX[suffix][1] == "revolute":
+            return suffix
+    return "deg"
 
 
 def _is_float(s: str) -> bool:
