@@ -98,6 +98,23 @@ def test_validate_reads_the_rmse_against_the_noise_floor(tmp_path):
     assert r.exit_code == 0 and r.output.splitlines()[1].split()[2] == "n/a", r.output
 
 
+def test_validate_names_radians_under_a_degree_header_as_fit_does(tmp_path):
+    """New-user trial 15: a log in radians whose header says degrees scored 86.5 % with "another robot or axis,
+    or another unit?"; fit names the column and the mistake, and now validate does too."""
+    from kukaid.logs import write_csv
+
+    write_hdf5(sine_log(1, 0.25), tmp_path / "a.h5")
+    par = tmp_path / "p.json"
+    assert CliRunner().invoke(cli, ["fit", str(tmp_path / "a.h5"), "--friction-model", "coulomb-viscous",
+                                    "-o", str(par)]).exit_code == 0
+    write_csv(sine_log(2, 0.18, amp=0.7), tmp_path / "b.csv", angle_unit="rad")
+    text = (tmp_path / "b.csv").read_text().replace("A3_rad", "A3_deg", 1)
+    (tmp_path / "b.csv").write_text(text)
+    r = CliRunner().invoke(cli, ["validate", "--params", str(par), str(tmp_path / "b.csv")])
+    assert r.exit_code == 0, r.output
+    assert "column A3_deg spans only" in r.stderr and "radians written under a degree header?" in r.stderr, r.stderr
+
+
 def test_validate_takes_its_logs_with_log_as_diagnose_and_report_do(tmp_path, monkeypatch):
     """New-user trial 10: `validate --params p.json --log x.h5` (as diagnose and report take logs)
     said only "No such option '--log'"; both forms, and a mix, score the same logs."""

@@ -260,7 +260,7 @@ class AxisFile:
         return {ax: (pr.tau[keep], tau_hat[keep])}, {ax: floor}
 
     def warnings(self, log: Any, where: str) -> list[str]:
-        from kukaid.identify.adequacy import moving_axes, pushed_log_warnings
+        from kukaid.identify.adequacy import moving_axes, pushed_log_warnings, unit_warnings
 
         others = moving_axes(log, self.axis)
         out = []
@@ -269,7 +269,7 @@ class AxisFile:
             out.append(f"{where}: other axes ({moving}) move, so the gravity and inertia torque on A{self.axis} "
                        f"depend on their positions, which the single-axis model of {self.source} does not see; "
                        "fit all axes together (kukaid fit --robot URDF)")
-        return out + pushed_log_warnings(log, where)
+        return unit_warnings(log, self.axis, where) + out + pushed_log_warnings(log, where)
 
     def table(self) -> str:
         from kukaid.identify.fit import format_params
@@ -327,9 +327,10 @@ class RobotFile:
         return self.predict(log), out
 
     def warnings(self, log: Any, where: str) -> list[str]:
-        from kukaid.identify.adequacy import pushed_log_warnings
+        from kukaid.identify.adequacy import pushed_log_warnings, unit_warnings
 
-        return pushed_log_warnings(log, where)
+        return ([w for a in self.joints if a in log.axes for w in unit_warnings(log, a, where)]
+                + pushed_log_warnings(log, where))
 
     def table(self) -> str:
         from kukaid.identify.robot_fit import format_robot_table
