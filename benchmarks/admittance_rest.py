@@ -59,6 +59,8 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from kukaid.sim.family import gravity_loaded
+
 
 #: what --outside changes in a member's simulator: name -> f(cfg, rng) -> cfg
 OUTSIDE = {
@@ -75,16 +77,8 @@ OUTSIDE = {
     "jitter": lambda c, r: c.replace(jitter=0.002),
     "servo": lambda c, r: c.replace(Ki=r.uniform(60, 100), Kp=r.uniform(25, 60)),
     "vibration": lambda c, r: c.replace(vibration=True, vib_amplitude=r.uniform(1e-5, 3e-5)),
-    "heavy": lambda c, r: _heavy(c, r.uniform(3.0, 5.0), r.uniform(2.0, 4.0), r.uniform(1.0, 2.0)),
+    "heavy": lambda c, r: gravity_loaded(c, r.uniform(3.0, 5.0), r.uniform(2.0, 4.0), r.uniform(1.0, 2.0)),
 }
-
-
-def _heavy(c, g: float, j: float, f: float):
-    """A gravity-loaded axis (an A2): gravity ``g`` x, inertia ``j`` x, friction ``f`` x the member's; the
-    servo's machine data know it, the drive takes it."""
-    return c.replace(Mx=c.Mx * g, My=c.My * g, ctrl_Mx=c.ctrl_Mx * g, Izz=c.Izz * j, ctrl_Izz=c.ctrl_Izz * j,
-                     Fc=c.Fc * f, Fs=c.Fs * f, Fv=c.Fv * f, ms_W=tuple(w * f for w in c.ms_W),
-                     tau_max=max(c.tau_max, 4.0 * abs(c.Mx * g)))
 
 
 @functools.lru_cache(maxsize=8)

@@ -20,7 +20,7 @@ from kukaid.params import model_from_params
 from kukaid.robot import SimRobot
 from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid.sim.config import lugre_elements
-from kukaid.sim.family import FAMILY, plant
+from kukaid.sim.family import FAMILY, gravity_loaded, plant
 from kukaid.sim.operator import PushOperator
 from kukaid_cli.main import cli
 
@@ -433,16 +433,18 @@ def test_after_a_guided_move_the_plants_own_sway_at_rest_does_not_start_the_axis
     assert drift < 0.05 and n_det == 0, (drift, n_det)
 
 
-@pytest.mark.parametrize("name, seed, move, Fs, gap", [("gms-sensor", 9, 1.0, 27.69, 10.0),
-                                                      ("lugre", 9, -1.0, 28.64968523002208, -5.0)])
-def test_a_stop_or_a_creep_between_the_models_sliding_curve_and_its_elements_is_no_push(name, seed, move, Fs, gap):
+@pytest.mark.parametrize("name, seed, move, Fs, gap, W", [("gms-sensor", 9, 1.0, 27.69, 10.0, None),
+                                                         ("lugre", 9, -1.0, 28.64968523002208, -5.0, 20.21)])
+def test_a_stop_or_a_creep_between_the_models_sliding_curve_and_its_elements_is_no_push(name, seed, move, Fs, gap, W):
     """A breakaway of 1.51 x Coulomb, identified with the toolkit's own experiments and fit, after a guided
     move.  gms-sensor seed 9 (its elements hold 14.9 N·m at rest): at every stop the file's prediction fell
     by Fs minus its elements' saturation (27.6 - 15.6 N·m) before the servo's torque followed, Γr reached
     12 N·m beyond the stop's doubled threshold, and a stick-slip cycle ran the axis 2 degrees with nobody
     there.  LuGre seed 9 (its fitted elements 35.5 N·m, above the 28.6 of the sliding curve): creeping
     slower than the blend's upper end the prediction rose towards the elements', read as a push along the
-    motion, and kicked the axis on: 7.2 degrees.  A stop or a creep now needs the threshold plus that gap."""
+    motion, and kicked the axis on: 7.2 degrees.  A stop or a creep now needs the threshold plus that gap.
+    (Since stop 39 the fit keeps each element within half the pre-sliding data's swing, and LuGre seed 9's
+    third element comes out 11.2 N·m, not 20.2: ``W`` puts back the file it gave, as any file may be.)"""
     from kukaid import excite
     from kukaid.identify import fit_axis
 
@@ -451,6 +453,10 @@ def test_a_stop_or_a_creep_between_the_models_sliding_curve_and_its_elements_is_
     logs = [VirtualKRC4(cfg, seed=1000 + 3 * seed + k, axis=3).run(traj)
             for k, traj in enumerate((excite.friction(), excite.inertia(), excite.presliding()))]
     fitted = fit_axis(friction=[logs[0]], inertia=[logs[1]], presliding=logs[2])
+    if W is not None:  # the last element as the fit gave it before stop 39
+        ms = fitted["maxwell_slip"]
+        ms["k"][-1] *= W / ms["W"][-1]
+        ms["W"][-1] = W
     between = fitted["friction"]["Fs"] - sum(fitted["maxwell_slip"]["W"])
     assert (between > gap) if gap > 0 else (between < gap), between
     op = PushOperator(amplitude=15.0 * move, t_start=2.0, duration=2.0, ramp=0.3)
@@ -519,20 +525,13 @@ def _fitted(cfg, seed, reversals=None):
     return fit_axis(friction=[logs[0]], inertia=[logs[1]], presliding=logs[2])
 
 
-def _heavy(cfg, g, j, f):
-    """A gravity-loaded axis (an A2): gravity g x, inertia j x, friction f x (the servo's machine data too)."""
-    return cfg.replace(Mx=cfg.Mx * g, My=cfg.My * g, ctrl_Mx=cfg.ctrl_Mx * g, Izz=cfg.Izz * j,
-                       ctrl_Izz=cfg.ctrl_Izz * j, Fc=cfg.Fc * f, Fs=cfg.Fs * f, Fv=cfg.Fv * f, ms_W=tuple(w * f for w in cfg.ms_W),
-                       tau_max=max(cfg.tau_max, 4.0 * abs(cfg.Mx * g)))
-
-
 def test_on_a_gravity_loaded_axis_the_default_threshold_follows_the_files_friction():
     """lugre seed 2 made an A2 (gravity 3.0 x, inertia 2.4 x, friction 1.28 x), its file fitted on it: at rest
     after the initiation move down, with the paper's 5 N·m the residual of the loaded bristles' creep crossed
     the threshold and the axis moved 0.8 degree with nobody there.  The default threshold is now a quarter of
     the file's Coulomb friction when that is more than 5 N·m (6.2 here; 5 on every axis of the A3's size)."""
     p = plant("lugre", seed=2)
-    cfg = _heavy(p.cfg, 3.012242640232763, 2.352790889620822, 1.2844121657489707)
+    cfg = gravity_loaded(p.cfg, 3.012242640232763, 2.352790889620822, 1.2844121657489707)
     fitted = _fitted(cfg, 2)
     model = model_from_params(fitted)
     assert default_threshold(model) == pytest.approx(0.25 * fitted["friction"]["Fc"])
@@ -553,7 +552,7 @@ def test_a_presliding_element_the_data_cannot_show_is_not_inflated_and_is_said()
     (the most they show), and the fit says when one reaches it, naming larger reversals (here on the paper's
     A3 with reversals a tenth of the default's)."""
     p = plant("gms", seed=17)
-    cfg = _heavy(p.cfg, 3.6182661920690196, 3.612250859646486, 1.9537974715278439)
+    cfg = gravity_loaded(p.cfg, 3.6182661920690196, 3.612250859646486, 1.9537974715278439)
     fitted = _fitted(cfg, 17)
     assert sum(fitted["maxwell_slip"]["W"]) == pytest.approx(sum(cfg.ms_W), rel=0.1)
     model = model_from_params(fitted)

@@ -100,3 +100,13 @@ def identified_params(cfg: SimConfig, rng: np.random.Generator, gravity_error: f
     ms["zeta0"] = [0.0] * len(ms["W"])  # the plant's initial pre-sliding state is not the controller's to know
     p["provenance"] = {"source": "kukaid.sim.family", "note": "truth with identification errors"}
     return p
+
+
+def gravity_loaded(cfg: SimConfig, gravity: float, inertia: float, friction: float) -> SimConfig:
+    """``cfg`` made a gravity-loaded axis (an A2 where the family draws A3s): its gravity ``gravity`` x, its
+    inertia ``inertia`` x, its friction (Coulomb, Stribeck, viscous, the Maxwell-slip saturations)
+    ``friction`` x; the servo's machine data know it, and the drive takes four times the gravity."""
+    g, j, f = float(gravity), float(inertia), float(friction)
+    return cfg.replace(Mx=cfg.Mx * g, My=cfg.My * g, ctrl_Mx=cfg.ctrl_Mx * g, Izz=cfg.Izz * j,
+                       ctrl_Izz=cfg.ctrl_Izz * j, Fc=cfg.Fc * f, Fs=cfg.Fs * f, Fv=cfg.Fv * f,
+                       ms_W=tuple(w * f for w in cfg.ms_W), tau_max=max(cfg.tau_max, 4.0 * abs(cfg.Mx * g)))
