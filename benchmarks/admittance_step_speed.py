@@ -23,7 +23,8 @@ def main() -> None:
     from kukaid.control.admittance import Admittance
     from kukaid.control.rbf import RBFConfig, RBFDamping
     from kukaid.control.filters import CausalButterworth
-    from kukaid.control.stability import CouplingConfig, CouplingFloor, OscillationMonitor, StabilityConfig
+    from kukaid.control.stability import (CouplingConfig, CouplingFloor, OscillationMonitor, StabilityConfig,
+                                          StickSlipWatch)
     from kukaid.control.torque_residual import TorqueResidual
     from kukaid.params import model_from_params
     from kukaid.sim import SimConfig
@@ -39,6 +40,7 @@ def main() -> None:
     mon = OscillationMonitor(StabilityConfig(), 0.012, 50.0, 3000.0)
     grip = CouplingFloor(CouplingConfig(), 0.012, 20.0, 500.0, CausalButterworth(5.0, 1 / 0.012, 3).phase_delay)
     adm = Admittance(20.0, 50.0, 0.012, sigma0=0.5)
+    slip = StickSlipWatch(0.012, cap=15.0)
     rng = np.random.default_rng(0)
     n = a.steps
     t = np.arange(n) * 0.012
@@ -51,6 +53,7 @@ def main() -> None:
         t0 = time.perf_counter_ns()
         c0 = time.thread_time_ns()
         r = est.update(q[i], tau[i])
+        est.cycle_margin = slip.step(adm.sigma_dot, r.detected, r.gamma_r)
         g = r.gamma_r if r.detected else 0.0
         floor = max(mon.step(r.gamma_r, D), grip.step(r.gamma_r, r.detected, D))
         grip.observe_robot(adm.sigma, q[i])
@@ -67,8 +70,8 @@ def main() -> None:
     if a.json:
         print(json.dumps(res))
     else:
-        print(f"control step (estimator + oscillation monitor + grip floor + RBF damping + admittance), {n} steps "
-              f"(budget p99 < 100 us; load average {res['load_average'][0]:.1f} on {os.cpu_count()} cores):")
+        print("control step (estimator + oscillation monitor + grip floor + RBF damping + stick-slip watch + "
+              f"admittance), {n} steps (budget p99 < 100 us; load average {res['load_average'][0]:.1f} on {os.cpu_count()} cores):")
         for name in ("cpu", "wall"):
             r = res[name]
             print(f"  {name:4s}: p50 {r['p50_us']:.1f} us, p99 {r['p99_us']:.1f} us, max {r['max_us']:.0f} us")
