@@ -450,12 +450,14 @@ def test_one_recording_given_twice_is_refused_by_fit_and_diagnose(files, tmp_pat
     log = files / "inertia.h5"
     copy = tmp_path / "copy.h5"
     copy.write_bytes(log.read_bytes())  # another name, the same samples
-    for args in (["fit", "--friction", log, "--inertia", copy, "-o", tmp_path / "p.json"],
-                 ["fit", log, log, "--friction-model", "coulomb-viscous", "-o", tmp_path / "p.json"],
-                 ["diagnose", "--params", files / "params.json", "--log", log, "--log", copy, "-o",
-                  tmp_path / "p.json"]):
+    for args, what in ((["fit", "--friction", log, "--inertia", copy, "-o", tmp_path / "p.json"],
+                        ": the same recording as "),
+                       (["fit", log, log, "--friction-model", "coulomb-viscous", "-o", tmp_path / "p.json"],
+                        f"{log}: given twice"),  # new-user trial 15: it said the same recording as itself
+                       (["diagnose", "--params", files / "params.json", "--log", log, "--log", copy, "-o",
+                         tmp_path / "p.json"], ": the same recording as ")):
         r = _run(*args)
-        _one_line_error(r, ": the same recording as ", "give each recording once", code=1)
+        _one_line_error(r, what, "give each recording once", code=1)
     assert sorted(os.listdir(tmp_path)) == ["copy.h5"]
 
 

@@ -105,8 +105,9 @@ def check_each_recording_once(logs: Sequence["AxisLog"], error: type[KukaidError
     for i, lg in enumerate(logs):
         first = seen.setdefault(log_fingerprint(lg), i)
         if first != i:
-            raise error(f"{lg.attrs.get('source_file', 'log')}: the same recording as "
-                        f"{logs[first].attrs.get('source_file', 'another log')}; give each recording once")
+            name, other = lg.attrs.get("source_file", "log"), logs[first].attrs.get("source_file", "another log")
+            what = "given twice" if name == other else f"the same recording as {other}"
+            raise error(f"{name}: {what}; give each recording once")
 
 
 @dataclass(frozen=True, eq=False)
