@@ -49,6 +49,7 @@ def read_csv(path: str | Path) -> AxisLog:
         raise LogFormatError(f"{path}: first column must be 'time_s', found '{header[0]}'")
     cols: dict[tuple[int, str], tuple[int, float]] = {}
     joint_of: dict[int, str] = {}
+    rev_q: dict[int, str] = {}  # the unit suffix of each revolute position column (deg, rad)
     for j, name in enumerate(header[1:], start=1):
         m = _CSV_COL.match(name)
         if not m or m.group(2) not in _CSV_SUFFIX:
@@ -64,14 +65,17 @@ def read_csv(path: str | Path) -> AxisLog:
             if joint_of.setdefault(axis, jt) != jt:
                 raise LogFormatError(f"{path}: column '{name}' mixes revolute and prismatic units for A{axis}")
         cols[(axis, chan)] = (j, scale)
+        if chan == "q" and jt == "revolute":
+            rev_q[axis] = m.group(2)
     axes = sorted({a for a, _ in cols})
     if not axes:
         raise LogFormatError(f"{path}: no axis columns in the header")
     for a in axes:
         for need in ("q", "tau"):
             if (a, need) not in cols:
-                raise LogFormatError(f"{path}: missing column A{a}_{_missing_suffix(header, cols, need, joint_of.get(a))} (axis A{a} "
-                                     f"has no '{need}')")
+                suffix = (("m" if need == "q" else "N") if joint_of.get(a) == "prismatic" else "Nm" if need == "tau"
+                          else rev_q[min(rev_q)] if rev_q else "deg")  # as the log's other revolute positions
+                raise LogFormatError(f"{path}: missing column A{a}_{suffix} (axis A{a} has no '{need}')")
     body = [ln for ln in lines[1:]]
     rows = []
     for k, ln in enumerate(body, start=2):
@@ -107,21 +111,6 @@ def read_csv(path: str | Path) -> AxisLog:
     positions = {str(a): labels[("q", a)] for a in axes}
     return AxisLog(time=time, axes=tuple(axes), joint=joint, attrs={"source_file": str(path),
                                                                      "position_columns": positions}, **data)
-
-
-def _missing_suffix(header: list[str], cols: dict, need: str, joint: str | None) -> str:
-    """The unit suffix a missing ``need`` column ("q" or "tau") of an axis of type ``joint`` (None: its
-    other column says none) would have: ``m``, ``N`` for a prismatic axis, ``Nm`` for a revolute torque,
-    else that of the log's other revolute positions (``rad`` in a log of ``A1_rad``, ...) or degrees."""
-    if joint == "prismatic":
-        return "m" if need == "q" else "N"
-    if need == "tau":
-        return "Nm"
-    for (_, chan), (j, _) in sorted(cols.items()):
-        suffix = _CSV_COL.match(header[j]).group(2)
-        if chan == "q" and _CSV_SUFFIX[suffix][1] == "revolute":
-            return suffix
-    return "deg"
 
 
 def _is_float(s: str) -> bool:
