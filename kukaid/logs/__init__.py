@@ -9,7 +9,7 @@ from typing import Any, Callable
 
 from kukaid.errors import LogFormatError
 from kukaid.logs.core import (AxisLog, OtherKindError, check_each_recording_once, check_samples, check_units,
-                              log_fingerprint, fingerprints, other_kind)
+                              fingerprints, log_fingerprint, other_kind)
 from kukaid.logs.csvlog import read_csv, write_csv
 from kukaid.logs.hdf5 import read_hdf5, write_hdf5
 from kukaid.logs.matlog import read_mat
@@ -44,8 +44,7 @@ def read_log(path: str | Path, **options: Any) -> AxisLog:
     on the fly (into a temporary file the reader opens, removed after)."""
     path = Path(path)
     comp = COMPRESSIONS.get(path.suffix.lower())
-    inner = Path(path.stem) if comp else path
-    suffix = inner.suffix.lower()  # format_suffix(path)
+    suffix = format_suffix(path)
     if suffix not in READERS:
         expected = ", ".join(READERS)
         raise LogFormatError(f"{path}: unknown log format '{''.join(path.suffixes[-2:]).lower() or path.suffix}' "
@@ -56,7 +55,7 @@ def read_log(path: str | Path, **options: Any) -> AxisLog:
     if fmt == "KUKA Trace":  # its data are in other files beside it, which one decompressed file does not bring
         raise LogFormatError(f"{path}: a KUKA Trace recording is several files (a .dat and a .r64 per module); "
                              "decompress them into one folder and give its .dat")
-    return _read_compressed(path, comp, inner.name, lambda plain, **o: _read(reader, plain, fmt, o), options)
+    return _read_compressed(path, comp, path.stem, lambda plain, **o: _read(reader, plain, fmt, o), options)
 
 
 def _read(reader: Callable[..., AxisLog], path: Path, fmt: str, options: dict) -> AxisLog:
