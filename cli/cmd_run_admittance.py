@@ -218,7 +218,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
 
     import numpy as np
 
-    from kukaid.control.loop import LoopConfig, run_admittance
+    from kukaid.control.loop import LoopConfig, check_guidable, default_threshold, run_admittance
     from kukaid.control.metrics import operator_metrics
     from kukaid.control.rbf import RBFConfig
     from kukaid.control.recorder import RunRecorder, check_no_partial
@@ -295,10 +295,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
                               tau_max=tau_max, max_age=max_age)
         check_motion_allowed(backend, enable_motion, limits)
         # LoopConfig checks the admittance's stability (also at D-max) and the detection thresholds
-        if threshold is None:
-            from kukaid.control.loop import default_threshold
-
-            threshold = default_threshold(model)
+        threshold = default_threshold(model) if threshold is None else threshold
         cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
                          sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf,
                          cutoff=cutoff, limits=limits, no_rest_model=no_rest_model)
@@ -310,8 +307,6 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     check_no_partial(output)  # a run that was killed or failed: recorded data, never replaced
 
     def guidable() -> None:  # after the options and the file's axis and kind, before anything moves
-        from kukaid.control.loop import check_guidable
-
         try:
             check_guidable(model, no_rest_model)
         except KukaidError as e:
