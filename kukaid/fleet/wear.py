@@ -32,6 +32,7 @@ from __future__ import annotations
 import datetime as dt
 import functools
 import math
+from collections import Counter
 from dataclasses import asdict, dataclass
 from typing import Any, Sequence
 
@@ -133,7 +134,8 @@ def _axes(rows: Sequence[dict], settings: WearSettings) -> tuple[list[_Axis], li
     for (robot, axis), rs in sorted(groups.items()):
         models = [str(r.get("friction_model")) for r in rs]
         model = max(sorted(set(models)), key=models.count)  # the most common; a tie the same in every run
-        use = [r for r in rs if r.get("friction_model") == model and _pos(r.get("Fc")) and _pos(r.get("Fv"))]
+        mine = [r for r in rs if str(r.get("friction_model")) == model]
+        use = [r for r in mine if _pos(r.get("Fc")) and _pos(r.get("Fv"))]
         byday: dict[str, dict] = {}
         for r in sorted(use, key=lambda r: r["date"]):
             byday.setdefault(r["date"], r)  # one log a day (the first)
@@ -141,7 +143,7 @@ def _axes(rows: Sequence[dict], settings: WearSettings) -> tuple[list[_Axis], li
         dropped = len(rs) - len(use)
         n = len(use)
         nb = baseline_size(n, settings)
-        why = _left_out(rs, model)
+        why = _left_out(models, model, len(mine) - len(use))
         if n < nb + 1:
             short.append({"robot": robot, "axis": axis, "flagged": False, "first_flagged": None, "n_logs": n,
                           "note": f"too few logs ({n}; a baseline of {nb} and at least one more are needed)"
@@ -153,21 +155,16 @@ def _axes(rows: Sequence[dict], settings: WearSettings) -> tuple[list[_Axis], li
     return out, short
 
 
-def _left_out(rs: Sequence[dict], model: str) -> str:
-    """Why some of an axis's fitted rows are not used, when some are of another friction model than
-    ``model`` (its most common) or have Fc or Fv on its bound 0 (their logarithm is compared); "" when
-    none is left out for those reasons."""
-    other: dict[str, int] = {}
-    for r in rs:
-        if str(r.get("friction_model")) != model:
-            other[str(r.get("friction_model"))] = other.get(str(r.get("friction_model")), 0) + 1
-    zero = sum(1 for r in rs if str(r.get("friction_model")) == model
-               and not (_pos(r.get("Fc")) and _pos(r.get("Fv"))))
+def _left_out(models: Sequence[str], model: str, zero: int) -> str:
+    """Why some of an axis's fitted rows (their friction ``models``) are not used: those of another
+    friction model than ``model`` (its most common), and ``zero`` of ``model`` with Fc or Fv on its
+    bound 0 (their logarithm is compared); "" when none is left out for those reasons."""
+    other = Counter(m for m in models if m != model)
     parts = []
     if other:
         n = sum(other.values())
-        parts.append(f"{n} of its {len(rs)} fitted logs are of {' and '.join(sorted(other))}, not mixed with its "
-                     f"{len(rs) - n} {model} fits (fleet fit --friction-model stribeck or coulomb-viscous fits "
+        parts.append(f"{n} of its {len(models)} fitted logs are of {' and '.join(sorted(other))}, not mixed with its "
+                     f"{len(models) - n} {model} fits (fleet fit --friction-model stribeck or coulomb-viscous fits "
                      "every log with one model)")
     if zero:
         parts.append(f"{zero} with Fc or Fv at 0 (on its bound: no relative change to follow)")
