@@ -221,7 +221,6 @@ class TorqueResidual:
         fs = 1.0 / self.sample_time
         # q, qd, qdd, tau, predicted torque
         self._filters = [CausalButterworth(cutoff, fs, order) for _ in range(5)]
-        ms = model.maxwell_slip
         self._k = np.asarray(ms.k, dtype=float) if ms is not None else np.zeros(0)
         self._W = np.asarray(ms.W, dtype=float) if ms is not None else np.zeros(0)
         z0 = np.zeros(self._k.size) if zeta0 is None else np.asarray(zeta0, dtype=float).ravel()
