@@ -78,6 +78,12 @@ def test_csv_radians_and_prismatic(tmp_path):
     assert (tmp_path / "p2.csv").read_text().splitlines()[0] == "time_s,A1_m,A1_N"
 
 
+def test_csv_numbers_in_quotes_lines_of_spaces_and_windows_line_ends_are_read(tmp_path):
+    (tmp_path / "q.csv").write_bytes(b'\xef\xbb\xbftime_s,A3_deg,A3_Nm\r\n0,"1.5",2\r\n   \r\n0.012, 2 ,3\r\n')
+    log = read_csv(tmp_path / "q.csv")
+    assert np.allclose(np.degrees(log.q[:, 0]), [1.5, 2.0]) and np.allclose(log.tau[:, 0], [2.0, 3.0])
+
+
 BAD_CSV = {
     "missing_column": ("time_s,A3_deg\n0,1\n0.012,2\n", "missing column A3_Nm"),
     # new-user trial 15: a log in radians without A4's position named 'A4_deg', a column no other axis has
@@ -91,6 +97,8 @@ BAD_CSV = {
     "empty": ("", "empty file"),
     "header_only": ("time_s,A3_deg,A3_Nm\n", "no data rows"),
     "ragged": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2\n", "line 3 has 2 fields"),
+    "long_row": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2,3,4\n0.024,2,3\n", "line 3 has 4 fields"),
+    "empty_field": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,,3\n", "line 3: '' is not a number"),
     "text": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,abc,3\n", "line 3: 'abc' is not a number"),
     "no_time": ("t,A3_deg,A3_Nm\n0,1,2\n", "first column must be 'time_s'"),
     "mixed_units": ("time_s,A3_deg,A3_N\n0,1,2\n0.1,1,2\n", "mixes revolute and prismatic"),
