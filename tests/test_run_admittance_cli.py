@@ -663,3 +663,20 @@ def test_a_closed_stdout_pipe_ends_quietly_and_keeps_the_log(files, tmp_path, ku
     assert proc.returncode == 141 and err == b"", err.decode()
     log, control, metrics = read_run(out)
     assert metrics["status"] == "completed" and log.n_samples > 0 and control["gamma_r"].size == log.n_samples
+
+
+def test_a_default_threshold_above_the_torque_stop_names_the_file_not_an_option(files, tmp_path):
+    """New-user trial 16: a parameter file in N·mm (Fc 12800) gave `run-admittance: threshold 3200 N·m
+    must be below the torque limit 100 N·m`, exit 2, a usage error naming a threshold nobody had given:
+    the default threshold is a quarter of the file's Coulomb friction.  The file is named, with its Fc."""
+    bad = tmp_path / "nmm.json"
+    bad.write_text((files / "params.json").read_text().replace('"Fc": 12.8', '"Fc": 12800.0')
+                   .replace('"Fs": 15.2', '"Fs": 15200.0'))
+    out = tmp_path / "run.h5"
+    r = _run(["--params", bad, "--duration", "1", "-o", out])
+    assert r.exit_code == 1 and r.output.startswith(f"kukaid: error: {bad}: the default threshold"), r.output
+    assert "Fc 12800 N·m, is 3200 N·m, not below the torque limit 100 N·m" in r.output, r.output
+    assert len(r.output.strip().splitlines()) == 1 and not out.exists()
+    # given as an option, the option's error stays a usage error
+    r = _run(["--params", files / "params.json", "--duration", "1", "-o", out, "--tau-max", "4"])
+    assert r.exit_code == 2 and "threshold 5 N·m must be below the torque limit 4 N·m" in r.output, r.output
