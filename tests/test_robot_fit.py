@@ -230,6 +230,29 @@ def test_a_cutoff_that_trims_the_whole_log_names_the_log_and_the_option(kr6, tmp
     assert "short.csv: too few samples left (0)" in r.stderr and "--cutoff 0.001 Hz" in r.stderr
 
 
+def test_a_consistent_fit_that_does_not_converge_names_the_log(kr6, tmp_path, monkeypatch):
+    """New-user trial 16: `kukaid fit trunc.csv --robot kuka_lwr4.urdf` (the first 0.9 s of lwr4_1.csv,
+    its last value cut short) said only `physically consistent fit did not converge (IPOPT:
+    Error_In_Step_Computation)`: no log named, where every other error of the fit names it."""
+    from click.testing import CliRunner
+
+    from kukaid.identify import robot_fit
+    from kukaid.logs import write_csv
+    from kukaid_cli.main import cli
+
+    def fails(*args, **kwargs):
+        raise FitError("physically consistent fit did not converge (IPOPT: Error_In_Step_Computation)")
+
+    monkeypatch.setattr(robot_fit, "consistent_fit", fails)
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    csv = tmp_path / "short.csv"
+    write_csv(log, csv, angle_unit="rad")
+    r = CliRunner().invoke(cli, ["fit", str(csv), "--robot", "kr6-r700-sixx", "-o", str(tmp_path / "p.json")])
+    assert r.exit_code == 1 and len(r.stderr.splitlines()) == 1, r.output
+    assert r.stderr.startswith(f"kukaid: error: {csv}: physically consistent fit did not converge"), r.stderr
+    assert not (tmp_path / "p.json").exists()
+
+
 def _refused_on_the_command_line(log, tmp_path, sim_fit, commands, text):
     """Each command (``[name, option before the log]``) given ``log`` as a CSV and the simulated fit's
     file: exit 1, one line on stderr holding ``text``."""

@@ -1519,8 +1519,14 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     extra = beta[nb:]
     if settings.consistent:
         nonneg = np.array(_nonneg(extra_n))
-        solve = lambda Gw_, gw_, cw_, M_, bounds, x0=None: _consistent(  # noqa: E731
-            Gw_, gw_, cw_, M_, robot, extra_n, nonneg, settings, beta[nb:].copy(), ~used, bounds, x0)
+
+        def solve(Gw_, gw_, cw_, M_, bounds, x0=None):  # a solve that fails names the logs, as the checks do
+            try:
+                return _consistent(Gw_, gw_, cw_, M_, robot, extra_n, nonneg, settings, beta[nb:].copy(), ~used,
+                                   bounds, x0)
+            except FitError as e:
+                names = ", ".join(str(lg.attrs.get("source_file", "log")) for lg in logs)
+                raise FitError(f"{names}: {e}") from None
         pi_c, extra, solver_info = solve(Gw, gw, cw, M, True)
         on_bound = _masses_on_bound(robot, pi_c, settings.mass_bounds)
         if on_bound and K > 1:
