@@ -322,3 +322,17 @@ def test_cli_load_struct_field_with_an_axis_list(tmp_path):
     _one_line_error(r, "--axis must be an axis number or a list such as 1,2,3")
     r = CliRunner().invoke(cli, ["load", str(tmp_path / "rec.mat"), "--gear-ratio", "A1=2", "-o", str(tmp_path / "g.h5")])
     _one_line_error(r, "option --gear-ratio is for KUKA Trace (.dat, .r64) sources")
+
+
+def test_a_recording_in_one_struct_lists_its_fields_and_how_to_name_them(tmp_path):
+    """New-user trial 16: a MATLAB recording saved as one struct (`save rec.mat data`, data.t, data.q,
+    data.tau) gave `no variables 'q' and 'tau': ... variables: data`, and nothing said its fields are
+    named `data.q`; the struct is listed with its fields."""
+    from scipy.io import savemat
+
+    t = np.arange(0.0, 2.0, 0.012)
+    savemat(tmp_path / "rec.mat", {"data": {"t": t, "q": np.sin(t), "tau": np.cos(t)}, "gain": 2.0})
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "rec.mat"), "-o", str(tmp_path / "x.h5")])
+    _one_line_error(r, "no variables 'q' and 'tau'",
+                    "variables: data (a struct with fields t, q, tau; name one as data.<field>), gain")
+    assert not (tmp_path / "x.h5").exists()

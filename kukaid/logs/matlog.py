@@ -179,7 +179,9 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
     v, not_numeric = _load_vars(path)
+    # a struct is listed with its fields: a MATLAB recording is often one struct, whose fields are named with dots
     names = sorted(k for k in v if "." not in k)
+    names = [f"{k} ({not_numeric[k]})" if "struct with fields" in not_numeric.get(k, "") else k for k in names]
 
     def lookup(name: str, role: str) -> np.ndarray:
         if name not in v:
