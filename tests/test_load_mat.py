@@ -336,3 +336,23 @@ def test_a_recording_in_one_struct_lists_its_fields_and_how_to_name_them(tmp_pat
     _one_line_error(r, "no variables 'q' and 'tau'",
                     "variables: data (a struct with fields t, q, tau; name one as data.<field>), gain")
     assert not (tmp_path / "x.h5").exists()
+
+
+@pytest.mark.parametrize("variables, said", [
+    ({"q": np.degrees(np.sin(np.arange(0.0, 20.0, 0.012)))}, "--q-scale 0.0174533 reads degrees"),
+    ({"t": 1000 * np.arange(0.0, 20.0, 0.012)}, "--time-scale 0.001 reads milliseconds"),
+])
+def test_a_unit_mistake_in_a_mat_file_names_the_scale_that_corrects_it(tmp_path, variables, said):
+    """New-user trial 16: a MAT file with positions in degrees (MATLAB users log degrees) said `position
+    variable 'q' reaches -28.6479 rad (-1641.4 degrees); beyond +-720 degrees: wrong unit (millidegrees,
+    or degrees as radians)?`, and nothing of kukaid load's --q-scale (nor of --time-scale for ms)."""
+    from scipy.io import savemat
+
+    t = np.arange(0.0, 20.0, 0.012)
+    path = tmp_path / "rec.mat"
+    savemat(path, {"t": t, "q": np.sin(t), "tau": np.cos(t), **variables})
+    for cmd in (["load", str(path), "-o", str(tmp_path / "x.h5")], ["fit", str(path), "-o", str(tmp_path / "p.json")]):
+        r = CliRunner().invoke(cli, cmd)
+        _one_line_error(r, "wrong unit" if "q" in variables else "milliseconds written as seconds?",
+                        f"kukaid load {path} {said}")
+    assert sorted(os.listdir(tmp_path)) == ["rec.mat"]

@@ -263,7 +263,10 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     chans = {"q": qa, "tau": ta, **extra}
     joints = (joint,) * n_ax
     check_samples(t, chans, axes, str(path))
-    check_units(t, chans, axes, joints, str(path), labels=labels)
+    # the scales that correct them are kukaid load's options (the other commands read a MAT file with the defaults)
+    fixes = {"q": f"kukaid load {path} --q-scale 0.0174533 reads degrees (1.74533e-05 millidegrees)",
+             **({"time": f"kukaid load {path} --time-scale 0.001 reads milliseconds"} if tn_name else {})}
+    check_units(t, chans, axes, joints, str(path), labels=labels, fixes=fixes)
     attrs = {"source_file": str(path), "source": "mat", "mat_variables": {"time": tn_name, "q": qn, "tau": tn, **{
         k: n for k, n in (("q_cmd", q_cmd), ("temp", temp)) if n}}}
     return AxisLog(time=t, q=qa, tau=ta, axes=axes, joint=joints, attrs=attrs, **extra)
