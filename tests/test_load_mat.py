@@ -241,7 +241,8 @@ def test_sample_time_option_builds_the_time_base(tmp_path):
     savemat(tmp_path / "n.mat", {"pos": np.zeros((50, 1)), "u": np.ones((50, 1))})
     out = tmp_path / "o.h5"
     r = CliRunner().invoke(cli, ["load", str(tmp_path / "n.mat"), "--q", "pos", "--tau", "u", "-o", str(out)])
-    _one_line_error(r, "no time variable; name it (--time) or give --sample-time")
+    _one_line_error(r, "no time variable ('time' or 't'): name it or give the sample interval",
+                    "--time VAR (or --sample-time S)")
     r = CliRunner().invoke(cli, ["load", str(tmp_path / "n.mat"), "--q", "pos", "--tau", "u", "--sample-time", "0.004",
                                  "-o", str(out)])
     assert r.exit_code == 0, r.output
@@ -356,3 +357,15 @@ def test_a_unit_mistake_in_a_mat_file_names_the_scale_that_corrects_it(tmp_path,
         _one_line_error(r, "wrong unit" if "q" in variables else "milliseconds written as seconds?",
                         f"kukaid load {path} {said}")
     assert sorted(os.listdir(tmp_path)) == ["rec.mat"]
+
+
+def test_a_mat_file_without_time_given_to_fit_names_kukaid_load(tmp_path):
+    """New-user trial 16: `kukaid fit n.mat` (q and tau, no time) said `no time variable; name it (--time)
+    or give --sample-time`, options fit does not have (`No such option '--sample-time'`)."""
+    from scipy.io import savemat
+
+    savemat(tmp_path / "n.mat", {"q": np.zeros((50, 1)), "tau": np.ones((50, 1))})
+    r = CliRunner().invoke(cli, ["fit", str(tmp_path / "n.mat"), "-o", str(tmp_path / "p.json")])
+    _one_line_error(r, f"kukaid load {tmp_path / 'n.mat'} --time VAR (or --sample-time S) -o LOG.h5, and give "
+                    "LOG.h5; variables: q, tau")
+    assert sorted(os.listdir(tmp_path)) == ["n.mat"]

@@ -243,7 +243,9 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     elif sample_time is not None:
         t = np.arange(qa.shape[0]) * sample_time
     else:
-        raise LogFormatError(f"{path}: no time variable; name it (--time) or give --sample-time")
+        raise LogFormatError(f"{path}: no time variable ('time' or 't'): name it or give the sample interval, kukaid "
+                             f"load {path} --time VAR (or --sample-time S) -o LOG.h5, and give LOG.h5; variables: "
+                             f"{', '.join(names)}")
     extra = {}
     for ch, nm, sc in (("q_cmd", q_cmd, q_scale), ("temp", temp, 1.0)):
         if nm is not None:
