@@ -224,6 +224,21 @@ def test_the_summary_line_says_one_row_not_one_rows(capsys):
     assert capsys.readouterr().err == "t.parquet: 3 rows (2 fitted, 2 error rows) in 2.0 s on 2 workers\n"
 
 
+def test_the_summary_line_says_why_the_first_log_failed(capsys):
+    """New-user trial 16: `fleet fit` of a folder with a truncated log said `14 rows (12 fitted, 2 error
+    rows)` and nothing of which logs or why: that is in the Parquet table's error column, which no
+    command prints.  The first error row is said, as a run that fitted nothing says it."""
+    from kukaid.fleet.run import RunSummary
+    from kukaid_cli.cmd_fleet import _report
+
+    _report(RunSummary(ran=2, errors=1, rows=3, wall_s=2.0, workers=1,
+                       first_error="R002/2026-01-09/A3.h5: not a readable HDF5 file (truncated or corrupt)"),
+            Path("t.parquet"), "fitted")
+    assert capsys.readouterr().err == ("t.parquet: 3 rows (2 fitted, 1 error row) in 2.0 s on 1 worker; the first "
+                                       "error row: R002/2026-01-09/A3.h5: not a readable HDF5 file (truncated or "
+                                       "corrupt) (the table's error column says why for each)\n")
+
+
 def test_ctrl_c_mid_run_says_what_is_kept_and_how_to_go_on(tmp_path, monkeypatch):
     """Ctrl-C during `fleet fit` said only 'interrupted' (exit 130): the finished rows are in a
     hidden journal that the next run reads, which the line now says."""
