@@ -22,7 +22,9 @@ def _fmt(v):
 _UNITS = {"detection_delay": " s", "residual_rmse": " N·m", "residual_rmse_dynamic": " N·m",
           "residual_rmse_quasi_static": " N·m", "mean_sq_dgamma": " N²·m²", "displacement": " rad",
           "peak_speed": " rad/s", "D_range": " N·m·s/rad", "dgamma2": " N²·m²", "dgamma2_true": " N²·m²",
-          "end_error": " of the move"}
+          "end_error": " of the move",
+          # the paper's cost ξ = ½ dΓr² + ½ λ Γr² (eq. 19; λ a pure number): a squared torque too
+          "mean_cost": " N²·m²", "xi": " N²·m²", "xi_true": " N²·m²"}
 #: the summary's names of figures whose JSON key does not say what was measured and what commanded
 _LABELS = {"displacement": "measured displacement", "peak_speed": "reference peak speed"}
 

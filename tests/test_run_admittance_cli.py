@@ -680,3 +680,14 @@ def test_a_default_threshold_above_the_torque_stop_names_the_file_not_an_option(
     # given as an option, the option's error stays a usage error
     r = _run(["--params", files / "params.json", "--duration", "1", "-o", out, "--tau-max", "4"])
     assert r.exit_code == 2 and "threshold 5 N·m must be below the torque limit 4 N·m" in r.output, r.output
+
+
+def test_the_papers_cost_is_printed_with_its_unit(files, tmp_path):
+    """New-user trial 16: the summary printed "mean_sq_dgamma 0.0573 N²·m²" beside "mean_cost 3.256" and
+    "xi 6.705", "xi_true 6.656" without a unit; ξ = ½ dΓr² + ½ λ Γr² (eq. 19) is in N²·m² as well."""
+    r = _run(["--params", files / "params.json", "--operator", "human", "--duration", "8", "--seed", "0",
+              "-o", tmp_path / "r.h5"])
+    assert r.exit_code == 0, r.output
+    lines = {line[2:30].strip(): line[30:].strip() for line in r.stdout.splitlines() if line.startswith("  ")}
+    for k in ("mean_cost", "xi", "xi_true"):
+        assert k in lines and lines[k].endswith(" N²·m²"), (k, lines)
