@@ -194,6 +194,18 @@ def test_log_without_all_axes_is_refused(kr6):
         fit_robot([part], kr6)
 
 
+def test_a_log_of_a_robot_with_more_axes_and_stronger_joints_is_named_as_such_not_as_a_unit(kr6):
+    """New-user trial 16: a KR C4's 6-axis Trace log fitted with the 7-joint LWR4+'s URDF (the wrong
+    --robot) said `the torque of A5 reaches 1001 N·m, 10 x the effort limit ...: wrong unit (N·mm ...)?`:
+    the axes that do not match are said first (here: a 7-axis log, its A4 far beyond the KR 6's 30 N·m)."""
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    tau = np.column_stack([log.tau, log.tau[:, :1]])
+    tau[:, 3] = 1000.0 * np.sign(tau[:, 3] + 1e-9)
+    more = type(log)(time=log.time, q=np.column_stack([log.q, log.q[:, :1]]), tau=tau, axes=(1, 2, 3, 4, 5, 6, 7))
+    with pytest.raises(FitError, match="holds 7 axes but the robot has 6 .*A7 would be ignored"):
+        fit_robot([more], kr6)
+
+
 def test_log_with_more_axes_than_the_robot_is_refused(kr6, tmp_path):
     """A 7-axis log with the 6-axis model: refused (A7 is not silently dropped), by fit and validate."""
     from click.testing import CliRunner

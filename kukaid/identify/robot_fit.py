@@ -301,8 +301,10 @@ def check_torque_scale(log: AxisLog, robot: RobotModel) -> None:
     """Refuse a log whose torques are far beyond the robot's effort limits (FitError naming the
     joint): N·mm or another unit in a column the CSV names N·m fits without complaint and gives a
     model 1000 times too strong (validated at 99.9 % relative error). Joints without a limit in the
-    URDF are not checked."""
+    URDF are not checked.  A log of another robot (other axes) is said first: its torques against
+    this URDF's limits would read as a unit mistake."""
     where = log.attrs.get("source_file", "axis log")
+    _joint_columns(log, robot.n)
     effort = np.asarray(robot.effort, float)
     for j in range(min(robot.n, effort.size)):
         a = j + 1
