@@ -438,6 +438,26 @@ def test_friction_page_of_seven_axes_with_rotors_holds_its_text():
     assert "rotor_inertia (motor)" in texts and "M1" not in texts and "A7" in texts
 
 
+def test_friction_page_gives_sigma_times_the_correlation_factor_as_page_one():
+    """New-user trial 16: the LWR4+ report's friction page gave `± least-squares σ` (A1 Fc 0.4989 ± 0.0087),
+    the white-residual σ, while page 1 and the fit's table give the base parameters' σ times the residual
+    correlation factor (5.96 there): the friction's were 6 x too small beside them."""
+    from matplotlib.table import Table
+
+    from kukaid.report.robot import page_friction_consistency
+
+    params = {"friction": {"model": "coulomb-viscous", "values": {"A1.Fc": 0.4989, "A1.Fv": 1.214},
+                           "sigma": {"A1.Fc": 0.0087, "A1.Fv": 0.025}},
+              "metrics": {"residual_correlation_factor": 5.96, "consistency": [
+                  {"mass": 2.0, "triangle_margin": 1e-3, "pseudo_inertia_min_eig": 1e-4, "ok": True}]},
+              "robot": {"links": ["lwr_1_link"]}}
+    fig = page_friction_consistency(params, "lwr.json")
+    texts = {c.get_text().get_text() for tab in fig.findobj(Table) for c in tab.get_celld().values()}
+    assert "0.4989\n± 0.052" in texts and "1.214\n± 0.15" in texts, texts
+    assert "σ × the residual correlation factor 5.96" in fig.axes[0].get_title()
+    assert not layout_problems(fig)
+
+
 @pytest.mark.skipif(not LWR4.is_dir(), reason="real LWR4+ data (../shared/datasets/lwr4) not present")
 def test_lwr4_fit_generalises_to_the_other_trajectory():
     """Fit on lwr4_1, predict lwr4_3 (a different trajectory): the issue's acceptance figures."""
