@@ -39,6 +39,28 @@ def test_manifest_and_folder_give_the_same_logs(tmp_path):
     assert len(read_input(tmp_path / "logs")) == 4  # default pattern {robot}/{date}/*
 
 
+def test_a_log_of_another_axis_in_a_folder_names_its_file_name_not_a_manifest(tmp_path):
+    """New-user trial 16: `fleet fit FOLDER --pattern '{robot}/{date}/A{axis}.*'` with an A2 log saved as
+    A3.h5 gave the error row "a log of A2, not of A3 as the manifest says": there was no manifest, the
+    axis came from the file's name."""
+    import shutil
+
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    small_fleet(tmp_path / "a", robots=1, days=1, seed=12, axes=(2,))
+    (tmp_path / "logs" / "R1" / "2026-01-05").mkdir(parents=True)
+    shutil.copy(next((tmp_path / "a" / "logs").rglob("*.h5")), tmp_path / "logs" / "R1" / "2026-01-05" / "A3.h5")
+    out = tmp_path / "t.parquet"
+    r = CliRunner().invoke(cli, ["fleet", "fit", str(tmp_path / "logs"), "--pattern", "{robot}/{date}/A{axis}.*",
+                                 "-o", str(out), "--workers", "1"])
+    assert r.exit_code == 1, r.output  # its only log failed
+    (row,), _ = read_table(out)
+    assert row["error"] == ("R1/2026-01-05/A3.h5: a log of A2, not of A3 as its name (--pattern "
+                            "'{robot}/{date}/A{axis}.*') says"), row["error"]
+
+
 def test_a_folder_of_compressed_logs_is_scanned(tmp_path):
     """New-user trial 13: `fleet fit FOLDER` of A3.csv.gz logs said "no log matches the pattern" while a
     manifest naming them, and every other command, read them."""
