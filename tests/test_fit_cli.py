@@ -243,3 +243,25 @@ def test_show_prints_the_table_fit_printed(logs):
     (d / "other.json").write_text('{"schema": "something/1"}')
     s = CliRunner().invoke(cli, ["show", str(d / "other.json")])
     assert s.exit_code == 1 and "not a kukaid parameter file" in s.output and len(s.output.strip().splitlines()) == 1
+
+
+def test_the_bound_examples_of_the_help_and_the_error_are_accepted(tmp_path):
+    """New-user trial 16: `kukaid fit ... --bound vs=0:0.1`, the example of fit --help and of the
+    malformed --bound error, failed: `bounds for vs: the lower bound must be > 0, got 0`."""
+    import re
+
+    from kukaid.errors import FitError
+    from kukaid.identify.stribeck_fit import check_bound
+
+    help_text = " ".join(CliRunner().invoke(cli, ["fit", "--help"]).output.split())
+    bad = CliRunner().invoke(cli, ["fit", "x.h5", "--bound", "vs", "-o", str(tmp_path / "p.json")])
+    examples = re.findall(r"--bound (\S+=\S*:\S*?)[ )]", help_text) + re.findall(r"e\.g\. (\S+=\S*:[\d.]+)", bad.output)
+    examples = [ex for ex in examples if not ex.startswith("NAME=")]  # the metavar
+    assert len(examples) >= 3, (help_text, bad.output)
+    for ex in examples:
+        name, rng = ex.split("=", 1)
+        lo, hi = rng.split(":", 1)
+        try:
+            check_bound(name, float(lo) if lo else None, float(hi) if hi else None)
+        except FitError as e:
+            pytest.fail(f"{ex}: {e}")
