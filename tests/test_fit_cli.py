@@ -265,3 +265,16 @@ def test_the_bound_examples_of_the_help_and_the_error_are_accepted(tmp_path):
             check_bound(name, float(lo) if lo else None, float(hi) if hi else None)
         except FitError as e:
             pytest.fail(f"{ex}: {e}")
+
+
+def test_a_bound_below_what_a_parameter_file_holds_is_refused_before_the_fit(tmp_path):
+    """New-user trial 16: `kukaid fit --friction friction.h5 --inertia inertia.h5 --bound Fc=-100:-1 -o neg.json`
+    fitted, then said `neg.json: friction.Fc = -1.0 is outside the allowed range [0, 1e+06]`, the output named
+    as if it were a broken input; a parameter file holds Fc, Fv >= 0: the option is refused first (exit 2)."""
+    log = tmp_path / "x.h5"
+    log.write_bytes(b"")   # never read: the option is refused first
+    for bound, said in (("Fc=-100:-1", "bounds for Fc: the upper bound must be >= 0"),
+                        ("Fv=:-0.5", "bounds for Fv: the upper bound must be >= 0")):
+        r = CliRunner().invoke(cli, ["fit", "--friction", str(log), "--bound", bound, "-o", str(tmp_path / "p.json")])
+        assert r.exit_code == 2 and said in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.output
+    assert not (tmp_path / "p.json").exists()
