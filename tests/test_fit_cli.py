@@ -278,3 +278,18 @@ def test_a_bound_below_what_a_parameter_file_holds_is_refused_before_the_fit(tmp
         r = CliRunner().invoke(cli, ["fit", "--friction", str(log), "--bound", bound, "-o", str(tmp_path / "p.json")])
         assert r.exit_code == 2 and said in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.output
     assert not (tmp_path / "p.json").exists()
+
+
+def test_a_bound_on_izz_with_an_inertia_log_is_refused_not_printed_as_honoured(tmp_path):
+    """New-user trial 16: `kukaid fit --friction friction.h5 --inertia inertia.h5 --bound Izz=2e6:3e6` printed
+    "Izz 2e+06 ... at a bound: Izz (lower 2e+06, --bound)" while the file held Izz 53.9: the inertia logs'
+    least squares (eqs. 6-8) takes no bounds and replaced the bounded value; the table showed the bound."""
+    from kukaid.errors import OptionError
+    from kukaid.identify import fit_axis
+
+    with pytest.raises(OptionError, match=r"--bound Izz: with --inertia logs beside friction or general logs"):
+        fit_axis(friction=["f.h5"], inertia=["i.h5"], bounds={"Izz": (2e6, 3e6)})  # before any log is read
+    r = CliRunner().invoke(cli, ["fit", "--friction", "f.h5", "--inertia", "i.h5", "--bound", "Mx=0:1", "-o",
+                                 str(tmp_path / "p.json")])
+    assert r.exit_code == 2 and "--bound Mx: with --inertia logs" in r.stderr, r.output
+    assert not (tmp_path / "p.json").exists()
