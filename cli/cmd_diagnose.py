@@ -76,7 +76,24 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
         result, draw = diagnose_model(model, data, axis=axis, cutoff=cutoff, alpha=alpha if given("alpha") else None,
                                       max_steps=max_steps, stage=stage,
                                       warn=lambda w: click.echo(f"kukaid: warning: diagnose: {w}", err=True))
+    for w in _mismatch(result, params_path):
+        click.echo(f"kukaid: warning: diagnose: {w}", err=True)
     _write(result, as_json, output, report, model.check_file, model.save, draw, stage)
+
+
+def _mismatch(result, params_path: Path) -> list[str]:
+    """As validate warns: an axis the file's model predicts with a relative error of 100 % or more (worse
+    than predicting no torque: a model of another robot or axis, or torques in another unit), whose
+    effects this diagnosis would otherwise go on to look for."""
+    from kukaid.diagnose.validate import MISMATCH
+
+    if hasattr(result, "in_sample"):  # a robot diagnosis: the file as it is, per joint
+        pairs = list(zip(result.axes, result.in_sample))
+    else:
+        pairs = [(result.joints()[0]["axis"], result.rel_before)]
+    return [f"the model of {params_path} does not describe these logs on A{a}: its relative error is "
+            f"{100 * r:.0f} %, worse than predicting no torque; is it of another robot or axis, or in another unit? "
+            "(kukaid validate names the log)" for a, r in pairs if r >= MISMATCH]
 
 
 def _write(result, as_json: bool, output, report, check, save, draw, stage) -> None:

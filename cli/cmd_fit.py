@@ -48,7 +48,8 @@ from kukaid_cli._util import AXIS
 @click.option("--diff", type=click.Choice(["central", "spectral"]), default=None,
               help="Differentiation of the filtered position (default central differences).")
 @click.option("--bound", "bound", multiple=True, metavar="NAME=LO:HI",
-              help="Override a bound, e.g. --bound vs=0:0.1 --bound Fs-Fc=0:5 (empty side = unbounded).")
+              help="Override a bound, e.g. --bound vs=0.005:0.1 --bound Fs-Fc=0:5 (empty side = unbounded; vs and "
+                   "delta above 0).")
 @click.option("--robot", default=None, metavar="URDF|NAME",
               help="Fit all axes of a robot jointly from its URDF (or kr6-r700-sixx): base parameters, a "
                    "physically consistent estimate, per-joint friction and offset (kukaid.robot_params/1).")
@@ -114,7 +115,7 @@ def command(logs, friction, inertia, presliding, axis, output, force, as_json, m
             lo, hi = rng.split(":", 1)
             bounds[name.strip()] = (float(lo) if lo.strip() else None, float(hi) if hi.strip() else None)
         except ValueError:
-            raise click.BadParameter(f"'{b}': expected NAME=LO:HI, e.g. vs=0:0.1", param_hint="--bound") from None
+            raise click.BadParameter(f"'{b}': expected NAME=LO:HI, e.g. vs=0.005:0.1", param_hint="--bound") from None
     known = ("Izz", "Mx", "My", "offset", "Fc", "Fv", "Fs-Fc", "vs", "delta")
     for name, (lo, hi) in bounds.items():
         if name not in known:

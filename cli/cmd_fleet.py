@@ -110,8 +110,11 @@ def _report(summary, output: Path, what: str) -> None:
 
         raise KukaidError(f"{output}: no log {what}, {', '.join(parts[1:])}; the first: {summary.first_error}")
     peak = f"; peak worker memory {summary.peak_worker_mb:.0f} MB" if summary.peak_worker_mb else ""
+    # why a log failed is otherwise only in the table's error column: the first one is said
+    first = (f"; the first error row: {summary.first_error} (the table's error column says why for each)"
+             if summary.first_error else "")
     click.echo(f"{output}: {_n(summary.rows, 'row')} ({', '.join(parts)}) in {summary.wall_s:.1f} s"
-               + (f" on {_n(summary.workers, 'worker')}" if summary.workers else "") + peak, err=True)
+               + (f" on {_n(summary.workers, 'worker')}" if summary.workers else "") + peak + first, err=True)
 
 
 @command.command("fit")

@@ -22,7 +22,9 @@ def _fmt(v):
 _UNITS = {"detection_delay": " s", "residual_rmse": " N·m", "residual_rmse_dynamic": " N·m",
           "residual_rmse_quasi_static": " N·m", "mean_sq_dgamma": " N²·m²", "displacement": " rad",
           "peak_speed": " rad/s", "D_range": " N·m·s/rad", "dgamma2": " N²·m²", "dgamma2_true": " N²·m²",
-          "end_error": " of the move"}
+          "end_error": " of the move",
+          # the paper's cost ξ = ½ dΓr² + ½ λ Γr² (eq. 19; λ a pure number): a squared torque too
+          "mean_cost": " N²·m²", "xi": " N²·m²", "xi_true": " N²·m²"}
 #: the summary's names of figures whose JSON key does not say what was measured and what commanded
 _LABELS = {"displacement": "measured displacement", "peak_speed": "reference peak speed"}
 
@@ -218,7 +220,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
 
     import numpy as np
 
-    from kukaid.control.loop import LoopConfig, check_guidable, default_threshold, run_admittance
+    from kukaid.control.loop import THRESHOLD, LoopConfig, check_guidable, default_threshold, run_admittance
     from kukaid.control.metrics import operator_metrics
     from kukaid.control.rbf import RBFConfig
     from kukaid.control.recorder import RunRecorder, check_no_partial
@@ -290,12 +292,18 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     limits_given = (q_min is not None, q_max is not None, given("qd_max"), given("tau_max"))
     # SafetyLimits checks these too; here the message names the option
     require_positive(("--qd-max", qd_max), ("--qdd-max", qdd_max), ("--tau-max", tau_max), ("--max-age", max_age))
+    own = default_threshold(model)
+    if threshold is None and THRESHOLD < own >= tau_max:  # raised by the file, not by an option: say whose it is
+        raise ParamFileError(f"{params_path}: the default threshold, a quarter of its Coulomb friction Fc "
+                             f"{float(model.friction.Fc):g} N·m, is {own:g} N·m, not below the torque limit "
+                             f"{tau_max:g} N·m (--tau-max): a file in N·mm? (kukaid show); else give --threshold "
+                             "and --tau-max for this axis")
     with usage_errors():  # values of options alone
         limits = SafetyLimits(q_min=lo, q_max=hi, qd_max=math.radians(qd_max), qdd_max=math.radians(qdd_max),
                               tau_max=tau_max, max_age=max_age)
         check_motion_allowed(backend, enable_motion, limits)
         # LoopConfig checks the admittance's stability (also at D-max) and the detection thresholds
-        threshold = default_threshold(model) if threshold is None else threshold
+        threshold = own if threshold is None else threshold
         cfg = LoopConfig(I=I, D=D, damping=damping, threshold=threshold, release=release, cycle=cycle,
                          sample_time=0.012, duration=duration, init_move=math.radians(init_move), rbf=rbf,
                          cutoff=cutoff, limits=limits, no_rest_model=no_rest_model)

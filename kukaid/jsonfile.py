@@ -30,7 +30,7 @@ def read_json(path: str | Path, error: type[KukaidError] = KukaidError, what: st
     try:
         d = json.loads(text)
     except json.JSONDecodeError as e:
-        kind = _output_kind(raw) or _urdf_kind(raw)
+        kind = _output_kind(raw) or _urdf_kind(raw) or _manifest_kind(raw)
         if kind is not None:
             raise error(f"{path}: is {kind}, not a {what or _expected(error)}") from None
         raise error(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
@@ -68,6 +68,13 @@ def _urdf_kind(raw: bytes) -> str | None:
     return "a URDF (a robot's description, XML)" if text[:1] == b"<" and b"<robot" in raw else None
 
 
+def _manifest_kind(raw: bytes) -> str | None:
+    """"a fleet manifest (CSV)" when ``raw``'s header names the columns robot, axis, date and path, else None."""
+    head = raw.removeprefix(b"\xef\xbb\xbf").split(b"\n", 1)[0]
+    return "a fleet manifest (CSV)" if {b"robot", b"axis", b"date", b"path"} <= {
+        c.strip().strip(b'"') for c in head.split(b",")} else None
+
+
 def file_kind(path: str | Path) -> str | None:
     """What else of the toolkit's files ``path`` is, by its first bytes, for a reader it is not for:
     "an axis log (HDF5)", "a PDF (a report)", "a fleet manifest (CSV)", ...; None when unknown or unreadable."""
@@ -76,12 +83,10 @@ def file_kind(path: str | Path) -> str | None:
             raw = f.read(4096)
     except OSError:
         return None
-    kind = _output_kind(raw) or _urdf_kind(raw)
+    kind = _output_kind(raw) or _urdf_kind(raw) or _manifest_kind(raw)
     if kind is not None:
         return kind
     text = raw.removeprefix(b"\xef\xbb\xbf")
-    if {b"robot", b"axis", b"date", b"path"} <= {c.strip().strip(b'"') for c in text.split(b"\n", 1)[0].split(b",")}:
-        return "a fleet manifest (CSV)"
     if text.lstrip()[:1] == b"{":
         return "a JSON file"
     return None

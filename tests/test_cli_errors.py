@@ -361,10 +361,13 @@ def test_an_axis_log_given_for_a_json_file_is_named_so(files, tmp_path, monkeypa
 
 
 @pytest.mark.parametrize("name, head, kind", [("r.pdf", b"%PDF-1.4\n", "a PDF (a report)"),
-                                              ("t.parquet", b"PAR1\x15\x04", "a Parquet table (kukaid fleet)")])
+                                              ("t.parquet", b"PAR1\x15\x04", "a Parquet table (kukaid fleet)"),
+                                              ("manifest.csv", b"robot,axis,date,path\r\nR001,3,2026-01-05,a.h5\n",
+                                               "a fleet manifest (CSV)")])
 def test_a_report_or_a_fleet_table_given_for_a_json_file_is_named_so(tmp_path, monkeypatch, name, head, kind):
     """New-user trial 9: `kukaid show fits.parquet` (or report.pdf) said "not valid JSON (line 1, column 1:
-    Expecting value)"; an axis log given so was already named as one."""
+    Expecting value)"; an axis log given so was already named as one.  New-user trial 16: a fleet's
+    manifest.csv still said "not valid JSON" (fit and validate named it a manifest)."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / name).write_bytes(head + bytes(range(256)))
     for args, piece in ((["show", name], "not a parameter file (JSON)"),

@@ -194,3 +194,20 @@ def test_run_metrics_warn_when_the_estimate_misses_what_happened():
     assert "disagrees grossly" in m["warnings"][0]
     quiet = run_metrics({**data, "tau_ext_true": np.zeros(n)}, LoopConfig())
     assert quiet["settled"] and quiet["warnings"] == []
+
+
+def test_a_detection_in_a_run_nobody_touched_names_no_push_and_no_release():
+    """New-user trial 16: `run-admittance --params lwr.json --no-rest-model --axis 2 --operator none` warned
+    "detected a push with nobody touching the axis: 33 cycles before the first push, 0 after the release":
+    nobody pushed, so there was no first push and no release."""
+    from kukaid.control.loop import run_metrics
+
+    n = 300
+    t = np.arange(n) * 0.012
+    det = (t > 1.0) & (t < 1.396)  # 33 cycles
+    data = dict(time=t, phase=np.full(n, PHASE_ADMITTANCE), gamma_r=np.zeros(n), tau_ext_true=np.zeros(n),
+                detected=det, dynamic=np.ones(n, bool), q=np.zeros(n), sigma_dot=np.zeros(n), D=np.full(n, 50.0))
+    m = run_metrics(data, LoopConfig())
+    said = [w for w in m["warnings"] if w.startswith("detected a push with nobody touching")]
+    assert said == [f"detected a push with nobody touching the axis: {int(det.sum())} cycles, and nobody touched it "
+                    "in this run (the axis moved by itself)"], m["warnings"]

@@ -135,6 +135,27 @@ def test_a_file_with_nothing_named_is_not_called_refined(case, tmp_path):
     assert {k: v for k, v in written.items() if k != "provenance"} == {k: v for k, v in given.items() if k != "provenance"}
 
 
+def test_a_model_that_does_not_describe_the_logs_is_warned_about_as_validate_does(case, tmp_path):
+    """New-user trial 16: `kukaid diagnose --params params.json (the virtual KR C4's A3) --log lwr4_3.csv`
+    printed "gap before: ... relative error 2230.55 %" and went on to weigh backlash against pre-sliding
+    friction, without the warning validate gives (a model of another robot or axis, or another unit)."""
+    d, params, paths = case
+    p = json.loads(params.read_text())
+    for k in ("Fc", "Fs", "Fv"):
+        p["friction"][k] *= 1000.0                    # N·mm
+    for k in p["inertial"]:
+        p["inertial"][k] *= 1000.0
+    nmm = tmp_path / "nmm.json"
+    nmm.write_text(json.dumps(p))
+    r = CliRunner().invoke(cli, args(nmm, paths[:1], "--max-steps", "0"))
+    assert r.exit_code == 0, r.output
+    said = [ln for ln in r.stderr.splitlines() if "does not describe these logs" in ln]
+    assert len(said) == 1 and said[0].startswith(f"kukaid: warning: diagnose: the model of {nmm} does not describe "
+                                                 "these logs on A"), r.stderr
+    r = CliRunner().invoke(cli, args(params, paths[:1], "--max-steps", "0"))
+    assert r.exit_code == 0 and "does not describe" not in r.stderr, r.stderr
+
+
 def test_bad_inputs_give_one_line_errors(case, tmp_path):
     d, params, paths = case
     bad = tmp_path / "bad.json"

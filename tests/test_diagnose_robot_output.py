@@ -174,3 +174,20 @@ def test_a_file_its_own_terms_refitted_beat_by_far_is_said_to_be_worth_refitting
     assert len(said) == 1 and "1.0 % against 9.5 %" in said[0], stale.lines()
     fine = RobotDiagnosis(axes=[1, 2], folds="x", before=[0.26, 0.015], after=[0.26, 0.015], in_sample=[0.277, 0.016])
     assert not any("kukaid fit --robot" in ln for ln in fine.lines())  # the LWR4+'s: 0.95 of it
+
+
+def test_max_steps_0_says_no_candidate_was_tested():
+    """New-user trial 16: `kukaid diagnose --params lwr.json --log lwr4_3.csv --max-steps 0` said "no effect
+    named: none lowers the held-out error enough", though no candidate was tried (the one-axis diagnosis
+    says "no candidate tested (--max-steps 0)")."""
+    from kukaid.diagnose.robot import diagnose_robot
+    from kukaid.identify.robot_fit import fit_robot
+    from kukaid.models.robot import RobotModel
+    from robot_sim_helpers import simulated_log
+
+    kr6 = RobotModel("kr6-r700-sixx")
+    logs = [simulated_log(kr6, duration=6.0, seed=s)[0] for s in (0, 1)]
+    d = diagnose_robot(fit_robot(logs[:1], kr6), logs[1:], kr6, max_steps=0)
+    lines = d.lines()
+    assert "no candidate tested (--max-steps 0): the figures above are all this run measured" in lines, lines
+    assert not any(ln.startswith("no effect named") for ln in lines) and not d.tried, lines

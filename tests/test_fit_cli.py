@@ -243,3 +243,53 @@ def test_show_prints_the_table_fit_printed(logs):
     (d / "other.json").write_text('{"schema": "something/1"}')
     s = CliRunner().invoke(cli, ["show", str(d / "other.json")])
     assert s.exit_code == 1 and "not a kukaid parameter file" in s.output and len(s.output.strip().splitlines()) == 1
+
+
+def test_the_bound_examples_of_the_help_and_the_error_are_accepted(tmp_path):
+    """New-user trial 16: `kukaid fit ... --bound vs=0:0.1`, the example of fit --help and of the
+    malformed --bound error, failed: `bounds for vs: the lower bound must be > 0, got 0`."""
+    import re
+
+    from kukaid.errors import FitError
+    from kukaid.identify.stribeck_fit import check_bound
+
+    help_text = " ".join(CliRunner().invoke(cli, ["fit", "--help"]).output.split())
+    bad = CliRunner().invoke(cli, ["fit", "x.h5", "--bound", "vs", "-o", str(tmp_path / "p.json")])
+    examples = re.findall(r"--bound (\S+=\S*:\S*?)[ )]", help_text) + re.findall(r"e\.g\. (\S+=\S*:[\d.]+)", bad.output)
+    examples = [ex for ex in examples if not ex.startswith("NAME=")]  # the metavar
+    assert len(examples) >= 3, (help_text, bad.output)
+    for ex in examples:
+        name, rng = ex.split("=", 1)
+        lo, hi = rng.split(":", 1)
+        try:
+            check_bound(name, float(lo) if lo else None, float(hi) if hi else None)
+        except FitError as e:
+            pytest.fail(f"{ex}: {e}")
+
+
+def test_a_bound_below_what_a_parameter_file_holds_is_refused_before_the_fit(tmp_path):
+    """New-user trial 16: `kukaid fit --friction friction.h5 --inertia inertia.h5 --bound Fc=-100:-1 -o neg.json`
+    fitted, then said `neg.json: friction.Fc = -1.0 is outside the allowed range [0, 1e+06]`, the output named
+    as if it were a broken input; a parameter file holds Fc, Fv >= 0: the option is refused first (exit 2)."""
+    log = tmp_path / "x.h5"
+    log.write_bytes(b"")   # never read: the option is refused first
+    for bound, said in (("Fc=-100:-1", "bounds for Fc: the upper bound must be >= 0"),
+                        ("Fv=:-0.5", "bounds for Fv: the upper bound must be >= 0")):
+        r = CliRunner().invoke(cli, ["fit", "--friction", str(log), "--bound", bound, "-o", str(tmp_path / "p.json")])
+        assert r.exit_code == 2 and said in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.output
+    assert not (tmp_path / "p.json").exists()
+
+
+def test_a_bound_on_izz_with_an_inertia_log_is_refused_not_printed_as_honoured(tmp_path):
+    """New-user trial 16: `kukaid fit --friction friction.h5 --inertia inertia.h5 --bound Izz=2e6:3e6` printed
+    "Izz 2e+06 ... at a bound: Izz (lower 2e+06, --bound)" while the file held Izz 53.9: the inertia logs'
+    least squares (eqs. 6-8) takes no bounds and replaced the bounded value; the table showed the bound."""
+    from kukaid.errors import OptionError
+    from kukaid.identify import fit_axis
+
+    with pytest.raises(OptionError, match=r"--bound Izz: with --inertia logs beside friction or general logs"):
+        fit_axis(friction=["f.h5"], inertia=["i.h5"], bounds={"Izz": (2e6, 3e6)})  # before any log is read
+    r = CliRunner().invoke(cli, ["fit", "--friction", "f.h5", "--inertia", "i.h5", "--bound", "Mx=0:1", "-o",
+                                 str(tmp_path / "p.json")])
+    assert r.exit_code == 2 and "--bound Mx: with --inertia logs" in r.stderr, r.output
+    assert not (tmp_path / "p.json").exists()

@@ -39,6 +39,28 @@ def test_manifest_and_folder_give_the_same_logs(tmp_path):
     assert len(read_input(tmp_path / "logs")) == 4  # default pattern {robot}/{date}/*
 
 
+def test_a_log_of_another_axis_in_a_folder_names_its_file_name_not_a_manifest(tmp_path):
+    """New-user trial 16: `fleet fit FOLDER --pattern '{robot}/{date}/A{axis}.*'` with an A2 log saved as
+    A3.h5 gave the error row "a log of A2, not of A3 as the manifest says": there was no manifest, the
+    axis came from the file's name."""
+    import shutil
+
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    small_fleet(tmp_path / "a", robots=1, days=1, seed=12, axes=(2,))
+    (tmp_path / "logs" / "R1" / "2026-01-05").mkdir(parents=True)
+    shutil.copy(next((tmp_path / "a" / "logs").rglob("*.h5")), tmp_path / "logs" / "R1" / "2026-01-05" / "A3.h5")
+    out = tmp_path / "t.parquet"
+    r = CliRunner().invoke(cli, ["fleet", "fit", str(tmp_path / "logs"), "--pattern", "{robot}/{date}/A{axis}.*",
+                                 "-o", str(out), "--workers", "1"])
+    assert r.exit_code == 1, r.output  # its only log failed
+    (row,), _ = read_table(out)
+    assert row["error"] == ("R1/2026-01-05/A3.h5: a log of A2, not of A3 as its name (--pattern "
+                            "'{robot}/{date}/A{axis}.*') says"), row["error"]
+
+
 def test_a_folder_of_compressed_logs_is_scanned(tmp_path):
     """New-user trial 13: `fleet fit FOLDER` of A3.csv.gz logs said "no log matches the pattern" while a
     manifest naming them, and every other command, read them."""
@@ -222,6 +244,21 @@ def test_the_summary_line_says_one_row_not_one_rows(capsys):
     assert capsys.readouterr().err == "t.parquet: 1 row (0 fitted, 1 error row, 1 duplicate) in 2.0 s on 1 worker\n"
     _report(RunSummary(ran=2, errors=2, rows=3, wall_s=2.0, workers=2), Path("t.parquet"), "fitted")
     assert capsys.readouterr().err == "t.parquet: 3 rows (2 fitted, 2 error rows) in 2.0 s on 2 workers\n"
+
+
+def test_the_summary_line_says_why_the_first_log_failed(capsys):
+    """New-user trial 16: `fleet fit` of a folder with a truncated log said `14 rows (12 fitted, 2 error
+    rows)` and nothing of which logs or why: that is in the Parquet table's error column, which no
+    command prints.  The first error row is said, as a run that fitted nothing says it."""
+    from kukaid.fleet.run import RunSummary
+    from kukaid_cli.cmd_fleet import _report
+
+    _report(RunSummary(ran=2, errors=1, rows=3, wall_s=2.0, workers=1,
+                       first_error="R002/2026-01-09/A3.h5: not a readable HDF5 file (truncated or corrupt)"),
+            Path("t.parquet"), "fitted")
+    assert capsys.readouterr().err == ("t.parquet: 3 rows (2 fitted, 1 error row) in 2.0 s on 1 worker; the first "
+                                       "error row: R002/2026-01-09/A3.h5: not a readable HDF5 file (truncated or "
+                                       "corrupt) (the table's error column says why for each)\n")
 
 
 def test_ctrl_c_mid_run_says_what_is_kept_and_how_to_go_on(tmp_path, monkeypatch):

@@ -241,7 +241,8 @@ def test_sample_time_option_builds_the_time_base(tmp_path):
     savemat(tmp_path / "n.mat", {"pos": np.zeros((50, 1)), "u": np.ones((50, 1))})
     out = tmp_path / "o.h5"
     r = CliRunner().invoke(cli, ["load", str(tmp_path / "n.mat"), "--q", "pos", "--tau", "u", "-o", str(out)])
-    _one_line_error(r, "no time variable; name it (--time) or give --sample-time")
+    _one_line_error(r, "no time variable ('time' or 't'): name it or give the sample interval",
+                    "--time VAR (or --sample-time S)")
     r = CliRunner().invoke(cli, ["load", str(tmp_path / "n.mat"), "--q", "pos", "--tau", "u", "--sample-time", "0.004",
                                  "-o", str(out)])
     assert r.exit_code == 0, r.output
@@ -322,3 +323,49 @@ def test_cli_load_struct_field_with_an_axis_list(tmp_path):
     _one_line_error(r, "--axis must be an axis number or a list such as 1,2,3")
     r = CliRunner().invoke(cli, ["load", str(tmp_path / "rec.mat"), "--gear-ratio", "A1=2", "-o", str(tmp_path / "g.h5")])
     _one_line_error(r, "option --gear-ratio is for KUKA Trace (.dat, .r64) sources")
+
+
+def test_a_recording_in_one_struct_lists_its_fields_and_how_to_name_them(tmp_path):
+    """New-user trial 16: a MATLAB recording saved as one struct (`save rec.mat data`, data.t, data.q,
+    data.tau) gave `no variables 'q' and 'tau': ... variables: data`, and nothing said its fields are
+    named `data.q`; the struct is listed with its fields."""
+    from scipy.io import savemat
+
+    t = np.arange(0.0, 2.0, 0.012)
+    savemat(tmp_path / "rec.mat", {"data": {"t": t, "q": np.sin(t), "tau": np.cos(t)}, "gain": 2.0})
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "rec.mat"), "-o", str(tmp_path / "x.h5")])
+    _one_line_error(r, "no variables 'q' and 'tau'",
+                    "variables: data (a struct with fields t, q, tau; name one as data.<field>), gain")
+    assert not (tmp_path / "x.h5").exists()
+
+
+@pytest.mark.parametrize("variables, said", [
+    ({"q": np.degrees(np.sin(np.arange(0.0, 20.0, 0.012)))}, "--q-scale 0.0174533 reads degrees"),
+    ({"t": 1000 * np.arange(0.0, 20.0, 0.012)}, "--time-scale 0.001 reads milliseconds"),
+])
+def test_a_unit_mistake_in_a_mat_file_names_the_scale_that_corrects_it(tmp_path, variables, said):
+    """New-user trial 16: a MAT file with positions in degrees (MATLAB users log degrees) said `position
+    variable 'q' reaches -28.6479 rad (-1641.4 degrees); beyond +-720 degrees: wrong unit (millidegrees,
+    or degrees as radians)?`, and nothing of kukaid load's --q-scale (nor of --time-scale for ms)."""
+    from scipy.io import savemat
+
+    t = np.arange(0.0, 20.0, 0.012)
+    path = tmp_path / "rec.mat"
+    savemat(path, {"t": t, "q": np.sin(t), "tau": np.cos(t), **variables})
+    for cmd in (["load", str(path), "-o", str(tmp_path / "x.h5")], ["fit", str(path), "-o", str(tmp_path / "p.json")]):
+        r = CliRunner().invoke(cli, cmd)
+        _one_line_error(r, "wrong unit" if "q" in variables else "milliseconds written as seconds?",
+                        f"kukaid load {path} {said}")
+    assert sorted(os.listdir(tmp_path)) == ["rec.mat"]
+
+
+def test_a_mat_file_without_time_given_to_fit_names_kukaid_load(tmp_path):
+    """New-user trial 16: `kukaid fit n.mat` (q and tau, no time) said `no time variable; name it (--time)
+    or give --sample-time`, options fit does not have (`No such option '--sample-time'`)."""
+    from scipy.io import savemat
+
+    savemat(tmp_path / "n.mat", {"q": np.zeros((50, 1)), "tau": np.ones((50, 1))})
+    r = CliRunner().invoke(cli, ["fit", str(tmp_path / "n.mat"), "-o", str(tmp_path / "p.json")])
+    _one_line_error(r, f"kukaid load {tmp_path / 'n.mat'} --time VAR (or --sample-time S) -o LOG.h5, and give "
+                    "LOG.h5; variables: q, tau")
+    assert sorted(os.listdir(tmp_path)) == ["n.mat"]

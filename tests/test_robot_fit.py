@@ -194,6 +194,18 @@ def test_log_without_all_axes_is_refused(kr6):
         fit_robot([part], kr6)
 
 
+def test_a_log_of_a_robot_with_more_axes_and_stronger_joints_is_named_as_such_not_as_a_unit(kr6):
+    """New-user trial 16: a KR C4's 6-axis Trace log fitted with the 7-joint LWR4+'s URDF (the wrong
+    --robot) said `the torque of A5 reaches 1001 N·m, 10 x the effort limit ...: wrong unit (N·mm ...)?`:
+    the axes that do not match are said first (here: a 7-axis log, its A4 far beyond the KR 6's 30 N·m)."""
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    tau = np.column_stack([log.tau, log.tau[:, :1]])
+    tau[:, 3] = 1000.0 * np.sign(tau[:, 3] + 1e-9)
+    more = type(log)(time=log.time, q=np.column_stack([log.q, log.q[:, :1]]), tau=tau, axes=(1, 2, 3, 4, 5, 6, 7))
+    with pytest.raises(FitError, match="holds 7 axes but the robot has 6 .*A7 would be ignored"):
+        fit_robot([more], kr6)
+
+
 def test_log_with_more_axes_than_the_robot_is_refused(kr6, tmp_path):
     """A 7-axis log with the 6-axis model: refused (A7 is not silently dropped), by fit and validate."""
     from click.testing import CliRunner
@@ -228,6 +240,29 @@ def test_a_cutoff_that_trims_the_whole_log_names_the_log_and_the_option(kr6, tmp
                                  "-o", str(tmp_path / "p.json")])
     assert r.exit_code == 2 and len(r.stderr.splitlines()) == 1, r.output
     assert "short.csv: too few samples left (0)" in r.stderr and "--cutoff 0.001 Hz" in r.stderr
+
+
+def test_a_consistent_fit_that_does_not_converge_names_the_log(kr6, tmp_path, monkeypatch):
+    """New-user trial 16: `kukaid fit trunc.csv --robot kuka_lwr4.urdf` (the first 0.9 s of lwr4_1.csv,
+    its last value cut short) said only `physically consistent fit did not converge (IPOPT:
+    Error_In_Step_Computation)`: no log named, where every other error of the fit names it."""
+    from click.testing import CliRunner
+
+    from kukaid.identify import robot_fit
+    from kukaid.logs import write_csv
+    from kukaid_cli.main import cli
+
+    def fails(*args, **kwargs):
+        raise FitError("physically consistent fit did not converge (IPOPT: Error_In_Step_Computation)")
+
+    monkeypatch.setattr(robot_fit, "consistent_fit", fails)
+    log, _ = simulated_log(kr6, duration=5.0, seed=0)
+    csv = tmp_path / "short.csv"
+    write_csv(log, csv, angle_unit="rad")
+    r = CliRunner().invoke(cli, ["fit", str(csv), "--robot", "kr6-r700-sixx", "-o", str(tmp_path / "p.json")])
+    assert r.exit_code == 1 and len(r.stderr.splitlines()) == 1, r.output
+    assert r.stderr.startswith(f"kukaid: error: {csv}: physically consistent fit did not converge"), r.stderr
+    assert not (tmp_path / "p.json").exists()
 
 
 def _refused_on_the_command_line(log, tmp_path, sim_fit, commands, text):
@@ -401,6 +436,26 @@ def test_friction_page_of_seven_axes_with_rotors_holds_its_text():
 
     texts = {c.get_text().get_text() for tab in fig.findobj(Table) for c in tab.get_celld().values()}
     assert "rotor_inertia (motor)" in texts and "M1" not in texts and "A7" in texts
+
+
+def test_friction_page_gives_sigma_times_the_correlation_factor_as_page_one():
+    """New-user trial 16: the LWR4+ report's friction page gave `± least-squares σ` (A1 Fc 0.4989 ± 0.0087),
+    the white-residual σ, while page 1 and the fit's table give the base parameters' σ times the residual
+    correlation factor (5.96 there): the friction's were 6 x too small beside them."""
+    from matplotlib.table import Table
+
+    from kukaid.report.robot import page_friction_consistency
+
+    params = {"friction": {"model": "coulomb-viscous", "values": {"A1.Fc": 0.4989, "A1.Fv": 1.214},
+                           "sigma": {"A1.Fc": 0.0087, "A1.Fv": 0.025}},
+              "metrics": {"residual_correlation_factor": 5.96, "consistency": [
+                  {"mass": 2.0, "triangle_margin": 1e-3, "pseudo_inertia_min_eig": 1e-4, "ok": True}]},
+              "robot": {"links": ["lwr_1_link"]}}
+    fig = page_friction_consistency(params, "lwr.json")
+    texts = {c.get_text().get_text() for tab in fig.findobj(Table) for c in tab.get_celld().values()}
+    assert "0.4989\n± 0.052" in texts and "1.214\n± 0.15" in texts, texts
+    assert "σ × the residual correlation factor 5.96" in fig.axes[0].get_title()
+    assert not layout_problems(fig)
 
 
 @pytest.mark.skipif(not LWR4.is_dir(), reason="real LWR4+ data (../shared/datasets/lwr4) not present")

@@ -663,3 +663,31 @@ def test_a_closed_stdout_pipe_ends_quietly_and_keeps_the_log(files, tmp_path, ku
     assert proc.returncode == 141 and err == b"", err.decode()
     log, control, metrics = read_run(out)
     assert metrics["status"] == "completed" and log.n_samples > 0 and control["gamma_r"].size == log.n_samples
+
+
+def test_a_default_threshold_above_the_torque_stop_names_the_file_not_an_option(files, tmp_path):
+    """New-user trial 16: a parameter file in N·mm (Fc 12800) gave `run-admittance: threshold 3200 N·m
+    must be below the torque limit 100 N·m`, exit 2, a usage error naming a threshold nobody had given:
+    the default threshold is a quarter of the file's Coulomb friction.  The file is named, with its Fc."""
+    bad = tmp_path / "nmm.json"
+    bad.write_text((files / "params.json").read_text().replace('"Fc": 12.8', '"Fc": 12800.0')
+                   .replace('"Fs": 15.2', '"Fs": 15200.0'))
+    out = tmp_path / "run.h5"
+    r = _run(["--params", bad, "--duration", "1", "-o", out])
+    assert r.exit_code == 1 and r.output.startswith(f"kukaid: error: {bad}: the default threshold"), r.output
+    assert "Fc 12800 N·m, is 3200 N·m, not below the torque limit 100 N·m" in r.output, r.output
+    assert len(r.output.strip().splitlines()) == 1 and not out.exists()
+    # given as an option, the option's error stays a usage error
+    r = _run(["--params", files / "params.json", "--duration", "1", "-o", out, "--tau-max", "4"])
+    assert r.exit_code == 2 and "threshold 5 N·m must be below the torque limit 4 N·m" in r.output, r.output
+
+
+def test_the_papers_cost_is_printed_with_its_unit(files, tmp_path):
+    """New-user trial 16: the summary printed "mean_sq_dgamma 0.0573 N²·m²" beside "mean_cost 3.256" and
+    "xi 6.705", "xi_true 6.656" without a unit; ξ = ½ dΓr² + ½ λ Γr² (eq. 19) is in N²·m² as well."""
+    r = _run(["--params", files / "params.json", "--operator", "human", "--duration", "8", "--seed", "0",
+              "-o", tmp_path / "r.h5"])
+    assert r.exit_code == 0, r.output
+    lines = {line[2:30].strip(): line[30:].strip() for line in r.stdout.splitlines() if line.startswith("  ")}
+    for k in ("mean_cost", "xi", "xi_true"):
+        assert k in lines and lines[k].endswith(" N²·m²"), (k, lines)

@@ -190,6 +190,22 @@ def test_kr_c4_set_without_gear_ratios_says_the_positions_are_motor_side(tmp_pat
         read_trace(tmp_path / "Rec_KRCIpo.dat", gear_ratio="A1=2,A2=3")
 
 
+def test_a_trace_without_gear_ratios_given_to_fit_names_kukaid_load(tmp_path):
+    """New-user trial 16: `kukaid fit Rec_NextGenDrive#3.dat --axis 3` said `give the gear ratios
+    (--gear-ratio A1=...,A2=... or a JSON file)`, an option fit does not have (`No such option`):
+    kukaid load has it, and is named with the file."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    write_kr_c4_set(tmp_path, duration=0.1)
+    dat = tmp_path / "Rec_NextGenDrive#3.dat"
+    r = CliRunner().invoke(cli, ["fit", str(dat), "--axis", "3", "-o", str(tmp_path / "p.json")])
+    assert r.exit_code == 1 and len(r.stderr.strip().splitlines()) == 1, r.output
+    assert f"give the gear ratios, kukaid load {dat} --gear-ratio A1=...,A2=... (or a JSON file) -o LOG.h5" in r.stderr
+    assert not (tmp_path / "p.json").exists()
+
+
 @pytest.mark.parametrize("spec, match", [("A1=0", "gear ratio of A1 must be finite and non-zero"),
                                          ("A1:3", "'A1:3' is not AXIS=RATIO"), ("A13=2", "'A13' is not an axis"),
                                          ("A1=x", "gear ratio of A1 is not a number")])

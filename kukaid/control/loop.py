@@ -554,8 +554,10 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
         out["false_after_release"] = int(np.sum(det & after)) if touched.size else 0
         untouched = ph & (np.abs(te) < 1.0) & ~det
         if out["false_detections"] or out["false_after_release"]:
-            warnings.append(f"detected a push with nobody touching the axis: {out['false_detections']} cycles before "
-                            f"the first push, {out['false_after_release']} after the release (the axis moved by itself)")
+            # a run nobody touched (--operator none) has no first push and no release to count from
+            when = (f"{out['false_detections']} cycles before the first push, {out['false_after_release']} after the "
+                    "release" if touched.size else f"{out['false_detections']} cycles, and nobody touched it in this run")
+            warnings.append(f"detected a push with nobody touching the axis: {when} (the axis moved by itself)")
         elif untouched.any() and np.max(np.abs(gr[untouched])) >= cfg.threshold:
             warnings.append(f"with nobody touching the axis Γr reached {np.max(np.abs(gr[untouched])):.3g} N·m, "
                             f"beyond the threshold {cfg.threshold:g} N·m (not taken for a push: the threshold at "

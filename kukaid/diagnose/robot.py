@@ -137,6 +137,7 @@ class RobotDiagnosis:
     given: list[str] = field(default_factory=list)          # the file's own effects: held, not candidates
     params: dict | None = None                              # the refined parameter file
     series: Series | None = field(default=None, repr=False)
+    tested: bool = True                                     # candidates were tested (not --max-steps 0)
 
     @property
     def names(self) -> list[str]:
@@ -200,6 +201,8 @@ class RobotDiagnosis:
                 par = ", ".join(f"{k2} {v:.4g}" if isinstance(v, float) else f"{k2} {v}" for k2, v in st["params"].items())
                 out.append(f"step {k}: {st['name']} ({par}): held-out error of {', '.join(st['joints'])} "
                            f"{100 * st['mean_before']:.1f} -> {100 * st['mean_after']:.1f} %")
+        elif not self.tested:  # as the one-axis diagnosis says it
+            out.append("no candidate tested (--max-steps 0): the figures above are all this run measured")
         else:
             out.append("no effect named: none lowers the held-out error enough")
         for r in self.rejected:
@@ -1269,7 +1272,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     return RobotDiagnosis(axes=axes, folds=how, before=before.tolist(), after=err.tolist(), steps=steps,
                           rejected=rejected, in_sample=in_sample, noise_floor=floor.tolist(), rms=rms.tolist(),
                           smooth=[any(smooth_at_source(lg.tau[:, lg.index(a)]) for lg in logs) for a in axes],
-                          tried=tried, fitted_on=fitted_on, given=list(given), params=refined,
+                          tried=tried, fitted_on=fitted_on, given=list(given), params=refined, tested=max_steps > 0,
                           series=Series(time=pieces["time"], log_rows=tuple(pieces["log_rows"]), signals=own_signals,
                                         residuals=residuals))
 

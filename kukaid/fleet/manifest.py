@@ -34,6 +34,7 @@ class Entry:
     date : the day the log was recorded, ``YYYY-MM-DD``.
     path : absolute path of the log file.
     name : the path as the manifest or the scan gives it (relative to the manifest or the folder).
+    axis_from : what said the axis, for a message when the log is of another one.
     """
 
     robot: str
@@ -41,6 +42,7 @@ class Entry:
     date: str
     path: str
     name: str
+    axis_from: str = "the manifest"
 
 
 def content_hash(path: str | Path, chunk: int = 1 << 20) -> str:
@@ -158,7 +160,8 @@ def scan_folder(root: str | Path, pattern: str = DEFAULT_PATTERN, unmatched: lis
             continue
         g = m.groupdict()
         where = f"{root}/{rel}"
-        out.append(Entry(g["robot"], _axis(g.get("axis") or "", where), _date(g["date"], where), str(p.resolve()), rel))
+        out.append(Entry(g["robot"], _axis(g.get("axis") or "", where), _date(g["date"], where), str(p.resolve()), rel,
+                         f"its name (--pattern '{pattern}')"))
     if not out:
         raise ManifestError(f"{root}: no log matches the pattern '{pattern}' (logs: {', '.join(LOG_SUFFIXES)}, "
                             f"optionally compressed: {', '.join(COMPRESSIONS)})")

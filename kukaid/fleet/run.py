@@ -185,7 +185,7 @@ def plan(entries: Sequence[Entry], prior: list[dict], kind: str) -> tuple[list[J
     jobs, direct, skipped = [], [], 0
     for e in entries:
         if not os.path.isfile(e.path):
-            job = Job(e.robot, e.axis, e.date, e.path, e.name, "")
+            job = Job(e.robot, e.axis, e.date, e.path, e.name, "", e.axis_from)
             if (e.name, "") in done:  # still missing: its row stands
                 skipped += 1
                 continue
@@ -193,7 +193,7 @@ def plan(entries: Sequence[Entry], prior: list[dict], kind: str) -> tuple[list[J
             direct.append(error_row(job, kind, f"{e.name}: no such file"))
             continue
         sha = content_hash(e.path)
-        job = Job(e.robot, e.axis, e.date, e.path, e.name, sha)
+        job = Job(e.robot, e.axis, e.date, e.path, e.name, sha, e.axis_from)
         if (e.name, sha) in done:
             skipped += 1
             continue

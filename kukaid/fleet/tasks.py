@@ -34,6 +34,7 @@ class Job:
     path: str
     name: str
     sha256: str
+    axis_from: str = "the manifest"  # what said the axis (a folder's scan: the file's name)
 
 
 @dataclass(frozen=True)
@@ -108,7 +109,7 @@ def read_job_log(job: Job):
     log = read_log(job.path)
     if job.axis is not None and job.axis not in log.axes:
         raise KukaidError(f"{job.name}: a log of {', '.join(f'A{a}' for a in log.axes)}, "
-                          f"not of A{job.axis} as the manifest says")
+                          f"not of A{job.axis} as {job.axis_from} says")
     return log
 
 

@@ -148,6 +148,12 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
         raise FitError(f"method must be one of {METHODS}, got '{method}'")
     if friction_model not in FRICTION_MODELS:
         raise FitError(f"friction model must be one of {FRICTION_MODELS}, got '{friction_model}'")
+    rigid_bound = sorted(k for k in (bounds or {}) if k in ("Izz", "Mx", "My", "offset"))
+    if rigid_bound and inertia and (friction or logs):  # fit_rigid below: least squares without bounds
+        raise OptionError(f"--bound {', '.join(rigid_bound)}: with --inertia logs beside friction or general logs, "
+                          "Izz, Mx (My, offset) are fitted on the inertia logs by least squares with the friction "
+                          "compensated (eqs. 6-8), which takes no bounds; bound them in a fit without --inertia "
+                          "(its logs as general logs)")
     if friction_model == "auto":
         kw = dict(logs=logs, friction=friction, inertia=inertia, presliding=presliding, axis=axis, method=method,
                   gravity=gravity, offset=offset, n_elements=n_elements, bounds=bounds, cutoff=cutoff, order=order,

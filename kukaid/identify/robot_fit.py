@@ -301,8 +301,10 @@ def check_torque_scale(log: AxisLog, robot: RobotModel) -> None:
     """Refuse a log whose torques are far beyond the robot's effort limits (FitError naming the
     joint): N·mm or another unit in a column the CSV names N·m fits without complaint and gives a
     model 1000 times too strong (validated at 99.9 % relative error). Joints without a limit in the
-    URDF are not checked."""
+    URDF are not checked.  A log of another robot (other axes) is said first: its torques against
+    this URDF's limits would read as a unit mistake."""
     where = log.attrs.get("source_file", "axis log")
+    _joint_columns(log, robot.n)
     effort = np.asarray(robot.effort, float)
     for j in range(min(robot.n, effort.size)):
         a = j + 1
@@ -1519,8 +1521,14 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     extra = beta[nb:]
     if settings.consistent:
         nonneg = np.array(_nonneg(extra_n))
-        solve = lambda Gw_, gw_, cw_, M_, bounds, x0=None: _consistent(  # noqa: E731
-            Gw_, gw_, cw_, M_, robot, extra_n, nonneg, settings, beta[nb:].copy(), ~used, bounds, x0)
+
+        def solve(Gw_, gw_, cw_, M_, bounds, x0=None):  # a solve that fails names the logs, as the checks do
+            try:
+                return _consistent(Gw_, gw_, cw_, M_, robot, extra_n, nonneg, settings, beta[nb:].copy(), ~used,
+                                   bounds, x0)
+            except FitError as e:
+                names = ", ".join(str(lg.attrs.get("source_file", "log")) for lg in logs)
+                raise FitError(f"{names}: {e}") from None
         pi_c, extra, solver_info = solve(Gw, gw, cw, M, True)
         on_bound = _masses_on_bound(robot, pi_c, settings.mass_bounds)
         if on_bound and K > 1:

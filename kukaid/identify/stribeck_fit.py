@@ -112,7 +112,7 @@ def default_bounds(y: np.ndarray, v: np.ndarray, lin_names: Sequence[str]) -> di
 
 def check_bound(name: str, lo: float | None, hi: float | None) -> tuple[float, float]:
     """One user bound as (lo, hi) floats (None: unbounded), checked: numbers, lo <= hi, vs and delta
-    above 0, Izz raised to the parameter file's minimum.  Raises :class:`FitError`."""
+    above 0, Izz raised to the parameter file's minimum, Fc and Fv to 0.  Raises :class:`FitError`."""
     lo = -INF if lo is None else float(lo)
     hi = INF if hi is None else float(hi)
     if math.isnan(lo) or math.isnan(hi):
@@ -124,6 +124,11 @@ def check_bound(name: str, lo: float | None, hi: float | None) -> tuple[float, f
             raise FitError(f"bounds for {name}: the upper bound must be >= {IZZ_MIN:g} (the parameter file's "
                            f"minimum), got {hi:g}")
         lo = max(lo, IZZ_MIN)
+    if name in ("Fc", "Fv"):  # a parameter file holds them >= 0: a fit below would be refused when it is written
+        if hi < 0:
+            raise FitError(f"bounds for {name}: the upper bound must be >= 0 (a parameter file holds {name} >= 0), "
+                           f"got {hi:g}")
+        lo = max(lo, 0.0)
     if name in ("vs", "delta") and not lo > 0:
         raise FitError(f"bounds for {name}: the lower bound must be > 0, got {lo:g}")
     return lo, hi

@@ -243,7 +243,8 @@ def check_samples(time: np.ndarray, channels: dict[str, np.ndarray | None], axes
 
 
 def check_units(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: Iterable[int],
-                joint: Iterable[str], where: str, labels: dict[Any, str] | None = None) -> None:
+                joint: Iterable[str], where: str, labels: dict[Any, str] | None = None,
+                fixes: dict[str, str] | None = None) -> None:
     """Refuse values whose size betrays a unit mistake (the values are SI, already converted).
 
     A revolute position (``q``, ``q_cmd``) beyond +-720 degrees (4 pi rad) is millidegrees or
@@ -257,14 +258,17 @@ def check_units(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: 
     labels : names for the message instead of "time" and "channel 'q' of axis A3", keyed by
         ``"time"`` or ``(channel, axis)``: a reader's column or variable names.  A label ending in
         "deg" gives the position in degrees only.
+    fixes : what corrects the unit, appended to the message, keyed by ``"time"`` (milliseconds as
+        seconds) or ``"q"`` (a position's unit): a reader's options (a MAT file's scales).
     """
     labels = labels or {}
+    fixes = {k: f"; {v}" for k, v in (fixes or {}).items()}
     if time.size >= 2:
         dt = float(np.median(np.diff(time)))
         if dt >= MAX_SAMPLE_INTERVAL_S:
             raise LogFormatError(
                 f"{where}: {labels.get('time', 'time')} has a median sample interval of {dt:.6g} s; "
-                f"{MAX_SAMPLE_INTERVAL_S:g} s or more: milliseconds written as seconds?"
+                f"{MAX_SAMPLE_INTERVAL_S:g} s or more: milliseconds written as seconds?{fixes.get('time', '')}"
             )
         if 0 < dt < MIN_SAMPLE_INTERVAL_S:
             raise LogFormatError(
@@ -286,7 +290,7 @@ def check_units(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: 
                 value = f"{deg:.6g} degrees" if label.endswith("deg") else f"{peak:.6g} rad ({deg:.6g} degrees)"
                 raise LogFormatError(
                     f"{where}: {label} reaches {value}; beyond +-720 degrees: wrong unit (millidegrees, or "
-                    f"degrees as radians)?"
+                    f"degrees as radians)?{fixes.get('q', '')}"
                 )
 
 

@@ -179,7 +179,9 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
     v, not_numeric = _load_vars(path)
+    # a struct is listed with its fields: a MATLAB recording is often one struct, whose fields are named with dots
     names = sorted(k for k in v if "." not in k)
+    names = [f"{k} ({not_numeric[k]})" if "struct with fields" in not_numeric.get(k, "") else k for k in names]
 
     def lookup(name: str, role: str) -> np.ndarray:
         if name not in v:
@@ -241,7 +243,9 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     elif sample_time is not None:
         t = np.arange(qa.shape[0]) * sample_time
     else:
-        raise LogFormatError(f"{path}: no time variable; name it (--time) or give --sample-time")
+        raise LogFormatError(f"{path}: no time variable ('time' or 't'): name it or give the sample interval, kukaid "
+                             f"load {path} --time VAR (or --sample-time S) -o LOG.h5, and give LOG.h5; variables: "
+                             f"{', '.join(names)}")
     extra = {}
     for ch, nm, sc in (("q_cmd", q_cmd, q_scale), ("temp", temp, 1.0)):
         if nm is not None:
@@ -261,7 +265,10 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
     chans = {"q": qa, "tau": ta, **extra}
     joints = (joint,) * n_ax
     check_samples(t, chans, axes, str(path))
-    check_units(t, chans, axes, joints, str(path), labels=labels)
+    # the scales that correct them are kukaid load's options (the other commands read a MAT file with the defaults)
+    fixes = {"q": f"kukaid load {path} --q-scale 0.0174533 reads degrees (1.74533e-05 millidegrees)",
+             **({"time": f"kukaid load {path} --time-scale 0.001 reads milliseconds"} if tn_name else {})}
+    check_units(t, chans, axes, joints, str(path), labels=labels, fixes=fixes)
     attrs = {"source_file": str(path), "source": "mat", "mat_variables": {"time": tn_name, "q": qn, "tau": tn, **{
         k: n for k, n in (("q_cmd", q_cmd), ("temp", temp)) if n}}}
     return AxisLog(time=t, q=qa, tau=ta, axes=axes, joint=joints, attrs=attrs, **extra)

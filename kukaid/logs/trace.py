@@ -307,7 +307,8 @@ def read_trace(path: str | Path, *, siblings: bool = True, time_base: str = "pos
                     and np.max(np.abs(vals)) > 4 * math.pi:
                 raise LogFormatError(
                     f"{sig.channel.where()}: reaches {np.degrees(np.max(np.abs(vals))):.6g} degrees, beyond +-720: "
-                    f"a motor-side position; give the gear ratios (--gear-ratio A1=...,A2=... or a JSON file)")
+                    f"a motor-side position; give the gear ratios, kukaid load {path} --gear-ratio A1=...,A2=... "
+                    "(or a JSON file) -o LOG.h5, and give LOG.h5 (the other commands have no --gear-ratio)")
     data: dict[str, np.ndarray | None] = {}
     interpolated: list[str] = []
     for qty in ("q", "tau", "q_cmd", "temp"):

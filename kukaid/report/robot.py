@@ -3,7 +3,7 @@ condition number and the physical-consistency check per link; with logs, the pre
 the measured torque of every axis.
 
 Pages: 1. base parameters (estimate, least squares, σ, σ times the residual correlation factor cf,
-and σ × cf over |estimate|, fit's sigma %) and metrics; 2. friction, offset and spring per joint,
+and σ × cf over |estimate|, fit's sigma %) and metrics; 2. friction, offset and spring per joint (± σ × cf),
 consistency per link; 3.. one page per log given: measured and predicted torque of each axis over
 time, with the relative error.
 """
@@ -63,6 +63,8 @@ def page_friction_consistency(params: dict, source: str):
     from kukaid.identify.robot_fit import table_number  # a parameter on its bound is 0, as `show` prints it
 
     fr, mt = params["friction"], params.get("metrics") or {}
+    # the least-squares σ assume white residuals; page 1's base parameters are given times cf, and so are these
+    cf = float(mt.get("residual_correlation_factor") or 1.0)
     fig = _figure("Robot fit: friction per joint, physical consistency per link", source)
     joints: dict[str, dict[str, str]] = {}
     for k, v in fr["values"].items():
@@ -70,13 +72,14 @@ def page_friction_consistency(params: dict, source: str):
         if j.startswith("M"):   # motor k's rotor: a row under its axis (a column each overflowed the cells)
             j, p = f"A{j[1:]}", f"{p} (motor)"
         s = (fr.get("sigma") or {}).get(k)
-        joints.setdefault(j, {})[p] = table_number(v) + (f"\n± {s:.2g}" if s is not None else "")
+        joints.setdefault(j, {})[p] = table_number(v) + (f"\n± {s * cf:.2g}" if s is not None else "")
     names = sorted({p for d in joints.values() for p in d})
     ax = fig.add_axes([0.05, 0.55, 0.9, 0.38])  # a row per parameter: a column each would overflow the cells
     first = 0.2   # the parameter's name
     _add_table(ax, [[p] + [d.get(p, "-") for d in joints.values()] for p in names], ["parameter"] + list(joints),
                fontsize=7 if len(joints) <= 6 else 6, col_widths=[first] + [(1 - first) / len(joints)] * len(joints))
-    ax.set_title(f"friction model {fr['model']} (N·m, N·m·s/rad, N·m/rad; ± least-squares σ)", fontsize=8)
+    ax.set_title(f"friction model {fr['model']} (N·m, N·m·s/rad, N·m/rad; ± least-squares σ × the residual "
+                 f"correlation factor {cf:.2f}, as page 1)", fontsize=8)
     chk = mt.get("consistency") or []
     links = params["robot"].get("links") or [f"link {i + 1}" for i in range(len(chk))]
     ax2 = fig.add_axes([0.05, 0.1, 0.9, 0.38])
