@@ -512,3 +512,18 @@ def test_torque_residual_model_predicts_what_validate_predicts(kr6, sim_fit):
     model = RobotTorqueModel.from_params(params)
     got = np.array([model(q[i], qd[i], qdd[i]) for i in range(len(q))])
     assert np.abs(got - want).max() < 1e-6 * max(1.0, np.abs(want).max())
+
+
+def test_motor_side_torques_with_a_urdf_without_gear_ratios_are_refused(kr6, tmp_path):
+    """New-user trial 16: `fit --robot kuka_lwr4.urdf --torque-side motor` (every joint without a
+    <mechanicalReduction>, ratio 1) ran and read the motor torques as joint torques without a word."""
+    import re
+
+    text = re.sub(r"<transmission.*?</transmission>", "", robot_urdf("kr6-r700-sixx").read_text(), flags=re.S)
+    (tmp_path / "bare.urdf").write_text(text)
+    bare = RobotModel(tmp_path / "bare.urdf")
+    assert np.all(bare.ratio == 1.0) and not np.all(kr6.ratio == 1.0)
+    log, _ = simulated_log(kr6, duration=4.0, fs=250.0, seed=1)
+    with pytest.raises(FitError, match=r"bare.urdf: torques on the motor side need the joints' gear ratios.*"
+                                       r"--torque-side joint"):
+        fit_robot([log], bare, RobotFitSettings(torque_side="motor"))

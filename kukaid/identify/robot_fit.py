@@ -1467,6 +1467,10 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
                  "(KUKA Trace, KUKAVARPROXY, the virtual KR C4; --rotor-inertia if they do), and a link-side "
                  "torque sensor does not see the rotors")
     settings = replace(settings, rotor=motor_currents if settings.rotor is None else settings.rotor)
+    if settings.torque_side == "motor" and np.all(np.asarray(robot.ratio, float) == 1.0):
+        raise FitError(f"{robot.source}: torques on the motor side need the joints' gear ratios, and this URDF gives "
+                       "none (no <transmission> with a <mechanicalReduction>): with ratio 1 the motor torques would be "
+                       "read as joint torques; add the transmissions, or give joint-side torques (--torque-side joint)")
     drive = _drive(robot, settings, coupling)
     for lg in logs:
         check_torque_size(lg, robot, drive, settings.torque_side)
