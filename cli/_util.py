@@ -227,6 +227,10 @@ def config_axis(sim_config: Path | None, axis: int | None, what: str, fix: str =
     said = read_json(sim_config, SimConfigError)
     said = said.get("axis") if isinstance(said, dict) else None
     if said is not None and axis is not None and int(said) != int(axis):
+        if int(said) > 6:  # an external axis: nothing to excite or guide on the virtual KR C4
+            raise SimConfigError(f"{sim_config}: \"axis\": {said} is the external axis E{int(said) - 6}, which the "
+                                 "virtual KR C4 does not simulate (its axes are 1 to 6; a real controller drives it: "
+                                 f"--backend kvp); leave \"axis\" out: {what} moves A{axis}")
         raise SimConfigError(f"{sim_config}: \"axis\": {said}, but {what} moves A{axis}: the virtual KR C4 simulates "
                              f"one axis; leave \"axis\" out, or {fix.format(said=said)}")
     return None if said is None else int(said)

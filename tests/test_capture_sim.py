@@ -130,6 +130,11 @@ def test_a_sim_config_of_another_axis_than_the_trajectorys_is_refused(short_traj
     got, text = run("capture", short_traj, "-o", tmp_path / "x.h5", "--sim-config", tmp_path / "a2.json")
     assert text.startswith("kukaid: error: ") and f'a2.json: "axis": 2, but {short_traj} moves A3' in text
     assert "--axis 2" in text and text.count("\n") == 1
+    # new-user trial 16: an external axis named the fix "excite the trajectory with --axis 9", which excite refuses
+    (tmp_path / "a9.json").write_text(json.dumps({"axis": 9}))
+    got, text = run("capture", short_traj, "-o", tmp_path / "x.h5", "--sim-config", tmp_path / "a9.json")
+    assert got == 1 and '"axis": 9 is the external axis E3' in text and f'leave "axis" out: {short_traj} moves A3' in text
+    assert "--axis 9" not in text and text.count("\n") == 1
 
 
 @pytest.mark.parametrize("args, message", [
