@@ -9,7 +9,9 @@ fourth kept out for validate."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from kukaid.logs import write_hdf5
@@ -148,7 +150,6 @@ def _minimal(effects):
 def test_a_thermal_effect_needs_the_temperature_and_run_admittance_refuses_effects(case):
     """validate of a file with a thermal effect on a log without temperatures: one clear line;
     the real-time torque model (run-admittance) has no effects yet: it refuses the file."""
-    from dataclasses import replace
 
     from kukaid.control.robot_residual import RobotTorqueModel
     from kukaid.errors import ParamFileError
@@ -191,3 +192,29 @@ def test_max_steps_0_says_no_candidate_was_tested():
     lines = d.lines()
     assert "no candidate tested (--max-steps 0): the figures above are all this run measured" in lines, lines
     assert not any(ln.startswith("no effect named") for ln in lines) and not d.tried, lines
+
+
+def test_after_a_unit_warning_the_remedy_is_the_unit_not_a_refit():
+    """New-user trial 16: `kukaid diagnose --params lwr.json --log wrongunit.csv` (radians under degree headers)
+    warned about the unit, then said "`kukaid fit --robot` on these logs gives that model": a refit that fits the
+    mistake."""
+    from kukaid.diagnose import diagnose_model
+    from kukaid.diagnose.robot import RobotDiagnosis
+    from kukaid.identify.fitted import model_for
+    from kukaid.identify.robot_fit import fit_robot
+    from kukaid.models.robot import RobotModel
+    from robot_sim_helpers import simulated_log
+
+    stale = RobotDiagnosis(axes=[1, 2], folds="x", before=[0.010, 0.011], after=[0.010, 0.011], in_sample=[0.09, 0.10],
+                           unit_doubt=True)
+    said = [ln for ln in stale.lines() if "1.0 % against 9.5 %" in ln]
+    assert len(said) == 1 and "mend the logs' position unit first" in said[0] and "kukaid fit --robot" not in said[0]
+    kr6 = RobotModel("kr6-r700-sixx")
+    logs = [simulated_log(kr6, duration=6.0, seed=s)[0] for s in (0, 1)]
+    small = replace(logs[1], q=np.radians(logs[1].q))  # radians read as degrees: 57 x too small
+    small.attrs.update(source_file="small.csv", position_columns={str(a): f"A{a}_deg" for a in small.axes})
+    warned = []
+    d, _ = diagnose_model(model_for(fit_robot(logs[:1], kr6)), [small], max_steps=0, warn=warned.append)
+    assert d.unit_doubt and any("radians written under a degree header" in w for w in warned), warned
+    d, _ = diagnose_model(model_for(fit_robot(logs[:1], kr6)), logs[1:], max_steps=0)
+    assert not d.unit_doubt

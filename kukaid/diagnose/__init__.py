@@ -37,6 +37,7 @@ def diagnose_model(model: Any, logs: Sequence[Any], *, axis: int | None = None, 
     from contextlib import nullcontext
 
     from kukaid.errors import OptionError
+    from kukaid.identify.adequacy import unit_warnings
     from kukaid.identify.fitted import RobotFile, file_cutoff
     from kukaid.logs import check_each_recording_once
 
@@ -58,7 +59,9 @@ def diagnose_model(model: Any, logs: Sequence[Any], *, axis: int | None = None, 
             from kukaid.diagnose.robot_plots import write_robot_report
 
             stage("testing the candidate effects on held-out recordings")
-            return diagnose_robot(model.params, logs, model.robot, max_steps=max_steps), write_robot_report
+            result = diagnose_robot(model.params, logs, model.robot, max_steps=max_steps)
+            result.unit_doubt = any(unit_warnings(lg, a) for lg in logs for a in model.joints if a in lg.axes)
+            return result, write_robot_report
         from kukaid.diagnose.plots import write_report
 
         return diagnose(model.params, logs, axis=model.axis, cutoff=cutoff, alpha=0.01 if alpha is None else alpha,

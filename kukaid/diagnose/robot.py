@@ -138,6 +138,7 @@ class RobotDiagnosis:
     params: dict | None = None                              # the refined parameter file
     series: Series | None = field(default=None, repr=False)
     tested: bool = True                                     # candidates were tested (not --max-steps 0)
+    unit_doubt: bool = False                                # a log's positions looked like radians under degrees
 
     @property
     def names(self) -> list[str]:
@@ -193,9 +194,11 @@ class RobotDiagnosis:
                            "before they were recorded), so their noise cannot be told from them")
         b, f = float(np.mean(self.before)) if self.before else 0.0, float(np.mean(self.in_sample)) if self.in_sample else 0.0
         if b < REFIT_BETTER * f:  # a stale or under-determined file: the user's remedy is a refit, not an effect
+            remedy = ("mend the logs' position unit first (the warnings above): a refit on them as they are would fit "
+                      "that mistake" if self.unit_doubt else "`kukaid fit --robot` on these logs gives that model (the diagnosis names "
+                      "missing effects; it keeps the file's terms)")
             out.append(f"  the file's own terms refitted on these logs predict them held out at {100 * b:.1f} % against "
-                       f"{100 * f:.1f} % for the file as it is: `kukaid fit --robot` on these logs gives that model (the "
-                       "diagnosis names missing effects; it keeps the file's terms)")
+                       f"{100 * f:.1f} % for the file as it is: {remedy}")
         if self.steps:
             for k, st in enumerate(self.steps, 1):
                 par = ", ".join(f"{k2} {v:.4g}" if isinstance(v, float) else f"{k2} {v}" for k2, v in st["params"].items())
