@@ -150,7 +150,6 @@ def _minimal(effects):
 def test_a_thermal_effect_needs_the_temperature_and_run_admittance_refuses_effects(case):
     """validate of a file with a thermal effect on a log without temperatures: one clear line;
     the real-time torque model (run-admittance) has no effects yet: it refuses the file."""
-
     from kukaid.control.robot_residual import RobotTorqueModel
     from kukaid.errors import ParamFileError
     from kukaid.logs import read_log
