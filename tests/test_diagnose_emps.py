@@ -44,6 +44,8 @@ def test_emps_offset_is_found_and_error_drops():
     assert "torque_offset" in d.names and d.rel_after < 0.041, d.lines()
     # a sine of one period over the whole stroke is a slow position-dependent force, not a ripple
     assert "position_ripple" not in d.names and any("not a repeating ripple" in x for x in d.lines()), d.lines()
+    # new-user trial 16: the stroke's range is said with its unit (m on this prismatic drive)
+    assert any(" m range resolves" in x for x in d.lines()), d.lines()
     # new-user trial nu12 item 11: listed by size, the transient found after the offset comes first; its
     # in-sample RMSE is of the chain as listed, its evidence and held-out check of the model it was found
     # in: they say so

@@ -196,14 +196,15 @@ class PositionRipple(Candidate, E.PositionRipple):
     def rule(self, model, sigs, nl, coefs):
         R, lo, _ = self._limits(sigs)
         periods = R * float(nl["n"]) / (2 * math.pi)
+        unit = "m" if sigs[0].joint == "prismatic" else "rad"
         if float(nl["n"]) < lo + self.order_step(sigs):  # within a quarter period of the slowest searched
             plural = "" if round(periods, 2) == 1 else "s"
-            return (f"order n = {nl['n']:.3g} is the lowest the {R:.3g} range resolves ({periods:.2g} period{plural}): "
+            return (f"order n = {nl['n']:.3g} is the lowest the {R:.3g} {unit} range resolves ({periods:.2g} period{plural}): "
                     "the best fit would be slower still, a smooth position-dependent torque, not a repeating ripple")
         coupled = any(s.others for s in sigs)
         need = self.MIN_PERIODS_COUPLED if coupled else self.MIN_PERIODS
         if periods < need:
-            return (f"order n = {nl['n']:.3g} gives {periods:.2g} periods over the {R:.3g} range; a ripple needs "
+            return (f"order n = {nl['n']:.3g} gives {periods:.2g} periods over the {R:.3g} {unit} range; a ripple needs "
                     f"at least {need:g}" + (" when other axes move (their torque is a slow function of the "
                                             "positions)" if coupled else ""))
         return ""
