@@ -242,6 +242,29 @@ def test_a_cutoff_that_trims_the_whole_log_names_the_log_and_the_option(kr6, tmp
     assert "short.csv: too few samples left (0)" in r.stderr and "--cutoff 0.001 Hz" in r.stderr
 
 
+def test_a_fit_that_determines_no_base_parameter_says_so(kr6, sim_fit, tmp_path):
+    """New-user trial 16: `kukaid fit cut150.csv --robot kuka_lwr4.urdf` (the first 150 lines of lwr4_1.csv, 34
+    samples fitted) wrote link masses of 140 and 472 x the URDF's and Fc 2.5e4 N·m with "parameters written"; only
+    the table's "not identifiable: 43 of 43" said the data had determined nothing."""
+    import json
+
+    from click.testing import CliRunner
+
+    from kukaid.identify.robot_fit import format_robot_table
+    from kukaid.logs import write_csv
+    from kukaid_cli.main import cli
+
+    log, _ = simulated_log(kr6, duration=1.2, fs=250.0, seed=1)
+    write_csv(log, tmp_path / "a.csv", angle_unit="rad")
+    r = CliRunner().invoke(cli, ["fit", str(tmp_path / "a.csv"), "--robot", "kr6-r700-sixx", "-o",
+                                 str(tmp_path / "p.json"), "--json"])
+    assert r.exit_code == 0, r.output
+    said = [ln for ln in r.stderr.splitlines() if "the logs determine none of the" in ln]
+    assert len(said) == 1 and said[0].startswith(f"kukaid: warning: fit: {tmp_path / 'a.csv'}: "), r.stderr
+    params = json.loads((tmp_path / "p.json").read_text())
+    assert len(params["metrics"]["warnings"]) == 1 and "warning: " in format_robot_table(params).splitlines()[-1]
+    assert not sim_fit[0]["metrics"].get("warnings") and "warning" not in format_robot_table(sim_fit[0])
+
 def test_a_consistent_fit_that_does_not_converge_names_the_log(kr6, tmp_path, monkeypatch):
     """New-user trial 16: `kukaid fit trunc.csv --robot kuka_lwr4.urdf` (the first 0.9 s of lwr4_1.csv,
     its last value cut short) said only `physically consistent fit did not converge (IPOPT:

@@ -1565,7 +1565,7 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
     at_bound += [name for name, chk in zip(robot.link_names, checks or [])
                  if chk["pseudo_inertia_min_eig"] < 1e-8 * max(chk["mass"], 1e-9)]
     bundled = robot.source in BUNDLED
-    return {
+    params = {
         "schema": ROBOT_SCHEMA,
         "robot": {"name": robot.model.name, "urdf": robot.source if bundled else str(Path(robot.path).resolve()),
                   "sha256": robot.sha256, "joints": list(robot.joint_names), "links": list(robot.link_names)},
@@ -1602,6 +1602,13 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
                        "preprocess": {"cutoff": choices["cutoff"]["chosen"], "order": settings.order,
                                       "cutoff_from": choices["cutoff"]["how"]}},
     }
+    if not np.any(relative_sigma(params) < DETERMINED):  # the prior and the bounds made every number
+        names = ", ".join(str(lg.attrs.get("source_file", "log")) for lg in logs)
+        params["metrics"]["warnings"] = [
+            f"{names}: the logs determine none of the {nb} base parameters (sigma < {100 * DETERMINED:g} %; {N} samples "
+            f"fitted, condition number {cond:.3g}): too short, or too little motion, for the whole robot; its figures "
+            "hold on these samples only (kukaid validate it on another recording)"]
+    return params
 
 
 #: a base parameter is well excited when its standard deviation is under this share of its value
@@ -1890,4 +1897,5 @@ def format_robot_table(params: dict) -> str:
     if eff:
         lines.append(f"effects named by kukaid diagnose, predicted with ({len(eff)}):")
         lines += [f"  {robot_effects.describe(k, e)}" for k, e in eff.items()]
+    lines += [f"warning: {w}" for w in mt.get("warnings") or ()]
     return "\n".join(lines)
