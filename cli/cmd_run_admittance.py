@@ -192,7 +192,8 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @PORT
 @click.option("--axis", type=AXIS, default=3, show_default=True,
               help="Axis to control: kvp (A1..A6), a robot parameter file (any of its axes), or the axis the "
-                   "one-axis virtual KR C4 simulates (A1..A6; its parameter file's axis).")
+                   "one-axis virtual KR C4 simulates (A1..A6; the one-axis parameter file's: a file of A2 needs "
+                   "--axis 2).")
 @URDF
 def command(params_path: Path, output: Path, report: Path | None, as_json: bool, force: bool, damping: str,
             D: float, I: float, D_min: float | None, D_max: float | None, threshold: float, release: float | None,
