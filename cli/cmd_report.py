@@ -37,8 +37,20 @@ def command(params, friction, inertia, presliding, logs, axis, output, urdf) -> 
     check_outputs([output], [params, *friction, *inertia, presliding, *logs])
     stage = stages("report")
     warnings: list[str] = []
-    n = report_model(load_model(params, axis, urdf), output, friction=list(friction), inertia=list(inertia),
+    model = load_model(params, axis, urdf)
+    n = report_model(model, output, friction=list(friction), inertia=list(inertia),
                      presliding=presliding, logs=list(logs), axis=axis, warnings=warnings, stage=stage)
+    if logs:  # a model of another robot or axis, or another unit, as validate says it (its prediction pages show it)
+        from kukaid.diagnose.validate import mismatch_warnings, validate
+        from kukaid.errors import KukaidError
+        from kukaid.logs import read_log
+
+        per_log: list = []
+        try:
+            validate(model, [read_log(p) for p in logs], per_log=per_log)
+        except KukaidError:  # the report is written: what validate cannot compare, it says itself
+            per_log = []
+        warnings.extend(mismatch_warnings(per_log, logs, params, model.unit))
     for w in warnings:
         click.echo(f"kukaid: warning: report: {w}", err=True)
     click.echo(f"{output}: report written, {n} page{'s' if n != 1 else ''}", err=True)

@@ -228,3 +228,20 @@ def test_a_prediction_page_of_a_log_the_model_was_fitted_on_is_not_called_a_vali
     assert titles[0].endswith("(in-sample)") and titles[1].endswith("(validation)"), titles
     legend = page_prediction(data, *data.general[1], "general").axes[1].get_legend().get_title().get_text()
     assert legend == "grey: not compared (quasi-static / near a reversal)"
+
+
+def test_a_model_that_does_not_describe_the_log_is_warned_about_as_validate_does(fitted, tmp_path):
+    """New-user trial 16: `kukaid report --params params.json (the virtual KR C4's A3) --log lwr4_3.csv` wrote
+    the PDF without the warning validate and diagnose give (a model of another robot or axis, or another unit)."""
+    d, p, _, params = fitted
+    nmm = json.loads(p["params"].read_text())
+    for k in ("Fc", "Fs", "Fv"):
+        nmm["friction"][k] *= 1000.0                    # N·mm
+    for k in nmm["inertial"]:
+        nmm["inertial"][k] *= 1000.0
+    (tmp_path / "nmm.json").write_text(json.dumps(nmm))
+    for k, (f, warned) in enumerate(((tmp_path / "nmm.json", True), (p["params"], False))):
+        r = _run(["--params", f, "--log", p["inertia"], "-o", tmp_path / f"r{k}.pdf"])
+        assert r.exit_code == 0, r.output
+        said = [ln for ln in r.stderr.splitlines() if "does not describe this log" in ln]
+        assert len(said) == int(warned), r.stderr
