@@ -34,15 +34,16 @@ def read_csv(path: str | Path) -> AxisLog:
     path = Path(path)
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
-    with _os_errors(path, "cannot read"), open(path, encoding="utf-8-sig", errors="replace") as f:  # Excel's 'CSV UTF-8'
-        lines = [f.readline().rstrip("\r\n")]  # begins with a mark
-    if not lines[0].strip():
+    # Excel's 'CSV UTF-8' begins with a byte order mark
+    with _os_errors(path, "cannot read"), open(path, encoding="utf-8-sig", errors="replace") as f:
+        first = f.readline().rstrip("\r\n")
+    if not first.strip():
         raise LogFormatError(f"{path}: empty file (expected a header row)")
-    header = [h.strip() for h in lines[0].split(",")]
+    header = [h.strip() for h in first.split(",")]
     if header[0] != "time_s":
         sep = next((c for c in (";", "\t") if c in header[0]), None) if len(header) == 1 else None
         if sep is not None:  # a spreadsheet's export where the comma is the decimal mark
-            line = lines[0].strip()
+            line = first.strip()
             line = line if len(line) <= 60 else line[:57] + "..."
             raise LogFormatError(f"{path}: columns must be separated by commas, not {sep!r}, with '.' as the "
                                  f"decimal mark (a header as 'time_s,A3_deg,A3_Nm,...'; this one is '{line}')")
