@@ -194,9 +194,12 @@ class RobotDiagnosis:
                            "before they were recorded), so their noise cannot be told from them")
         b, f = float(np.mean(self.before)) if self.before else 0.0, float(np.mean(self.in_sample)) if self.in_sample else 0.0
         if b < REFIT_BETTER * f:  # a stale or under-determined file: the user's remedy is a refit, not an effect
-            remedy = ("mend the logs' position unit first (the warnings above): a refit on them as they are would fit "
-                      "that mistake" if self.unit_doubt else "`kukaid fit --robot` on these logs gives that model (the diagnosis names "
-                      "missing effects; it keeps the file's terms)")
+            if self.unit_doubt:  # a refit on logs in the wrong unit fits the mistake
+                remedy = ("mend the logs' position unit first (the warnings above): a refit on them as they are "
+                          "would fit that mistake")
+            else:
+                remedy = ("`kukaid fit --robot` on these logs gives that model (the diagnosis names missing effects; it "
+                          "keeps the file's terms)")
             out.append(f"  the file's own terms refitted on these logs predict them held out at {100 * b:.1f} % against "
                        f"{100 * f:.1f} % for the file as it is: {remedy}")
         if self.steps:

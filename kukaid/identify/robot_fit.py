@@ -1211,6 +1211,11 @@ def predictions(robot: RobotModel, m: Motion, settings: RobotFitSettings, drive:
     return out
 
 
+def _log_names(logs: Sequence[AxisLog]) -> str:
+    """The logs as a message names them: their files, comma-separated."""
+    return ", ".join(str(lg.attrs.get("source_file", "log")) for lg in logs)
+
+
 def _too_few_moving(logs: Sequence[AxisLog], counts: np.ndarray) -> str:
     """Why joints with fewer than 10 samples to fit (``counts``) cannot be fitted: each such
     joint's equations are fitted only where it moves faster than :data:`STANDSTILL` away from its
@@ -1218,7 +1223,7 @@ def _too_few_moving(logs: Sequence[AxisLog], counts: np.ndarray) -> str:
     57 x too small) has none."""
     from kukaid.identify.adequacy import unit_warnings
 
-    names = ", ".join(str(lg.attrs.get("source_file", "log")) for lg in logs)
+    names = _log_names(logs)
     few = [j for j in range(counts.size) if counts[j] < 10]
     said = ", ".join(f"A{j + 1} {int(counts[j])}" for j in few)
     units = [w for lg in logs for j in few if (j + 1) in lg.axes for w in unit_warnings(lg, j + 1)]
@@ -1531,8 +1536,7 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
                 return _consistent(Gw_, gw_, cw_, M_, robot, extra_n, nonneg, settings, beta[nb:].copy(), ~used,
                                    bounds, x0)
             except FitError as e:
-                names = ", ".join(str(lg.attrs.get("source_file", "log")) for lg in logs)
-                raise FitError(f"{names}: {e}") from None
+                raise FitError(f"{_log_names(logs)}: {e}") from None
         pi_c, extra, solver_info = solve(Gw, gw, cw, M, True)
         on_bound = _masses_on_bound(robot, pi_c, settings.mass_bounds)
         if on_bound and K > 1:
@@ -1603,11 +1607,10 @@ def _fit_robot(logs: Sequence[AxisLog], robot: RobotModel, settings: RobotFitSet
                                       "cutoff_from": choices["cutoff"]["how"]}},
     }
     if not np.any(relative_sigma(params) < DETERMINED):  # the prior and the bounds made every number
-        names = ", ".join(str(lg.attrs.get("source_file", "log")) for lg in logs)
         params["metrics"]["warnings"] = [
-            f"{names}: the logs determine none of the {nb} base parameters (sigma < {100 * DETERMINED:g} %; {N} samples "
-            f"fitted, condition number {cond:.3g}): too short, or too little motion, for the whole robot; its figures "
-            "hold on these samples only (kukaid validate it on another recording)"]
+            f"{_log_names(logs)}: the logs determine none of the {nb} base parameters (sigma < {100 * DETERMINED:g} "
+            f"%; {N} samples fitted, condition number {cond:.3g}): too short, or too little motion, for the whole "
+            "robot; its figures hold on these samples only (kukaid validate it on another recording)"]
     return params
 
 
