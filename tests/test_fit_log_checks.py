@@ -208,3 +208,38 @@ def test_a_presliding_log_given_as_a_general_log_says_to_give_it_as_presliding(t
     msg = str(e.value)
     assert "presliding.h5 records the pre-sliding experiment (attribute 'experiment'): give it as --presliding" in msg
     assert "dynamic-mode" in msg and "qd_thr 0.0017 rad/s" in msg, msg
+
+
+def test_time_stamps_with_jitter_fit_as_an_even_log(logs):
+    """Trial 16: a controller's samples stamped by a PC with ±3 ms of jitter (12 ms steps) fitted Fv
+    12 % low (differentiated on the stamps), and samples taken at ±3 ms jittered instants (the
+    virtual KR C4's ``jitter``) were refused as skipping samples, 12 % low again when let through.
+    The even grid now replaces stamps the positions are smoother without, and positions sampled at
+    the stamps are interpolated onto it; both fit the even log's friction."""
+    lg = read_log(logs[1]["friction"])
+    even = fit_axis(friction=[lg])
+    rng = np.random.default_rng(5)
+    stamped = AxisLog(lg.time + rng.uniform(-0.003, 0.003, lg.n_samples), lg.q, lg.tau, axes=lg.axes,
+                      attrs=dict(lg.attrs))
+    sampled = VirtualKRC4(SimConfig(jitter=0.003), seed=1).run(excite.generate("friction", n_speeds=6))
+    for log, base in ((stamped, "re-stamped"), (sampled, "resampled")):
+        p = fit_axis(friction=[log])
+        assert p["provenance"]["preprocess"]["time_base"] == base
+        for k in ("Fc", "Fv"):
+            assert p["friction"][k] == pytest.approx(even["friction"][k], rel=0.01), (base, k)
+    assert even["provenance"]["preprocess"]["time_base"] == "even"
+
+
+@pytest.mark.parametrize("share", [0.25, 0.4])
+def test_stamp_jitter_is_no_skipped_sample(share):
+    """Each stamp off by up to ``share`` of a 12 ms step: no step skips a sample (the first quartile
+    of the steps, taken as the step, read the long ones as skips: refused at 0.4)."""
+    from kukaid.identify.filtering import check_even_samples
+
+    rng = np.random.default_rng(3)
+    t = 0.012 * np.arange(20000) + rng.uniform(-share, share, 20000) * 0.012
+    check_even_samples(t, "stamped.csv")
+    keep = np.ones(t.size, bool)
+    keep[::40] = False  # 2.5 % of the samples lost: refused, jitter or not
+    with pytest.raises(FitError, match=r"stamped\.csv: [12]\.\d % of the steps between samples skip samples"):
+        check_even_samples(t[keep], "stamped.csv")

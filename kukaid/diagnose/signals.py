@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from kukaid.errors import LogFormatError
-from kukaid.identify.filtering import check_even_samples, filter_defaults, lowpass, reversal_distance
+from kukaid.identify.filtering import check_even_samples, evenly_sampled, filter_defaults, lowpass, reversal_distance
 from kukaid.models.signals import LogSignals
 
 __all__ = ["LogSignals", "decimation", "noise_gain", "prepare"]
@@ -69,13 +69,14 @@ def prepare(log: Any, axis: int | None = None, cutoff: float | None = None, orde
         axis = log.axes[0]
     where = log.attrs.get("source_file", name or "log")
     j = log.index(axis)
+    check_even_samples(log.time, str(where))  # the filters take the samples as evenly spaced
+    log = evenly_sampled(log)[0]
     t = np.asarray(log.time, dtype=float)
     q_raw = np.asarray(log.q[:, j], dtype=float)
     tau_raw = np.asarray(log.tau[:, j], dtype=float)
     temp = None if log.temp is None else np.asarray(log.temp[:, j], dtype=float)
     joint = log.joint[j] if log.joint else "revolute"
     n = t.size
-    check_even_samples(t, str(where))  # the filters take the samples as evenly spaced
     fs = 1.0 / float(np.median(np.diff(t)))
     d = filter_defaults(fs)
     cutoff = float(d["cutoff"] if cutoff is None else cutoff)

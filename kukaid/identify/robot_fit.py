@@ -34,7 +34,7 @@ from typing import Sequence
 import numpy as np
 
 from kukaid.errors import FitError, ParamFileError
-from kukaid.identify.filtering import check_even_samples
+from kukaid.identify.filtering import check_even_samples, evenly_sampled
 from kukaid.identify.solve_interrupt import interruptible_solve
 from kukaid.identify.uncertainty import correlation_factor
 from kukaid.logs import AxisLog, check_each_recording_once, log_fingerprint
@@ -353,31 +353,6 @@ def _cutoff(settings: RobotFitSettings, fs: float) -> float:
     return min(fc, 0.1 * fs) if settings.cutoff is None else fc
 
 
-def sample_grid(time: np.ndarray, q: np.ndarray, cols: Sequence[int] | None = None) -> np.ndarray:
-    """The time base to differentiate on: the log's time stamps, or an even grid over the same span.
-
-    The low-pass filter treats the samples as evenly spaced. A controller samples its axes at a
-    fixed rate, but a PC that records them often stamps each sample when it arrives, with jitter
-    (the LWR4+ recordings: stamps 3.2 to 6.8 ms apart at 5 ms while the position increments stay
-    smooth). Differentiating on such stamps turns the jitter into velocity and acceleration spikes
-    (tens of rad/s² and, through the inertia, tens of N·m of torque that no joint felt). The even
-    grid is used when it makes the positions smoother (smaller second differences) than the
-    stamps do; a log with truly uneven samples keeps its stamps. ``cols``: the columns of ``q``
-    to judge by (default all); one column at a time, so a long log needs no (N, n) temporaries.
-    """
-    time = np.asarray(time, float)
-    grid = np.linspace(time[0], time[-1], time.size)
-    if time.size < 3 or np.allclose(np.diff(time), grid[1] - grid[0], rtol=1e-3, atol=0.0):
-        return time
-    q = np.asarray(q, float).reshape(time.size, -1)
-    cols = range(q.shape[1]) if cols is None else cols
-
-    def rough(t: np.ndarray) -> float:
-        return float(sum(np.sum(np.gradient(np.gradient(q[:, c], t), t) ** 2) for c in cols))
-
-    return grid if rough(grid) < rough(time) else time
-
-
 def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel | None = None,
            filter_tau: bool = True, rows: slice = slice(None), reversal_window: float | None = None,
            raw: bool = False) -> Motion:
@@ -402,7 +377,8 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
     need = 3 * (2 * sos.shape[0] + 1)
     if log.n_samples <= need:
         raise FitError(f"{where}: {log.n_samples} samples are too few to filter (need more than {need})")
-    t = sample_grid(log.time, log.q, cols)
+    log = evenly_sampled(log, cols)[0]
+    t = log.time
     idx = np.arange(log.n_samples)[rows]
     out = {k: np.empty((idx.size, n)) for k in ("q", "qd", "qdd", "tau") + (("tau_raw",) if raw else ())}
     keep = np.ones((idx.size, n), bool) if reversal_window is not None else None
@@ -449,7 +425,8 @@ def filtered_coulomb(log: AxisLog, n: int, settings: RobotFitSettings, rows: sli
     sos = fit_lowpass(log, settings)
     vc = _cutoff(settings, fs) if velocity_cutoff is None else min(float(velocity_cutoff), 0.45 * fs)
     sv = butter(settings.order, vc, fs=fs, output="sos")
-    t = sample_grid(log.time, log.q, cols)
+    log = evenly_sampled(log, cols)[0]
+    t = log.time
     many = v_smooth is not None
     vs = np.asarray(v_smooth, float)[:, None] * np.ones(n) if many else \
         np.broadcast_to(np.asarray(settings.v_smooth or 0.0, float), (n,))[None, :]
@@ -472,7 +449,8 @@ def wide_velocity(log: AxisLog, n: int, settings: RobotFitSettings, velocity_cut
     cols = _joint_columns(log, n)
     fs = 1.0 / log.sample_time
     sv = butter(settings.order, min(float(velocity_cutoff), 0.45 * fs), fs=fs, output="sos")
-    t = sample_grid(log.time, log.q, cols)
+    log = evenly_sampled(log, cols)[0]
+    t = log.time
     return np.column_stack([np.gradient(sosfiltfilt(sv, log.q[:, c]), t) for c in cols])
 
 
