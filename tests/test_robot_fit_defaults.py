@@ -211,3 +211,21 @@ def test_without_a_prior_the_table_does_not_say_the_undetermined_parameters_lean
     free = {**p, "settings": {**p["settings"], "prior_weight": 0.0}}
     text = format_robot_table(free)
     assert "they lean on the URDF's links" not in text and "--prior-weight 0" in text
+
+
+@pytest.mark.skipif(not LWR4.is_dir(), reason="real LWR4+ data (../shared/datasets/lwr4) not present")
+def test_a_joint_that_moves_one_way_gets_no_runaway_coulomb_and_offset():
+    """The first 300 samples of lwr4_3 (1.5 s): A1 (and others) move one way only where their
+    equations are fitted, so their Coulomb and offset columns are one column. The bound Fc >= 0
+    pushed IPOPT along that unseen direction to Fc 1.1e5 and offset -1.1e5 N·m (A1; "relative error
+    on them: 7049919.4 %"); held near the least-squares split, no joint's friction exceeds its torque."""
+    from kukaid.logs import read_log
+
+    robot = RobotModel(LWR4 / "kuka_lwr4.urdf")
+    log = read_log(LWR4 / "lwr4_3.csv")
+    cut = log.select(slice(0, 300))
+    p = fit_robot([cut], robot)
+    vals = p["friction"]["values"]
+    for a in range(1, 8):
+        peak = float(np.max(np.abs(cut.tau[:, cut.index(a)])))
+        assert abs(vals[f"A{a}.Fc"]) <= peak and abs(vals[f"A{a}.offset"]) <= 2 * peak + 1.0, (a, vals[f"A{a}.Fc"], peak)

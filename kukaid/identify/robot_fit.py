@@ -377,6 +377,7 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
     need = 3 * (2 * sos.shape[0] + 1)
     if log.n_samples <= need:
         raise FitError(f"{where}: {log.n_samples} samples are too few to filter (need more than {need})")
+    stamps = log.time  # the reversal windows, in seconds, as the stamps say
     log = evenly_sampled(log, cols)[0]
     t = log.time
     idx = np.arange(log.n_samples)[rows]
@@ -393,7 +394,7 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
         out["qd"][:, j] = qdj[rows]
         out["qdd"][:, j] = np.gradient(qdj, t)[rows]
         if keep is not None:
-            keep[:, j] = away_from_reversals(qdj[:, None], log.time, reversal_window, STANDSTILL)[rows, 0]
+            keep[:, j] = away_from_reversals(qdj[:, None], stamps, reversal_window, STANDSTILL)[rows, 0]
         del qj, qdj
         if G is None:
             tj = log.tau[:, c]
@@ -677,8 +678,8 @@ _SOLVERS: dict = {}
 
 def _consistent_solver(robot: RobotModel, n_extra: int, shape: tuple, total_mass: float | None):
     """IPOPT of :func:`consistent_fit` for a robot, a number of extras, the shape of ``R`` and the
-    nominal total mass (None: no constraint on it), with the prior's weight, ``R``, ``z`` and ``c``
-    its parameters (``[w, vec(R), z, c]``), and the function from its variables to the parameters:
+    nominal total mass (None: no constraint on it), with the prior's weight, ``R``, ``z``, ``c`` and the
+    extras' ridge weights and reference its parameters (``[w, vec(R), z, c, rw, xr]``), and the function from its variables to the parameters:
     made once per thread and kept (the last :data:`SOLVERS_KEPT`). Building one took 0.14 s, a third of a
     fit's time; a fit solves it 11 times (the fit, and each fold with and without the mass bounds)."""
     import casadi as ca
@@ -708,8 +709,9 @@ def _consistent_solver(robot: RobotModel, n_extra: int, shape: tuple, total_mass
     Rs, zs, cs = ca.MX.sym("R", *shape), ca.MX.sym("z", shape[0]), ca.MX.sym("c")
     r = ca.mtimes(Rs, p) - zs
     wp = ca.MX.sym("w")
-    f = ca.dot(r, r) + cs + wp * prior
-    nlp = {"x": ca.vertcat(th, ex), "f": f, "p": ca.vertcat(wp, ca.vec(Rs), zs, cs)}
+    rw, xr = ca.MX.sym("rw", n_extra), ca.MX.sym("xr", n_extra)
+    f = ca.dot(r, r) + cs + wp * prior + ca.dot(rw * (ex - xr), ex - xr)
+    nlp = {"x": ca.vertcat(th, ex), "f": f, "p": ca.vertcat(wp, ca.vec(Rs), zs, cs, rw, xr)}
     if total_mass is not None:
         nlp["g"] = sum(ca.exp(2 * th[10 * k]) for k in range(n)) / total_mass
     solver = ca.nlpsol("robot_fit", "ipopt", nlp, {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": 0, "show_eval_warnings": False,
@@ -724,11 +726,13 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
                    nonneg: np.ndarray, prior_weight: float, pi0: np.ndarray, x0_extra: np.ndarray,
                    fixed: np.ndarray | None = None, mass_bounds: tuple[float, float] | None = None,
                    total_mass_bounds: tuple[float, float] | None = None,
-                   start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
-    """Minimise ``|R p - z|^2 + c + prior_weight * sum D(J_k || J_k,nominal)`` over
-    physically consistent links (log-Cholesky) and the extra parameters (``nonneg`` ones >= 0);
-    each link's mass ``exp(2 a_k)`` within ``mass_bounds`` times its nominal mass (a bound on
+                   start: np.ndarray | None = None, ridge: np.ndarray | None = None,
+                   ref: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Minimise ``|R p - z|^2 + c + prior_weight * sum D(J_k || J_k,nominal) + sum ridge (e - ref)^2``
+    over physically consistent links (log-Cholesky) and the extra parameters ``e`` (``nonneg`` ones
+    >= 0); each link's mass ``exp(2 a_k)`` within ``mass_bounds`` times its nominal mass (a bound on
     ``a_k``), their sum within ``total_mass_bounds`` times the nominal total (a constraint).
+    ``ridge`` (default 0) holds extras the data do not see near ``x0_extra``.
 
     Returns the standard parameters (10 n,), the extra parameters and solver statistics."""
     n = robot.n
@@ -749,7 +753,9 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
     total = float(m0.sum()) if total_mass_bounds is not None and m0.sum() > 0 else None
     lbg, ubg = ([total_mass_bounds[0]], [total_mass_bounds[1]]) if total is not None else ([], [])
     solver, pfun = _consistent_solver(robot, n_extra, R.shape, total)
-    data = np.concatenate([np.ravel(R, order="F"), np.ravel(z), [float(c)]])
+    ridge = np.zeros(n_extra) if ridge is None else np.asarray(ridge, float)
+    ref = np.asarray(x0_extra if ref is None else ref, float)
+    data = np.concatenate([np.ravel(R, order="F"), np.ravel(z), [float(c)], ridge, ref])
     # continuation: a strong prior first (near the nominal links, quick), then down to the weight
     # asked for, each solve starting at the last; the problem is convex in the pseudo-inertias, so
     # the end point is the same minimum, reached in fewer iterations
@@ -1092,9 +1098,18 @@ def _chosen(fe: "FoldEquations", pick: Sequence[tuple], harmonic: np.ndarray, p:
     return G, g, c, used
 
 
+#: ridge on the extra parameters (friction, offset, spring, ripple) towards the least-squares solution, relative to
+#: each one's own curvature: a direction the data do not see stays where least squares put it. Without it, on a cut
+#: of lwr4_3 where A1 moves one way only (its Coulomb and offset columns one column), the bound Fc >= 0 pushed IPOPT
+#: along that direction to Fc 1.1e5 and offset -1.1e5 N·m; 1e-10 holds it there (Fc 0.35, offset 0.35) and moves
+#: the fits of the tests' references by under 1e-7 of their values (1e-8: 5e-6)
+EXTRA_RIDGE = 1e-10
+
+
 def _consistent(Gw, gw, cw, M, robot, extra_n, nonneg, settings, x0_extra, fixed, bounded: bool, x0=None):
     """The physically consistent fit of weighted normal equations (``bounded``: the settings' mass
-    bounds; ``x0``: a start, standard parameters then extras, solved at the final prior weight only)."""
+    bounds; ``x0``: a start, standard parameters then extras, solved at the final prior weight only;
+    ``x0_extra``: the least-squares extras, where :data:`EXTRA_RIDGE` holds those the data do not see)."""
     # chi2 / M = p^T H p - 2 g^T p + c = |R p - z|^2 + c' with H = R^T R (eigenvectors of H)
     H, g, c = Gw / M, gw / M, cw / M
     ev, V = np.linalg.eigh(H)
@@ -1106,7 +1121,8 @@ def _consistent(Gw, gw, cw, M, robot, extra_n, nonneg, settings, x0_extra, fixed
                           robot.pi_nominal, x0_extra if x0 is None else x0[n_std:], fixed=fixed,
                           mass_bounds=settings.mass_bounds if bounded else None,
                           total_mass_bounds=settings.total_mass_bounds if bounded else None,
-                          start=None if x0 is None else x0[:n_std])
+                          start=None if x0 is None else x0[:n_std], ridge=EXTRA_RIDGE * np.diag(H)[n_std:],
+                          ref=x0_extra)
 
 
 def _masses_on_bound(robot: RobotModel, pi: np.ndarray, bounds) -> list[str]:
