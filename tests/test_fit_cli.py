@@ -102,6 +102,8 @@ def test_the_table_of_a_linear_fit_at_a_bound_with_user_settings(logs):
     par["metrics"]["at_bound"] = [{"name": "Fc", "value": 5.5062e-28, "bound": 0.0, "side": "lower", "given": False}]
     (row,) = [x for x in format_params(par).splitlines() if x.startswith("  Fc ")]
     assert row.split()[1] == "0" and "e-28" not in format_params(par), row
+    # a standard deviation from the curvature is no interval at an active bound (it printed "+- 0.321" for delta 2)
+    assert "(at its lower bound)" in row and "+-" not in row, row
     from kukaid.identify.adequacy import assess
 
     warnings, _ = assess(3, 1.0, 1.0, [], par["metrics"]["at_bound"], True, "linear (bounded)")

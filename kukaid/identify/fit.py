@@ -359,14 +359,18 @@ def format_table(params: dict) -> str:
     items += list(params["inertial"].items())
     if "offset" in params:
         items.append(("offset", params["offset"]))
-    on_bound = {b["name"]: b["bound"] for b in (params.get("metrics") or {}).get("at_bound") or []}
+    on_bound = {b["name"]: b for b in (params.get("metrics") or {}).get("at_bound") or []}
     for k, v in items:
-        v = on_bound.get(k, v)  # within the solver's tolerance of its bound: the bound (0, not 5.5e-28)
+        b = on_bound.get(k)
+        v = b["bound"] if b else v  # within the solver's tolerance of its bound: the bound (0, not 5.5e-28)
         s = unc.get(k)
-        rel = _relative(v, s) if s is not None else ""
         label = names.get(k, k)
-        rows.append(f"  {label:<7} {v:>12.5g}  +- {s:<10.3g} {rel:>9}  {units.get(k, '')}" if s is not None
-                    else f"  {label:<7} {v:>12.5g}")
+        if b:  # a standard deviation from the curvature is no interval at an active bound: the data want beyond it
+            rows.append(f"  {label:<7} {v:>12.5g}  {'(at its ' + b.get('side', '') + ' bound)':<25}{units.get(k, '')}")
+        elif s is not None:
+            rows.append(f"  {label:<7} {v:>12.5g}  +- {s:<10.3g} {_relative(v, s):>9}  {units.get(k, '')}")
+        else:
+            rows.append(f"  {label:<7} {v:>12.5g}")
     ms = params.get("maxwell_slip")
     if ms:
         rows.append("  Maxwell-slip k = " + ", ".join(f"{x:.4g}" for x in ms["k"]) + f" {units['k']}")
