@@ -38,16 +38,18 @@ def command(params, friction, inertia, presliding, logs, axis, output, urdf) -> 
     stage = stages("report")
     warnings: list[str] = []
     model = load_model(params, axis, urdf)
+    from kukaid.logs import read_log
+
+    general = [read_log(p) for p in logs]  # read once: the report's prediction pages and the check below
     n = report_model(model, output, friction=list(friction), inertia=list(inertia),
-                     presliding=presliding, logs=list(logs), axis=axis, warnings=warnings, stage=stage)
+                     presliding=presliding, logs=general, axis=axis, warnings=warnings, stage=stage)
     if logs:  # a model of another robot or axis, or another unit, as validate says it (its prediction pages show it)
         from kukaid.diagnose.validate import mismatch_warnings, validate
         from kukaid.errors import KukaidError
-        from kukaid.logs import read_log
 
         per_log: list = []
         try:
-            validate(model, [read_log(p) for p in logs], per_log=per_log)
+            validate(model, general, per_log=per_log)
         except KukaidError:  # the report is written: what validate cannot compare, it says itself
             per_log = []
         warnings.extend(mismatch_warnings(per_log, logs, params, model.unit))

@@ -13,7 +13,7 @@ def report_model(model: Any, output: Any, friction: Sequence[Any] = (), inertia:
                  presliding: Any = None, logs: Sequence[Any] = (), axis: int | None = None,
                  warnings: list[str] | None = None, stage: Callable[[str], None] | None = None) -> int:
     """The report of a :class:`~kukaid.identify.fitted.FittedModel` (:func:`kukaid.identify.fitted.
-    load_model`) and the logs given (paths); returns the page count.  A robot file's report takes
+    load_model`) and the logs given (paths, or logs read from them); returns the page count.  A robot file's report takes
     only general ``logs`` (a prediction page each): the experiment roles are one axis's."""
     from kukaid.errors import OptionError
     from kukaid.identify.fitted import RobotFile, file_cutoff, use_warnings
@@ -30,11 +30,12 @@ def report_model(model: Any, output: Any, friction: Sequence[Any] = (), inertia:
         from kukaid.report.robot import make_robot_report
 
         (stage or (lambda text: None))("reading the logs")
-        data = [read_log(p) for p in logs]
+        data = [x if hasattr(x, "tau") else read_log(x) for x in logs]
         for lg in data:
             model.check(lg)
         if warnings is not None:
-            warnings.extend(use_warnings(model, logs, data))  # validate's
+            names = [lg.attrs.get("source_file", "log") if hasattr(x, "tau") else x for x, lg in zip(logs, data)]
+            warnings.extend(use_warnings(model, names, data))  # validate's
         with file_cutoff(model):
             return make_robot_report(model, output, data, stage=stage)
     with file_cutoff(model):
