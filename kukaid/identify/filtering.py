@@ -273,12 +273,9 @@ def check_even_samples(time: np.ndarray, where: str) -> None:
                        "--mode ring (the program of kukaid krl-logger)")
 
 
-#: how :func:`evenly_sampled` put a log on an even grid
-TIME_BASES = ("even", "re-stamped", "resampled")
-
-
 def evenly_sampled(log: Any, cols: Sequence[int] | None = None) -> tuple[Any, str]:
-    """``log`` on an even time grid over the same span, as the filters take it, and how (:data:`TIME_BASES`).
+    """``log`` on an even time grid over the same span, as the filters take it, and how ("even",
+    "re-stamped" or "resampled").
 
     "even": its stamps already are.  "re-stamped": a controller samples its axes at a fixed rate,
     but a PC that records them often stamps each sample when it arrives, with jitter (the LWR4+

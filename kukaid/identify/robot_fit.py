@@ -679,9 +679,10 @@ _SOLVERS: dict = {}
 def _consistent_solver(robot: RobotModel, n_extra: int, shape: tuple, total_mass: float | None):
     """IPOPT of :func:`consistent_fit` for a robot, a number of extras, the shape of ``R`` and the
     nominal total mass (None: no constraint on it), with the prior's weight, ``R``, ``z``, ``c`` and the
-    extras' ridge weights and reference its parameters (``[w, vec(R), z, c, rw, xr]``), and the function from its variables to the parameters:
-    made once per thread and kept (the last :data:`SOLVERS_KEPT`). Building one took 0.14 s, a third of a
-    fit's time; a fit solves it 11 times (the fit, and each fold with and without the mass bounds)."""
+    extras' ridge weights and reference its parameters (``[w, vec(R), z, c, rw, xr]``), and the function
+    from its variables to the parameters: made once per thread and kept (the last :data:`SOLVERS_KEPT`).
+    Building one took 0.14 s, a third of a fit's time; a fit solves it 11 times (the fit, and each fold
+    with and without the mass bounds)."""
     import casadi as ca
 
     import threading
