@@ -243,3 +243,24 @@ def test_options_a_robot_file_refuses_say_why(tmp_path):
         assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1, r.output
         assert f"option {opt[0]} does not apply to a robot parameter file (yet): " in r.stderr and why in r.stderr
         assert "prints its findings" not in r.stderr
+
+
+def test_when_the_backward_step_would_drop_every_effect_the_last_one_stands():
+    """A one-axis fit of the LWR4+'s A4 diagnosed on lwr4_2 and lwr4_3 (the other joints move): coupling
+    was found, then a Stribeck rise; the backward step dropped the rise (0.62 N·m, below 0.15 x the
+    residual) and then coupling as well, and the steps kept the first (coupling) while the model had
+    none: "internal error (KeyError: 'coupling')" (the time stamps put on their grid changed the rows
+    compared). The last effect standing is now kept in the model as in the steps."""
+    from shared_data import SHARED
+
+    lwr4 = SHARED / "datasets" / "lwr4"
+    if not lwr4.is_dir():
+        pytest.skip("real LWR4+ data (../shared/datasets/lwr4) not present")
+    from kukaid.diagnose import diagnose
+    from kukaid.identify.fit import fit_axis_auto
+    from kukaid.logs import read_log
+
+    params = fit_axis_auto(logs=[read_log(lwr4 / "lwr4_1.csv")], axis=4)  # as kukaid fit lwr4_1.csv --axis 4
+    res = diagnose(params, [read_log(lwr4 / f"lwr4_{k}.csv") for k in (2, 3)], axis=4)
+    assert [s.name for s in res.steps] == ["coupling"], [s.name for s in res.steps]
+    assert "coupling" in (res.params.get("effects") or {})

@@ -111,7 +111,7 @@ def _prune(steps: list[Step], model: Model, sigs: Sequence[LogSignals], alpha: f
     significant given all the others or whose refitted torque RMS fell below ``min_rms`` (an
     effect found early can be made redundant by the ones found after it)."""
     dropped: list[str] = []
-    while True:
+    while len(dropped) < len(steps) - 1:  # the last one stands: it was significant, in-sample and held out, alone
         weakest, worst_p = None, -1.0
         for s in steps:
             if s.name in dropped:
@@ -122,9 +122,10 @@ def _prune(steps: list[Step], model: Model, sigs: Sequence[LogSignals], alpha: f
             if p >= alpha and p > worst_p:
                 weakest, worst_p = s.name, p
         if weakest is None:
-            return model, dropped
+            break
         dropped.append(weakest)
         model = refit(model.without(weakest), sigs)
+    return model, dropped
 
 
 def _in_order_of_size(steps: list[Step], base: Model, final: Model, sigs: Sequence[LogSignals],
@@ -362,7 +363,7 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     if len(steps) > 1:
         found = [s.name for s in steps]
         final, dropped = _prune(steps, model, sigs, alpha, min_effect * scale)
-        steps = [s for s in steps if s.name not in dropped] or steps[:1]
+        steps = [s for s in steps if s.name not in dropped]
         for n in dropped:
             notes.append(f"{n} was found first but the effects found after it explain it (not significant or "
                          f"below {min_effect:g} x {per} given them): dropped")
