@@ -550,3 +550,12 @@ def test_motor_side_torques_with_a_urdf_without_gear_ratios_are_refused(kr6, tmp
     with pytest.raises(FitError, match=r"bare.urdf: torques on the motor side need the joints' gear ratios.*"
                                        r"--torque-side joint"):
         fit_robot([log], bare, RobotFitSettings(torque_side="motor"))
+
+
+def test_the_friction_tables_speed_columns_name_their_unit(sim_fit):
+    """New-user trial 17: `kukaid show p.json` (fit --robot) headed two columns of speeds 'dead-band'
+    and 'Fv held beyond' with no unit, beside 'v rad/s'; now each says rad/s."""
+    from kukaid.identify.robot_fit import format_robot_table
+
+    head = next(ln for ln in format_robot_table(sim_fit[0]).splitlines() if ln.startswith("joint"))
+    assert "dead-band rad/s" in head and "Fv held beyond rad/s" in head, head
