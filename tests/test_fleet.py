@@ -834,3 +834,24 @@ def test_an_error_row_names_the_log_as_the_manifest_does(tmp_path):
     dup = Job("R5", 3, "2026-01-05", str(good), "R5/2026-01-05/A3.h5", content_hash(good))
     assert duplicate_row(dup, "validate", "R001/x.h5")["error"] == ("duplicate: the same content as R001/x.h5 (not "
                                                                     "validated twice)")
+
+
+def test_one_log_listed_for_two_of_its_axes_fits_both(tmp_path):
+    """New-user trial 17: a manifest listing a two-axis log for A2 and again for A3 (as `fleet fit`
+    asks: "holds axes A2, A3; give the axis in the manifest") fitted A2 only and said "1 already in
+    the table" of a table just made; a log is done per axis, and a whole-arm entry by any of its rows."""
+    from kukaid.fleet.manifest import Entry, content_hash
+    from kukaid.fleet.run import plan
+
+    log = tmp_path / "arm.csv"
+    log.write_text("time_s,A2_deg,A2_Nm,A3_deg,A3_Nm\n0,0,0,0,0\n")
+    a2, a3, arm = (Entry("R1", axis, "2026-01-05", str(log), "arm.csv") for axis in (2, 3, None))
+    jobs, direct, skipped = plan([a2, a3], [], "fit")
+    assert [j.axis for j in jobs] == [2, 3] and not direct and skipped == 0
+    done = {"path": "arm.csv", "sha256": content_hash(log), "axis": 2, "status": "ok"}
+    jobs, direct, skipped = plan([a2, a3], [done], "fit")
+    assert [j.axis for j in jobs] == [3] and not direct and skipped == 1
+    jobs, direct, skipped = plan([a2, a2], [], "fit")    # the same line twice: one fit
+    assert [j.axis for j in jobs] == [2] and skipped == 1
+    jobs, direct, skipped = plan([arm], [done], "fit")   # a whole-arm entry: its rows are of every axis
+    assert not jobs and skipped == 1

@@ -136,8 +136,9 @@ def _leave_ctrl_c_to_the_command() -> Any:
     return LeaveCtrlCToTheCommand()
 
 
-def _key(row: dict) -> tuple[str, str]:
-    return (row.get("path") or "", row.get("sha256") or "")
+def _key(row: dict) -> tuple[str, str, int | None]:
+    """A row is of one log and one axis: a log listed for two of its axes gives two rows."""
+    return (row.get("path") or "", row.get("sha256") or "", row.get("axis"))
 
 
 def _sort(rows: list[dict]) -> list[dict]:
@@ -175,9 +176,11 @@ def _diff(a: dict, b: dict) -> str:
 def plan(entries: Sequence[Entry], prior: list[dict], kind: str) -> tuple[list[Job], list[dict], int]:
     """Which logs to run: (jobs, rows made without running (missing files, duplicates), skipped).
 
-    A log whose (name, content hash) has a row is skipped; a log whose content is that of an
-    earlier log (in the table or earlier in the input) becomes a duplicate row, never run twice."""
+    A log whose (name, content hash) has a row of its axis (a whole-arm log: any row) is skipped; a
+    log whose content is that of an earlier log (in the table or earlier in the input) becomes a
+    duplicate row, never run twice."""
     done = {_key(r) for r in prior}
+    done |= {k[:2] for k in done}  # (name, hash): an entry without an axis is done by any of its rows
     first: dict[str, str] = {}
     for r in prior:
         if r.get("sha256") and not (r.get("error") or "").startswith("duplicate"):
@@ -186,23 +189,24 @@ def plan(entries: Sequence[Entry], prior: list[dict], kind: str) -> tuple[list[J
     for e in entries:
         if not os.path.isfile(e.path):
             job = Job(e.robot, e.axis, e.date, e.path, e.name, "", e.axis_from)
-            if (e.name, "") in done:  # still missing: its row stands
+            key = (e.name, "") if e.axis is None else (e.name, "", e.axis)
+            if key in done:  # still missing: its row stands
                 skipped += 1
                 continue
-            done.add((e.name, ""))
+            done |= {key, key[:2]}
             direct.append(error_row(job, kind, f"{e.name}: no such file"))
             continue
         sha = content_hash(e.path)
         job = Job(e.robot, e.axis, e.date, e.path, e.name, sha, e.axis_from)
-        if (e.name, sha) in done:
+        key = (e.name, sha) if e.axis is None else (e.name, sha, e.axis)
+        if key in done:
             skipped += 1
             continue
+        done |= {key, key[:2]}
         if sha in first and first[sha] != e.name:
             direct.append(duplicate_row(job, kind, first[sha]))
-            done.add((e.name, sha))
             continue
         first[sha] = e.name
-        done.add((e.name, sha))
         jobs.append(job)
     return jobs, direct, skipped
 
