@@ -855,3 +855,22 @@ def test_one_log_listed_for_two_of_its_axes_fits_both(tmp_path):
     assert [j.axis for j in jobs] == [2] and skipped == 1
     jobs, direct, skipped = plan([arm], [done], "fit")   # a whole-arm entry: its rows are of every axis
     assert not jobs and skipped == 1
+
+
+def test_fleet_diagnose_and_validate_take_the_fit_of_the_logs_axis(tmp_path):
+    """New-user trial 17: a two-axis log fitted for A2 and A3 (two rows, one content hash): `fleet
+    diagnose` took A3's fit for the A2 entry, "its fit in t.parquet: the parameters are of axis A3,
+    not A2", an error row; the fit of a log is looked up by its hash and axis."""
+    from kukaid.fleet.table import write_table
+    from kukaid.fleet.tasks import CheckOptions, Job, _model_for
+
+    rows = [{"robot": "R1", "axis": a, "date": d, "path": "arm.csv", "sha256": sha, "status": "ok", "kind": "fit",
+             "result": json.dumps({"axis": a, "day": d})} for d, sha in (("2026-01-05", "s1"), ("2026-01-06", "s2"))
+            for a in (2, 3)]
+    table = tmp_path / "t.parquet"
+    write_table(table, rows, {"task": "fit"})
+    for kind, sha, date in (("diagnose", "s2", "2026-01-06"), ("validate", "s2", "2026-01-06")):
+        opts = CheckOptions(table=str(table), kind=kind, run=None)
+        for axis in (2, 3):
+            params, _ = _model_for(Job("R1", axis, date, "/x/arm.csv", "arm.csv", sha), opts, axis)
+            assert params["axis"] == axis, (kind, axis, params)
