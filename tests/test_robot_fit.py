@@ -581,3 +581,16 @@ def test_the_friction_tables_speed_columns_name_their_unit(sim_fit):
 
     head = next(ln for ln in format_robot_table(sim_fit[0]).splitlines() if ln.startswith("joint"))
     assert "dead-band rad/s" in head and "Fv held beyond rad/s" in head, head
+
+
+def test_too_few_samples_after_a_decimate_given_names_it(kr6):
+    """New-user trial 17: `fit lwr4_1.csv --robot kuka_lwr4.urdf --decimate 1000` said "too few samples
+    left (5) after trimming ... and decimating: give a longer log or a higher cut-off", not the option
+    that left so few; it now names --decimate and its value."""
+    from kukaid.errors import FitError
+    from kukaid.identify.robot_fit import RobotFitSettings
+
+    log, _ = simulated_log(kr6, duration=1.2, fs=250.0, seed=1)
+    with pytest.raises(FitError, match=r"too few samples left \(\d\) .*: give a smaller --decimate \(now 100\), a "
+                                       r"longer log or a higher cut-off"):
+        fit_robot([log], kr6, RobotFitSettings(decimate=100))

@@ -582,8 +582,9 @@ def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive:
         names = ", ".join(str(log.attrs.get("source_file", "axis log")) for log in logs)
         fcs = sorted({f"{_cutoff(settings, 1.0 / log.sample_time):g}" for log in logs})
         raise FitError(f"{names}: too few samples left ({out.q.shape[0]}) after trimming two periods of the filter "
-                       f"cut-off {' / '.join(fcs)} Hz at each end and decimating: give a longer log or a higher "
-                       "cut-off")
+                       f"cut-off {' / '.join(fcs)} Hz at each end and decimating: give "
+                       + (f"a smaller --decimate (now {settings.decimate}), " if settings.decimate else "")
+                       + "a longer log or a higher cut-off")
     return out
 
 
