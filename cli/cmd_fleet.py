@@ -105,6 +105,8 @@ def _report(summary, output: Path, what: str) -> None:
         parts.append(_n(summary.duplicates, "duplicate"))
     if summary.skipped:
         parts.append(f"{summary.skipped} already in the table")
+    if summary.repeated:
+        parts.append(f"{summary.repeated} listed twice in the input")
     if summary.ran == 0 and summary.errors > summary.duplicates:
         from kukaid.errors import KukaidError
 

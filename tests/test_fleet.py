@@ -846,15 +846,30 @@ def test_one_log_listed_for_two_of_its_axes_fits_both(tmp_path):
     log = tmp_path / "arm.csv"
     log.write_text("time_s,A2_deg,A2_Nm,A3_deg,A3_Nm\n0,0,0,0,0\n")
     a2, a3, arm = (Entry("R1", axis, "2026-01-05", str(log), "arm.csv") for axis in (2, 3, None))
-    jobs, direct, skipped = plan([a2, a3], [], "fit")
-    assert [j.axis for j in jobs] == [2, 3] and not direct and skipped == 0
+    jobs, direct, skipped, repeated = plan([a2, a3], [], "fit")
+    assert [j.axis for j in jobs] == [2, 3] and not direct and skipped == repeated == 0
     done = {"path": "arm.csv", "sha256": content_hash(log), "axis": 2, "status": "ok"}
-    jobs, direct, skipped = plan([a2, a3], [done], "fit")
-    assert [j.axis for j in jobs] == [3] and not direct and skipped == 1
-    jobs, direct, skipped = plan([a2, a2], [], "fit")    # the same line twice: one fit
-    assert [j.axis for j in jobs] == [2] and skipped == 1
-    jobs, direct, skipped = plan([arm], [done], "fit")   # a whole-arm entry: its rows are of every axis
-    assert not jobs and skipped == 1
+    jobs, direct, skipped, repeated = plan([a2, a3], [done], "fit")
+    assert [j.axis for j in jobs] == [3] and not direct and (skipped, repeated) == (1, 0)
+    jobs, direct, skipped, repeated = plan([arm], [done], "fit")   # a whole-arm entry: its rows are of every axis
+    assert not jobs and (skipped, repeated) == (1, 0)
+
+
+def test_a_manifest_line_given_twice_is_not_said_to_be_in_the_table(tmp_path, capsys):
+    """New-user trial 17: a manifest listing one log twice (the same line), fitted into a new table,
+    said "1 already in the table"; it was the input that repeated it."""
+    from kukaid.fleet.manifest import Entry
+    from kukaid.fleet.run import RunSummary, plan
+    from kukaid_cli.cmd_fleet import _report
+
+    log = tmp_path / "a.csv"
+    log.write_text("time_s,A3_deg,A3_Nm\n0,0,0\n")
+    a = Entry("R1", 3, "2026-01-05", str(log), "a.csv")
+    jobs, direct, skipped, repeated = plan([a, a], [], "fit")
+    assert len(jobs) == 1 and (skipped, repeated) == (0, 1)
+    _report(RunSummary(total=2, ran=1, rows=1, repeated=1), tmp_path / "t.parquet", "fitted")
+    err = capsys.readouterr().err
+    assert "1 listed twice in the input" in err and "already in the table" not in err, err
 
 
 def test_fleet_diagnose_and_validate_take_the_fit_of_the_logs_axis(tmp_path):
