@@ -853,6 +853,11 @@ def test_one_log_listed_for_two_of_its_axes_fits_both(tmp_path):
     assert [j.axis for j in jobs] == [3] and not direct and (skipped, repeated) == (1, 0)
     jobs, direct, skipped, repeated = plan([arm], [done], "fit")   # a whole-arm entry: its rows are of every axis
     assert not jobs and (skipped, repeated) == (1, 0)
+    jobs, direct, skipped, repeated = plan([arm, a3], [], "fit")   # listed without an axis, then for one
+    assert [j.axis for j in jobs] == [None] and (skipped, repeated) == (0, 1)
+    failed = {**done, "axis": None, "status": "error"}             # "holds axes A2, A3; give the axis": given now
+    jobs, direct, skipped, repeated = plan([a2, a3], [failed], "fit")
+    assert [j.axis for j in jobs] == [2, 3] and (skipped, repeated) == (0, 0)
 
 
 def test_a_manifest_line_given_twice_is_not_said_to_be_in_the_table(tmp_path, capsys):

@@ -184,7 +184,7 @@ def plan(entries: Sequence[Entry], prior: list[dict], kind: str) -> tuple[list[J
     duplicate row, never run twice."""
     done = {_key(r) for r in prior}
     done |= {k[:2] for k in done}  # (name, hash): an entry without an axis is done by any of its rows
-    in_table = set(done)
+    in_table, whole = set(done), set()
     first: dict[str, str] = {}
     for r in prior:
         if r.get("sha256") and not (r.get("error") or "").startswith("duplicate"):
@@ -203,10 +203,12 @@ def plan(entries: Sequence[Entry], prior: list[dict], kind: str) -> tuple[list[J
         sha = content_hash(e.path)
         job = Job(e.robot, e.axis, e.date, e.path, e.name, sha, e.axis_from)
         key = (e.name, sha) if e.axis is None else (e.name, sha, e.axis)
-        if key in done:
+        if key in done or (e.name, sha) in whole:  # listed before in the input without an axis: every axis
             skipped, repeated = (skipped + 1, repeated) if key in in_table else (skipped, repeated + 1)
             continue
         done |= {key, key[:2]}
+        if e.axis is None:
+            whole.add(key)
         if sha in first and first[sha] != e.name:
             direct.append(duplicate_row(job, kind, first[sha]))
             continue
