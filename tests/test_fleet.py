@@ -894,3 +894,22 @@ def test_fleet_diagnose_and_validate_take_the_fit_of_the_logs_axis(tmp_path):
         for axis in (2, 3):
             params, _ = _model_for(Job("R1", axis, date, "/x/arm.csv", "arm.csv", sha), opts, axis)
             assert params["axis"] == axis, (kind, axis, params)
+
+
+@pytest.mark.parametrize("address", ["notaurl", "tcp://127.0.0.1", "tcp://host:abc", "http://host:8786",
+                                     "tcp://host:70000"])
+def test_a_scheduler_address_that_is_none_is_a_usage_error(tmp_path, address):
+    """New-user trial 17: `fleet fit manifest.csv -o t.parquet --scheduler notaurl` was an internal
+    error (ValueError: missing port number in address, exit 70); an address without a port, with a
+    port that is no number or another scheme is the option's error, before any work."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    man = small_fleet(tmp_path / "f", robots=1, days=1, seed=41)
+    for args, out in ((["fit", str(man)], "t.parquet"), (["validate", str(man), "--table", str(man)], "v.parquet"),
+                      (["simulate", "--robots", "1", "--days", "1"], "fleet")):
+        r = CliRunner().invoke(cli, ["fleet", *args, "-o", str(tmp_path / out), "--scheduler", address])
+        assert r.exit_code == 2 and "Invalid value for --scheduler" in r.stderr and "tcp://host:port" in r.stderr, \
+            (args, r.output)
+        assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / out).exists()
