@@ -53,6 +53,13 @@ def _check_workers(workers: int | None, scheduler: str | None) -> None:
     if workers is not None and scheduler is not None:
         raise click.UsageError("--workers applies to the local cluster; a running cluster (--scheduler) has its "
                                "own workers")
+    if scheduler is not None:  # Dask's own error for a malformed address was an internal error (exit 70)
+        import re
+
+        m = re.fullmatch(r"(?:(?:tcp|tls)://)?([^\s/:]+|\[[0-9A-Fa-f:.]+\]):(\d{1,5})", scheduler)
+        if not m or not 1 <= int(m.group(2)) <= 65535:
+            raise click.BadParameter(f"{scheduler!r} is not a scheduler's address: tcp://host:port (e.g. "
+                                     "tcp://fleet-scheduler:8786)", param_hint="--scheduler")
 
 
 def _check_pattern(source: Path, pattern: str | None) -> None:
@@ -105,6 +112,8 @@ def _report(summary, output: Path, what: str) -> None:
         parts.append(_n(summary.duplicates, "duplicate"))
     if summary.skipped:
         parts.append(f"{summary.skipped} already in the table")
+    if summary.repeated:
+        parts.append(f"{summary.repeated} listed twice in the input")
     if summary.ran == 0 and summary.errors > summary.duplicates:
         from kukaid.errors import KukaidError
 

@@ -55,7 +55,8 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
 
     The output is never the input file, and an existing output is replaced only with --force.
     A KUKA Trace source is any file of the recording: every module beside it is read (each
-    NextGenDrive#N, KRCIpo); the time base used is printed on stdout.
+    NextGenDrive#N, KRCIpo); the time base used is printed on stdout (with --json: in the
+    JSON, and on stderr).
 
     MAT example (EMPS): kukaid load DATA_EMPS.mat --time t --q qm --tau vir --tau-scale-var gtau
     --q-cmd qg --joint prismatic --axis 1 -o emps.h5
@@ -108,8 +109,8 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
         write_csv(log, output)
     else:
         write_hdf5(log, output)
-    if "time_base_note" in log.attrs:
-        click.echo(log.attrs["time_base_note"])
+    if "time_base_note" in log.attrs:  # with --json stdout is the JSON alone
+        click.echo(log.attrs["time_base_note"], err=as_json)
     for h in hints:  # units the file leaves open, and the option that says them
         click.echo(f"kukaid: warning: load: {h}", err=True)
     hints += _implausible(source, log)
@@ -118,7 +119,7 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
 
         echo_json({"output": str(output), "source": str(source), "samples": log.n_samples, "axes": list(log.axes),
                    "joint": list(log.joint), "duration": log.duration, "time_base": log.attrs.get("time_base"),
-                   "warnings": hints})
+                   "time_base_note": log.attrs.get("time_base_note"), "warnings": hints})
     click.echo(f"{output}: {log.n_samples} samples of axes {', '.join(f'A{a}' for a in log.axes)}, "
                f"{log.duration:.2f} s", err=True)
 

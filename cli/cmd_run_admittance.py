@@ -250,6 +250,11 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if sim_only:
             raise click.UsageError(f"{', '.join(sim_only)} {'is' if len(sim_only) == 1 else 'are'} for --backend sim "
                                    "(the simulator and its simulated person): a real robot starts where it stands")
+    if backend == "sim":  # and the real robot's do nothing on the simulator: a run meant for a robot
+        kvp_only = [f"--{k.replace('_', '-')}" for k in ("enable_motion", "host", "port") if given(k)]
+        if kvp_only:
+            raise click.UsageError(f"{', '.join(kvp_only)} {'is' if len(kvp_only) == 1 else 'are'} for --backend kvp "
+                                   "(a real KR C4 over KUKAVARPROXY): without it the run is on the virtual KR C4")
     params = load_any_params(params_path, urdf)
     robot_file = is_robot_params(params)  # a whole robot (`kukaid fit --robot`): Γr of the axis from every axis
     if no_rest_model and not robot_file:

@@ -36,7 +36,9 @@ from kukaid_cli._util import AxisNumber
               help="Write every 12 ms sample the simulator took (ground truth, sim time) to this HDF5 log on exit.")
 @click.option("--force", is_flag=True, help="Replace an existing --truth log.")
 @click.option("--delay", type=click.FloatRange(0.0, 10.0), default=0.0, help="Fault injection: seconds added to every reply.")
-@click.option("--q0", type=click.FloatRange(-360.0, 360.0), help="Start position of the axis, degrees (without --trajectory) [0].")
+@click.option("--q0", type=click.FloatRange(-360.0, 360.0),
+              help="Start position of the axis, degrees (without --trajectory), within the simulated axis's range of "
+                   "motion (A3 of a KR 6 R700 sixx: -120 to 156) [0].")
 @click.option("--follower", "follower_window", nargs=2, type=float, metavar="QMIN QMAX",
               help="Emulate the program of `kukaid krl-follower` with this window (degrees): KID_TGT is "
                    "followed while KID_RUN is TRUE, clamped, and motion stops when KID_HB goes stale.")
@@ -116,10 +118,18 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
     # a --sim-config's "axis" is simulated (as run-admittance does), or refused when it is not the axis asked for
     axis = config_axis(sim_config, axis if traj is not None or given("axis") else None,
                        str(traj_path) if traj is not None else f"--axis {axis}") or axis
-    sim = VirtualKRC4(cfg, seed=seed, axis=axis)
     if q0 is not None:
         if traj is not None:
             raise click.UsageError("--q0 is for a robot without --trajectory (it starts where the trajectory does)")
+        from kukaid.models.limits import AxisLimits
+
+        rng = AxisLimits.kr6_r700_sixx(axis)  # the virtual robot has no hard stops: beyond them it simulates no robot
+        if not rng.q_min - 1e-9 <= math.radians(q0) <= rng.q_max + 1e-9:
+            raise click.BadParameter(f"{q0:g} degrees is outside the range of motion of the virtual KR C4's A{axis} "
+                                     f"(a KR 6 R700 sixx), {math.degrees(rng.q_min):.4g} to "
+                                     f"{math.degrees(rng.q_max):.4g} degrees", param_hint="--q0")
+    sim = VirtualKRC4(cfg, seed=seed, axis=axis)
+    if q0 is not None:
         sim.reset(math.radians(q0))
     if operator is not None:
         from kukaid.sim.operator import make_operator

@@ -36,7 +36,7 @@ def command(params_path: Path, logs: tuple[Path, ...], log_opts: tuple[Path, ...
     from kukaid.diagnose.validate import flat_warnings, mismatch_warnings, table, to_json, validate
     from kukaid.identify.fitted import load_model, use_warnings
     from kukaid.jsonfile import jsonable
-    from kukaid.logs import read_log
+    from kukaid.logs import check_each_recording_once, read_log
     from kukaid_cli._util import strict_exit
 
     logs = (*logs, *log_opts)
@@ -44,6 +44,7 @@ def command(params_path: Path, logs: tuple[Path, ...], log_opts: tuple[Path, ...
         raise click.UsageError("Missing argument 'LOGS...' (or --log)")
     model = load_model(params_path, axis, urdf)
     data = [read_log(p) for p in logs]
+    check_each_recording_once(data)  # pooled twice, it would count double: as fit and diagnose, refused
     per_log: list = []
     scores = validate(model, data, per_log=per_log)
     warnings = (flat_warnings(per_log, logs, scores, model.unit)

@@ -66,6 +66,11 @@ def files(tmp_path_factory):
     (["excite", "fourier", "-o", "x.json", "--qdd-max-deg", "nan"], ["Invalid value for --qdd-max-deg", "> 0"]),
     (["excite", "inertia", "-o", "x.json", "--lead", "1e9"], ["--lead", "longer than an hour"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--q0", "nan"], ["--q0", "not a position"]),
+    # new-user trial 17: served A3 (a KR 6 R700 sixx's, -120 to 156 degrees) standing at 300 degrees, as
+    # run-admittance --q0 300 did before trial 10
+    (["serve-sim", "--port", "0", "--duration", "1", "--q0", "300"],
+     ["--q0", "300 degrees is outside the range of motion of the virtual KR C4's A3", "-120 to 156 degrees"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--axis", "2", "--q0", "60"], ["--q0", "A2", "-190 to 45"]),
     # options of serve-sim that did nothing, without a word: a simulated A3 served for --axis 4, a
     # grip or start of a hand that is not there, a heartbeat timeout of no follower
     (["serve-sim", "--port", "0", "--duration", "1", "--axis", "4", "--trajectory", "{traj}"],

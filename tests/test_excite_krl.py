@@ -115,6 +115,14 @@ def test_krl_presliding_keeps_the_micro_reversals():
         assert np.min(np.abs(np.abs(q - stop) - a / DEG)) < 1e-5
 
 
+@pytest.mark.parametrize("name", ["DEF", "end", "Ptp", "wait", "P", "xp", "N_PTS", "OVR_NOW", "BAS"])
+def test_krl_refuses_a_keyword_or_a_name_the_program_uses(name):
+    """New-user trial 17: --krl-name DEF (or P, the program's own pose variable) was accepted and the
+    program began `DEF DEF( )`, which no KR C4 compiles; KRL ignores case."""
+    with pytest.raises(KukaidError, match=f"'{name}' is a KRL keyword or a name the program uses"):
+        krl_program(friction(speeds=[0.1], plateau=1.0), name=name)
+
+
 def test_krl_refuses_bad_names_and_axes(tmp_path):
     tr = friction(speeds=[0.1], plateau=1.0)
     with pytest.raises(KukaidError, match="not a KRL name"):

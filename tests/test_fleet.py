@@ -834,3 +834,82 @@ def test_an_error_row_names_the_log_as_the_manifest_does(tmp_path):
     dup = Job("R5", 3, "2026-01-05", str(good), "R5/2026-01-05/A3.h5", content_hash(good))
     assert duplicate_row(dup, "validate", "R001/x.h5")["error"] == ("duplicate: the same content as R001/x.h5 (not "
                                                                     "validated twice)")
+
+
+def test_one_log_listed_for_two_of_its_axes_fits_both(tmp_path):
+    """New-user trial 17: a manifest listing a two-axis log for A2 and again for A3 (as `fleet fit`
+    asks: "holds axes A2, A3; give the axis in the manifest") fitted A2 only and said "1 already in
+    the table" of a table just made; a log is done per axis, and a whole-arm entry by any of its rows."""
+    from kukaid.fleet.manifest import Entry, content_hash
+    from kukaid.fleet.run import plan
+
+    log = tmp_path / "arm.csv"
+    log.write_text("time_s,A2_deg,A2_Nm,A3_deg,A3_Nm\n0,0,0,0,0\n")
+    a2, a3, arm = (Entry("R1", axis, "2026-01-05", str(log), "arm.csv") for axis in (2, 3, None))
+    jobs, direct, skipped, repeated = plan([a2, a3], [], "fit")
+    assert [j.axis for j in jobs] == [2, 3] and not direct and skipped == repeated == 0
+    done = {"path": "arm.csv", "sha256": content_hash(log), "axis": 2, "status": "ok"}
+    jobs, direct, skipped, repeated = plan([a2, a3], [done], "fit")
+    assert [j.axis for j in jobs] == [3] and not direct and (skipped, repeated) == (1, 0)
+    jobs, direct, skipped, repeated = plan([arm], [done], "fit")   # a whole-arm entry: its rows are of every axis
+    assert not jobs and (skipped, repeated) == (1, 0)
+    jobs, direct, skipped, repeated = plan([arm, a3], [], "fit")   # listed without an axis, then for one
+    assert [j.axis for j in jobs] == [None] and (skipped, repeated) == (0, 1)
+    failed = {**done, "axis": None, "status": "error"}             # "holds axes A2, A3; give the axis": given now
+    jobs, direct, skipped, repeated = plan([a2, a3], [failed], "fit")
+    assert [j.axis for j in jobs] == [2, 3] and (skipped, repeated) == (0, 0)
+
+
+def test_a_manifest_line_given_twice_is_not_said_to_be_in_the_table(tmp_path, capsys):
+    """New-user trial 17: a manifest listing one log twice (the same line), fitted into a new table,
+    said "1 already in the table"; it was the input that repeated it."""
+    from kukaid.fleet.manifest import Entry
+    from kukaid.fleet.run import RunSummary, plan
+    from kukaid_cli.cmd_fleet import _report
+
+    log = tmp_path / "a.csv"
+    log.write_text("time_s,A3_deg,A3_Nm\n0,0,0\n")
+    a = Entry("R1", 3, "2026-01-05", str(log), "a.csv")
+    jobs, direct, skipped, repeated = plan([a, a], [], "fit")
+    assert len(jobs) == 1 and (skipped, repeated) == (0, 1)
+    _report(RunSummary(total=2, ran=1, rows=1, repeated=1), tmp_path / "t.parquet", "fitted")
+    err = capsys.readouterr().err
+    assert "1 listed twice in the input" in err and "already in the table" not in err, err
+
+
+def test_fleet_diagnose_and_validate_take_the_fit_of_the_logs_axis(tmp_path):
+    """New-user trial 17: a two-axis log fitted for A2 and A3 (two rows, one content hash): `fleet
+    diagnose` took A3's fit for the A2 entry, "its fit in t.parquet: the parameters are of axis A3,
+    not A2", an error row; the fit of a log is looked up by its hash and axis."""
+    from kukaid.fleet.table import write_table
+    from kukaid.fleet.tasks import CheckOptions, Job, _model_for
+
+    rows = [{"robot": "R1", "axis": a, "date": d, "path": "arm.csv", "sha256": sha, "status": "ok", "kind": "fit",
+             "result": json.dumps({"axis": a, "day": d})} for d, sha in (("2026-01-05", "s1"), ("2026-01-06", "s2"))
+            for a in (2, 3)]
+    table = tmp_path / "t.parquet"
+    write_table(table, rows, {"task": "fit"})
+    for kind, sha, date in (("diagnose", "s2", "2026-01-06"), ("validate", "s2", "2026-01-06")):
+        opts = CheckOptions(table=str(table), kind=kind, run=None)
+        for axis in (2, 3):
+            params, _ = _model_for(Job("R1", axis, date, "/x/arm.csv", "arm.csv", sha), opts, axis)
+            assert params["axis"] == axis, (kind, axis, params)
+
+
+@pytest.mark.parametrize("address", ["notaurl", "tcp://127.0.0.1", "tcp://host:abc", "http://host:8786",
+                                     "tcp://host:70000"])
+def test_a_scheduler_address_that_is_none_is_a_usage_error(tmp_path, address):
+    """New-user trial 17: `fleet fit manifest.csv -o t.parquet --scheduler notaurl` was an internal
+    error (ValueError: missing port number in address, exit 70); an address without a port, with a
+    port that is no number or another scheme is the option's error, before any work."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    man = small_fleet(tmp_path / "f", robots=1, days=1, seed=41)
+    for args, out in ((["fit", str(man)], "t.parquet"), (["validate", str(man), "--table", str(man)], "v.parquet"),
+                      (["simulate", "--robots", "1", "--days", "1"], "fleet")):
+        r = CliRunner().invoke(cli, ["fleet", *args, "-o", str(tmp_path / out), "--scheduler", address])
+        assert r.exit_code == 2 and "Invalid value for --scheduler" in r.stderr and "tcp://host:port" in r.stderr, \
+            (args, r.output)
+        assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / out).exists()

@@ -106,7 +106,7 @@ def test_a_whole_arm_log_whose_diagnosis_fails_is_an_error_row(arms, tmp_path, m
             r["result"] = json.dumps(p)
     table = tmp_path / "fit.parquet"
     write_table(table, rows, settings)
-    jobs, _, _ = plan(read_input(man), [], "diagnose")
+    jobs = plan(read_input(man), [], "diagnose")[0]
     opts = CheckOptions(table=str(table), kind="diagnose", run=functools.partial(diagnose_model, max_steps=max_steps))
     got = {j.name: check_task(j, opts) for j in jobs}
     cb = got.pop(CB_LOG)

@@ -54,3 +54,24 @@ def test_cli_writes_files_and_refuses_overwrite(tmp_path, kukaid_cmd):
     r = subprocess.run([*kukaid_cmd, "krl-logger", "--axis", "3", "-o", str(tmp_path)], capture_output=True, text=True,
                        timeout=60)
     assert r.returncode == 1 and "already exists" in r.stderr
+
+
+@pytest.mark.parametrize("axes", [(3,), (1, 2, 3), (1, 2, 3, 4), (1, 2, 3, 4, 5, 6)])
+def test_each_swrite_of_the_logger_takes_at_most_ten_variables(axes):
+    """New-user trial 17: `krl-logger --axis 1 ... --axis 6` wrote one SWRITE of 19 variables; KRL's
+    SWRITE(String, State, Offset, Format, Var1 <, ..., Var10>) takes at most 10, so the logger of 4 to 6
+    axes would not compile on a KR C4.  A sample is now written by consecutive SWRITEs (the offset runs
+    on), their formats and variables together those of one sample."""
+    import re
+
+    sub = krl_logger_files(RingLayout(axes=axes, nb=4, bs=2))["KUKAID_LOG.SUB"]
+    body = sub.split("DEF KID_SAMPLE()")[1]
+    calls = re.findall(r'SWRITE\(KID_CUR\[\],KID_ST,KID_OFS,"([^"]*)",([^)]*(?:\)[^)]*)*?)\)\s*$', body, re.M)
+    assert calls, body
+    fmts, args = zip(*calls)
+    args = [a.split(",") for a in args]
+    assert all(len(a) <= 10 and len(a) == f.count("%") for f, a in zip(fmts, args)), calls
+    n = len(axes)
+    assert "".join(fmts) == "%d" + ",%.4f" * n + ",%.3f" * n + ",%.1f" * n + ";"
+    assert sum(args, []) == (["$ROB_TIMER"] + [f"$AXIS_ACT_MEAS.A{a}" for a in axes]
+                             + [f"$TORQUE_AXIS_ACT[{a}]" for a in axes] + [f"$MOT_TEMP[{a}]" for a in axes])

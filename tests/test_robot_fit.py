@@ -187,6 +187,28 @@ def test_robot_params_with_a_broken_drive_or_base_numbering_are_refused(sim_fit)
     validate_robot_params(json.loads(json.dumps(params)), "p.json")
 
 
+def test_robot_params_edited_by_hand_name_the_field_edited(sim_fit):
+    """New-user trial 17: base_parameters.values one entry short was refused as "'base_parameters.independent'
+    must have 42 entries, has 43" (the field not edited), and a negative Coulomb or viscous friction (the fit
+    keeps them >= 0; a one-axis file refuses Fc < 0) or a term of an axis the robot has not was taken."""
+    params, _ = sim_fit
+    bad = json.loads(json.dumps(params))
+    bad["base_parameters"]["values"].pop()
+    b = len(params["base_parameters"]["values"])
+    with pytest.raises(ParamFileError, match=rf"^p\.json: 'base_parameters.values' must have {b} entries, has {b - 1}"):
+        validate_robot_params(bad, "p.json")
+    for key, value, said in (("A1.Fc", -5.0, r"'friction.values.A1.Fc' must be >= 0, got -5"),
+                             ("A2.Fv", -0.1, r"'friction.values.A2.Fv' must be >= 0, got -0.1"),
+                             ("A9.Fc", 1.0, r"'friction.values' key 'A9.Fc': the robot has axes A1..A6")):
+        bad = json.loads(json.dumps(params))
+        bad["friction"]["values"][key] = value
+        with pytest.raises(ParamFileError, match=rf"^p\.json: {said}"):
+            validate_robot_params(bad, "p.json")
+    ok = json.loads(json.dumps(params))
+    ok["friction"]["values"]["A2.Fv"] = -8.4e-09          # on its bound, as the fit's solver leaves it
+    validate_robot_params(ok, "p.json")
+
+
 def test_log_without_all_axes_is_refused(kr6):
     log, _ = simulated_log(kr6, duration=5.0, seed=0)
     part = type(log)(time=log.time, q=log.q[:, :3], tau=log.tau[:, :3], axes=(1, 2, 3))
@@ -550,3 +572,25 @@ def test_motor_side_torques_with_a_urdf_without_gear_ratios_are_refused(kr6, tmp
     with pytest.raises(FitError, match=r"bare.urdf: torques on the motor side need the joints' gear ratios.*"
                                        r"--torque-side joint"):
         fit_robot([log], bare, RobotFitSettings(torque_side="motor"))
+
+
+def test_the_friction_tables_speed_columns_name_their_unit(sim_fit):
+    """New-user trial 17: `kukaid show p.json` (fit --robot) headed two columns of speeds 'dead-band'
+    and 'Fv held beyond' with no unit, beside 'v rad/s'; now each says rad/s."""
+    from kukaid.identify.robot_fit import format_robot_table
+
+    head = next(ln for ln in format_robot_table(sim_fit[0]).splitlines() if ln.startswith("joint"))
+    assert "dead-band rad/s" in head and "Fv held beyond rad/s" in head, head
+
+
+def test_too_few_samples_after_a_decimate_given_names_it(kr6):
+    """New-user trial 17: `fit lwr4_1.csv --robot kuka_lwr4.urdf --decimate 1000` said "too few samples
+    left (5) after trimming ... and decimating: give a longer log or a higher cut-off", not the option
+    that left so few; it now names --decimate and its value."""
+    from kukaid.errors import FitError
+    from kukaid.identify.robot_fit import RobotFitSettings
+
+    log, _ = simulated_log(kr6, duration=1.2, fs=250.0, seed=1)
+    with pytest.raises(FitError, match=r"too few samples left \(\d\) .*: give a smaller --decimate \(now 100\), a "
+                                       r"longer log or a higher cut-off"):
+        fit_robot([log], kr6, RobotFitSettings(decimate=100))

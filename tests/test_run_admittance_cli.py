@@ -235,6 +235,21 @@ def test_a_real_robot_run_refuses_the_simulators_options(files, tmp_path, args, 
 
 
 @pytest.mark.parametrize("args, message", [
+    (["--enable-motion"], "--enable-motion is for --backend kvp"),
+    (["--host", "192.168.1.5"], "--host is for --backend kvp"),
+    (["--host", "192.168.1.5", "--port", "7001"], "--host, --port are for --backend kvp"),
+])
+def test_a_simulated_run_refuses_the_real_robots_options(files, tmp_path, args, message):
+    """New-user trial 17: --enable-motion, --host and --port with the default --backend sim were taken
+    without a word, and the run went to the virtual KR C4 (exit 0) while the user meant a robot;
+    capture refuses them, and run-admittance --backend kvp refuses the simulator's options."""
+    out = tmp_path / "r.h5"
+    r = _run(["--params", files / "params.json", "--duration", "1", "-o", out, *args])
+    assert r.exit_code == 2 and message in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.output
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args, message", [
     (["--q-min", "50", "--q-max", "10"], "position window [50, 10] degrees (--q-min/--q-max) must have q_min < q_max"),
     (["--q-min", "40", "--q-max", "60"], "start position --q0 30 degrees is outside the position window [40, 60] degrees"),
     (["--q-min", "200"], "position window [200, 120] degrees"),

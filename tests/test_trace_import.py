@@ -238,3 +238,20 @@ def test_kukaid_load_reads_the_set_with_a_gear_ratio_file(tmp_path, kukaid_cmd):
                        capture_output=True, text=True, timeout=60)
     assert r.returncode != 0 and r.stderr.startswith("kukaid: error: ") and "--gear-ratio" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "m.h5").exists()
+
+
+def test_kukaid_load_json_of_a_trace_is_json_alone(tmp_path):
+    """New-user trial 17: `kukaid load Rec_NextGenDrive#1.dat --gear-ratio ... --json` printed the
+    'time base: ...' line on stdout before the JSON, so `| python -m json.tool` failed; the note is
+    now in the JSON (and on stderr)."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    write_kr_c4_set(tmp_path, duration=0.2)
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "Rec_NextGenDrive#1.dat"), "--gear-ratio", RATIOS, "--json",
+                                 "-o", str(tmp_path / "rec.h5")])
+    assert r.exit_code == 0, r.output
+    got = json.loads(r.stdout)
+    assert got["time_base_note"].startswith("time base: the sample instants of Istposition")
+    assert "time base: " in r.stderr

@@ -270,3 +270,20 @@ def test_validate_json_holds_its_warnings(tmp_path):
             if line.startswith("kukaid: warning: validate: ")]
     got = json.loads(r.stdout)["warnings"]
     assert got == said and len(got) == 2 and "other axes (A2) move" in got[0] and "in-sample" in got[1], got
+
+
+def test_validate_refuses_one_recording_given_twice_as_fit_and_diagnose_do(tmp_path, monkeypatch):
+    """New-user trial 17: `validate --params p.json b.h5 --log b.h5` (or b.h5 and a copy of it) pooled
+    the recording twice: the table said 2x its samples and weighed it double in the pooled figures;
+    fit and diagnose refuse it, `b.h5: given twice; give each recording once`."""
+    import shutil
+
+    monkeypatch.chdir(tmp_path)
+    write_hdf5(sine_log(1, 0.25), "a.h5")
+    write_hdf5(sine_log(2, 0.18, amp=0.7), "b.h5")
+    shutil.copy("b.h5", "copy.h5")
+    assert CliRunner().invoke(cli, ["fit", "a.h5", "--friction-model", "coulomb-viscous", "-o", "p.json"]).exit_code == 0
+    for logs, said in ((["b.h5", "--log", "b.h5"], "given twice"), (["b.h5", "copy.h5"], "the same recording as")):
+        r = CliRunner().invoke(cli, ["validate", "--params", "p.json", *logs])
+        assert r.exit_code == 1 and len(r.output.strip().splitlines()) == 1, r.output
+        assert r.output.startswith("kukaid: error: ") and said in r.output and "give each recording once" in r.output

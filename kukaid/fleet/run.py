@@ -28,7 +28,8 @@ Progress = Callable[[int, int], None]
 class RunSummary:
     """What a run did.  ``ran``: logs run now that gave a result (an ``ok`` row; a log run into an error
     row is not counted); ``errors``: error rows (of the logs run now, duplicates and missing files);
-    ``skipped``: logs already in the table; ``first_error``: the error of this run's first error row
+    ``skipped``: logs already in the table; ``repeated``: entries repeating an earlier one of the input (the
+    same log and axis); ``first_error``: the error of this run's first error row
     (table order; duplicates aside), empty when none; ``peak_worker_mb``: the largest peak resident memory a
     worker process reported (MB); ``wall_s``: the run's wall time (s), cluster start included; ``tasks_s``: from the first task
     submitted to the last row received (s)."""
@@ -37,6 +38,7 @@ class RunSummary:
     ran: int = 0
     errors: int = 0
     skipped: int = 0
+    repeated: int = 0
     duplicates: int = 0
     first_error: str = ""
     rows: int = 0
@@ -136,8 +138,9 @@ def _leave_ctrl_c_to_the_command() -> Any:
     return LeaveCtrlCToTheCommand()
 
 
-def _key(row: dict) -> tuple[str, str]:
-    return (row.get("path") or "", row.get("sha256") or "")
+def _key(row: dict) -> tuple[str, str, int | None]:
+    """A row is of one log and one axis: a log listed for two of its axes gives two rows."""
+    return (row.get("path") or "", row.get("sha256") or "", row.get("axis"))
 
 
 def _sort(rows: list[dict]) -> list[dict]:
@@ -172,39 +175,46 @@ def _diff(a: dict, b: dict) -> str:
     return ", ".join(f"{k}: {a.get(k)!r}, now {b.get(k)!r}" for k in keys if a.get(k) != b.get(k)) or "unknown"
 
 
-def plan(entries: Sequence[Entry], prior: list[dict], kind: str) -> tuple[list[Job], list[dict], int]:
-    """Which logs to run: (jobs, rows made without running (missing files, duplicates), skipped).
+def plan(entries: Sequence[Entry], prior: list[dict], kind: str) -> tuple[list[Job], list[dict], int, int]:
+    """Which logs to run: (jobs, rows made without running (missing files, duplicates), skipped, repeated:
+    entries that repeat an earlier one of ``entries``, the same log and axis).
 
-    A log whose (name, content hash) has a row is skipped; a log whose content is that of an
-    earlier log (in the table or earlier in the input) becomes a duplicate row, never run twice."""
+    A log whose (name, content hash) has a row of its axis (a whole-arm log: any row) is skipped; a
+    log whose content is that of an earlier log (in the table or earlier in the input) becomes a
+    duplicate row, never run twice."""
     done = {_key(r) for r in prior}
+    done |= {k[:2] for k in done}  # (name, hash): an entry without an axis is done by any of its rows
+    in_table, whole = set(done), set()
     first: dict[str, str] = {}
     for r in prior:
         if r.get("sha256") and not (r.get("error") or "").startswith("duplicate"):
             first.setdefault(r["sha256"], r["path"])
-    jobs, direct, skipped = [], [], 0
+    jobs, direct, skipped, repeated = [], [], 0, 0
     for e in entries:
         if not os.path.isfile(e.path):
             job = Job(e.robot, e.axis, e.date, e.path, e.name, "", e.axis_from)
-            if (e.name, "") in done:  # still missing: its row stands
-                skipped += 1
+            key = (e.name, "") if e.axis is None else (e.name, "", e.axis)
+            if key in done:  # still missing: its row stands
+                skipped, repeated = (skipped + 1, repeated) if key in in_table else (skipped, repeated + 1)
                 continue
-            done.add((e.name, ""))
+            done |= {key, key[:2]}
             direct.append(error_row(job, kind, f"{e.name}: no such file"))
             continue
         sha = content_hash(e.path)
         job = Job(e.robot, e.axis, e.date, e.path, e.name, sha, e.axis_from)
-        if (e.name, sha) in done:
-            skipped += 1
+        key = (e.name, sha) if e.axis is None else (e.name, sha, e.axis)
+        if key in done or (e.name, sha) in whole:  # listed before in the input without an axis: every axis
+            skipped, repeated = (skipped + 1, repeated) if key in in_table else (skipped, repeated + 1)
             continue
+        done |= {key, key[:2]}
+        if e.axis is None:
+            whole.add(key)
         if sha in first and first[sha] != e.name:
             direct.append(duplicate_row(job, kind, first[sha]))
-            done.add((e.name, sha))
             continue
         first[sha] = e.name
-        done.add((e.name, sha))
         jobs.append(job)
-    return jobs, direct, skipped
+    return jobs, direct, skipped, repeated
 
 
 def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, Any], list[dict]], options: Any,
@@ -226,11 +236,11 @@ def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, 
     t_start = time.perf_counter()
     table = Path(table)
     prior = prior_rows(table, settings)
-    jobs, direct, skipped = plan(entries, prior, kind)
+    jobs, direct, skipped, repeated = plan(entries, prior, kind)
     names_now = {j.name: j.sha256 for j in jobs}
     # a log replaced by another file of the same name: its old rows go
     prior = [r for r in prior if not (r.get("path") in names_now and r.get("sha256") != names_now[r.get("path")])]
-    s = RunSummary(total=len(entries), skipped=skipped, duplicates=sum(1 for r in direct
+    s = RunSummary(total=len(entries), skipped=skipped, repeated=repeated, duplicates=sum(1 for r in direct
                                                                        if (r.get("error") or "").startswith("duplicate")))
     rows = list(prior)
     journal = Journal(table, settings)
@@ -254,7 +264,7 @@ def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, 
     except KeyboardInterrupt:  # Ctrl-C: say what is kept, and where, since the journal is a hidden file
         journal.close()
         done = len({r.get("path") for r in rows[len(prior):]})
-        err = KukaidError(f"{table}: interrupted after {done} of {len(entries) - skipped} logs; the finished rows are "
+        err = KukaidError(f"{table}: interrupted after {done} of {len(entries) - skipped - repeated} logs; the finished rows are "
                           f"kept (in {journal_path(table).name} beside it): run the same command again to go on")
         err.exit_code = 130
         raise err from None

@@ -218,8 +218,9 @@ class CheckOptions:
 
 @functools.lru_cache(maxsize=2)
 def _fits(table: str, mtime: float) -> tuple[dict, dict, str | None]:
-    """{sha256: parameter dict JSON} and {(robot, axis): [(date, sha256)] sorted} of a fit table's ok rows,
-    and the robot (URDF or name) of its whole-arm fits (fleet fit --robot; None: one-axis fits)."""
+    """{sha256: parameter dict JSON, and (sha256, axis): that of the axis} and {(robot, axis): [(date, sha256)]
+    sorted} of a fit table's ok rows, and the robot (URDF or name) of its whole-arm fits (fleet fit --robot;
+    None: one-axis fits).  A log fitted for two of its axes has one hash and a fit per axis."""
     from kukaid.fleet.table import FIT_TABLE, read_table
 
     rows, settings = read_table(table, FIT_TABLE)
@@ -230,7 +231,8 @@ def _fits(table: str, mtime: float) -> tuple[dict, dict, str | None]:
         if r["status"] != "ok":
             continue
         if r.get("result"):
-            params[r["sha256"]] = r["result"]
+            params.setdefault(r["sha256"], r["result"])
+            params[(r["sha256"], r["axis"])] = r["result"]
         by_axis.setdefault((r["robot"], r["axis"]), []).append((r["date"], r["sha256"]))
     for v in by_axis.values():
         v.sort()
@@ -239,17 +241,21 @@ def _fits(table: str, mtime: float) -> tuple[dict, dict, str | None]:
 
 def _model_for(job: Job, opts: CheckOptions, axis: int | None) -> tuple[dict, str]:
     params, by_axis, _ = _fits(opts.table, os.path.getmtime(opts.table))
+
+    def fit_of(sha: str) -> str | None:  # the fit of this axis of the log, else the log's (a whole arm's)
+        return params.get((sha, axis)) or params.get(sha)
+
     if opts.kind == "diagnose":
-        if job.sha256 not in params:
+        if fit_of(job.sha256) is None:
             raise KukaidError(f"{job.name}: no fit of this log in {os.path.basename(opts.table)}")
-        return json.loads(params[job.sha256]), job.date
-    earlier = [(d, sha) for d, sha in by_axis.get((job.robot, axis), []) if d < job.date and sha in params]
+        return json.loads(fit_of(job.sha256)), job.date
+    earlier = [(d, sha) for d, sha in by_axis.get((job.robot, axis), []) if d < job.date and fit_of(sha) is not None]
     if not earlier:
         what = f"{job.robot} A{axis}" if axis is not None else job.robot
         raise KukaidError(f"{job.name}: no fit of {what} from a day before {job.date} in "
                           f"{os.path.basename(opts.table)} to validate")
     d, sha = earlier[-1]
-    return json.loads(params[sha]), d
+    return json.loads(fit_of(sha)), d
 
 
 def _other_kind(job: Job, log, table: str) -> None:

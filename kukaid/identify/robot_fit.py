@@ -561,8 +561,9 @@ def _samples(logs: Sequence[AxisLog], n: int, settings: RobotFitSettings, drive:
         names = ", ".join(str(log.attrs.get("source_file", "axis log")) for log in logs)
         fcs = sorted({f"{_cutoff(settings, 1.0 / log.sample_time):g}" for log in logs})
         raise FitError(f"{names}: too few samples left ({out.q.shape[0]}) after trimming two periods of the filter "
-                       f"cut-off {' / '.join(fcs)} Hz at each end and decimating: give a longer log or a higher "
-                       "cut-off")
+                       f"cut-off {' / '.join(fcs)} Hz at each end and decimating: give "
+                       + (f"a smaller --decimate (now {settings.decimate}), " if settings.decimate else "")
+                       + "a longer log or a higher cut-off")
     return out
 
 
@@ -1819,14 +1820,14 @@ def format_robot_table(params: dict) -> str:
     K = ((mt.get("choices") or {}).get("ripple") or {}).get("chosen") or [st.get("ripple", 0)] * n
     rng = fr.get("qd_range")
     head = f"{'joint':<6}{'Fc N·m':>9}{'Fv N·m·s/rad':>13}{'offset N·m':>11}{'k N·m/rad':>10}{'v rad/s':>9}" \
-           f"{'dead-band':>10}{'ripple':>7}{'Fv held beyond':>16}"
+           f"{'dead-band rad/s':>16}{'ripple':>7}{'Fv held beyond rad/s':>21}"
     lines += ["friction per joint: Fc tanh(x/v), x the speed beyond the dead-band; Fv qd (held beyond the fitted",
               "speeds); offset; spring k q; position ripple harmonics", head]
     for j, a in enumerate(axes):
         held = "-" if not rng else f"{rng[j][0]:+.2g}/{rng[j][1]:+.2g}"
         lines.append(f"A{a:<5}{table_number(vals.get(f'A{a}.Fc')):>9}{table_number(vals.get(f'A{a}.Fv')):>13}"
                      f"{table_number(vals.get(f'A{a}.offset')):>11}{table_number(vals.get(f'A{a}.k')):>10}{table_number(v[j], 2):>9}"
-                     f"{table_number(d[j], 2, 1e-12):>10}{K[j]:>7}{held:>16}")
+                     f"{table_number(d[j], 2, 1e-12):>16}{K[j]:>7}{held:>21}")
     if fr.get("model") == "stribeck":
         lines.append("Stribeck excess Fs-Fc: " + " ".join(f"A{a} {table_number(vals.get(f'A{a}.Fs-Fc'))}" for a in axes)
                      + f" (vs {fr.get('vs')} rad/s)")

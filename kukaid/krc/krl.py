@@ -36,6 +36,12 @@ from kukaid.atomic import write_texts_atomic
 
 _DEG = math.pi / 180.0
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,23}$")
+# a module may not be named as a KRL keyword or as what its program declares or calls (KRL ignores case)
+_TAKEN = frozenset("""AND B_AND B_EXOR B_NOT B_OR BOOL BRAKE C_DIS C_ORI C_PTP C_VEL CASE CHAR CIRC CIRC_REL CONST
+    CONTINUE DECL DEF DEFAULT DEFDAT DEFFCT DELAY DO ELSE END ENDDAT ENDFCT ENDFOR ENDIF ENDLOOP ENDSWITCH ENDWHILE
+    ENUM EXIT EXOR EXT EXTFCT FALSE FOR GLOBAL GOTO HALT IF IMPORT INT INTERRUPT IS LIN LIN_REL LOOP NOT OR PRIO PTP
+    PTP_REL PUBLIC REAL REPEAT RESUME RETURN SEC SIGNAL STEP STRUC SWITCH THEN TO TRIGGER TRUE UNTIL WAIT WHEN WHILE
+    E6AXIS AXIS BAS P I OVR_NOW N_PTS WAIT_START Q_START XP VEL_PCT ACC_PCT OVR_PCT WAIT_S""".split())
 
 
 
@@ -123,6 +129,9 @@ def check_krl_name(name: str) -> str:
     if not _NAME.fullmatch(name):
         raise KukaidError(f"KRL export: module name '{name}' is not a KRL name (letter or _, then letters, "
                           f"digits, _; at most 24 characters)")
+    if name.upper() in _TAKEN:
+        raise KukaidError(f"KRL export: module name '{name}' is a KRL keyword or a name the program uses; "
+                          f"choose another (e.g. kukaid_{name.lower()})")
     return name
 
 

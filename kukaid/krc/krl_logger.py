@@ -150,11 +150,15 @@ def krl_logger_files(layout: RingLayout, name: str = "KUKAID_LOG") -> dict[str, 
     n = name.upper()
     a = len(layout.axes)
     dq, dt, dc = DECIMALS
-    fmt = "%d" + f",%.{dq}f" * a + f",%.{dt}f" * a + f",%.{dc}f" * a + ";"
+    fmts = ["%d"] + [f",%.{dq}f"] * a + [f",%.{dt}f"] * a + [f",%.{dc}f"] * a
     vals = ["$ROB_TIMER"]
     vals += [f"$AXIS_ACT_MEAS.A{ax}" for ax in layout.axes]
     vals += [f"$TORQUE_AXIS_ACT[{ax}]" for ax in layout.axes]
     vals += [f"$MOT_TEMP[{ax}]" for ax in layout.axes]
+    # SWRITE takes at most 10 variables: a sample of 4 to 6 axes is written by consecutive SWRITEs (the
+    # offset runs on), ended by ';'
+    writes = [f"  SWRITE(KID_CUR[],KID_ST,KID_OFS,\"{''.join(fmts[i:i + 10])}{';' if i + 10 >= len(vals) else ''}\","
+              f"{','.join(vals[i:i + 10])})" for i in range(0, len(vals), 10)]
     slot = layout.block_chars
     dat = [f"DEFDAT {n} PUBLIC",
            ";kukaid ring-buffer logger globals (generated; see kukaid.krc.krl_logger)",
@@ -203,7 +207,7 @@ def krl_logger_files(layout: RingLayout, name: str = "KUKAID_LOG") -> dict[str, 
            f"  IF ($ROB_TIMER-KID_LAST)>={IPO_MS} THEN",
            "    KID_LAST=$ROB_TIMER ;missed cycles: resynchronise (the gap shows in the stamps)",
            "  ENDIF",
-           f"  SWRITE(KID_CUR[],KID_ST,KID_OFS,\"{fmt}\",{','.join(vals)})",
+           *writes,
            "  KID_N=KID_N+1",
            f"  IF KID_N>={layout.bs} THEN",
            "    KID_N=0",

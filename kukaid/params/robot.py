@@ -82,9 +82,9 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
     for key in ("names", "values", "independent", "dependent", "R"):
         if key not in bp:
             _fail(where, f"missing field 'base_parameters.{key}'")
-    b = len(bp["values"]) if isinstance(bp["values"], list) else -1
-    _numbers(where, "base_parameters.values", bp["values"])
-    _numbers(where, "base_parameters.independent", bp["independent"], b)
+    b = len(bp["independent"]) if isinstance(bp["independent"], list) else -1  # one value per independent column
+    _numbers(where, "base_parameters.independent", bp["independent"])
+    _numbers(where, "base_parameters.values", bp["values"], b)
     if not isinstance(bp["names"], list) or len(bp["names"]) != b:
         _fail(where, f"'base_parameters.names' must have {b} entries")
     for key in ("least_squares", "sigma"):
@@ -119,9 +119,15 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
         _fail(where, "'friction.model' must be \"coulomb-viscous\" or \"stribeck\"")
     vals = _object(where, "friction.values", fr.get("values"))
     _numbers(where, "friction.values", list(vals.values()))
-    for k in vals:
+    for k, v in vals.items():
         if not k.startswith(("A", "M")):
             _fail(where, f"'friction.values' key {k!r} is not 'A<axis>.<parameter>'")
+        head = k.split(".", 1)[0]
+        if not (head[1:].isdigit() and 1 <= int(head[1:]) <= n):
+            _fail(where, f"'friction.values' key {k!r}: the robot has axes A1..A{n}")
+        # the fit keeps them >= 0 (a friction, an inertia), to its solver's tolerance on the bound (-1e-8)
+        if k.endswith((".Fc", ".Fv", ".rotor_inertia")) and v < -1e-6:
+            _fail(where, f"'friction.values.{k}' must be >= 0, got {v:g}")
     if fr["model"] == "stribeck":
         vs = fr.get("vs")
         if isinstance(vs, bool) or not isinstance(vs, (int, float)) or not vs > 0:
