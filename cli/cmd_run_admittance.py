@@ -138,7 +138,10 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
               help="Low-pass of the torque estimate, Hz (the paper's 5 Hz; higher: less loop delay, so firm grips "
                    "need less damping, but a noisier Γr).")
 @click.option("--init-move", type=click.FloatRange(-10.0, 10.0), default=1.0, show_default=True,
-              help="Initiation move before control, degrees (saturates the Maxwell-slip elements, eq. 12; 0: none).")
+              help="Initiation move before control, degrees, either way: it saturates the Maxwell-slip elements "
+                   "(eq. 12) and checks the parameter file with nobody touching, so a one-axis file needs at least "
+                   "twice its elements' largest break-away displacement (a shorter move is refused; 0: none, robot "
+                   "files only).")
 # safety (degrees at the edge)
 @click.option("--q-min", type=float, help="Position window, lower bound, degrees (sim default: q0 - 90); within the "
                                           "axis's range of motion (kvp: its software limit switches, read first).")
@@ -322,7 +325,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
 
     def guidable() -> None:  # after the options and the file's axis and kind, before anything moves
         try:
-            check_guidable(model, no_rest_model)
+            check_guidable(model, no_rest_model, math.radians(init_move))
         except KukaidError as e:
             raise ParamFileError(f"{params_path}: {str(e).removeprefix('run-admittance: ')}") from None
 

@@ -708,3 +708,28 @@ def test_a_hand_leaning_in_slowly_at_rest_and_letting_go_is_no_push():
         return 0.0 if t < 2.0 else 0.8 * (t - 2.0) if t < 12.0 else 8.0 if t < 15.0 else max(0.0, 8.0 * (15.2 - t) / 0.2)
     det, _ = _after_a_move_up(200 + int(25 / 0.012), lambda k, W: W, hand)
     assert not det[200:].any()
+
+
+def test_an_initiation_move_too_short_to_set_the_elements_is_refused_before_anything_moves(tmp_path):
+    """New-user trial 17: a file whose Maxwell-slip elements break away at 50-70 N·m stops before control
+    with the initiation move (its error there 146 N·m), but with --init-move 0 nothing checked it and the
+    axis moved 1.7 degrees with nobody there, until the torque limit. The move sets the elements' state
+    (eq. 12) and checks the file: shorter than twice their largest break-away displacement, refused."""
+    p = SimConfig().truth_params()
+    p["maxwell_slip"]["W"] = [50.0, 60.0, 70.0]
+    need = 2.0 * max(w / k for w, k in zip(p["maxwell_slip"]["W"], p["maxwell_slip"]["k"]))
+    model = model_from_params(p)
+    for move in (0.0, 0.9 * need, -0.9 * need):
+        with pytest.raises(KukaidError, match=r"--init-move.*twice the largest break-away displacement"):
+            run_admittance(SimRobot(VirtualKRC4(SimConfig(), seed=0), Q0, None), model,
+                           LoopConfig(duration=1.0, init_move=move))
+    check_guidable(model, init_move=-1.1 * need)  # either way, long enough
+    f = tmp_path / "bigW.json"
+    f.write_text(json.dumps(p))
+    out = tmp_path / "run.h5"
+    res = CliRunner().invoke(cli, ["run-admittance", "--params", str(f), "-o", str(out), "--duration", "1",
+                                   "--init-move", "0"])
+    assert res.exit_code == 1
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and str(f) in err[0] and "--init-move of at least" in err[0], err
+    assert not out.exists() and not list(tmp_path.glob("*.partial.h5"))

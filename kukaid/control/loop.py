@@ -135,7 +135,7 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     record as it is made (to write it to disk while the robot moves).
     """
     cfg = config or LoopConfig()
-    check_guidable(model, cfg.no_rest_model)
+    check_guidable(model, cfg.no_rest_model, cfg.init_move)
     if isinstance(model, RobotTorqueModel):  # a robot model: Γr of the guided axis from every axis's motion
         est = GuidedAxisResidual(model, backend.axis, sample_time=cfg.sample_time, threshold=cfg.threshold,
                                  release=cfg.release_torque, cutoff=cfg.cutoff)
@@ -236,12 +236,16 @@ def default_threshold(model: Any) -> float:
     return max(THRESHOLD, THRESHOLD_SHARE * abs(float(fc))) if fc is not None else THRESHOLD
 
 
-def check_guidable(model: Any, no_rest_model: bool = False) -> None:
+def check_guidable(model: Any, no_rest_model: bool = False, init_move: float | None = None) -> None:
     """Refuse, before anything moves, a model whose friction at rest cannot tell static friction from a
     push, so that the axis would move by itself with nobody touching it: a one-axis model without
     Maxwell-slip elements (measured: 3.5 degrees in 20 s), and a robot model, which has no quasi-static
     mode (the LWR4+ fit moved A2 of its virtual robot 2.6 degrees in 5 s) unless ``no_rest_model``
-    (:attr:`LoopConfig.no_rest_model`) asks for it to be run anyway."""
+    (:attr:`LoopConfig.no_rest_model`) asks for it to be run anyway.  With ``init_move`` (rad), a
+    one-axis model's initiation move must saturate every element from any state (twice the largest
+    break-away displacement): it sets their state (eq. 12), and it is the loop's check of the file
+    before control (a file whose elements break away at 50-70 N·m passed a run without the move and
+    moved the axis 1.7 degrees with nobody there, where the move stops it before control)."""
     if isinstance(model, RobotTorqueModel):
         if not no_rest_model:
             raise KukaidError("run-admittance: a robot parameter file has no friction model at rest (no quasi-static "
@@ -259,6 +263,14 @@ def check_guidable(model: Any, no_rest_model: bool = False) -> None:
                           "friction cannot be told from a push and the axis would move by itself; fit them from a "
                           "pre-sliding experiment (kukaid excite presliding, kukaid capture, then kukaid fit ... "
                           "--presliding LOG)")
+    need = 2.0 * float(np.max(ms.breakaway))
+    if init_move is not None and abs(init_move) < need:
+        raise KukaidError(f"run-admittance: an initiation move of {math.degrees(init_move):g} deg (--init-move) is "
+                          f"shorter than {math.degrees(need):.3g} deg, twice the largest break-away displacement of the "
+                          "file's Maxwell-slip elements: the move sets their state (eq. 12), and with nobody touching "
+                          "it checks the file before control (a model that misses it by more than the threshold at "
+                          "rest can reach stops the run there); without it the axis can move by itself; give "
+                          f"--init-move of at least {math.degrees(need):.3g} deg either way (default 1)")
 
 
 def _measured(s: Any, est: Any) -> tuple[Any, Any]:
