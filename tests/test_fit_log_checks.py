@@ -243,3 +243,15 @@ def test_stamp_jitter_is_no_skipped_sample(share):
     keep[::40] = False  # 2.5 % of the samples lost: refused, jitter or not
     with pytest.raises(FitError, match=r"stamped\.csv: [12]\.\d % of the steps between samples skip samples"):
         check_even_samples(t[keep], "stamped.csv")
+
+
+def test_logs_at_several_rates_say_each_rates_filter(logs):
+    """Trial 17: a friction log at 83 Hz and an inertia log at 250 Hz were each filtered by their own
+    settings, but the fit said only the first's ("84 edge samples trimmed ... from the 83.33 Hz sample
+    rate"); it now names each rate's."""
+    fast = VirtualKRC4(SimConfig(sample_time=0.004), seed=2).run(excite.generate("inertia"))
+    p = fit_axis(friction=[read_log(logs[1]["friction"])], inertia=[fast])
+    why = p["provenance"]["preprocess"]["why"]
+    assert "each filtered by its own settings" in why and "at 250 Hz 5 Hz order 3, 250 edge samples" in why, why
+    one = fit_axis(friction=[read_log(logs[1]["friction"])], inertia=[read_log(logs[1]["inertia"])])
+    assert "several sample rates" not in one["provenance"]["preprocess"]["why"]

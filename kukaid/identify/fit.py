@@ -299,9 +299,23 @@ def fit_axis(logs: Sequence[Any] = (), friction: Sequence[Any] = (), inertia: Se
                  "inertia": [p.source for p in ine], "presliding": psl.source if psl is not None else None},
         # which recordings these are wherever they are later (validate's in-sample warning)
         "log_fingerprints": [log_fingerprint(lg) for lg in raw_logs],
-        "preprocess": jsonable({**all_preps[0].settings, "why": settings_reason(all_preps[0].settings, given)}),
+        "preprocess": jsonable({**all_preps[0].settings,
+                                "why": settings_reason(all_preps[0].settings, given) + _rates_note(all_preps)}),
     }
     return out
+
+
+def _rates_note(preps: Sequence[Any]) -> str:
+    """Logs at several sample rates are each filtered by their own settings (the summary's are the first
+    log's): each rate's, or "" for one rate."""
+    by_rate: dict[float, dict] = {}
+    for p in preps:
+        by_rate.setdefault(round(p.fs, 2), p.settings)
+    if len(by_rate) < 2:
+        return ""
+    return ("; logs at several sample rates, each filtered by its own settings: "
+            + ", ".join(f"at {s['fs']:.4g} Hz {s['cutoff']:.4g} Hz order {s['order']}, {s['edge']} edge samples"
+                        for s in by_rate.values()))
 
 
 def fit_axis_auto(**kw: Any) -> dict:
