@@ -24,10 +24,16 @@ def command(axes: tuple[int, ...], blocks: int, block_samples: int, outdir: Path
     robot variable.
     """
     from kukaid.krc.krl_logger import RingLayout, krl_logger_files
-    from kukaid_cli._util import usage_errors, write_krl_files
+    from kukaid_cli._util import write_krl_files
 
-    with usage_errors("--axis"):  # the options alone
+    from kukaid.errors import KukaidError
+
+    try:  # the options alone: a usage error naming the option
         layout = RingLayout(axes=tuple(axes) or (3,), nb=blocks, bs=block_samples)
+    except KukaidError as e:
+        msg = str(e).removeprefix("KRL logger: ")
+        hint = "--block-samples" if "samples per block" in msg else "--blocks" if "blocks" in msg else "--axis"
+        raise click.BadParameter(msg, param_hint=hint) from None
     files = krl_logger_files(layout)
     write_krl_files(outdir, files, force)
     click.echo(f"{outdir}: {', '.join(files)} (axes {', '.join(f'A{a}' for a in layout.axes)}, "

@@ -88,6 +88,9 @@ def files(tmp_path_factory):
      ["--follower emulates the program of `kukaid krl-follower`", "not with --trajectory"]),
     # an axis given twice is the option's fault (it was exit 1)
     (["krl-logger", "-o", "krl", "--axis", "3", "--axis", "3"], ["--axis", "axes must be distinct", "[3, 3]"]),
+    # new-user trial 17: a block too long for one KUKAVARPROXY reply said "Invalid value for --axis"
+    (["krl-logger", "-o", "krl", *[x for a in range(1, 7) for x in ("--axis", str(a))], "--block-samples", "32"],
+     ["Invalid value for --block-samples", "use fewer samples per block (at most 22)"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--ring-axes", "3", "--ring-axes", "3"],
      ["--ring-axes", "axes must be distinct"]),
     # a one-axis simulator's ring logger of another axis recorded zeros (position and torque)
