@@ -375,7 +375,7 @@ class KvpClient:
             now = time.monotonic()
             if now >= t_end or (should_stop is not None and should_stop()):
                 raise KvpConnectionError(f"KUKAVARPROXY at {self.host}:{self.port}: could not reconnect "
-                                         f"within {max_wait:g} s ({last})")
+                                         f"within {max_wait:.3g} s ({last})")
             time.sleep(min(delay, max(t_end - now, 0.0)))
             delay = min(delay * 2.0, cap)
 
