@@ -81,6 +81,8 @@ def test_a_folder_of_compressed_logs_is_scanned(tmp_path):
 
 @pytest.mark.parametrize("text, phrase", [
     ("robot,date,path\nR1,2026-01-01,a.h5\n", "lacks column(s) axis"),
+    # new-user trial 17: a manifest saved with semicolons said only which columns it lacked
+    ("robot;axis;date;path\nR1;3;2026-01-01;a.h5\n", "its header is split by ';', and a manifest's columns by commas"),
     ("robot,axis,date,path\nR1,3,01/02/2026,a.h5\n", "not a date"),
     ("robot,axis,date,path\nR1,3,2026-02-30,a.h5\n", "line 2: date '2026-02-30' is not a date"),  # no such day
     ("robot,axis,date,path\nR1,3,2026-13-01,a.h5\n", "line 2: date '2026-13-01' is not a date"),  # nor month

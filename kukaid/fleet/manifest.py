@@ -99,8 +99,10 @@ def read_manifest(path: str | Path) -> list[Entry]:
     head = [h.strip().lower() for h in rows[0]]
     missing = [c for c in MANIFEST_COLUMNS if c not in head]
     if missing:
+        sep = next((c for c in ";\t|" if len(rows[0]) == 1 and c in rows[0][0]), None)
         raise ManifestError(f"{path}: manifest lacks column(s) {', '.join(missing)} "
-                            f"(header must name {','.join(MANIFEST_COLUMNS)})")
+                            f"(header must name {','.join(MANIFEST_COLUMNS)})"
+                            + (f"; its header is split by {sep!r}, and a manifest's columns by commas" if sep else ""))
     col = {c: head.index(c) for c in MANIFEST_COLUMNS}
     out = []
     for i, row in enumerate(rows[1:], start=2):
