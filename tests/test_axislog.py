@@ -155,6 +155,10 @@ def test_unknown_extension(tmp_path):
     (tmp_path / "x.txt").write_text("hi")
     with pytest.raises(LogFormatError, match="unknown log format '.txt'"):
         read_log(tmp_path / "x.txt")
+    # new-user trial 17: kukaid fleet's table given as a log said only "unknown log format '.parquet'"
+    (tmp_path / "t.parquet").write_bytes(b"PAR1" + bytes(16) + b"PAR1")
+    with pytest.raises(LogFormatError, match=r"t\.parquet: is a Parquet table \(kukaid fleet\), not an axis log"):
+        read_log(tmp_path / "t.parquet")
 
 
 def test_one_table_names_each_suffix_format_and_reader():

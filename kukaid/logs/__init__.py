@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from kukaid.errors import LogFormatError
+from kukaid.jsonfile import file_kind
 from kukaid.logs.core import (AxisLog, OtherKindError, check_each_recording_once, check_samples, check_units,
                               fingerprints, log_fingerprint, other_kind)
 from kukaid.logs.csvlog import read_csv, write_csv
@@ -47,6 +48,10 @@ def read_log(path: str | Path, **options: Any) -> AxisLog:
     suffix = format_suffix(path)
     if suffix not in READERS:
         expected = ", ".join(READERS)
+        kind = file_kind(path) if comp is None and path.is_file() else None  # a table, a report, a parameter file
+        if kind:
+            raise OtherKindError(f"{path}: is {kind}, not an axis log (axis logs: {expected}, optionally compressed: "
+                                 f"{', '.join(COMPRESSIONS)})")
         raise LogFormatError(f"{path}: unknown log format '{''.join(path.suffixes[-2:]).lower() or path.suffix}' "
                              f"(expected {expected}, optionally compressed: {', '.join(COMPRESSIONS)})")
     fmt, reader = READERS[suffix]
