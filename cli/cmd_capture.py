@@ -56,7 +56,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
     """
     import signal
 
-    from kukaid.capture import KvpCapture, SimCapture, capture, check_limits
+    from kukaid.capture import KvpCapture, SimCapture, capture, check_limits, check_simulated_range
     from kukaid.errors import KukaidError
     from kukaid_cli._util import check_outputs, given
 
@@ -73,6 +73,7 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
 
         traj = load_trajectory(trajectory)
         check_limits(traj, where=str(trajectory))
+        check_simulated_range(traj, where=str(trajectory))
         if hasattr(traj, "axes"):  # all axes of a robot (kukaid excite fourier): the six-axis virtual KR C4
             from kukaid.capture import robot_sim_config
 

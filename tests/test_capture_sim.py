@@ -369,3 +369,17 @@ def test_an_external_axis_trajectory_is_refused_by_the_virtual_kr_c4(short_traj,
     code, text = run("capture", traj, "-o", tmp_path / "e3.h5")
     assert code == 1 and "axis 9 is the external axis E3; the virtual KR C4 has axes 1 to 6" in text, text
     assert "Traceback" not in text and not (tmp_path / "e3.h5").exists()
+
+
+def test_a_trajectory_beyond_the_virtual_axis_is_not_simulated(tmp_path):
+    """New-user trial 17: `excite inertia --q-max-deg 400` (a real robot's limit, perhaps) then `capture` on
+    the virtual KR C4 recorded A3 at 185.8 degrees, beyond the simulated robot's 156 (it has no hard
+    stops); refused before anything is written, as serve-sim --q0 is."""
+    traj = tmp_path / "e.json"
+    r = CliRunner().invoke(cli, ["excite", "inertia", "-o", str(traj), "--q-max-deg", "400"])
+    assert r.exit_code == 0, r.output
+    out = tmp_path / "e.h5"
+    r = CliRunner().invoke(cli, ["capture", str(traj), "-o", str(out)])
+    assert r.exit_code == 1 and len(r.stderr.splitlines()) == 1, r.output
+    assert "beyond the range of motion of the virtual KR C4's A3" in r.stderr and "-120 to 156 degrees" in r.stderr
+    assert not out.exists()
