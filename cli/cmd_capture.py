@@ -1,6 +1,7 @@
 """kukaid capture: run a trajectory on the virtual KR C4 (or record a real one) into an axis log."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -159,6 +160,13 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
                    "complete": result.complete})
     click.echo(f"{result.output}: {result.n_samples} samples, {result.duration:.2f} s "
                f"({be.name}{', seed ' + str(seed) if backend == 'sim' else ''})", err=True)
+    from kukaid.capture import FOLLOWING_WARN
+
+    follow = float(result.info.get("following_error_max") or 0.0)
+    if follow > FOLLOWING_WARN:  # the virtual KR C4 runs on where a real one's following-error monitor stops
+        click.echo(f"kukaid: warning: capture: the axis did not follow its command, up to {math.degrees(follow):.3g} "
+                   "degrees apart: the simulated drive cannot hold this trajectory (its tau_max, or a load beyond it); "
+                   "a real KR C4 would stop on its following error", err=True)
 
 
 def _one_axis_backend(traj, trajectory: Path, sim_config: Path | None, noise: float | None, effects: tuple[str, ...],

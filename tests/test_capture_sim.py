@@ -383,3 +383,15 @@ def test_a_trajectory_beyond_the_virtual_axis_is_not_simulated(tmp_path):
     assert r.exit_code == 1 and len(r.stderr.splitlines()) == 1, r.output
     assert "beyond the range of motion of the virtual KR C4's A3" in r.stderr and "-120 to 156 degrees" in r.stderr
     assert not out.exists()
+
+
+def test_an_axis_that_does_not_follow_its_command_is_warned(short_traj, tmp_path):
+    """New-user trial 17: a --sim-config with tau_max 1 N·m let A3 fall 89.9 degrees from its command, and
+    capture said only how many samples it wrote (a real KR C4 stops on its following error)."""
+    cfg = tmp_path / "weak.json"
+    cfg.write_text(json.dumps({"tau_max": 1.0}))
+    r = CliRunner().invoke(cli, ["capture", str(short_traj), "-o", str(tmp_path / "w.h5"), "--sim-config", str(cfg)])
+    assert r.exit_code == 0, r.output
+    assert "warning: capture: the axis did not follow its command, up to" in r.stderr, r.stderr
+    r = CliRunner().invoke(cli, ["capture", str(short_traj), "-o", str(tmp_path / "ok.h5")])
+    assert r.exit_code == 0 and "warning" not in r.stderr, r.stderr
