@@ -177,11 +177,11 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
     if krl_name is not None:
         with usage_errors("--krl-name"):
             check_krl_name(krl_name)
-    refuse_other_kind(output, force, ROBOT_SCHEMA if kind == "fourier" else SCHEMA)  # one axis is not six
     kwargs = _generator_options(kind, opts)
     if "moves" in kwargs and "move_speeds" not in kwargs:  # the default speeds are of the default moves
         raise click.UsageError(f"--moves-deg gives {len(kwargs['moves'])} move(s): give --move-speeds too, one cruise "
                                "speed (rad/s) per move")
+    refuse_other_kind(output, force, ROBOT_SCHEMA if kind == "fourier" else SCHEMA)  # after the options: said first
     if kind == "fourier":
         _fourier(output, krl_dir, krl_name, krl_tol, force, limits_file, q_min_deg, q_max_deg, qd_max_deg,
                  qdd_max_deg, kwargs, as_json)

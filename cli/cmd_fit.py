@@ -102,7 +102,6 @@ def command(logs, friction, inertia, presliding, axis, output, force, as_json, m
 
     check_suffix(output, ".json")
     check_outputs([output], [*logs, *friction, *inertia, presliding])
-    refuse_other_kind(output, force, SCHEMA)
     if not (logs or friction or inertia):
         raise click.UsageError("no logs to fit: give general logs (LOG...), or --friction and/or --inertia logs")
     require_positive(("--qd-thr", qd_thr), ("--reversal-window", reversal_window), zero_ok=True)
@@ -122,6 +121,7 @@ def command(logs, friction, inertia, presliding, axis, output, force, as_json, m
             raise click.BadParameter(f"{name}: no such parameter (parameters: {', '.join(known)})", param_hint="--bound")
         with usage_errors("--bound"):
             check_bound(name, lo, hi)
+    refuse_other_kind(output, force, SCHEMA)  # after the options' checks: a wrong option is said first
     stages("fit")("reading, pre-processing and fitting the logs")
     with option_in_data_error(("--cutoff", cutoff is not None, "filter cut-off"),  # its limit: the log's rate
                               ("--edge", edge is not None, "edge trim")):  # and length
@@ -208,13 +208,13 @@ def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decima
         raise click.UsageError("give at least one log of the robot moving (LOG...)")
     check_suffix(output, ".json")
     check_outputs([output], list(logs))
-    refuse_other_kind(output, force, SCHEMA)
     mb, tb = _mass_bounds(mass_bounds)
     settings = RobotFitSettings(cutoff=cutoff, order=order or 4, decimate=decimate,
                                 friction=friction_model or "coulomb-viscous", vs=stribeck_vs,
                                 prior_weight=PRIOR_WEIGHT if prior_weight is None else prior_weight,
                                 torque_side=torque_side, rotor=rotor_inertia, mass_bounds=mb, total_mass_bounds=tb,
                                 viscous_beyond=viscous_beyond or "hold")
+    refuse_other_kind(output, force, SCHEMA)  # after the options' checks: a wrong option is said first
     model = RobotModel(robot)
     cpl = None
     if coupling is not None:

@@ -66,10 +66,9 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
     from kukaid.logs import format_suffix, read_log, write_csv, write_hdf5
     from kukaid_cli._util import check_outputs, check_suffix, given, refuse_overwrite, usage_errors
 
-    # before anything is read or written: the output's format, that it is not the input, no overwrite
+    # before anything is read or written: the output's format, that it is not the input (no overwrite: below)
     check_suffix(output, *OUTPUT_FORMATS)
     check_outputs([output], [source])
-    refuse_overwrite(output, force)
     fmt = OUTPUT_FORMATS[output.suffix.lower()]
     kind = format_suffix(source)  # also compressed: rec.mat.bz2
     is_mat, is_trace = kind == ".mat", kind in TRACE_SUFFIXES
@@ -99,6 +98,7 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
             with usage_errors():  # the ratios themselves, typed as the option's value
                 gear_ratio = parse_gear_ratios(gear_ratio)
         options = dict(gear_ratio=gear_ratio, time_base=time_base)
+    refuse_overwrite(output, force)  # after the options' checks: a wrong option is said first
     if source.suffix.lower() in (".h5", ".hdf5"):
         from kukaid.logs import read_hdf5
 

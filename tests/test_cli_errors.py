@@ -647,3 +647,19 @@ def test_a_log_csv_with_semicolons_says_so(tmp_path):
     # new-user trial 9: "(the header is 'time_s,A3_deg,A3_Nm,...')" read as this file's header, which it is not
     assert r.output.strip().endswith("decimal mark (a header as 'time_s,A3_deg,A3_Nm,...'; this one is "
                                      "'time_s;A3_deg;A3_Nm')"), r.output
+
+
+@pytest.mark.parametrize("make_args, said", [
+    (lambda d, o: ["excite", "friction", "-o", o, "--speeds", "0.1,abc"], "Invalid value for --speeds"),
+    (lambda d, o: ["fit", d / "inertia.h5", "-o", o, "--bound", "vs=1:0"], "Invalid value for --bound"),
+    (lambda d, o: ["load", d / "inertia.h5", "-o", o.with_suffix(".h5"), "--time-scale", "-1"],
+     "option --time-scale is for MAT (.mat) sources"),
+])
+def test_a_wrong_option_is_said_before_an_existing_output(files, tmp_path, make_args, said):
+    """New-user trial 17: with an output that already exists, excite, fit and load said "already exists"
+    and only after --force the option that was wrong (trial 6 mended run-admittance's order alone)."""
+    out = tmp_path / "other.json"
+    out.write_text('{"notes": "by hand"}')
+    out.with_suffix(".h5").write_bytes(b"mine")
+    _one_line_error(_run(*make_args(files, out)), said, code=2)
+    assert out.read_text() == '{"notes": "by hand"}' and out.with_suffix(".h5").read_bytes() == b"mine"
