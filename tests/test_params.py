@@ -199,6 +199,12 @@ def test_free_form_parts_stay_free(tmp_path):
     # coulomb-viscous friction has no static level to compare
     d["friction"].update(model="coulomb-viscous", Fs=1.0)
     save_params(tmp_path / "cv.json", d)
+    # new-user trial 17: the table showed the Stribeck rows of such an edited file as if its model had them
+    from kukaid.identify.fit import format_table
+
+    text = format_table(load_params(tmp_path / "cv.json"))
+    assert not any(ln.split()[:1] in (["Fs"], ["vs"], ["delta"]) for ln in text.splitlines()), text
+    assert "not used: friction Fs, vs, delta (Stribeck parameters; friction.model is coulomb-viscous)" in text, text
 
 
 @pytest.mark.parametrize("edit, message", [

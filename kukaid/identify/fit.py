@@ -357,6 +357,10 @@ def _relative(value: float, std: float) -> str:
     return f"{100 * std / abs(value):.2f} %"
 
 
+#: the friction parameters only the Stribeck model has
+_STRIBECK_ONLY = ("Fs", "vs", "delta")
+
+
 def format_table(params: dict) -> str:
     """A short text table of the parameters with their standard deviations."""
     unc = params.get("uncertainty", {})
@@ -369,7 +373,8 @@ def format_table(params: dict) -> str:
     else:
         units = {"Fc": "N·m", "Fs": "N·m", "vs": "rad/s", "delta": "-", "Fv": "N·m·s/rad", "Izz": "kg·m²",
                  "Mx": "N·m", "My": "N·m", "offset": "N·m", "k": "N·m/rad", "W": "N·m", "mse": "N²m²"}
-    items = [(k, v) for k, v in params["friction"].items() if k != "model"]
+    cv = params["friction"].get("model") == "coulomb-viscous"  # an edited file's Stribeck terms are not its model's
+    items = [(k, v) for k, v in params["friction"].items() if k != "model" and not (cv and k in _STRIBECK_ONLY)]
     items += list(params["inertial"].items())
     if "offset" in params:
         items.append(("offset", params["offset"]))
@@ -399,6 +404,9 @@ def format_table(params: dict) -> str:
     if "ipopt_status" in fm:
         extra.append(solver_text(fm["ipopt_status"]))
     tail = []
+    unused = [k for k in _STRIBECK_ONLY if cv and k in params["friction"]]
+    if unused:
+        tail.append(f"  not used: friction {', '.join(unused)} (Stribeck parameters; friction.model is coulomb-viscous)")
     cf = m.get("residual_correlation_factor")
     if unc and isinstance(cf, (int, float)) and math.isfinite(cf):  # the +- above assume white residuals
         tail.append(f"  +-: least-squares standard deviations, white residuals assumed; the filtered residuals are "
