@@ -188,7 +188,10 @@ def test_show_of_a_refined_file(case, tmp_path):
     s = CliRunner().invoke(cli, ["show", str(refined)])
     assert s.exit_code == 0, s.output
     assert "misses an effect" not in s.stdout and "{" not in s.stdout
-    assert re.search(r"position_ripple n [\d.]+, a [\d.]+ \+- [\d.]+, b -?[\d.]+ \+- [\d.]+", s.stdout), s.stdout
+    # with their units (new-user trial 17: "n 28.98, a 1.453 +- 0.00902, ..." said none)
+    assert re.search(r"position_ripple n [\d.]+ 1/rad, a -?[\d.]+ \+- [\d.]+ N·m, b -?[\d.]+ \+- [\d.]+ N·m, "
+                     r"A [\d.]+ N·m, phi -?[\d.]+ rad", s.stdout), s.stdout
+    assert re.search(r"parameters at this step: n = [\d.]+ 1/rad, a = -?[\d.]+ \+/- [\d.]+ N·m", r.stdout), r.stdout
     # still far above the noise with the effect: both figures, and which effects they include
     m = with_effects(fitted["metrics"], ["position_ripple"], 0.9, 0.6, 0.1)
     assert warning not in m["warnings"]

@@ -11,6 +11,7 @@ from kukaid.diagnose.evidence import CandidateTest
 from kukaid.diagnose.signals import LogSignals
 from kukaid.identify.adequacy import UNKNOWN_FLOOR
 from kukaid.jsonfile import jsonable
+from kukaid.models.effects import unit_of
 from kukaid.models.torque import JointTorqueModel as Model
 
 
@@ -113,7 +114,8 @@ class Diagnosis:
                        "the gap after is the file's as it was)"))
         for i, s in enumerate(self.steps, 1):
             ev = s.test
-            par = ", ".join(_fmt_param(k, v, s.params.get("std", {}).get(k)) for k, v in s.params.items()
+            par = ", ".join(_fmt_param(k, v, s.params.get("std", {}).get(k),
+                                       unit_of(s.name, k, s.params, u == "N")) for k, v in s.params.items()
                             if k not in ("model", "std", "stored_as", "unit"))
             out.append(f"step {i}: {s.name} ({C.get(s.name).meaning}); size in the final fit {ev.size:.3g} {u}")
             out.append(f"    parameters at this step: {par}")
@@ -173,7 +175,8 @@ def _held_out_figures(und: dict, unit: str) -> str:
     return "held-out RMSE " + ", ".join(parts)
 
 
-def _fmt_param(k: str, v: Any, sd: Any) -> str:
+def _fmt_param(k: str, v: Any, sd: Any, unit: str = "") -> str:
     if isinstance(v, float):
-        return f"{k} = {v:.4g}" + (f" +/- {sd:.2g}" if isinstance(sd, float) and math.isfinite(sd) else "")
+        return (f"{k} = {v:.4g}" + (f" +/- {sd:.2g}" if isinstance(sd, float) and math.isfinite(sd) else "")
+                + (f" {unit}" if unit and unit != "-" else ""))
     return f"{k} = {v}"

@@ -442,23 +442,29 @@ def format_params(params: dict) -> str:
     :meth:`kukaid.identify.fitted.FittedModel.table`)."""
     text = format_table(params)
     eff = params.get("effects") or {}
+    prismatic = (params.get("provenance") or {}).get("joint") == "prismatic"
     if eff:
         text += "\n  effects added by diagnose: " + "; ".join(
-            f"{name} " + _effect_terms(p if isinstance(p, dict) else {}) for name, p in eff.items())
+            f"{name} " + _effect_terms(name, p if isinstance(p, dict) else {}, prismatic) for name, p in eff.items())
     return text
 
 
-def _effect_terms(p: dict) -> str:
-    """An effect's terms as the table shows parameters, ``a 0.9422 +- 0.112``: its ``std`` beside each
-    value, not a dictionary of its own; the file's tag (``model``) left out."""
+def _effect_terms(name: str, p: dict, prismatic: bool = False) -> str:
+    """An effect's terms as the table shows parameters, ``a 0.9422 +- 0.112 N·m``: its ``std`` beside each
+    value, not a dictionary of its own, and its unit; the file's tag (``model``) and the thermal drift's
+    ``unit`` text (beside ``c`` instead) left out."""
+    from kukaid.models.effects import unit_of
+
     std = p.get("std") if isinstance(p.get("std"), dict) else {}
     out = []
     for k, v in p.items():
-        if k in ("model", "std"):
+        if k in ("model", "std") or (name == "thermal_drift" and k == "unit"):
             continue
         if isinstance(v, (int, float)) and not isinstance(v, bool):
             s = std.get(k)
-            out.append(f"{k} {v:.4g}" + (f" +- {s:.3g}" if isinstance(s, (int, float)) and math.isfinite(s) else ""))
+            u = unit_of(name, k, p, prismatic)
+            out.append(f"{k} {v:.4g}" + (f" +- {s:.3g}" if isinstance(s, (int, float)) and math.isfinite(s) else "")
+                       + (f" {u}" if u and u != "-" else ""))
         else:
             out.append(f"{k} {v}")
     return ", ".join(out)

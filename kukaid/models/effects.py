@@ -62,6 +62,8 @@ class Effect:
     derived: tuple[str, ...] = ()
     #: nonlinear settings a stored effect must have (besides its coefficients)
     settings: tuple[str, ...] = ()
+    #: the unit of each number it stores, on a revolute joint (:func:`unit_of`)
+    units: dict[str, str] = {}
 
     def columns(self, sig: LogSignals, nl: dict, model: ModelView) -> np.ndarray:
         """Regressor columns (n, len(coef_keys(nl))) on the full grid, unfiltered."""
@@ -96,6 +98,7 @@ class GravitySine(Effect):
     name = "gravity_sine"
     meaning = "My sin(q): the centre of mass is off the model's axis"
     coef_names = ("My",)
+    units = {"My": "N·m"}
     native = "My"
 
     def columns(self, sig, nl, model):
@@ -106,6 +109,7 @@ class TorqueOffset(Effect):
     name = "torque_offset"
     meaning = "a constant torque while moving (also asymmetric Coulomb friction)"
     coef_names = ("offset",)
+    units = {"offset": "N·m"}
     native = "offset"
 
     def columns(self, sig, nl, model):
@@ -118,6 +122,7 @@ class PositionRipple(Effect):
     coef_names = ("a", "b")
     derived = ("A", "phi")
     settings = ("n",)
+    units = {"a": "N·m", "b": "N·m", "A": "N·m", "phi": "rad", "n": "1/rad"}
 
     def columns(self, sig, nl, model):
         n = nl["n"]
@@ -182,6 +187,7 @@ class LoadDependentFriction(Effect):
     meaning = "Coulomb friction growing with the gravity load |Mx cos q|"
     coef_names = ("Fc_load",)
     derived = ("mu",)
+    units = {"Fc_load": "N·m", "mu": "-"}
 
     def columns(self, sig, nl, model):
         return (np.abs(np.cos(sig.q)) * np.sign(sig.qd))[:, None]
@@ -227,6 +233,7 @@ class Backlash(Effect):
     meaning = "a decaying transient after every velocity reversal (backlash in the reducer)"
     coef_names = ("A",)
     settings = ("tau",)
+    units = {"A": "N·m", "tau": "s"}
 
     def columns(self, sig, nl, model):
         def shape(i, j):
@@ -241,6 +248,7 @@ class StribeckRise(Effect):
     meaning = "friction rising above Coulomb at low speed (Stribeck), on a Coulomb + viscous model"
     coef_names = ("dF",)
     settings = ("vs", "delta")
+    units = {"dF": "N·m", "vs": "rad/s", "delta": "-"}
 
     def columns(self, sig, nl, model):
         return stribeck_column(sig.qd, nl["vs"], nl["delta"])[:, None]
@@ -252,6 +260,7 @@ class PreSliding(Effect):
                "(Dahl-like), not at once")
     coef_names = ("A",)
     settings = ("x0",)
+    units = {"A": "N·m", "x0": "rad"}
 
     def columns(self, sig, nl, model):
         """s_r exp(-|q - q_r| / x0) from each reversal r (position q_r, new direction s_r) on."""
@@ -303,6 +312,23 @@ class Coupling(Effect):
 EFFECTS: dict[str, Effect] = {e.name: e for e in (GravitySine(), TorqueOffset(), PositionRipple(), ThermalDrift(),
                                                   LoadDependentFriction(), Backlash(), StribeckRise(), PreSliding(),
                                                   Coupling())}
+def unit_of(effect: str, key: str, stored: dict | None = None, prismatic: bool = False) -> str:
+    """The unit of the number ``key`` of the effect ``effect`` (the file's ``unit`` text for a thermal drift's
+    ``c``, a coupling's by its part: the other axis's gravity and inertia), "" when it has none; on a
+    prismatic joint in N and m."""
+    e = EFFECTS.get(effect)
+    if e is None:
+        return ""
+    u = e.units.get(key, "")
+    if effect == "thermal_drift" and key == "c" and isinstance((stored or {}).get("unit"), str):
+        u = stored["unit"]
+    elif effect == "coupling":
+        u = "kg·m²" if key.startswith("qdd_") else "N·m" if key.startswith(("cos", "sin")) else ""
+    if prismatic:
+        u = u.replace("kg·m²", "kg").replace("N·m", "N").replace("rad", "m")
+    return u
+
+
 #: effect name -> names of its linear coefficients (``coupling``: one per other axis and part)
 COEFFICIENTS: dict[str, tuple[str, ...]] = {n: e.coef_names for n, e in EFFECTS.items()}
 NAMES: tuple[str, ...] = tuple(EFFECTS)
