@@ -207,6 +207,11 @@ def test_robot_params_edited_by_hand_name_the_field_edited(sim_fit):
     ok = json.loads(json.dumps(params))
     ok["friction"]["values"]["A2.Fv"] = -8.4e-09          # on its bound, as the fit's solver leaves it
     validate_robot_params(ok, "p.json")
+    # a file diagnose refined: a joint's own friction refitted beside its effects is a correction (beside the
+    # coupled wrist's motor friction A5.Fv came out -0.0056; tests/test_diagnose_robot_wrist.py)
+    ok["friction"]["values"]["A5.Fv"] = -0.0056
+    ok["provenance"] = {**(ok.get("provenance") or {}), "diagnose": {"effects_added": ["payload"]}}
+    validate_robot_params(ok, "p.json")
 
 
 def test_log_without_all_axes_is_refused(kr6):

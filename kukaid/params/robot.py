@@ -58,6 +58,12 @@ def _object(where: str, name: str, v: Any) -> dict:
     return v
 
 
+def _refined(d: dict) -> bool:
+    """A file ``kukaid diagnose -o`` refined (its provenance says so)."""
+    prov = d.get("provenance")
+    return isinstance(prov, dict) and isinstance(prov.get("diagnose"), dict)
+
+
 def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
     """Check a robot parameter dictionary; raise :class:`ParamFileError` naming the field."""
     if not isinstance(d, dict):
@@ -125,8 +131,10 @@ def validate_robot_params(d: Any, where: str = "robot parameter file") -> dict:
         head = k.split(".", 1)[0]
         if not (head[1:].isdigit() and 1 <= int(head[1:]) <= n):
             _fail(where, f"'friction.values' key {k!r}: the robot has axes A1..A{n}")
-        # the fit keeps them >= 0 (a friction, an inertia), to its solver's tolerance on the bound (-1e-8)
-        if k.endswith((".Fc", ".Fv", ".rotor_inertia")) and v < -1e-6:
+        # the fit keeps them >= 0 (a friction, an inertia), to its solver's tolerance on the bound (-1e-8); a file
+        # diagnose refined refits a joint's own friction beside its effects, where it is a correction (beside the
+        # coupled wrist's motor friction A5.Fv came out -0.0056 N·m·s/rad), so a fit's own file alone is held to it
+        if k.endswith((".Fc", ".Fv", ".rotor_inertia")) and v < -1e-6 and not _refined(d):
             _fail(where, f"'friction.values.{k}' must be >= 0, got {v:g}")
     if fr["model"] == "stribeck":
         vs = fr.get("vs")
