@@ -103,9 +103,8 @@ def test_kvp_ring_capture_records_all_axes(traj, tmp_path):
             if srv.n_requests >= 4:
                 break
             threading.Event().wait(0.002)
-        n0 = len(src.truth()["time"])
-        for _ in range(20):
-            src._ingest(sim.advance(ring.bs * sim.cfg.sample_time))
+        for _ in range(20):  # a block of the program's samples: one per 12 ms interpolation cycle
+            src._ingest(sim.advance(ring.bs * 0.012))
             for _ in range(5000):  # the consumer keeps up: every block handed back before the next
                 if src.globals["KID_RD"] == src.globals["KID_WR"]:
                     break
@@ -119,11 +118,15 @@ def test_kvp_ring_capture_records_all_axes(traj, tmp_path):
     assert log.axes == (1, 2, 3, 4, 5, 6)
     k = log.n_samples
     assert k == 20 * ring.bs
-    # the samples are the simulator's, in order, for every axis (ring text: 4 decimals deg, 3 N·m)
-    first = n0 - (n0 % ring.bs) if n0 % ring.bs else n0
-    q_true = np.degrees(truth["q"][first:first + k])
-    np.testing.assert_allclose(np.degrees(log.q), q_true, atol=1e-4)
-    np.testing.assert_allclose(log.tau, truth["tau"][first:first + k], atol=1e-3)
+    # the samples are the simulator's, in order, for every axis (ring text: 4 decimals deg, 3 N·m), one per
+    # 12 ms interpolation cycle as the KRL program takes them: every third of the six-axis simulator's 4 ms
+    # samples (trial 17: the emulation took all of them, where the program it emulates waits 12 ms)
+    assert np.allclose(np.diff(log.time), 0.012, atol=1e-9), np.unique(np.round(np.diff(log.time), 4))
+    assert round(0.012 / sim.cfg.sample_time) == 3
+    q_ipo, tau_ipo = truth["q"][::3], truth["tau"][::3]
+    first = int(np.argmin(np.abs(np.degrees(q_ipo) - np.degrees(log.q[0])).max(axis=1)))
+    np.testing.assert_allclose(np.degrees(log.q), np.degrees(q_ipo[first:first + k]), atol=1e-4)
+    np.testing.assert_allclose(log.tau, tau_ipo[first:first + k], atol=1e-3)
 
 
 def test_serve_sim_refuses_one_axis_options_with_a_robot(traj_file, tmp_path):

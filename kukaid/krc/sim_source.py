@@ -123,6 +123,9 @@ class SimSource:
             for i in range(1, ring.nb + 1):
                 self.globals[f"KID_B{i}"] = '""'
             self._ring_cur: list[str] = []
+            # the program samples once per interpolation cycle (12 ms): every k-th of a faster simulator's samples
+            self._ring_every = max(1, round(float(sim.cfg.ipo_period) / float(sim.cfg.sample_time)))
+            self._ring_seen = 0
         self._prime()
         self._done = float(sim.t)  # simulated time requested so far (the simulator counts whole servo ticks of it)
 
@@ -288,9 +291,11 @@ class SimSource:
             self._latest = rows[-1]
             if self.keep_truth:
                 self._truth.extend(rows)
-            if self.ring is not None:
+            if self.ring is not None:  # as KID_SAMPLE: once per interpolation cycle, whatever the servo's rate
                 for row in rows:
-                    self._ring_sample(row)
+                    if self._ring_seen % self._ring_every == 0:
+                        self._ring_sample(row)
+                    self._ring_seen += 1
 
     def _timer_ms(self, t: float) -> int:
         return TIMER0_MS + int(round((t - self.t0_sim) * 1000.0))
