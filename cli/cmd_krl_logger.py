@@ -23,10 +23,9 @@ def command(axes: tuple[int, ...], blocks: int, block_samples: int, outdir: Path
     Capture writes only the logger's acknowledgement counter KID_RD; it never writes any other
     robot variable.
     """
+    from kukaid.errors import KukaidError
     from kukaid.krc.krl_logger import RingLayout, krl_logger_files
     from kukaid_cli._util import write_krl_files
-
-    from kukaid.errors import KukaidError
 
     try:  # the options alone: a usage error naming the option
         layout = RingLayout(axes=tuple(axes) or (3,), nb=blocks, bs=block_samples)

@@ -30,7 +30,7 @@ def read_json(path: str | Path, error: type[KukaidError] = KukaidError, what: st
     try:
         d = json.loads(text)
     except json.JSONDecodeError as e:
-        kind = _output_kind(raw) or _urdf_kind(raw) or _manifest_kind(raw)
+        kind = _known_kind(raw)
         if kind is not None:
             raise error(f"{path}: is {kind}, not a {what or _expected(error)}") from None
         raise error(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
@@ -75,6 +75,11 @@ def _manifest_kind(raw: bytes) -> str | None:
         c.strip().strip(b'"') for c in head.split(b",")} else None
 
 
+def _known_kind(raw: bytes) -> str | None:
+    """Which of the toolkit's other files ``raw`` begins as (an output, a URDF, a fleet manifest), else None."""
+    return _output_kind(raw) or _urdf_kind(raw) or _manifest_kind(raw)
+
+
 def file_kind(path: str | Path) -> str | None:
     """What else of the toolkit's files ``path`` is, by its first bytes, for a reader it is not for:
     "an axis log (HDF5)", "a PDF (a report)", "a fleet manifest (CSV)", ...; None when unknown or unreadable."""
@@ -83,7 +88,7 @@ def file_kind(path: str | Path) -> str | None:
             raw = f.read(4096)
     except OSError:
         return None
-    kind = _output_kind(raw) or _urdf_kind(raw) or _manifest_kind(raw)
+    kind = _known_kind(raw)
     if kind is not None:
         return kind
     text = raw.removeprefix(b"\xef\xbb\xbf")

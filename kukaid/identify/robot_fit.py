@@ -734,7 +734,7 @@ def consistent_fit(R: np.ndarray, z: np.ndarray, c: float, robot: RobotModel, n_
     over physically consistent links (log-Cholesky) and the extra parameters ``e`` (``nonneg`` ones
     >= 0); each link's mass ``exp(2 a_k)`` within ``mass_bounds`` times its nominal mass (a bound on
     ``a_k``), their sum within ``total_mass_bounds`` times the nominal total (a constraint).
-    ``ridge`` (default 0) holds extras the data do not see near ``x0_extra``.
+    ``ridge`` (default 0) holds extras the data do not see near ``ref`` (default ``x0_extra``).
 
     Returns the standard parameters (10 n,), the extra parameters and solver statistics."""
     n = robot.n

@@ -312,6 +312,8 @@ class Coupling(Effect):
 EFFECTS: dict[str, Effect] = {e.name: e for e in (GravitySine(), TorqueOffset(), PositionRipple(), ThermalDrift(),
                                                   LoadDependentFriction(), Backlash(), StribeckRise(), PreSliding(),
                                                   Coupling())}
+
+
 def unit_of(effect: str, key: str, stored: dict | None = None, prismatic: bool = False) -> str:
     """The unit of the number ``key`` of the effect ``effect`` (the file's ``unit`` text for a thermal drift's
     ``c``, a coupling's by its part: the other axis's gravity and inertia), "" when it has none; on a

@@ -13,8 +13,8 @@ def report_model(model: Any, output: Any, friction: Sequence[Any] = (), inertia:
                  presliding: Any = None, logs: Sequence[Any] = (), axis: int | None = None,
                  warnings: list[str] | None = None, stage: Callable[[str], None] | None = None) -> int:
     """The report of a :class:`~kukaid.identify.fitted.FittedModel` (:func:`kukaid.identify.fitted.
-    load_model`) and the logs given (paths, or logs read from them); returns the page count.  A robot file's report takes
-    only general ``logs`` (a prediction page each): the experiment roles are one axis's."""
+    load_model`) and the logs given (paths, or logs read from them); returns the page count.  A robot
+    file's report takes only general ``logs`` (a prediction page each): the experiment roles are one axis's."""
     from kukaid.errors import OptionError
     from kukaid.identify.fitted import RobotFile, file_cutoff, use_warnings
 
