@@ -230,6 +230,27 @@ def test_time_stamps_with_jitter_fit_as_an_even_log(logs):
     assert even["provenance"]["preprocess"]["time_base"] == "even"
 
 
+def test_a_logs_time_base_is_judged_once_for_all_its_axes(monkeypatch):
+    """Stop 41's review: every preprocess judged the time base again (each axis of a compare, each
+    column set of the robot fit): 0.7 s each on a 1-hour six-axis log with uneven stamps. One log's
+    axes are now judged once, and another log with the same values is judged for itself."""
+    import kukaid.identify.filtering as F
+
+    calls = []
+    real = F._roughness
+    monkeypatch.setattr(F, "_roughness", lambda *a: calls.append(1) or real(*a))
+    rng = np.random.default_rng(2)
+    t = 0.004 * np.arange(3000)
+    q = np.column_stack([0.4 * np.sin(0.7 * t + k) for k in range(6)])
+    tau = np.column_stack([5.0 * np.sin(0.7 * t + k) for k in range(6)]) + 0.05 * rng.standard_normal((t.size, 6))
+    stamps = t + rng.uniform(-0.001, 0.001, t.size)
+    lg = AxisLog(stamps, q, tau, axes=tuple(range(1, 7)), attrs={"source_file": "six.csv"})
+    bases = [F.preprocess(lg, axis=a).settings["time_base"] for a in range(1, 7)]
+    assert bases == ["re-stamped"] * 6 and len(calls) == 2      # the grid and the stamps, once
+    other = AxisLog(stamps.copy(), q.copy(), tau, axes=lg.axes, attrs={"source_file": "copy.csv"})
+    assert F.evenly_sampled(other)[1] == "re-stamped" and len(calls) == 4
+
+
 @pytest.mark.parametrize("share", [0.25, 0.4])
 def test_stamp_jitter_is_no_skipped_sample(share):
     """Each stamp off by up to ``share`` of a 12 ms step: no step skips a sample (the first quartile

@@ -40,6 +40,7 @@ All numbers SI: s, rad (m), rad/s, rad/s², N·m (N).
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field, replace
 from typing import Any, Collection, Sequence
 
@@ -273,6 +274,38 @@ def check_even_samples(time: np.ndarray, where: str) -> None:
                        "--mode ring (the program of kukaid krl-logger)")
 
 
+#: the time-base judgements of the logs seen last: (id of its time, of its positions, columns) ->
+#: (weak references to those arrays, re-stamped or not); a fit, a compare or a robot fit prepares
+#: one log several times (each axis, each column set), and on a 1-hour six-axis log with uneven
+#: stamps each judgement costs 0.7 s
+_JUDGED: dict[tuple, tuple] = {}
+_JUDGED_KEPT = 16
+
+
+def _roughness(q: np.ndarray, cols: tuple, x: np.ndarray) -> float:
+    """The positions' squared second derivatives on the time base ``x``, summed over ``cols``."""
+    return float(sum(np.sum(np.gradient(np.gradient(q[:, c], x), x) ** 2) for c in cols))
+
+
+def _restamped(log: Any, t: np.ndarray, grid: np.ndarray, cols: tuple) -> bool:
+    """Are the positions ``cols`` of ``log`` smoother on the even ``grid`` than on its stamps ``t``?
+    Judged once per log (its time and position arrays, held by weak reference: a log that is gone
+    leaves no judgement a new one could take for its own)."""
+    key = (id(log.time), id(log.q), cols)
+    seen = _JUDGED.get(key)
+    if seen is not None and seen[0]() is log.time and seen[1]() is log.q:
+        return seen[2]
+
+    out = _roughness(log.q, cols, grid) < _roughness(log.q, cols, t)
+    try:
+        _JUDGED[key] = (weakref.ref(log.time), weakref.ref(log.q), out)
+    except TypeError:       # arrays that take no weak reference are judged every time
+        return out
+    while len(_JUDGED) > _JUDGED_KEPT:
+        del _JUDGED[next(iter(_JUDGED))]
+    return out
+
+
 def evenly_sampled(log: Any, cols: Sequence[int] | None = None) -> tuple[Any, str]:
     """``log`` on an even time grid over the same span, as the filters take it, and how ("even",
     "re-stamped" or "resampled").
@@ -294,12 +327,8 @@ def evenly_sampled(log: Any, cols: Sequence[int] | None = None) -> tuple[Any, st
     grid = np.linspace(t[0], t[-1], t.size)
     if t.size < 3 or np.allclose(np.diff(t), grid[1] - grid[0], rtol=1e-3, atol=0.0):
         return log, "even"
-    cols = range(log.q.shape[1]) if cols is None else cols
-
-    def rough(x: np.ndarray) -> float:
-        return float(sum(np.sum(np.gradient(np.gradient(log.q[:, c], x), x) ** 2) for c in cols))
-
-    if rough(grid) < rough(t):
+    cols = tuple(range(log.q.shape[1]) if cols is None else cols)
+    if _restamped(log, t, grid, cols):
         return replace(log, time=grid), "re-stamped"
     moved = {name: np.column_stack([np.interp(grid, t, x[:, c]) for c in range(x.shape[1])])
              for name in ("q", "q_cmd") if (x := getattr(log, name)) is not None}
