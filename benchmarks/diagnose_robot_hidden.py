@@ -338,7 +338,9 @@ def run_case(spec: dict, duration: float, robot, twin: bool = True, n_rec: int =
            "before_x_floor": ratio(d.before), "after_x_floor": ratio(d.after),
            "noise_floor_Nm": floor.tolist(), "heldout_before": d.before, "heldout_after": d.after,
            "rejected": d.rejected, "steps": [{"name": s["name"], "params": s["params"], "mean_before": s["mean_before"],
-                                              "mean_after": s["mean_after"]} for s in d.steps]}
+                                              "mean_after": s["mean_after"]} for s in d.steps],
+           # steps that stand for two or more candidates the data do not tell apart (mechanism undetermined)
+           "undetermined": [s["undetermined"]["candidates"] for s in d.steps if "undetermined" in s]}
     if twin and spec["effect"] is not None:
         tl = recordings(spec, duration, n_rec, hidden=False)
         tp = fit_robot(tl[:1], robot)
@@ -359,7 +361,8 @@ def summarise(rows: list[dict]) -> dict:
         rs = [r for r in rows if r["effect"] == eff]
         if not rs:
             continue
-        s = {"cases": len(rs), "named_something_else": sum(any(x != r["expected"] for x in r["named"]) for r in rs)}
+        s = {"cases": len(rs), "named_something_else": sum(any(x != r["expected"] for x in r["named"]) for r in rs),
+             "undetermined": sum(bool(r.get("undetermined")) for r in rs)}
         if eff != "clean":
             s["right_first"] = sum(bool(r["named"]) and r["named"][0] == r["expected"] for r in rs)
             s["before_x_floor"] = float(np.mean([r["before_x_floor"] for r in rs]))
@@ -452,6 +455,9 @@ def main(argv=None) -> int:
     for r in rows:
         if r["named"][:1] != ([r["expected"]] if r["expected"] else []) or len(r["named"]) > 1:
             print(f"  {r['effect']} seed {r['seed']}: expected {r['expected']}, named {r['named'] or 'nothing'}")
+        for group in r.get("undetermined") or []:
+            print(f"  {r['effect']} seed {r['seed']}: mechanism undetermined: {' or '.join(group)}")
+    print(f"steps with the mechanism undetermined: {sum(v.get('undetermined', 0) for k, v in summary.items() if k != 'all')}")
     print(f"({out['seconds']:.0f} s)")
     return 0
 

@@ -92,6 +92,7 @@ def test_a_hidden_joint_effect_is_named_first(kr6, effect, name, max_steps):
         j = int(name[-1]) - 1
         after = d.after[j] * d.rms[j] / d.noise_floor[j]
         assert after < 2.0, (after, d.lines())
+    assert "undetermined" not in st, st["undetermined"]     # the data tell it from every other candidate
     if effect == "position_ripple":
         assert st["params"]["n_per_rad"] == pytest.approx(11.3, rel=0.01)
         assert st["params"]["amplitude_Nm"] == pytest.approx(0.3, rel=0.25)
@@ -141,6 +142,37 @@ def test_a_counterbalance_the_fit_took_in_is_named(kr6, robot_hidden_bench, max_
     assert row["named"][:1] == ["counterbalance@A2"], row["named"]
     assert row["after_x_floor"] < 1.4, row["after_x_floor"]
     assert abs(row["steps"][0]["params"]["q0_rad"] - spec["q0"]) < 0.2, row["steps"][0]["params"]
+
+
+def test_two_candidates_that_explain_the_same_residual_are_both_named_one_modelled(kr6, monkeypatch):
+    """A second mechanism whose torque on these logs is the hidden one's (here: the same columns
+    under another name, so the data cannot tell them apart by construction): both pass alone, their
+    held-out gains are not told apart and neither adds to the other. The diagnosis models the
+    residual (the step closes the gap as with one candidate), names both, says the mechanism is
+    undetermined and what would settle it, and does not add the second on top."""
+    import kukaid.diagnose.robot as R
+    from kukaid.diagnose.robot_candidates import LoadDependentFriction
+
+    class Other(LoadDependentFriction):
+        def __init__(self, joint):
+            super().__init__(joint)
+            self.name = f"other_friction@A{joint + 1}"
+
+    real = R.robot_candidates
+    monkeypatch.setattr(R, "robot_candidates", lambda ctx, grav: real(ctx, grav) + [Other(2)])
+    logs = _logs(kr6, "load_dependent_friction")
+    d = diagnose_robot(fit_robot(logs[:1], kr6), logs, kr6, max_steps=2)
+    assert len(d.names) == 1 and d.names[0] in ("load_dependent_friction@A3", "other_friction@A3"), d.lines()
+    st = d.steps[0]
+    assert st["mean_after"] < 0.8 * st["mean_before"]
+    u = st["undetermined"]
+    assert set(u["candidates"]) == {"load_dependent_friction@A3", "other_friction@A3"}
+    assert u["modelled_as"] == d.names[0] and u["settled_by"]
+    other = ({"load_dependent_friction@A3", "other_friction@A3"} - {d.names[0]}).pop()
+    assert any(r["name"] == other and "same held-out residual" in r["reason"] for r in d.rejected), d.rejected
+    assert any("mechanism undetermined" in x for x in d.lines()), d.lines()
+    assert d.params["provenance"]["diagnose"]["undetermined"][0]["modelled_as"] == d.names[0]
+    assert d.to_json()["steps"][0]["undetermined"]["candidates"] == u["candidates"]
 
 
 def test_no_temperature_channel_no_thermal_candidate(kr6, clean):

@@ -66,7 +66,11 @@ its gain is at least :data:`MIN_T` standard errors of its spread over blocks of 
 recordings (the log of the squared-error ratio per block), and its refit
 on all samples passes its plausibility rule; the best is added (the joints' own choices and the
 prior's strength made again with it beside: made without it, they were made on a torque it
-dominated) and the others tried again (at most ``max_steps``). The noise floor per joint
+dominated) and the others tried again (at most ``max_steps``). Another candidate of that round on
+the same joints whose held-out gain is not :data:`MIN_T` standard errors from the best's, when
+neither lowers the held-out error given the other, explains the same residual: it is named beside
+the best as an undetermined mechanism (the step's ``undetermined``: both, and the measurement that
+would settle it, :func:`kukaid.diagnose.ambiguity.settled_by`) and not added. The noise floor per joint
 (:func:`kukaid.diagnose.noise.filtered_noise_floor`: the RMSE of a perfect model in the fit's
 filtered comparison) is reported beside the errors.
 
@@ -207,6 +211,12 @@ class RobotDiagnosis:
                 par = ", ".join(f"{k2} {v:.4g}" if isinstance(v, float) else f"{k2} {v}" for k2, v in st["params"].items())
                 out.append(f"step {k}: {st['name']} ({par}): held-out error of {', '.join(st['joints'])} "
                            f"{100 * st['mean_before']:.1f} -> {100 * st['mean_after']:.1f} %")
+                u = st.get("undetermined")
+                if u:
+                    alone = ", ".join(f"{nm} {100 * x:.2f} %" for nm, x in u["heldout_relative_error"].items())
+                    out.append(f"    mechanism undetermined: {' or '.join(u['candidates'])} explain the same residual "
+                               f"(held out, each alone: {alone}; neither adds to the other); modelled as "
+                               f"{u['modelled_as']}, the larger held-out gain; to settle it: {u['settled_by']}")
         elif not self.tested:  # as the one-axis diagnosis says it
             out.append("no candidate tested (--max-steps 0): the figures above are all this run measured")
         else:
@@ -1095,6 +1105,63 @@ def _try_at(cand: RobotCandidate, ctx: Context, r, tau, Fj, shared, local, folds
     return out if many else out[0]
 
 
+@dataclass
+class _State:
+    """Where the diagnosis stands after the effects named so far: the residual torque ``r`` (N, n) the
+    joints' own columns take on (``Fj`` at the prior strength ``scale``, ``Fjs`` at each), the named
+    effects' columns (``local`` per joint, ``shared`` by all), the prior, the held-out relative error
+    per joint ``err``, its squared error per fold ``fold_err`` (K, n) and residual ``res0`` (N, n), and
+    the joints whose terms of their own angle a named effect took the place of."""
+
+    r: np.ndarray
+    Fj: list
+    Fjs: dict
+    scale: float
+    shared: Any
+    local: dict
+    prior: Any
+    err: np.ndarray
+    fold_err: np.ndarray
+    res0: np.ndarray
+    replaced: list
+
+
+@dataclass
+class _Trial:
+    """One candidate tried given a :class:`_State`: the way it was tried (``var``), its joints, the
+    held-out mean relative error of them before and with it (``mb``, ``ma``), its squared error per fold and residual, its columns, prior strength, option and coefficients,
+    its gain in standard errors, why it is not named (None: it may be; ``no_gain``: for want of a
+    held-out gain) and the evidence the result reports."""
+
+    name: str
+    cand: RobotCandidate
+    var: Any
+    joints: list
+    mb: float
+    ma: float
+    fnum: np.ndarray
+    fres: np.ndarray
+    col: np.ndarray
+    scale: float
+    opt: dict
+    coefs: np.ndarray
+    gain_t: float
+    reason: str | None
+    no_gain: bool
+    evidence: dict
+
+
+def _undetermined_note(best: _Trial, others: Sequence[_Trial]) -> dict:
+    """What a step that stands for an undetermined mechanism says: the candidates, the one modelled
+    (the larger held-out gain), each one's held-out error of its joints alone, and what would settle it."""
+    from kukaid.diagnose.ambiguity import settled_by
+
+    names = [best.name] + [t.name for t in others]
+    return {"candidates": names, "modelled_as": best.name,
+            "heldout_relative_error": {t.name: t.ma for t in (best, *others)},
+            "settled_by": settled_by(names, best.name)}
+
+
 def diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps: int = 3) -> RobotDiagnosis:
     """Find the effects of :mod:`this module`'s candidates that the logs show and the robot file
     misses (see the module's text). ``params``: a validated ``kukaid.robot_params/1`` dictionary."""
@@ -1118,12 +1185,11 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     m, rigid, base, tau_hat, pieces, corr, B, floor, own_signals = _signals(params, logs, robot)
     prior = (base.prior, B.prior)          # own columns' diagonals; (information, payload part)
 
-    def prior_of(cand, pick: bool = False):
-        """The prior a candidate is judged under: a counterbalance's frees the gravity parameters of
-        the links its joint carries (:meth:`BaseCorrection.freed`), the wrist's coupled friction the
-        inertial parameters of the wrist's links (:meth:`BaseCorrection.freed_inertia`). ``pick``:
-        the prior its options are chosen under, the last link's first moments held."""
-        pr = prior
+    def prior_of(cand, pr, pick: bool = False):
+        """The prior ``pr`` as a candidate is judged under it: a counterbalance's frees the gravity
+        parameters of the links its joint carries (:meth:`BaseCorrection.freed`), the wrist's coupled
+        friction the inertial parameters of the wrist's links (:meth:`BaseCorrection.freed_inertia`).
+        ``pick``: the prior its options are chosen under, the last link's first moments held."""
         if cand.frees_gravity:
             pr = (pr[0], B.freed(pr[1], cand.joint))
         links = cand.freed_links(ctx)
@@ -1163,119 +1229,159 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
         idx = np.flatnonzero(folds == f)
         nb = FOLDS if K > 1 else 1
         block[idx] = f * FOLDS + np.minimum(np.arange(idx.size) * nb // max(idx.size, 1), nb - 1)
-    err = _rel(num, den)
-    fold_err = num
-    before = err.copy()
+    before = _rel(num, den)
+
+    def judge(name: str, cand, st: _State) -> _Trial | None:
+        """The candidate tried given the state ``st`` (the effects named so far): its held-out figures,
+        and why it is not named (None: it may be)."""
+        # a counterbalance, a payload or the wrist's coupled friction is judged at every prior
+        # strength (a rigid body refitted freely takes part of either in, held it keeps what the
+        # file took in), preferring those that make no joint worse; the others at the baseline's
+        pr = prior_of(cand, st.prior)
+        # its options (the wrist's ratios) are chosen with the last link's first moments held: free,
+        # they trade with a motor's Coulomb column where they are chosen (six-axis virtual KR C4,
+        # wrist seed 61: c65 -0.443 for -0.377, A6 held out 14x the noise floor, held 3.4x)
+        pick = prior_of(cand, st.prior, pick=True)
+        err = st.err
+        # a candidate that may take the place of the file's terms of its joint's angle is tried
+        # in their place and beside them: the better by held-out error
+        res, var, ways = None, cand, []
+        memo = _Batches()       # its grid's columns, the same each way and at each strength
+        for v in [cand] + ([_AngleTermsHeld(cand)] if cand.angle_terms_optional else []):
+            rv = _try(v, ctx, st.r, tau, st.Fjs if cand.rigid_body_like else {st.scale: st.Fj}, st.shared, st.local,
+                      folds, K, w, held, pr, base, admissible=lambda a, b: not _worse(_rel(a, b), err, rms, floor),
+                      memo=memo, pick_prior=pick)
+            if rv is not None:
+                ways.append(v)
+            if rv is not None and (res is None or _weighted(rv[0], w) < _weighted(res[0], w)):
+                res, var = rv, v
+        if res is None:
+            return None
+        fnum, fden, fres, opt, coefs, col, c_scale = res
+        e = _rel(fnum, fden)
+        joints = cand.joints(ctx)
+        mb, ma = float(np.mean(err[joints])), float(np.mean(e[joints]))
+        # judged against the baseline, and against the candidate without what names it when that
+        # predicts better (a thermal friction's own friction terms without the temperature). A
+        # candidate tried in several ways (in the place of the file's terms of its joint's angle
+        # and beside them, the better by held-out error) is judged against its null tried in each
+        # of those ways too, the better of them: the null given the same freedom, so that taking
+        # the file's terms out is not what names it (a clean whole-arm log of the fleet tests:
+        # A5's file terms out alone held A5 out 2 % better, the ripple beside them 7 %, a noise
+        # peak of 0.013 N·m at order 25.6 rad/rad, half the noise floor, named)
+        ref, ref_res, without = mb, st.res0, cand.without(ctx, opt)
+        if without is not None:
+            for aj in dict.fromkeys(tuple(v.angle_joints(ctx)) if v.without_replaces else () for v in ways):
+                wnum, _, wres = _try_at(_Fixed(cand.joint, without, aj), ctx, st.r, tau,
+                                        st.Fjs[c_scale] if cand.rigid_body_like else st.Fj, st.shared, st.local,
+                                        folds, K, w, held, _scaled(pr, c_scale), base)[:3]
+                if float(np.mean(_rel(wnum, den)[joints])) < ref:
+                    ref, ref_res = float(np.mean(_rel(wnum, den)[joints])), wres
+        gain_t = _gain_t(ref_res, fres, den.sum(0), block, joints)
+        per_fold = (fnum[held][:, joints].sum(1) / np.maximum(st.fold_err[held][:, joints].sum(1), 1e-300)).tolist()
+        # worse: by the margin and by more than WORSE_FLOOR of the joint's noise floor (:func:`_worse`)
+        worse = [f"A{k + 1} ({100 * err[k]:.2f} -> {100 * e[k]:.2f} %)" for k in _worse(e, err, rms, floor)]
+        reason, no_gain = None, False
+        if ma > (1 - MARGIN) * ref:
+            no_gain = True
+            reason = f"held-out error {100 * mb:.2f} -> {100 * ma:.2f} % (needs a {100 * MARGIN:.0f} % drop)" + (
+                f"; {100 * ref:.2f} % without {cand.without_what}" if ref < mb else "")
+        elif worse:
+            reason = f"makes {', '.join(worse)} worse on held-out data"
+        elif gain_t < MIN_T:
+            no_gain = True
+            reason = (f"held-out error {100 * mb:.2f} -> {100 * ma:.2f} %, but the gain is {gain_t:.2g} x its "
+                      f"standard error over the held-out blocks (needs {MIN_T:g})")
+        else:
+            reason = cand.implausible(ctx, opt, coefs) or None
+        return _Trial(name=name, cand=cand, var=var, joints=joints, mb=mb, ma=ma, fnum=fnum, fres=fres,
+                      col=col, scale=c_scale, opt=opt, coefs=coefs, gain_t=gain_t, reason=reason, no_gain=no_gain,
+                      evidence={"name": name, "mean_before": mb, "mean_after": ma, "fold_sse_ratio": per_fold,
+                                "gain_t": gain_t})
+
+    def named_in(st: _State, t: _Trial) -> _State:
+        """The state with ``t``'s effect named: its columns beside the file's terms (in the place of
+        its joint's angle terms where it was tried so), its prior, the joints' own choices and the
+        prior's strength made again with it beside (made without it, they were made on a torque it
+        dominated: a ripple of 30x the noise floor on a joint leaves its Coulomb transition, viscous
+        form and rotor inertia to chance), kept where they predict better than the trial's own."""
+        Fj_, scale_, fnum, fres = st.Fjs[t.scale], t.scale, t.fnum, t.fres
+        local_, shared_ = _with(st.local, st.shared, t.cand, t.col, n)
+        r_, replaced_ = st.r, list(st.replaced)
+        for jj in t.var.angle_joints(ctx):
+            r_, Fj_ = base.without_angle_terms(jj, r_, Fj_)
+            replaced_ += [jj] if jj not in replaced_ else []
+        prior_ = prior_of(t.cand, st.prior)
+        e_now = _weighted(fnum, w)
+        bl_ = _baselines(base, r_, tau, shared_, prior_, folds, K, w, local_, replaced_)
+        for c, (Fc_, _, num_c, res_c) in bl_.items():
+            if _weighted(num_c, w) < e_now:
+                e_now, Fj_, scale_, fnum, fres = _weighted(num_c, w), Fc_, c, num_c, res_c
+        return _State(r=r_, Fj=Fj_, Fjs={c: v[0] for c, v in bl_.items()}, scale=scale_, shared=shared_,
+                      local=local_, prior=prior_, err=_rel(fnum, den), fold_err=fnum, res0=fres, replaced=replaced_)
+
+    st = _State(r=r, Fj=Fj, Fjs=Fjs, scale=scale, shared=shared, local=local, prior=prior, err=before.copy(),
+                fold_err=num, res0=res0, replaced=[])
     steps, rejected = [], []
     tried: list[dict] = []
-    replaced: list[int] = []
     named: list = []                        # (candidate, its option) in the order named
     kept: dict = {}                         # named effects the refined file keeps at the diagnosis' coefficients
     residuals = [res0]                      # held-out residual (N, n) at the start and after each step
+    given_best: dict[str, _Trial | None] = {}   # candidates already tried given the last named effect
     for rnd in range(max(0, max_steps)):
-        best = None
-        trials: list[dict] = []
-        for name, cand in remaining.items():
-            # a counterbalance, a payload or the wrist's coupled friction is judged at every prior
-            # strength (a rigid body refitted freely takes part of either in, held it keeps what the
-            # file took in), preferring those that make no joint worse; the others at the baseline's
-            pr = prior_of(cand)
-            # its options (the wrist's ratios) are chosen with the last link's first moments held: free,
-            # they trade with a motor's Coulomb column where they are chosen (six-axis virtual KR C4,
-            # wrist seed 61: c65 -0.443 for -0.377, A6 held out 14x the noise floor, held 3.4x)
-            pick = prior_of(cand, pick=True)
-            # a candidate that may take the place of the file's terms of its joint's angle is tried
-            # in their place and beside them: the better by held-out error
-            res, var, ways = None, cand, []
-            memo = _Batches()       # its grid's columns, the same each way and at each strength
-            for v in [cand] + ([_AngleTermsHeld(cand)] if cand.angle_terms_optional else []):
-                rv = _try(v, ctx, r, tau, Fjs if cand.rigid_body_like else {scale: Fj}, shared, local, folds, K, w,
-                          held, pr, base, admissible=lambda a, b: not _worse(_rel(a, b), err, rms, floor), memo=memo,
-                          pick_prior=pick)
-                if rv is not None:
-                    ways.append(v)
-                if rv is not None and (res is None or _weighted(rv[0], w) < _weighted(res[0], w)):
-                    res, var = rv, v
-            if res is None:
-                continue
-            fnum, fden, fres, opt, coefs, col, c_scale = res
-            e = _rel(fnum, fden)
-            joints = cand.joints(ctx)
-            info = cand.describe(ctx, opt, coefs)
-            mb, ma = float(np.mean(err[joints])), float(np.mean(e[joints]))
-            # judged against the baseline, and against the candidate without what names it when that
-            # predicts better (a thermal friction's own friction terms without the temperature). A
-            # candidate tried in several ways (in the place of the file's terms of its joint's angle
-            # and beside them, the better by held-out error) is judged against its null tried in each
-            # of those ways too, the better of them: the null given the same freedom, so that taking
-            # the file's terms out is not what names it (a clean whole-arm log of the fleet tests:
-            # A5's file terms out alone held A5 out 2 % better, the ripple beside them 7 %, a noise
-            # peak of 0.013 N·m at order 25.6 rad/rad, half the noise floor, named)
-            ref, ref_res, without = mb, res0, cand.without(ctx, opt)
-            if without is not None:
-                for aj in dict.fromkeys(tuple(v.angle_joints(ctx)) if v.without_replaces else () for v in ways):
-                    wnum, _, wres = _try_at(_Fixed(cand.joint, without, aj), ctx, r, tau,
-                                            Fjs[c_scale] if cand.rigid_body_like else Fj, shared, local, folds, K,
-                                            w, held, _scaled(pr, c_scale), base)[:3]
-                    if float(np.mean(_rel(wnum, den)[joints])) < ref:
-                        ref, ref_res = float(np.mean(_rel(wnum, den)[joints])), wres
-            gain_t = _gain_t(ref_res, fres, den.sum(0), block, joints)
-            per_fold = (fnum[held][:, joints].sum(1) / np.maximum(fold_err[held][:, joints].sum(1), 1e-300)).tolist()
-            trials.append({"name": name, "mean_before": mb, "mean_after": ma, "fold_sse_ratio": per_fold,
-                           "gain_t": gain_t})
-            # worse: by the margin and by more than WORSE_FLOOR of the joint's noise floor (:func:`_worse`)
-            worse = [f"A{k + 1} ({100 * err[k]:.2f} -> {100 * e[k]:.2f} %)" for k in _worse(e, err, rms, floor)]
-            reason = None
-            if ma > (1 - MARGIN) * ref:
-                reason = f"held-out error {100 * mb:.2f} -> {100 * ma:.2f} % (needs a {100 * MARGIN:.0f} % drop)" + (
-                    f"; {100 * ref:.2f} % without {cand.without_what}" if ref < mb else "")
-            elif worse:
-                reason = f"makes {', '.join(worse)} worse on held-out data"
-            elif gain_t < MIN_T:
-                reason = (f"held-out error {100 * mb:.2f} -> {100 * ma:.2f} %, but the gain is {gain_t:.2g} x its "
-                          f"standard error over the held-out blocks (needs {MIN_T:g})")
-            else:
-                reason = cand.implausible(ctx, opt, coefs) or None
-            if reason is None and (best is None or (mb - ma) / mb > best[0]):
-                best = ((mb - ma) / mb, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, c_scale, opt, coefs, var)
-            elif reason is not None:
-                rejected = [x_ for x_ in rejected if x_["name"] != name] + [{"name": name, "reason": reason}]
+        trials = {name: given_best[name] if name in given_best else judge(name, cand, st)
+                  for name, cand in remaining.items()}
+        trials = {k: t for k, t in trials.items() if t is not None}
         if rnd == 0:
-            tried = trials
-        if best is None:
+            tried = [t.evidence for t in trials.values()]
+        for t in trials.values():
+            if t.reason is not None:
+                rejected = [x_ for x_ in rejected if x_["name"] != t.name] + [{"name": t.name, "reason": t.reason}]
+        passing = [t for t in trials.values() if t.reason is None]
+        if not passing:
             break
-        _, name, e, joints, info, mb, ma, col, fnum, fres, gain_t, scale, opt, coefs, var = best
-        Fj = Fjs[scale]
-        cand = remaining.pop(name)
-        named.append((cand, opt))
-        if cand.held_in_refit:
-            kept[name] = np.asarray(coefs, float)
-        rejected = [x_ for x_ in rejected if x_["name"] != name]
-        local, shared = _with(local, shared, cand, col, n)
-        for jj in var.angle_joints(ctx):
-            r, Fj = base.without_angle_terms(jj, r, Fj)
-            replaced += [jj] if jj not in replaced else []
-        prior = prior_of(cand)
-        # the joints' own choices and the prior's strength again, with the named effect beside: made
-        # without it, they were made on a torque it dominated (a ripple of 30x the noise floor on a
-        # joint leaves its Coulomb transition, viscous form and rotor inertia to chance); kept where
-        # they predict better than the step's own
-        e_now = _weighted(fnum, w)
-        bl = _baselines(base, r, tau, shared, prior, folds, K, w, local, replaced)
-        Fjs = {c: v[0] for c, v in bl.items()}
-        for c, (Fc_, _, num_c, res_c) in bl.items():
-            if _weighted(num_c, w) < e_now:
-                e_now, Fj, scale, fnum, fres = _weighted(num_c, w), Fc_, c, num_c, res_c
-        e = _rel(fnum, den)
-        ma = float(np.mean(e[joints]))
-        steps.append({"name": name, "joints": [f"A{k + 1}" for k in joints], "params": {
+        best = max(passing, key=lambda t: (t.mb - t.ma) / t.mb)
+        remaining.pop(best.name)
+        named.append((best.cand, best.opt))
+        if best.cand.held_in_refit:
+            kept[best.name] = np.asarray(best.coefs, float)
+        rejected = [x_ for x_ in rejected if x_["name"] != best.name]
+        new = named_in(st, best)
+        # a candidate the round let pass too, on the best's joints, whose held-out error the data do not
+        # tell from the best's: when neither adds to the other, both explain the same residual
+        given_best, undetermined = {}, []
+        for t in passing:
+            if t is best or not set(t.joints) & set(best.joints) or _gain_t(
+                    t.fres, best.fres, den.sum(0), block, sorted(set(t.joints) | set(best.joints))) >= MIN_T:
+                continue
+            given_best[t.name] = after = judge(t.name, t.cand, new)
+            if after is None or after.no_gain:
+                back = judge(best.name, best.cand, named_in(st, t))
+                if back is None or back.no_gain:
+                    undetermined.append(t)
+        for t in undetermined:
+            remaining.pop(t.name)
+            rejected = [x_ for x_ in rejected if x_["name"] != t.name] + [{"name": t.name, "reason": (
+                f"explains the same held-out residual as {best.name}, which is modelled (mechanism undetermined)")}]
+        info = best.cand.describe(ctx, best.opt, best.coefs)
+        joints = best.joints
+        ma = float(np.mean(new.err[joints]))
+        step = {"name": best.name, "joints": [f"A{k + 1}" for k in joints], "params": {
             k: v for k, v in info.items() if not isinstance(v, list)}, "details": info,
-            "mean_before": mb, "mean_after": ma, "gain_t": gain_t, "heldout_before": err.tolist(),
-            "heldout_after": e.tolist(), "trials": trials, "option": opt})
-        err, fold_err, res0 = e, fnum, fres
-        residuals.append(fres)
-    refined = _refined(params, logs, base, own_signals, named, r, tau, corr, _scaled(prior, scale), w, replaced, kept)
-    return RobotDiagnosis(axes=axes, folds=how, before=before.tolist(), after=err.tolist(), steps=steps,
+            "mean_before": best.mb, "mean_after": ma, "gain_t": best.gain_t, "heldout_before": st.err.tolist(),
+            "heldout_after": new.err.tolist(), "trials": [t.evidence for t in trials.values()], "option": best.opt}
+        if undetermined:
+            step["undetermined"] = _undetermined_note(best, undetermined)
+        steps.append(step)
+        st = new
+        residuals.append(st.res0)
+    refined = _refined(params, logs, base, own_signals, named, st.r, tau, corr, _scaled(st.prior, st.scale), w,
+                       st.replaced, kept)
+    if any("undetermined" in s for s in steps):     # as the one-axis diagnosis writes it
+        refined["provenance"]["diagnose"]["undetermined"] = [
+            {k: s["undetermined"][k] for k in ("candidates", "modelled_as", "settled_by")}
+            for s in steps if "undetermined" in s]
+    return RobotDiagnosis(axes=axes, folds=how, before=before.tolist(), after=st.err.tolist(), steps=steps,
                           rejected=rejected, in_sample=in_sample, noise_floor=floor.tolist(), rms=rms.tolist(),
                           smooth=[any(smooth_at_source(lg.tau[:, lg.index(a)]) for lg in logs) for a in axes],
                           tried=tried, fitted_on=fitted_on, given=list(given), params=refined, tested=max_steps > 0,
