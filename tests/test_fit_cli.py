@@ -41,9 +41,12 @@ def test_fit_writes_params_and_table(logs):
     assert len(par["maxwell_slip"]["k"]) <= 3 and "uncertainty" in par and "metrics" in par
     assert par["metrics"]["ipopt_status"] == "Solve_Succeeded"
     # new-user trial 10: the +- are least-squares sigmas of white residuals, about 3x optimistic on these
-    # filtered ones; the table says so with the factor (the robot table's sigmas are corrected already)
+    # filtered ones; the table gave them with a note to multiply (stop 41's review: the robot table's
+    # are multiplied already). It now gives them times the factor, as the robot table does
     cf = par["metrics"]["residual_correlation_factor"]
-    assert cf > 1.5 and f"multiply by the residual correlation factor {cf:.3g}" in r.output
+    assert cf > 1.5 and f"least-squares standard deviations x the residual correlation factor {cf:.3g}" in r.output
+    fc_row = next(ln for ln in r.output.splitlines() if ln.strip().startswith("Fc "))
+    assert float(fc_row.split("+-")[1].split()[0]) == pytest.approx(par["uncertainty"]["Fc"] * cf, rel=2e-3), fc_row
 
 
 def test_general_log_coulomb_viscous_with_options(logs):

@@ -378,11 +378,19 @@ def format_table(params: dict) -> str:
     items += list(params["inertial"].items())
     if "offset" in params:
         items.append(("offset", params["offset"]))
-    on_bound = {b["name"]: b for b in (params.get("metrics") or {}).get("at_bound") or []}
+    m = params.get("metrics") or {}
+    refined = isinstance(m.get("original_fit"), dict)  # diagnose -o: the fit's figures are of the model without its effects
+    cf = m.get("residual_correlation_factor")
+    # the least-squares standard deviations assume white residuals; the filtered residuals are correlated, so
+    # the table gives them times the residual correlation factor, as the robot fit's table does (diagnose's
+    # refit gives HAC standard deviations: no factor)
+    cf = float(cf) if unc and not refined and isinstance(cf, (int, float)) and math.isfinite(cf) else None
+    on_bound = {b["name"]: b for b in m.get("at_bound") or []}
     for k, v in items:
         b = on_bound.get(k)
         v = b["bound"] if b else v  # within the solver's tolerance of its bound: the bound (0, not 5.5e-28)
         s = unc.get(k)
+        s = s * cf if s is not None and cf is not None else s
         label = names.get(k, k)
         if b:  # a standard deviation from the curvature is no interval at an active bound: the data want beyond it
             rows.append(f"  {label:<7} {v:>12.5g}  {'(at its ' + b.get('side', '') + ' bound)':<25}{units.get(k, '')}")
@@ -394,8 +402,6 @@ def format_table(params: dict) -> str:
     if ms:
         rows.append("  Maxwell-slip k = " + ", ".join(f"{x:.4g}" for x in ms["k"]) + f" {units['k']}")
         rows.append("               W = " + ", ".join(f"{x:.4g}" for x in ms["W"]) + f" {units['W']}")
-    m = params.get("metrics", {})
-    refined = isinstance(m.get("original_fit"), dict)  # diagnose -o: the fit's figures are of the model without its effects
     fm = m["original_fit"] if refined else m
     extra = []
     for key, label in (("friction_fit_mse", "friction fit MSE"), ("torque_prediction_mse", "torque MSE")):
@@ -407,10 +413,9 @@ def format_table(params: dict) -> str:
     unused = [k for k in _STRIBECK_ONLY if cv and k in params["friction"]]
     if unused:
         tail.append(f"  not used: friction {', '.join(unused)} (Stribeck parameters; friction.model is coulomb-viscous)")
-    cf = m.get("residual_correlation_factor")
-    if unc and isinstance(cf, (int, float)) and math.isfinite(cf):  # the +- above assume white residuals
-        tail.append(f"  +-: least-squares standard deviations, white residuals assumed; the filtered residuals are "
-                    f"correlated: multiply by the residual correlation factor {cf:.3g} for a realistic one")
+    if cf is not None:
+        tail.append(f"  +-: least-squares standard deviations x the residual correlation factor {cf:.3g} (the filtered "
+                    f"residuals are correlated; the file's uncertainty holds them before the factor)")
     if refined:
         ratio = m.get("residual_over_noise")
         tail.insert(0, f"  diagnose's refit with {', '.join(params.get('effects') or {})}: torque RMSE "
