@@ -1,6 +1,7 @@
 """run-admittance with a robot model: the guided axis's Γr from every axis's motion (six-axis virtual KR C4)."""
 from __future__ import annotations
 
+import json
 import math
 from types import SimpleNamespace
 
@@ -243,3 +244,38 @@ def test_a_persons_arm_guides_a3_of_the_six_axis_robot(damping):
     assert m["displacement"] > 0.12                             # 3 s into a 3.4 s move of 0.34 rad
     assert m["residual_rmse"] < 5.0                             # and Γr saw what the hand did
     assert np.median(d["gamma_r"][held]) > 5.0
+
+
+def test_a_robot_file_whose_urdf_was_edited_since_the_fit_is_refused_before_anything_moves(tmp_path):
+    """New-user trial 18: validate and diagnose refuse a robot file whose URDF (at the path it names) is no
+    longer the one it was fitted with (its sha256), but run-admittance built its model from the edited URDF
+    and guided the axis with it.  Now the model is refused with the same line, and nothing is written."""
+    import shutil
+
+    from click.testing import CliRunner
+
+    from kukaid.identify.robot_fit import fit_robot
+    from kukaid.models.robot import RobotModel
+    from kukaid.models.urdf import robot_urdf
+    from kukaid.params import save_robot_params
+    from kukaid_cli.main import cli
+    from robot_sim_helpers import simulated_log
+
+    urdf = tmp_path / "kr6.urdf"
+    shutil.copy(robot_urdf(ROBOT), urdf)
+    log, _ = simulated_log(RobotModel(str(urdf)), duration=5.0, seed=0)
+    save_robot_params(tmp_path / "robot.json", fit_robot([log], RobotModel(str(urdf))))
+    text = urdf.read_text()
+    edited = text.replace('<mass value="', '<mass value="1', 1)          # a link 10+ kg heavier
+    assert edited != text
+    urdf.write_text(edited)
+    with pytest.raises(KukaidError, match="not the one the parameters were fitted with"):
+        RobotTorqueModel.from_params(json.loads((tmp_path / "robot.json").read_text()))
+    out = tmp_path / "run.h5"
+    r = CliRunner().invoke(cli, ["run-admittance", "--params", str(tmp_path / "robot.json"), "--no-rest-model",
+                                 "--operator", "none", "--duration", "1", "-o", str(out)])
+    assert r.exit_code == 1, r.output
+    assert r.stderr.strip().splitlines() == [
+        f"kukaid: error: {urdf}: this URDF is not the one the parameters were fitted with (sha256 "
+        f"{RobotModel(str(urdf)).sha256[:12]}... against {json.loads((tmp_path / 'robot.json').read_text())['robot']['sha256'][:12]}...)"]
+    assert not out.exists() and not list(tmp_path.glob("*.partial.h5"))
