@@ -300,3 +300,30 @@ def test_the_robot_reports_relative_sigma_is_fits_sigma_percent(robot_case):
              for (r, c), cell in tab.get_celld().items()}
     assert cells[(0, 5)] == "σ × cf / |est.|"
     assert cells[(1, 5)] == f"{100 * 0.0705 * 5.75 / 0.014:.0f} %"  # 2896 %, not 3.1 %
+
+
+def test_show_does_not_give_masses_as_multiples_of_a_urdf_edited_since_the_fit(robot_case, tmp_path):
+    """New-user trial 18: with the URDF at the path the file names edited since the fit (another link mass),
+    `show` printed the fitted masses as multiples of the edited URDF's, and flagged bounds on them, without a
+    word; validate refuses that URDF (its sha256).  Now the masses are given in kg, saying why."""
+    import shutil
+
+    from kukaid.models.urdf import robot_urdf
+    from kukaid.params import save_robot_params
+
+    params, _ = robot_case
+    urdf = tmp_path / "kr6.urdf"
+    shutil.copy(robot_urdf("kr6-r700-sixx"), urdf)
+    save_robot_params(tmp_path / "p.json", {**params, "robot": {**params["robot"], "urdf": str(urdf)}})
+
+    def masses():
+        r = CliRunner().invoke(cli, ["show", str(tmp_path / "p.json")])
+        assert r.exit_code == 0, r.output
+        (line,) = [x for x in r.stdout.splitlines() if x.startswith("link masses")]
+        return line
+
+    assert masses().startswith("link masses / URDF: ")
+    urdf.write_text(urdf.read_text().replace('<mass value="', '<mass value="1', 2))
+    assert masses().startswith("link masses kg: ") and masses().endswith(
+        f"(its URDF {urdf} is not the one the file was fitted with (its sha256): --urdf PATH of that one gives them "
+        "as multiples of the URDF's)"), masses()

@@ -1858,14 +1858,19 @@ def format_robot_table(params: dict) -> str:
     mb = st.get("mass_bounds")
     if std and rob.get("urdf"):
         try:
-            nominal = RobotModel(rob["urdf"]).pi_nominal[0::10]
+            urdf = RobotModel(rob["urdf"])
+            if rob.get("sha256") and urdf.sha256 != rob["sha256"]:  # edited since the fit: its masses are others
+                raise ParamFileError(f"{rob['urdf']} is not the URDF the file was fitted with (sha256)")
+            nominal = urdf.pi_nominal[0::10]
             ratio = [std[lk]["m"] / m0 if m0 > 0 else float("nan") for lk, m0 in zip(rob.get("links", std), nominal)]
             flag = lambda r: "*" if mb and (r <= mb[0] * 1.001 or r >= mb[1] * 0.999) else ""  # noqa: E731
             lines.append("link masses / URDF: " + " ".join(f"{r:.2f}{flag(r)}" for r in ratio)
                          + (f" (bounds {mb[0]:g}-{mb[1]:g}x, * on a bound)" if mb else " (no bounds)"))
-        except Exception:  # noqa: BLE001 (the URDF moved: the masses alone)
+        except Exception as e:  # noqa: BLE001 (the URDF moved or was edited: the masses alone)
+            why = ("is not the one the file was fitted with (its sha256): --urdf PATH of that one" if "(sha256)" in str(e)
+                   else "not found: --urdf PATH")
             lines.append("link masses kg: " + " ".join(table_number(std[lk]["m"]) for lk in std)
-                         + f" (its URDF {rob['urdf']} not found: --urdf PATH gives them as multiples of the URDF's)")
+                         + f" (its URDF {rob['urdf']} {why} gives them as multiples of the URDF's)")
     mcheck = ch.get("mass_bounds")
     if mcheck and mcheck.get("why"):
         lines.append(f"masses on a bound ({', '.join(mcheck.get('links_on_bound') or [])}): {mcheck['why']}")
