@@ -335,6 +335,8 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         from kukaid.sim import SimConfig, VirtualKRC4, load_sim_config
         from kukaid.sim.operator import make_operator, operator_params
 
+        if robot_file and (sim_config is not None or noise is not None or plant_friction is not None):
+            raise click.UsageError("--sim-config, --noise and --plant-friction are for one-axis parameter files")
         scfg = load_sim_config(sim_config) if sim_config else SimConfig()
         if noise is not None:
             scfg = scfg.replace(noise_sigma=noise)
@@ -347,8 +349,6 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
         if robot_file:  # the six-axis virtual KR C4 of that robot, the other axes standing at their mid range
             from kukaid.sim.robot_plant import RobotSimConfig, VirtualRobotKRC4
 
-            if sim_config is not None or noise is not None or plant_friction is not None:
-                raise click.UsageError("--sim-config, --noise and --plant-friction are for one-axis parameter files")
             guidable()
             plant = VirtualRobotKRC4(RobotSimConfig(robot=params["robot"]["urdf"]), seed=seed)
             cfg = dataclasses.replace(cfg, sample_time=plant.cfg.sample_time)

@@ -287,6 +287,29 @@ def test_help_says_which_sim_options_a_robot_parameter_file_refuses():
         assert f"{opt} " in text and text.split(f"{opt} ", 1)[1].split("sim, ", 1)[1].startswith("one-axis"), opt
 
 
+def test_a_robot_files_run_refuses_a_sim_config_as_a_usage_error_before_reading_it(tmp_path):
+    """New-user trial 18: a six-axis simulator's settings (`capture --sim-config`, e.g. {"armature": false})
+    given to run-admittance with a robot parameter file were read as the one-axis simulator's, and refused
+    as "unknown field 'armature' (known: C_th, Fc, ...)", exit 1: the one-axis fields offered as the fix,
+    which the usage error for a robot file then refuses.  Now the usage error comes first."""
+    pytest.importorskip("pinocchio")
+    from kukaid.identify.robot_fit import fit_robot
+    from kukaid.models.robot import RobotModel
+    from kukaid.params import save_robot_params
+    from robot_sim_helpers import simulated_log
+
+    kr6 = RobotModel("kr6-r700-sixx")
+    save_robot_params(tmp_path / "robot.json", fit_robot([simulated_log(kr6, duration=5.0, seed=0)[0]], kr6))
+    (tmp_path / "robot_sim.json").write_text('{"armature": false}')
+    out = tmp_path / "run.h5"
+    r = _run(["--params", tmp_path / "robot.json", "--no-rest-model", "--sim-config", tmp_path / "robot_sim.json",
+              "-o", out])
+    assert r.exit_code == 2, r.output
+    assert r.stderr.strip().splitlines() == [
+        "kukaid: error: run-admittance: --sim-config, --noise and --plant-friction are for one-axis parameter files"]
+    assert not out.exists()
+
+
 def test_safety_errors_name_the_window_in_degrees():
     from kukaid.control.safety import ReferenceLimiter, SafetyLimits
     from kukaid.errors import LimitError
