@@ -207,7 +207,7 @@ def _fit_robot(logs, robot, output, force, friction_model, cutoff, order, decima
     if not logs:
         raise click.UsageError("give at least one log of the robot moving (LOG...)")
     check_suffix(output, ".json")
-    check_outputs([output], list(logs))
+    check_outputs([output], [*logs, coupling])
     mb, tb = _mass_bounds(mass_bounds)
     settings = RobotFitSettings(cutoff=cutoff, order=order or 4, decimate=decimate,
                                 friction=friction_model or "coulomb-viscous", vs=stribeck_vs,

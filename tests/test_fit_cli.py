@@ -194,6 +194,27 @@ def test_option_of_the_other_fit_is_a_usage_error(logs, tmp_path, args, msg):
     assert not out.exists()
 
 
+def test_the_robot_fit_never_writes_over_its_coupling_matrix(tmp_path):
+    """New-user trial 18: `fit LOG --robot ... --torque-side motor --coupling c.json -o c.json --force` replaced
+    the coupling matrix it had read with the parameter file (both are JSON); the logs were checked, the
+    coupling was not.  Now it is refused as any other input is, and the file is left as it was."""
+    pytest.importorskip("pinocchio")
+    from kukaid.logs import write_hdf5
+    from kukaid.models.robot import RobotModel
+    from robot_sim_helpers import simulated_log
+
+    write_hdf5(simulated_log(RobotModel("kr6-r700-sixx"), duration=5.0, seed=0)[0], tmp_path / "arm.h5")
+    coupling = tmp_path / "coupling.json"
+    coupling.write_text(json.dumps([[0.0] * 6 for _ in range(6)]))
+    before = coupling.read_bytes()
+    r = CliRunner().invoke(cli, ["fit", str(tmp_path / "arm.h5"), "--robot", "kr6-r700-sixx", "--torque-side", "motor",
+                                 "--coupling", str(coupling), "-o", str(coupling), "--force"])
+    assert r.exit_code == 1, r.output
+    assert r.stderr.strip().splitlines() == [f"kukaid: error: {coupling}: is also an input of this command; write "
+                                             "the output elsewhere"]
+    assert coupling.read_bytes() == before
+
+
 def test_staged_without_friction_logs_is_a_usage_error(logs, tmp_path):
     d, p = logs
     out = tmp_path / "params.json"
