@@ -37,8 +37,9 @@ def command(axis: int, q_min: float, q_max: float, qd_max: float, axis_speed: fl
     from kukaid.krc.krl_follower import FollowerConfig, krl_follower_files
     from kukaid_cli._util import usage_errors, write_krl_files
 
-    if not (qd_max > 0 and axis_speed > 0 and qd_max <= axis_speed):
-        raise click.UsageError(f"need 0 < --qd-max ({qd_max:g}) <= --axis-speed ({axis_speed:g}) deg/s")
+    if not (qd_max > 0 and axis_speed > 0 and qd_max <= axis_speed and math.isfinite(axis_speed)):
+        raise click.UsageError(f"need 0 < --qd-max ({qd_max:g}) <= --axis-speed ({axis_speed:g}) deg/s, finite "
+                               "numbers")
     # $VEL_AXIS is a whole percentage on the KRC: rounded down, so the controller never runs faster than --qd-max
     vel_pct = math.floor(100.0 * qd_max / axis_speed + 1e-9)
     if vel_pct < 1:

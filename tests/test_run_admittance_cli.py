@@ -561,6 +561,18 @@ def test_krl_follower_speed_is_a_whole_percentage_never_above_qd_max(tmp_path):
     assert r.exit_code == 2 and not (tmp_path / "c").exists()
 
 
+@pytest.mark.parametrize("speeds", [["--qd-max", "inf", "--axis-speed", "inf"], ["--axis-speed", "inf"],
+                                    ["--axis-speed", "nan"]])
+def test_krl_follower_refuses_an_axis_speed_that_is_no_number(tmp_path, speeds):
+    """New-user trial 18: `krl-follower --qd-max inf --axis-speed inf` ended in "internal error (ValueError:
+    cannot convert float NaN to integer)", exit 70, and --axis-speed inf alone in "give at least inf deg/s".
+    Now both are one usage line, and nothing is written."""
+    r = CliRunner().invoke(cli, ["krl-follower", "--q-min", "0", "--q-max", "45", *speeds, "-o", tmp_path / "k"])
+    assert r.exit_code == 2, r.output
+    assert len(r.stderr.strip().splitlines()) == 1 and "--axis-speed" in r.stderr and "finite" in r.stderr, r.stderr
+    assert not (tmp_path / "k").exists()
+
+
 def test_krl_follower_says_when_the_krc_bounds_the_axis_below_qd_max(tmp_path):
     """New-user trial 11: the defaults gave $VEL_AXIS 8 % = 28.8 deg/s, below run-admittance's --qd-max 30:
     the KRC bounds the axis, and a reference faster than that runs ahead of it.  The defaults now agree (28.8),
