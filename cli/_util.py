@@ -23,6 +23,22 @@ class AxisNumber(click.IntRange):
             self.fail(f"'{value}' is not an axis number: give {self.min} to {self.max} (the KUKA axis, as 3)", param, ctx)
 
 
+class FloatRange(click.FloatRange):
+    """click's ``FloatRange``, refusing ``nan``: every comparison with it is false, so click's took it within
+    any range (`serve-sim --speed nan` served, `run-admittance --init-move nan` passed the check of the file
+    and switched a robot's follower on)."""
+
+    def __init__(self, *args, what: str = "a number", **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.what = what  # said of a nan: "nan is not a position in degrees"
+
+    def convert(self, value, param, ctx):
+        v = super().convert(value, param, ctx)
+        if math.isnan(v):
+            self.fail(f"{value} is not {self.what}", param, ctx)
+        return v
+
+
 #: ``--axis``: a KUKA axis number, 1 to 12 as in a parameter file (which axes a file models is checked
 #: with it: :func:`kukaid.identify.fitted.axis_option`)
 AXIS = AxisNumber(1, 12)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import AXIS, JSON_HELP, PORT
+from kukaid_cli._util import AXIS, JSON_HELP, PORT, FloatRange
 
 from kukaid_cli._util import progress as progress_bar
 
@@ -31,15 +31,15 @@ from kukaid_cli._util import progress as progress_bar
               help="sim: hide an effect (gravity_sine, torque_offset, position_ripple, thermal_drift, "
                    "load_dependent_friction, backlash) of SIZE N·m [drawn: 2 to 5 times the noise sigma]; "
                    "other parameters drawn from the seed; repeatable.")
-@click.option("--chunk", type=click.FloatRange(0.1, 60.0), default=1.5, show_default=True,
+@click.option("--chunk", type=FloatRange(0.1, 60.0), default=1.5, show_default=True,
               help="sim: simulated seconds per block written to the log.")
-@click.option("--settle", type=click.FloatRange(0.0, 60.0), default=0.5, show_default=True,
+@click.option("--settle", type=FloatRange(0.0, 60.0), default=0.5, show_default=True,
               help="sim: seconds recorded after the trajectory ends.")
 # kvp
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
 @PORT
 @click.option("--axis", "axes", type=AXIS, multiple=True, help="kvp: axis to record; repeatable [3].")
-@click.option("--duration", type=click.FloatRange(0.0, 7 * 86400.0, min_open=True),
+@click.option("--duration", type=FloatRange(0.0, 7 * 86400.0, min_open=True),
               help="kvp: seconds to record (Ctrl-C before then: an interrupted capture).")
 @click.option("--until-interrupt", is_flag=True, help="kvp: record until Ctrl-C / SIGTERM (not with --duration).")
 @click.option("--mode", type=click.Choice(["poll", "ring"]), default="poll", show_default=True,

@@ -5,6 +5,8 @@ from pathlib import Path
 
 import click
 
+from kukaid_cli._util import FloatRange
+
 _INPUT = click.argument("source", metavar="INPUT", type=click.Path(exists=True, path_type=Path))
 _PATTERN = click.option("--pattern", default=None, metavar="PATTERN",
                         help="With a folder INPUT: which files are logs, e.g. '{robot}/{date}/*.h5' "
@@ -168,11 +170,11 @@ def fit_cmd(source, output, pattern, workers, scheduler, robot, friction_model) 
 @click.option("--axes", default="3", show_default=True, metavar="LIST",
               help="Axes logged one by one, e.g. 3 or 1,2,3,4,5,6 (not with --whole-arm).")
 @click.option("--whole-arm", is_flag=True, help="One six-axis log per robot and day (fit with --robot kr6-r700-sixx).")
-@click.option("--wear-share", type=click.FloatRange(0, 1), default=0.08, show_default=True,
+@click.option("--wear-share", type=FloatRange(0, 1), default=0.08, show_default=True,
               help="Share of the axes whose friction wears.")
 @click.option("--wear", "wear_range", default="0.2:0.5", show_default=True, metavar="LO:HI",
               help="Friction growth of a wearing axis over the period, relative.")
-@click.option("--temp-swing", type=click.FloatRange(0, 60), default=15.0, show_default=True,
+@click.option("--temp-swing", type=FloatRange(0, 60), default=15.0, show_default=True,
               help="Day-to-day motor temperature swing, ± °C around 32 °C.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True, help="Seed of every draw.")
 @_WORKERS
@@ -226,7 +228,7 @@ def simulate_cmd(robots, days, outdir, axes, whole_arm, wear_share, wear_range, 
               help="The verdict per robot and axis (JSON, kukaid.fleet-wear/1).")
 @click.option("--report", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="PDF: axes ranked by evidence, the trend of each flagged axis with its temperature.")
-@click.option("--alpha", type=click.FloatRange(0.0001, 0.2), default=0.005, show_default=True,
+@click.option("--alpha", type=FloatRange(0.0001, 0.2), default=0.005, show_default=True,
               help="Share of healthy axes allowed ever to be flagged over the table's days (sets the threshold).")
 @click.option("--baseline", type=click.IntRange(3, 10_000), default=None,
               help="Logs in each axis's baseline [default: a quarter of its logs, 5 to 14].")

@@ -6,13 +6,13 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import QD_MAX_DEG, AxisNumber
+from kukaid_cli._util import QD_MAX_DEG, AxisNumber, FloatRange
 
 
 @click.command("krl-follower")
 @click.option("--axis", type=AxisNumber(1, 6), default=3, show_default=True, help="Axis the program moves.")
-@click.option("--q-min", type=click.FloatRange(-360.0, 360.0), required=True, help="Position window, lower bound, degrees (clamped on the KRC).")
-@click.option("--q-max", type=click.FloatRange(-360.0, 360.0), required=True, help="Position window, upper bound, degrees (clamped on the KRC).")
+@click.option("--q-min", type=FloatRange(-360.0, 360.0), required=True, help="Position window, lower bound, degrees (clamped on the KRC).")
+@click.option("--q-max", type=FloatRange(-360.0, 360.0), required=True, help="Position window, upper bound, degrees (clamped on the KRC).")
 @click.option("--qd-max", type=float, default=QD_MAX_DEG, show_default=True,
               help="Axis speed limit, deg/s, at least 1 % of --axis-speed (the KRC's limit is the whole percentage "
                    "at or below it).")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import AXIS, PORT, QD_MAX_DEG, URDF
+from kukaid_cli._util import AXIS, PORT, QD_MAX_DEG, URDF, FloatRange
 
 
 def _fmt(v):
@@ -128,7 +128,7 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--release", type=float,
               help="|Γr| below which a detection ends, N·m [0.3 threshold: once in contact the axis follows "
                    "down to this holding torque].")
-@click.option("--duration", type=click.FloatRange(0.0, MAX_DURATION, min_open=True), default=10.0, show_default=True,
+@click.option("--duration", type=FloatRange(0.0, MAX_DURATION, min_open=True), default=10.0, show_default=True,
               help="Seconds of admittance control (after the 1-degree initiation move and rest), at most an hour: "
                    "the run is held in memory until it is written (about 3.2 MB per minute; a longer session is "
                    "several runs).")
@@ -137,7 +137,7 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
 @click.option("--cutoff", type=float, default=5.0, show_default=True,
               help="Low-pass of the torque estimate, Hz (the paper's 5 Hz; higher: less loop delay, so firm grips "
                    "need less damping, but a noisier Γr).")
-@click.option("--init-move", type=click.FloatRange(-10.0, 10.0), default=1.0, show_default=True,
+@click.option("--init-move", type=FloatRange(-10.0, 10.0), default=1.0, show_default=True,
               help="Initiation move before control, degrees, either way: it saturates the Maxwell-slip elements "
                    "(eq. 12) and checks the parameter file with nobody touching, so a one-axis file needs at least "
                    "twice its elements' largest break-away displacement (a shorter move is refused; 0: none, robot "

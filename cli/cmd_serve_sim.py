@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from kukaid_cli._util import AxisNumber
+from kukaid_cli._util import AxisNumber, FloatRange
 
 
 @click.command("serve-sim")
@@ -25,9 +25,9 @@ from kukaid_cli._util import AxisNumber
 @click.option("--noise", type=float, help="Torque noise sigma, N·m.")
 @click.option("--plant-friction", type=click.Choice(["gms", "lugre"]),
               help="Friction law of the simulated axis [gms: Maxwell-slip at rest, Stribeck sliding; lugre: LuGre].")
-@click.option("--duration", type=click.FloatRange(0.0, 7 * 86400.0, min_open=True),
+@click.option("--duration", type=FloatRange(0.0, 7 * 86400.0, min_open=True),
               help="Stop after this many seconds (default: until Ctrl-C/SIGTERM).")
-@click.option("--speed", type=click.FloatRange(0.01, 100.0), default=1.0, show_default=True,
+@click.option("--speed", type=FloatRange(0.01, 100.0), default=1.0, show_default=True,
               help="Simulated seconds per second.")
 @click.option("--ring-axes", type=click.IntRange(1, 6), multiple=True,
               help="Axes recorded by the emulated KRL ring-buffer logger (default: the simulated axis; "
@@ -35,8 +35,8 @@ from kukaid_cli._util import AxisNumber
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write every 12 ms sample the simulator took (ground truth, sim time) to this HDF5 log on exit.")
 @click.option("--force", is_flag=True, help="Replace an existing --truth log.")
-@click.option("--delay", type=click.FloatRange(0.0, 10.0), default=0.0, help="Fault injection: seconds added to every reply.")
-@click.option("--q0", type=click.FloatRange(-360.0, 360.0),
+@click.option("--delay", type=FloatRange(0.0, 10.0), default=0.0, help="Fault injection: seconds added to every reply.")
+@click.option("--q0", type=FloatRange(-360.0, 360.0, what="a position in degrees"),
               help="Start position of the axis, degrees (without --trajectory), within the simulated axis's range of "
                    "motion (A3 of a KR 6 R700 sixx: -120 to 156) [0].")
 @click.option("--follower", "follower_window", nargs=2, type=float, metavar="QMIN QMAX",
@@ -48,7 +48,7 @@ from kukaid_cli._util import AxisNumber
                    "human (an arm that guides the link to a target and lets go there), push or pull (open loop).")
 @click.option("--grip", type=click.Choice(["soft", "ordinary", "firm"]),
               help="--operator human: the person's grip [drawn from --seed].")
-@click.option("--operator-start", type=click.FloatRange(0.0, 86400.0), default=3.0, show_default=True,
+@click.option("--operator-start", type=FloatRange(0.0, 86400.0), default=3.0, show_default=True,
               help="--operator: seconds after the start when the hand begins; with --follower, seconds after "
                    "the run begins (KID_RUN TRUE), so the hand does not depend on when the client connects.")
 def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str | None, seed: int, sim_config: Path | None,
@@ -73,8 +73,6 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
     from kukaid_cli._util import (check_noise, check_outputs, check_suffix, config_axis, given, refuse_overwrite,
                                   usage_errors)
 
-    if q0 is not None and not math.isfinite(q0):  # FloatRange lets nan through
-        raise click.BadParameter(f"{q0} is not a position in degrees", param_hint="--q0")
     if grip is not None and operator != "human":
         raise click.UsageError("--grip is for --operator human")
     if operator is None and given("operator_start"):

@@ -65,6 +65,16 @@ def files(tmp_path_factory):
     (["excite", "fourier", "-o", "x.json", "--qdd-max-deg", "0"], ["Invalid value for --qdd-max-deg", "> 0"]),
     (["excite", "fourier", "-o", "x.json", "--qdd-max-deg", "nan"], ["Invalid value for --qdd-max-deg", "> 0"]),
     (["excite", "inertia", "-o", "x.json", "--lead", "1e9"], ["--lead", "longer than an hour"]),
+    # new-user trial 18: click's FloatRange takes nan within any range: serve-sim served at --speed nan and
+    # --delay nan (exit 0), run-admittance --init-move nan passed the file's check and switched a robot's
+    # follower on before "safety: reference nan is not a finite angle" (exit 1)
+    (["serve-sim", "--port", "0", "--duration", "1", "--speed", "nan"], ["'--speed': nan is not a number"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--delay", "nan"], ["'--delay': nan is not a number"]),
+    (["serve-sim", "--port", "0", "--duration", "nan"], ["'--duration': nan is not a number"]),
+    (["run-admittance", "--params", "p.json", "-o", "r.h5", "--init-move", "nan"], ["'--init-move': nan is not a number"]),
+    (["capture", "x.json", "-o", "y.h5", "--settle", "nan"], ["'--settle': nan is not a number"]),
+    (["krl-follower", "-o", "krl", "--q-min", "nan", "--q-max", "10"], ["'--q-min': nan is not a number"]),
+    (["fleet", "simulate", "-o", "fleet", "--wear-share", "nan"], ["'--wear-share': nan is not a number"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--q0", "nan"], ["--q0", "not a position"]),
     # new-user trial 17: served A3 (a KR 6 R700 sixx's, -120 to 156 degrees) standing at 300 degrees, as
     # run-admittance --q0 300 did before trial 10
