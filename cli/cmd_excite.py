@@ -36,8 +36,17 @@ def _seconds(v: float) -> float:
 
 # option -> (generator parameter, conversion, kinds it applies to); None kinds = all
 _DEG = 3.141592653589793 / 180.0
+
+
+def _centre(v: float) -> float:
+    """--centre-deg in rad: a position (nan or inf was said as a friction window too short for --v-max, or as the
+    trajectory's "'q' is not a finite number at index 0")."""
+    if v != v or v in (float("inf"), float("-inf")):
+        raise click.BadParameter(f"{v} is not a position in degrees")
+    return v * _DEG
+
 _OPTS: dict[str, tuple[str, Any, tuple[str, ...] | None]] = {
-    "centre_deg": ("centre", lambda v: v * _DEG, _ONE_AXIS),
+    "centre_deg": ("centre", _centre, _ONE_AXIS),
     "lead": ("lead", _seconds, _ONE_AXIS),
     "speeds": ("speeds", _floats, ("friction",)),
     "v_min": ("v_min", float, ("friction",)),

@@ -75,6 +75,12 @@ def files(tmp_path_factory):
     (["capture", "x.json", "-o", "y.h5", "--settle", "nan"], ["'--settle': nan is not a number"]),
     (["krl-follower", "-o", "krl", "--q-min", "nan", "--q-max", "10"], ["'--q-min': nan is not a number"]),
     (["fleet", "simulate", "-o", "fleet", "--wear-share", "nan"], ["'--wear-share': nan is not a number"]),
+    # new-user trial 18: said as "option --v-max: 1 rad/s is too fast ... (0.042 rad = 2.406 deg)" (friction), as
+    # "trajectory: 'q' is not a finite number at index 0" (inertia), naming no option or another one
+    (["excite", "friction", "-o", "x.json", "--centre-deg", "nan"],
+     ["Invalid value for --centre-deg: nan is not a position in degrees"]),
+    (["excite", "inertia", "-o", "x.json", "--centre-deg", "inf"],
+     ["Invalid value for --centre-deg: inf is not a position in degrees"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--q0", "nan"], ["--q0", "not a position"]),
     # new-user trial 17: served A3 (a KR 6 R700 sixx's, -120 to 156 degrees) standing at 300 degrees, as
     # run-admittance --q0 300 did before trial 10
