@@ -154,8 +154,8 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
               help="Motion stops when the external torque |Γr| (the model's torque minus the measured one: a push, a "
                    "collision; not the gravity load) exceeds this, N·m (sim: at most the drive's torque).")
 @click.option("--max-age", type=float, default=0.1, show_default=True,
-              help="Motion stops when the latest measurement is older than this, s (kvp: also the longest a "
-                   "reply of KUKAVARPROXY is awaited, at least 2 cycles).")
+              help="Motion stops when the latest measurement is older than this, s, at most 1 (kvp: also the "
+                   "longest a reply of KUKAVARPROXY is awaited, at least 2 cycles).")
 # backends
 @click.option("--backend", type=click.Choice(["sim", "kvp"]), default="sim", show_default=True,
               help="sim: the virtual KR C4 with a simulated operator; kvp: a real KR C4 over KUKAVARPROXY.")
@@ -228,7 +228,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     from kukaid.control.metrics import operator_metrics
     from kukaid.control.rbf import RBFConfig
     from kukaid.control.recorder import RunRecorder, check_no_partial
-    from kukaid.control.safety import SafetyLimits, check_motion_allowed
+    from kukaid.control.safety import MAX_AGE_LIMIT, SafetyLimits, check_motion_allowed
     from kukaid.errors import KukaidError, OptionError, ParamFileError
     from kukaid.identify.fitted import axis_option
     from kukaid.jsonfile import jsonable
@@ -301,6 +301,9 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
     limits_given = (q_min is not None, q_max is not None, given("qd_max"), given("tau_max"))
     # SafetyLimits checks these too; here the message names the option
     require_positive(("--qd-max", qd_max), ("--qdd-max", qdd_max), ("--tau-max", tau_max), ("--max-age", max_age))
+    if max_age > MAX_AGE_LIMIT:
+        raise click.BadParameter(f"{max_age:g} s is above {MAX_AGE_LIMIT:g} s: the robot would move on measurements "
+                                 "that old", param_hint="--max-age")
     own = default_threshold(model)
     if threshold is None and THRESHOLD < own >= tau_max:  # raised by the file, not by an option: say whose it is
         raise ParamFileError(f"{params_path}: the default threshold, a quarter of its Coulomb friction Fc "

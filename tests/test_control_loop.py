@@ -211,3 +211,21 @@ def test_a_detection_in_a_run_nobody_touched_names_no_push_and_no_release():
     said = [w for w in m["warnings"] if w.startswith("detected a push with nobody touching")]
     assert said == [f"detected a push with nobody touching the axis: {int(det.sum())} cycles, and nobody touched it "
                     "in this run (the axis moved by itself)"], m["warnings"]
+
+
+def test_no_setting_lets_the_loop_coast_on_or_act_on_old_measurements():
+    """Trial 18: D 1e-6 (I 20) coasted on after a release and ran the axis 11 degrees back with nobody
+    there; a max_age of 30 s let a 1.2 s link move a robot on measurements that old. The library refuses
+    both, as the CLI does: the lightest damping (D, or the adaptive law's D_min) must give a coast's time
+    constant I / D of at most 2 s, and max_age is at most 1 s."""
+    from kukaid.errors import KukaidError, LimitError
+
+    with pytest.raises(KukaidError, match=r"damping D = 1e-06 .* below I / 2 s = 10"):
+        LoopConfig(D=1e-6)
+    with pytest.raises(KukaidError, match=r"D_min = 5 .* time constant I / D = 4 s"):
+        LoopConfig(damping="adaptive", rbf=RBFConfig(D0=50.0, D_min=5.0, D_max=100.0))
+    LoopConfig(D=10.0)                     # I / D = 2 s: the longest allowed
+    LoopConfig(damping="adaptive")         # the default floor, 0.3 x 50: 1.3 s
+    with pytest.raises(LimitError, match=r"max_age = 30 s is above 1 s"):
+        SafetyLimits(max_age=30.0)
+    SafetyLimits(max_age=1.0)

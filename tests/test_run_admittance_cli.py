@@ -208,6 +208,12 @@ def test_broken_parameter_file_is_one_line_and_no_output(files, tmp_path, edit, 
     (["--enable-motion"], "finite position window"),
     (["--enable-motion", "--q-min", "10", "--q-max", "50", "--tau-max", "-1"], "--tau-max"),
     (["--enable-motion", "--q-min", "10", "--q-max", "50", "--D", "0"], "D = 0"),
+    # trial 18: --max-age 30 let a 1.2 s KUKAVARPROXY link move the robot on measurements that old
+    (["--enable-motion", "--q-min", "10", "--q-max", "50", "--max-age", "30"], "--max-age"),
+    # trial 18: D 1e-6 coasted on after the release and ran 11 degrees back with nobody there
+    (["--enable-motion", "--q-min", "10", "--q-max", "50", "--D", "1e-6"], "coast on with a time constant"),
+    (["--enable-motion", "--q-min", "10", "--q-max", "50", "--damping", "adaptive", "--D-min", "5"],
+     "the adaptive damping's lower bound D_min = 5"),
 ])
 def test_a_real_robot_moves_only_when_asked_and_bounded(files, tmp_path, args, message):
     # nothing listens on this port: refusals come before any connection; missing or out-of-range

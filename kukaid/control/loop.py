@@ -39,6 +39,13 @@ from kukaid.errors import KukaidError
 PHASE_INIT, PHASE_REST, PHASE_ADMITTANCE, PHASE_STOPPED = 0, 1, 2, 3
 
 
+#: the longest time constant I / D (s) with which the reference's speed falls once nobody pushes: a
+#: lighter damping (D 1e-6 with I 20: trial 18) coasts on after a release, and integrates any model error
+#: read as a push for as long (the axis ran 11 degrees back with nobody there); the paper's D 50 with I 20
+#: is 0.4 s, the adaptive law's default floor 0.3 x that 1.3 s
+MAX_COAST = 2.0
+
+
 @dataclass(frozen=True)
 class LoopConfig:
     """Settings of :func:`run_admittance` (SI).
@@ -101,6 +108,13 @@ class LoopConfig:
             r = self.rbf or RBFConfig(D0=self.D, D_min=0.3 * self.D, D_max=2.0 * self.D)
             check_admittance(self.I, r.D_max, self.cycle)
             object.__setattr__(self, "rbf", r)
+        lightest = self.rbf.D_min if self.damping == "adaptive" else self.D
+        if lightest < self.I / MAX_COAST:
+            what = "the adaptive damping's lower bound D_min" if self.damping == "adaptive" else "the damping D"
+            raise KukaidError(f"run-admittance: {what} = {lightest:g} N·m·s/rad is below I / {MAX_COAST:g} s = "
+                              f"{self.I / MAX_COAST:g}: once nobody pushes, the reference would coast on with a "
+                              f"time constant I / D = {self.I / lightest:.3g} s, integrating any error of the model "
+                              "read as a push for as long; raise it or lower I")
 
 
     @property

@@ -17,6 +17,9 @@ from dataclasses import dataclass
 
 from kukaid.errors import KukaidError, LimitError
 
+#: the oldest latest measurement (s) any setting lets the loop act on (``max_age``): a larger one let a
+#: KUKAVARPROXY link at 1.2 s a reply move the robot on measurements that old (new-user trial 18)
+MAX_AGE_LIMIT = 1.0
 
 def _deg(q: float) -> str:
     """An angle in rad as the user gives it (degrees), rounded: 0.5235987 -> '30'."""
@@ -48,6 +51,9 @@ class SafetyLimits:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise LimitError(f"safety: {name} = {v} must be a finite number > 0")
+        if self.max_age > MAX_AGE_LIMIT:
+            raise LimitError(f"safety: max_age = {self.max_age:g} s is above {MAX_AGE_LIMIT:g} s: the loop would move "
+                             "the robot on measurements that old (every 12-24 ms it acts on the latest one)")
         if math.isnan(self.q_min) or math.isnan(self.q_max) or not self.q_min < self.q_max:
             raise LimitError(f"safety: position window [{_deg(self.q_min)}, {_deg(self.q_max)}] degrees must have "
                              "q_min < q_max")
