@@ -21,9 +21,9 @@ from kukaid_cli._util import AXIS, URDF
                    "coordinate, the spectrum (a robot file: a page per joint, also against time, the noise floor).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write the refined parameter file (effects in 'effects', predicted with by validate and "
-                   "report); an existing parameter file is replaced (it is derived from the logs), any other file "
-                   "only with --force.")
-@click.option("--force", is_flag=True, help="Replace an existing -o file that is not a parameter file.")
+                   "report); an existing parameter file of the same kind (one axis, or a robot) is replaced (it is "
+                   "derived from the logs), any other file only with --force.")
+@click.option("--force", is_flag=True, help="Replace an existing -o file that is not a parameter file of this kind.")
 @click.option("--cutoff", type=float, default=None, help="Comparison filter cut-off, Hz (default: the fit's).")
 @click.option("--alpha", type=float, default=0.01, show_default=True,
               help="False-alarm probability per round (over all candidates).")
@@ -67,8 +67,9 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
     check_suffix(output, ".json")
     check_suffix(report, ".pdf")
     check_outputs([output, report], [params_path, *logs])
-    refuse_other_kind(output, force, SCHEMA, ROBOT_SCHEMA)
     model = load_model(params_path, axis, urdf)
+    # a parameter file of the same kind (derived from logs again); a robot fit is not lost to an axis file
+    refuse_other_kind(output, force, ROBOT_SCHEMA if model.params.get("schema") == ROBOT_SCHEMA else SCHEMA)
     stage = stages("diagnose")
     stage("reading the logs")
     data = [read_log(p) for p in logs]

@@ -171,6 +171,22 @@ def test_bad_inputs_give_one_line_errors(case, tmp_path):
     assert r.exit_code != 0 and not out.exists()
 
 
+def test_an_axis_files_diagnosis_does_not_replace_a_robot_fit_without_force(case, tmp_path):
+    """Trial 18: `diagnose --params axis.json ... -o robot.json` replaced the robot fit there without
+    --force ("parameters written as given"); fit refuses it. A parameter file of the other kind is
+    now kept unless --force, as any other file."""
+    d, params, paths = case
+    robot = tmp_path / "robot.json"
+    text = '{"schema": "kukaid.robot_params/1", "robot": {"urdf": "kr6-r700-sixx"}}'
+    robot.write_text(text)
+    r = CliRunner().invoke(cli, args(params, paths, "--max-steps", "0", "-o", str(robot)))
+    assert r.exit_code == 1 and "already exists and is a kukaid.robot_params/1 file" in r.output, r.output
+    assert robot.read_text() == text
+    r = CliRunner().invoke(cli, args(params, paths, "--max-steps", "0", "-o", str(robot), "--force"))
+    assert r.exit_code == 0, r.output
+    assert '"kukaid.params/1"' in robot.read_text()
+
+
 def test_show_of_a_refined_file(case, tmp_path):
     """`kukaid show` of the file diagnose refined: the fit's residual warning was of the model without
     the effect (it goes once the effect explains the gap), and the effect's std stands beside its values."""
