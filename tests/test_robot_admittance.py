@@ -168,6 +168,21 @@ def test_kvp_robot_reads_every_axis_for_a_robot_model():
     one = KvpRobot(Client(), axis=3).start()[-1]
     assert one.q_all is None and one.tau == 104.0
 
+    class NoFollower(Client):       # a controller without the follower's globals (serve-sim --robot)
+        def write(self, name, value):
+            from kukaid.krc.kvp import KvpVariableError
+
+            if name == "KID_TGT":
+                raise KvpVariableError(f"KUKAVARPROXY: writing {name} failed (status 0)")
+            super().write(name, value)
+
+    # trial 18: "KUKAVARPROXY: writing KID_TGT failed (status 0)" said neither why nor what to do
+    c = NoFollower()
+    with pytest.raises(KukaidError, match=r"writing KID_TGT failed .* no global KID_TGT, KID_HB and KID_RUN.*"
+                                          r"krl-follower; on a virtual KR C4: serve-sim --follower"):
+        KvpRobot(c, axis=3).start()
+    assert "KID_RUN" not in c.written        # nothing switched on
+
 
 @pytest.mark.slow
 def test_cli_with_a_robot_parameter_file_and_the_other_axes_moving(tmp_path):

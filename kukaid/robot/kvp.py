@@ -108,8 +108,15 @@ class KvpRobot:
         s = self._read()
         if not s:
             raise ControllerError("kvp: cannot read $AXIS_ACT_MEAS / $TORQUE_AXIS_ACT at start")
-        self._send(s[-1].q)  # the first target is where the axis stands: the follower does not jump
-        self.client.write(self.run, "TRUE")
+        from kukaid.krc.kvp import KvpVariableError
+
+        try:
+            self._send(s[-1].q)  # the first target is where the axis stands: the follower does not jump
+            self.client.write(self.run, "TRUE")
+        except KvpVariableError as e:  # the follower's globals are not there: nothing was switched on
+            raise ControllerError(f"kvp: {e}: the controller has no global {self.target}, {self.heartbeat} and "
+                                  f"{self.run} to write; install and start the KRL follower program (kukaid "
+                                  "krl-follower; on a virtual KR C4: serve-sim --follower)") from None
         self._enabled = True
         return s
 
