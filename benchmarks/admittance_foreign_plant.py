@@ -59,6 +59,11 @@ the window and status completed.  For the guided move also: whether the push was
 far the axis moved (a push never detected is no evidence of safety).
 
 ``--check``: the plant alone (servo step overshoot, what holds the link at rest), no admittance.
+``--people``: instead, three simulated people per plant (``kukaid.sim.human``: a soft, an ordinary and a
+firm grip) guide the axis to a goal, constant D 50 against adaptive damping at 24 and 12 ms: runs
+completed, end error, detections after the release, ξ on the true hand torque (paired: mean
+difference, its 95 % CI, wins). A person's arm is a function of the link's state, evaluated every
+millisecond (``EXT_EVERY``).
 """
 from __future__ import annotations
 
@@ -81,6 +86,8 @@ except ImportError:  # pragma: no cover
         return (lambda f: f) if not (a and callable(a[0])) else a[0]
 
 DEG = math.pi / 180.0
+#: s between evaluations of an external torque given as a function (a person's arm)
+EXT_EVERY = 0.001
 
 
 # -- the plant's parameters ----------------------------------------------------------------------------
@@ -343,9 +350,11 @@ class ForeignKRC4:
         parts = []
         done = 0
         while done < n:
-            # up to the next sample (the external torque function is evaluated once a sample period)
-            to_sample = self.per - (self._tick % self.per)
-            mm = min(to_sample if callable(self._te) else 200_000, n - done)
+            # a function of the link's state (a person's arm) is evaluated every millisecond: held over a
+            # 12 ms sample, a damped arm on the light link chattered +-60 N·m at the sample rate
+            every = max(1, int(round(EXT_EVERY / self.dt)))
+            to_next = every - (self._tick % every)
+            mm = min(to_next if callable(self._te) else 200_000, n - done)
             te = float(self._te(self.t, float(self._st[Q]), float(self._st[V]))) if callable(self._te) else float(self._te)
             parts.append(self._run(mm, te))
             done += mm
@@ -510,6 +519,77 @@ def one(args) -> dict:
             "first_detection": first, "warnings": list(run.metrics.get("warnings", []))}
 
 
+GRIPS = ("soft", "ordinary", "firm")
+
+
+def person(args) -> dict:
+    """One person (:func:`kukaid.sim.human.make_human`, seed ``7000 + 10 plant seed + k``, grip ``grip``)
+    moving the axis to a goal on the plant of ``seed``: (seed, k, grip, damping, cycle)."""
+    from kukaid.control.loop import LoopConfig, run_admittance
+    from kukaid.control.metrics import window_metrics
+    from kukaid.params import model_from_params
+    from kukaid.robot import SimRobot
+    from kukaid.sim.operator import make_operator
+
+    seed, k, grip, damping, cycle = args
+    cfg = LoopConfig(damping=damping, D=50.0, cycle=cycle, duration=13.0)
+    op = make_operator("human", 7000 + 10 * seed + k, Q0 + cfg.init_move, t_start=cfg.init_time + cfg.init_rest + 0.8,
+                       grip=grip)
+    run = run_admittance(SimRobot(ForeignKRC4(draw(seed), seed=seed), Q0, op), model_from_params(fitted_params(seed, None)),
+                         cfg)
+    d = run.data
+    t0 = float(d["time"][0])
+    t_rel = op.t_release if math.isfinite(op.t_release) else math.inf
+    m = window_metrics(d, op.p.t_grasp - t0, min(t_rel + 1.0 - t0, float(d["time"][-1])), 0.05)
+    after = d["time"] > t_rel - t0 + op.p.release_time + 0.05
+    return {"seed": seed, "grip": grip, "damping": damping, "cycle": cycle, "status": run.status,
+            "xi_true": float(m["xi_true"]), "end_error": float(abs(d["q"][-1] - op.p.goal) / abs(op.p.goal - op.p.q_start)),
+            "after_release": int(np.sum(d["detected"][after])) if math.isfinite(t_rel) else 0}
+
+
+def people(seeds: list[int], jobs: int, as_json: bool) -> None:
+    """``--people``: three people (soft, ordinary, firm grips) on each plant, constant D 50 and adaptive
+    damping, at 24 and 12 ms: can they guide it, at what effort (ξ on the true hand torque), and does
+    anything move after they let go."""
+    from scipy import stats
+
+    plan = [(s, k, g, damping, cycle) for s in seeds for k, g in enumerate(GRIPS)
+            for damping in ("constant", "adaptive") for cycle in (0.024, 0.012)]
+    if jobs > 1:
+        with ProcessPoolExecutor(jobs) as ex:
+            rows = list(ex.map(person, plan, chunksize=12))
+    else:
+        rows = [person(p) for p in plan]
+    summary = []
+    for cycle in (0.024, 0.012):
+        by = {dmp: sorted((r for r in rows if r["cycle"] == cycle and r["damping"] == dmp),
+                          key=lambda r: (r["seed"], r["grip"])) for dmp in ("constant", "adaptive")}
+        diff = np.array([a["xi_true"] - c["xi_true"] for a, c in zip(by["adaptive"], by["constant"])])
+        half = float(stats.t.ppf(0.975, diff.size - 1) * np.std(diff, ddof=1) / math.sqrt(diff.size))
+        for dmp, rs in by.items():
+            ee = np.array([r["end_error"] for r in rs])
+            summary.append({"cycle": cycle, "damping": dmp, "runs": len(rs),
+                            "completed": sum(r["status"] == "completed" for r in rs),
+                            "end_error_median": float(np.median(ee)), "end_error_max": float(ee.max()),
+                            "after_release_runs": sum(r["after_release"] > 0 for r in rs),
+                            "xi_true_mean": float(np.mean([r["xi_true"] for r in rs]))})
+        summary[-1].update(adaptive_minus_constant=float(diff.mean()), ci=[float(diff.mean() - half), float(diff.mean() + half)],
+                           wins=int(np.sum(diff < 0)))
+    if as_json:
+        json.dump({"seeds": seeds, "summary": summary, "runs": rows}, sys.stdout, default=float)
+        print()
+        return
+    print(f"people on the foreign plant: seeds {seeds[0]}-{seeds[-1]}, a soft, an ordinary and a firm grip each")
+    print(f"{'cycle':>6} {'damping':>9} | {'completed':>9} | {'end error med / max':>19} | {'after a release':>15} | "
+          f"{'mean xi (true)':>14} | adaptive - D 50 on xi: mean [95 % CI], wins")
+    for r in summary:
+        vs = (f"{r['adaptive_minus_constant']:+.2f} [{r['ci'][0]:+.2f}, {r['ci'][1]:+.2f}], {r['wins']}/{r['runs']}"
+              if "wins" in r else "")
+        print(f"{1000 * r['cycle']:4.0f} ms {r['damping']:>9} | {r['completed']:4d}/{r['runs']:<4d} | "
+              f"{100 * r['end_error_median']:7.1f} / {100 * r['end_error_max']:5.1f} % | {r['after_release_runs']:10d} runs | "
+              f"{r['xi_true_mean']:14.2f} | {vs}")
+
+
 def check(seeds: list[int]) -> None:
     """The plant alone: a 0.2 and a 1 degree step's overshoot, and what holds it at rest."""
     for s in seeds:
@@ -545,10 +625,14 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--check", action="store_true", help="the plants alone: servo steps, what holds them; no admittance")
     ap.add_argument("--dump", help="write each failing run's data (run.data) to DIR/*.npz")
+    ap.add_argument("--people", action="store_true", help="people (simulated arms) guiding each plant instead")
     a = ap.parse_args()
     seeds = _seeds(a.seeds)
     if a.check:
         check(seeds)
+        return
+    if a.people:
+        people(seeds, a.jobs, a.json)
         return
     t = time.perf_counter()
     plan = [(s, damping, cycle, move, scenario, a.duration, a.vibration, a.dump)
