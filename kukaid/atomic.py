@@ -53,15 +53,17 @@ def atomic_paths(*paths: str | os.PathLike) -> Iterator[tuple[Path, ...]]:
     if len({t.resolve() for t in targets}) != len(targets):
         raise KukaidError(f"{targets[0]}: the same file is given for two outputs")
     tmps: list[Path] = []
+    made: list[Path] = []  # folders made for the outputs: a command that fails leaves none behind
     umask = os.umask(0)
     os.umask(umask)
     for target in targets:
         folder = target.parent if str(target.parent) else Path(".")
         try:
+            made += [p for p in reversed([folder, *folder.parents]) if not p.exists()]
             folder.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
         except OSError as e:
-            _remove(tmps)
+            _remove(tmps, made)
             raise KukaidError(f"{target}: cannot write: {e.strerror or e}") from None
         os.close(fd)
         tmps.append(Path(tmp))
@@ -71,21 +73,26 @@ def atomic_paths(*paths: str | os.PathLike) -> Iterator[tuple[Path, ...]]:
         for tmp, target in zip(tmps, targets):
             os.replace(tmp, target)
     except OSError as e:
-        _remove(tmps)
+        _remove(tmps, made)
         name = str(e.filename) if e.filename is not None else None
         for tmp, target in zip(tmps, targets):
             if name is None or name == str(tmp):
                 raise KukaidError(f"{target}: cannot write: {e.strerror or e}") from None
         raise
     except BaseException:
-        _remove(tmps)
+        _remove(tmps, made)
         raise
 
 
-def _remove(paths: list[Path]) -> None:
+def _remove(paths: list[Path], folders: list[Path] = ()) -> None:
+    """Remove the temporary files ``paths``, then the ``folders`` made for them (deepest first, each
+    only if it is empty)."""
     for p in paths:
         with contextlib.suppress(FileNotFoundError):
             p.unlink()
+    for f in reversed(list(folders)):
+        with contextlib.suppress(OSError):
+            f.rmdir()
 
 
 @contextlib.contextmanager

@@ -679,3 +679,24 @@ def test_a_wrong_option_is_said_before_an_existing_output(files, tmp_path, make_
     out.with_suffix(".h5").write_bytes(b"mine")
     _one_line_error(_run(*make_args(files, out)), said, code=2)
     assert out.read_text() == '{"notes": "by hand"}' and out.with_suffix(".h5").read_bytes() == b"mine"
+
+
+def test_a_failed_write_leaves_no_folder_it_made(tmp_path):
+    """Trial 18: outputs' missing folders are made (as documented), and a command that then failed left
+    the new, empty folders behind. Folders made for the outputs are removed again on a failure; a
+    folder that was there, or that holds something else by then, stays."""
+    from kukaid.atomic import atomic_paths
+
+    with pytest.raises(RuntimeError):
+        with atomic_paths(tmp_path / "new" / "sub" / "a.json", tmp_path / "new" / "b.pdf"):
+            raise RuntimeError("drawing failed")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    (tmp_path / "kept").mkdir()
+    with pytest.raises(RuntimeError):
+        with atomic_paths(tmp_path / "kept" / "deep" / "a.json"):
+            (tmp_path / "kept" / "other.txt").write_text("x")
+            raise RuntimeError("drawing failed")
+    assert sorted(p.name for p in (tmp_path / "kept").iterdir()) == ["other.txt"]
+    with atomic_paths(tmp_path / "made" / "c.json") as (tmp,):
+        tmp.write_text("{}")
+    assert (tmp_path / "made" / "c.json").read_text() == "{}"
