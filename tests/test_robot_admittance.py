@@ -216,6 +216,8 @@ def test_cli_with_a_robot_parameter_file_and_the_other_axes_moving(tmp_path):
     m = json.loads(r.output.strip().splitlines()[-1])
     assert m["status"] == "completed"
     log, control, _ = read_run(out)
+    assert control["q_all"].shape == control["tau_all"].shape == (log.n_samples, 6)   # every axis kept
+    assert np.allclose(control["q_all"][:, 1], log.q[:, 0])
     ph = control["phase"] == PHASE_ADMITTANCE
     te = log.tau_ext_true[:, 0]
     push, quiet = ph & (np.abs(te) > 5.0), ph & (np.abs(te) < 0.5)
@@ -259,6 +261,9 @@ def test_a_persons_arm_guides_a3_of_the_six_axis_robot(damping):
     assert m["displacement"] > 0.12                             # 3 s into a 3.4 s move of 0.34 rad
     assert m["residual_rmse"] < 5.0                             # and Γr saw what the hand did
     assert np.median(d["gamma_r"][held]) > 5.0
+    # trial 18: every axis was read each cycle and only the guided one kept; the run keeps them all
+    assert d["q_all"].shape == d["tau_all"].shape == (d["time"].size, 6)
+    assert np.array_equal(d["q_all"][:, AXIS - 1], d["q"]) and np.array_equal(d["tau_all"][:, AXIS - 1], d["tau"])
 
 
 def test_a_robot_file_whose_urdf_was_edited_since_the_fit_is_refused_before_anything_moves(tmp_path):

@@ -432,8 +432,10 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
                "D": D_now, "dynamic": r.mode == DYNAMIC, "detected": r.detected, "phase": phase, "clipped": clipped,
                "osc_index": mon.index, "D_floor": mon.floor,
                "D_grip": grip.floor if grip is not None else 0.0}
+        if last.q_all is not None:  # a robot backend reads every axis each cycle: kept in the run's data
+            row["q_all"], row["tau_all"] = np.asarray(last.q_all, float), np.asarray(last.tau_all, float)
         for key, v in row.items():
-            log[key].append(v)
+            log.setdefault(key, []).append(v)
         if on_row is not None:
             on_row(row)
         if stop is not None:

@@ -5,7 +5,10 @@ arrays, attribute ``axes``), so ``kukaid.logs.read_hdf5`` reads it.  Group ``con
 per-cycle datasets ``gamma_r``, ``gamma_p`` (N·m), ``sigma`` (rad), ``sigma_dot`` (rad/s), ``D``
 (N·m·s/rad), ``osc_index`` (N·m, the oscillation index), ``D_floor`` (N·m·s/rad, the damping the
 stability monitor imposes, 0 when inactive), ``dynamic``, ``detected``, ``clipped`` (0/1), ``phase`` (0 initiation move, 1 rest,
-2 admittance, 3 stopped), and attributes ``metrics`` and ``config`` (JSON).
+2 admittance, 3 stopped), and attributes ``metrics`` and ``config`` (JSON). A run of a robot
+parameter file (a backend that reads every axis each cycle) also keeps ``q_all`` (rad) and
+``tau_all`` (N·m), (N, A) over axes A1..A(A), in ``control``: the model's Γr of the guided axis can
+be computed again from them.
 """
 from __future__ import annotations
 
@@ -47,7 +50,8 @@ def write_run(path: str | Path, run: Any, axis: int = 3, attrs: dict[str, Any] |
         write_hdf5(log, tmp)
         with h5py.File(tmp, "a") as f:
             g = f.create_group("control")
-            for k in ("gamma_r", "gamma_p", "sigma", "sigma_dot", "D", "osc_index", "D_floor", "D_grip"):
+            for k in ("gamma_r", "gamma_p", "sigma", "sigma_dot", "D", "osc_index", "D_floor", "D_grip", "q_all",
+                      "tau_all"):
                 if k in d:
                     g.create_dataset(k, data=d[k][keep])
             for k in ("dynamic", "detected", "clipped", "phase"):
@@ -56,7 +60,7 @@ def write_run(path: str | Path, run: Any, axis: int = 3, attrs: dict[str, Any] |
             g.attrs["config"] = _json(config_dict(run.config))
             g.attrs["units"] = _json({"gamma_r": "N*m", "gamma_p": "N*m", "sigma": "rad", "sigma_dot": "rad/s",
                                       "D": "N*m*s/rad", "osc_index": "N*m", "D_floor": "N*m*s/rad",
-                                      "D_grip": "N*m*s/rad"})
+                                      "D_grip": "N*m*s/rad", "q_all": "rad", "tau_all": "N*m"})
 
 
 def read_run(path: str | Path) -> tuple[Any, dict[str, np.ndarray], dict[str, Any]]:
