@@ -292,6 +292,50 @@ def test_ctrl_c_mid_run_says_what_is_kept_and_how_to_go_on(tmp_path, monkeypatch
     assert len(read_journal(table)[0]) == 1 and not table.exists()
 
 
+def test_a_second_run_on_the_same_table_stops_before_any_work(tmp_path, monkeypatch):
+    """New-user trial 19: two `fleet fit` runs of two halves of a manifest into one table, started a
+    second apart, both said "200 rows (200 fitted ...)", exit 0; the table then held 208 rows: each run
+    rewrote it with its own rows, and the first to end removed the journal the other appended to.  A
+    run now holds a lock on its table; the second one stops at once with one line, and the table
+    keeps every row of the first."""
+    import kukaid.fleet.run as run
+    from kukaid.errors import KukaidError
+    from kukaid.fleet.tasks import error_row, fit_task
+
+    man = small_fleet(tmp_path, robots=2, days=2)
+    entries = read_input(man)
+    table = tmp_path / "t.parquet"
+    second: list[str] = []
+    nested: list[bool] = []
+
+    def stream(client, jobs, task, options, kind, rows, journal, *a, **k):
+        if not nested:  # the other half of the manifest, run while this one goes on
+            nested.append(True)
+            try:
+                run.run_tasks(entries[2:], table, fit_task, None, {"task": "fit"}, client=Client())
+                second.append("ran")
+            except KukaidError as e:
+                second.append(str(e))
+        new = [error_row(j, kind, "done") for j in jobs]
+        journal.append(new)
+        rows.extend(new)
+
+    class Client:
+        def nthreads(self):
+            return {"w": 1}
+
+    monkeypatch.setattr(run, "_stream", stream)
+    run.run_tasks(entries[:2], table, fit_task, None, {"task": "fit"}, client=Client())
+    assert second == [f"{table}: another kukaid fleet run is writing this table (process {os.getpid()}); wait for "
+                      "it to end, or write another table"]
+    assert len(read_table(table)[0]) == 2
+    assert not (tmp_path / ".t.parquet.lock").exists() and not journal_path(table).exists()
+    monkeypatch.setattr(run, "_stream", lambda client, jobs, task, options, kind, rows, journal, *a, **k: (
+        journal.append([error_row(j, kind, "done") for j in jobs]), rows.extend(error_row(j, kind, "done") for j in jobs)))
+    run.run_tasks(entries, table, fit_task, None, {"task": "fit"}, client=Client())  # the lock is free again
+    assert len(read_table(table)[0]) == 4
+
+
 def _sigint_handler() -> str:
     """The SIGINT handler of this process, by name (run on a Dask worker)."""
     import signal

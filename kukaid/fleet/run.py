@@ -18,7 +18,7 @@ from typing import Any, Callable, Iterator, Sequence
 
 from kukaid.errors import KukaidError, OptionError
 from kukaid.fleet.manifest import Entry, content_hash
-from kukaid.fleet.table import Journal, journal_path, read_journal, read_table, write_table
+from kukaid.fleet.table import Journal, TableLock, journal_path, read_journal, read_table, write_table
 from kukaid.fleet.tasks import Job, duplicate_row, error_row
 
 Progress = Callable[[int, int], None]
@@ -235,6 +235,13 @@ def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, 
     """
     t_start = time.perf_counter()
     table = Path(table)
+    with TableLock(table):  # a second run on this table stops here: each rewrote it with its own rows only
+        return _run_locked(entries, table, task, options, settings, kind, workers, scheduler, progress,
+                           checkpoint_s, client, t_start)
+
+
+def _run_locked(entries, table, task, options, settings, kind, workers, scheduler, progress, checkpoint_s, client,
+                t_start) -> RunSummary:
     prior = prior_rows(table, settings)
     jobs, direct, skipped, repeated = plan(entries, prior, kind)
     names_now = {j.name: j.sha256 for j in jobs}

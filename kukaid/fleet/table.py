@@ -7,6 +7,7 @@ so a run killed at any moment loses no finished fit: the next run reads the tabl
 and fits only the logs found in neither (by content hash)."""
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
@@ -174,6 +175,71 @@ class Journal:
             os.unlink(self.path)
         except FileNotFoundError:
             pass
+
+
+def lock_path(table: str | Path) -> Path:
+    """The lock of a table being written: ``.NAME.lock`` beside it (removed at the end of the run)."""
+    table = Path(table)
+    return table.with_name(f".{table.name}.lock")
+
+
+class TableLock:
+    """An exclusive lock on a table for one run (``flock`` on ``.NAME.lock`` beside it), so that two
+    runs writing the same table do not each rewrite it with their own rows only: the second stops at
+    once, before any work.  A run killed with ``kill -9`` leaves the file, not the lock (the system
+    releases it); the next run takes it over.
+
+    Raises
+    ------
+    KukaidError : another run holds the lock.
+    """
+
+    def __init__(self, table: str | Path) -> None:
+        import fcntl
+
+        self.table = Path(table)
+        self.path = lock_path(table)
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as e:
+                if e.errno not in (errno.EAGAIN, errno.EWOULDBLOCK, errno.EACCES):  # a file system without locks
+                    break
+                try:
+                    other = os.read(fd, 64).decode(errors="replace").strip()
+                finally:
+                    os.close(fd)
+                pid = f" (process {other})" if other.isdigit() else ""
+                raise KukaidError(f"{self.table}: another kukaid fleet run is writing this table{pid}; wait for it "
+                                  "to end, or write another table") from None
+            try:  # the run before removed the file between our open and our lock: lock the new one
+                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        self._fd = fd
+
+    def release(self) -> None:
+        """Remove the lock file and release the lock (removed first: a run waiting on it locks a new one)."""
+        if self._fd is None:
+            return
+        try:
+            os.unlink(self.path)
+        except FileNotFoundError:
+            pass
+        os.close(self._fd)
+        self._fd = None
+
+    def __enter__(self) -> "TableLock":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.release()
 
 
 def read_journal(table: str | Path) -> tuple[list[dict], dict | None]:
