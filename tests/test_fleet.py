@@ -336,6 +336,36 @@ def test_a_second_run_on_the_same_table_stops_before_any_work(tmp_path, monkeypa
     assert len(read_table(table)[0]) == 4
 
 
+def test_a_table_in_a_folder_not_yet_made_is_written_there(tmp_path, monkeypatch):
+    """New-user trial 19: `fleet fit manifest.csv -o new/sub/t.parquet` failed, "new/sub/.t.parquet.journal:
+    No such file or directory", naming a hidden file the user never gave; every other command makes
+    its output's folder.  The folder is made, and removed again when the run fails before writing."""
+    import kukaid.fleet.run as run
+    from kukaid.errors import KukaidError
+    from kukaid.fleet.tasks import error_row, fit_task
+
+    man = small_fleet(tmp_path, robots=1, days=2)
+
+    class Client:
+        def nthreads(self):
+            return {"w": 1}
+
+    def stream(client, jobs, task, options, kind, rows, journal, *a, **k):
+        new = [error_row(j, kind, "done") for j in jobs]
+        journal.append(new)
+        rows.extend(new)
+
+    monkeypatch.setattr(run, "_stream", stream)
+    table = tmp_path / "new" / "sub" / "t.parquet"
+    run.run_tasks(read_input(man), table, fit_task, None, {"task": "fit"}, client=Client())
+    assert len(read_table(table)[0]) == 2
+    other = tmp_path / "other" / "sub" / "t.parquet"
+    monkeypatch.setattr(run, "prior_rows", lambda *a: (_ for _ in ()).throw(KukaidError("stop")))
+    with pytest.raises(KukaidError):
+        run.run_tasks(read_input(man), other, fit_task, None, {"task": "fit"}, client=Client())
+    assert not (tmp_path / "other").exists()
+
+
 def _sigint_handler() -> str:
     """The SIGINT handler of this process, by name (run on a Dask worker)."""
     import signal
