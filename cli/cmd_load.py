@@ -97,7 +97,7 @@ def command(source: Path, output: Path, force: bool, as_json: bool, time_var, q_
         if gear_ratio is not None and not is_gear_ratio_file(gear_ratio):
             with usage_errors():  # the ratios themselves, typed as the option's value
                 gear_ratio = parse_gear_ratios(gear_ratio)
-        options = dict(gear_ratio=gear_ratio, time_base=time_base)
+        options = dict(gear_ratio=gear_ratio, time_base=time_base, hints=hints)
     refuse_overwrite(output, force)  # after the options' checks: a wrong option is said first
     if source.suffix.lower() in (".h5", ".hdf5"):
         from kukaid.logs import read_hdf5

@@ -255,3 +255,41 @@ def test_kukaid_load_json_of_a_trace_is_json_alone(tmp_path):
     got = json.loads(r.stdout)
     assert got["time_base_note"].startswith("time base: the sample instants of Istposition")
     assert "time base: " in r.stderr
+
+
+def _drop_channel(dat, channel: str) -> None:
+    """Remove one channel's header from a module's .dat (the recording then lacks that channel)."""
+    text = dat.read_text(encoding="latin-1")
+    blocks = text.split("#BEGINCHANNELHEADER")
+    dat.write_text("#BEGINCHANNELHEADER".join(b for b in blocks if f"200,{channel}\n" not in b), encoding="latin-1")
+
+
+def test_a_trace_set_missing_a_channel_says_what_the_log_left_out(tmp_path):
+    """New-user trial 19: a KR C4 recording whose A3 drive had no torque channel loaded as a log of
+    A1, A2, A4, A5, A6 without a word (A3 gone; `--json` "warnings": []), and one drive without its
+    motor temperature dropped every axis's temperature, again silently (a fleet's wear watch then
+    has no temperature model).  Each is a warning line, in the JSON's warnings too."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    write_kr_c4_set(tmp_path, duration=0.2)
+    _drop_channel(tmp_path / "Rec_NextGenDrive#3.dat", "Istmoment")
+    _drop_channel(tmp_path / "Rec_NextGenDrive#5.dat", "Motortemperatur")
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "Rec_NextGenDrive#1.dat"), "--gear-ratio", RATIOS, "--json",
+                                 "-o", str(tmp_path / "rec.h5")])
+    assert r.exit_code == 0, r.output
+    got = json.loads(r.stdout)
+    dat = tmp_path / "Rec_NextGenDrive#1.dat"
+    assert got["axes"] == [1, 2, 4, 5, 6]
+    assert got["warnings"] == [
+        f"{dat}: A3 is not in the log: the recording has its measured position (Istposition) but no torque "
+        "(Istmoment) channel",
+        f"{dat}: no motor temperature (Motortemperatur) in the log, for any axis: the recording has none for A5"]
+    for w in got["warnings"]:
+        assert f"kukaid: warning: load: {w}" in r.stderr
+    (tmp_path / "whole").mkdir()
+    write_kr_c4_set(tmp_path / "whole", duration=0.2)  # a whole recording: nothing to say
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "whole" / "Rec_NextGenDrive#1.dat"), "--gear-ratio", RATIOS,
+                                 "--json", "-o", str(tmp_path / "whole.h5")])
+    assert r.exit_code == 0 and json.loads(r.stdout)["warnings"] == [] and "warning" not in r.stderr

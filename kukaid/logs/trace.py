@@ -208,8 +208,31 @@ def _common_grid(times: list[np.ndarray]) -> np.ndarray:
 TIME_BASES = ("position", "finest", "common")
 
 
+_WHAT = {"q": "measured position (Istposition)", "tau": "torque (Istmoment)",
+         "q_cmd": "commanded position (KRCIpo setpoint)", "temp": "motor temperature (Motortemperatur)"}
+
+
+def _left_out(path: Path, mapped: dict, axes: list[int]) -> list[str]:
+    """One line per channel a recording leaves out of its log: an axis with only one of position and
+    torque is not logged; a setpoint or temperature is logged only when every logged axis has one."""
+    out = []
+    for a in sorted({a for _, a in mapped} - set(axes)):
+        have = [q for q in ("q", "tau") if (q, a) in mapped]
+        if have:
+            miss = "tau" if have == ["q"] else "q"
+            out.append(f"{path}: A{a} is not in the log: the recording has its {_WHAT[have[0]]} but no {_WHAT[miss]} "
+                       "channel")
+    for qty in ("q_cmd", "temp"):
+        lack = [a for a in axes if (qty, a) not in mapped]
+        if 0 < len(lack) < len(axes):
+            out.append(f"{path}: no {_WHAT[qty]} in the log, for any axis: the recording has none for "
+                       f"{', '.join(f'A{a}' for a in lack)}")
+    return out
+
+
 def read_trace(path: str | Path, *, siblings: bool = True, time_base: str = "position",
-               gear_ratio: str | Path | dict | None = None, **_ignored: Any) -> AxisLog:
+               gear_ratio: str | Path | dict | None = None, hints: list[str] | None = None,
+               **_ignored: Any) -> AxisLog:
     """Read a KUKA Trace recording into an :class:`~kukaid.logs.core.AxisLog` (SI units).
 
     Parameters
@@ -232,7 +255,8 @@ def read_trace(path: str | Path, *, siblings: bool = True, time_base: str = "pos
     A channel without an axis number in its name takes the axis of its module's file name
     (``NextGenDrive#3`` -> A3).  Every axis with both a measured position and a torque channel is
     logged; commanded position and motor temperature are added when present for every logged
-    axis.  The attributes ``time_base``, ``time_base_note``, ``trace_sample_times``,
+    axis.  ``hints``, when given, gets one line per channel the recording left out so: an axis with
+    a position but no torque (or the reverse), a temperature or setpoint some logged axes lack.  The attributes ``time_base``, ``time_base_note``, ``trace_sample_times``,
     ``interpolated`` and ``gear_ratio`` say how the log was made.
     """
     path = Path(path)
@@ -277,6 +301,9 @@ def read_trace(path: str | Path, *, siblings: bool = True, time_base: str = "pos
                 motor.add((qty, axis))
             mapped[(qty, axis)] = (sig, vals)
     axes = sorted({a for q, a in mapped if q == "q"} & {a for q, a in mapped if q == "tau"})
+    left_out = _left_out(path, mapped, axes)
+    if hints is not None:
+        hints.extend(left_out)
     if not axes:
         raise LogFormatError(f"{path}: no axis has both a measured position (Istposition) and a torque "
                              f"(Istmoment) channel; channels: {names[:12]}")
@@ -345,5 +372,6 @@ def read_trace(path: str | Path, *, siblings: bool = True, time_base: str = "pos
         "interpolated": interpolated,
         "gear_ratio": {f"A{a}": ratios[a] for a in axes if a in ratios},
         "motor_side_converted": sorted(f"{q} A{a}" for q, a in motor if a in axes),
+        "left_out": left_out,
     }
     return AxisLog(time=time, axes=tuple(axes), joint=joint, attrs=attrs, **data)
