@@ -876,6 +876,25 @@ def test_wear_says_which_logs_another_friction_model_left_out(tmp_path):
     assert not any("assessed on" in line for line in lines(assess(_synthetic_rows(3, 11, seed=4))))
 
 
+def test_wear_says_a_second_log_of_a_day_is_left_out_as_such():
+    """New-user trial 19: an axis with two logs on one day (fleet wear takes one log a day) said
+    'assessed on 10 logs: 1 with Fc or Fv at 0 (on its bound: no relative change to follow)'; neither
+    log had Fc or Fv at 0.  The line says a second log of a day was left out."""
+    from kukaid.fleet.wear import assess, lines
+
+    rows = _synthetic_rows(3, 11, seed=4)
+    rows.append({**rows[3], "path": "again.h5", "Fc": rows[3]["Fc"] * 1.01})  # R000's fourth day, logged twice
+    a = next(a for a in assess(rows)["axes"] if a["robot"] == "R000")
+    assert a["n_logs"] == 11 and a["rows_not_used"] == 1
+    assert a["left_out"] == "1 more log of a day already logged (one log a day: the first by path)"
+    assert "R000         A3 assessed on 11 logs: 1 more log of a day already logged (one log a day: the first by " \
+           "path)" in lines(assess(rows))
+    zero = _synthetic_rows(3, 11, seed=4)
+    zero[3] = {**zero[3], "Fv": 0.0}
+    a = next(a for a in assess(zero)["axes"] if a["robot"] == "R000")
+    assert a["left_out"] == "1 with Fc or Fv at 0 (on its bound: no relative change to follow)"
+
+
 def test_wear_picks_the_same_friction_model_of_a_tie_in_every_run():
     """Equally many logs of two friction models: the axis's model was max() over a set of names, whose
     order is the string hashes' (PYTHONHASHSEED differs per process), so runs of fleet wear on one table

@@ -136,6 +136,7 @@ def _axes(rows: Sequence[dict], settings: WearSettings) -> tuple[list[_Axis], li
         model = max(sorted(set(models)), key=models.count)  # the most common; a tie the same in every run
         mine = [r for r in rs if str(r.get("friction_model")) == model]
         use = [r for r in mine if _pos(r.get("Fc")) and _pos(r.get("Fv"))]
+        zero = len(mine) - len(use)
         byday: dict[str, dict] = {}
         for r in sorted(use, key=lambda r: r["date"]):
             byday.setdefault(r["date"], r)  # one log a day (the first)
@@ -143,7 +144,7 @@ def _axes(rows: Sequence[dict], settings: WearSettings) -> tuple[list[_Axis], li
         dropped = len(rs) - len(use)
         n = len(use)
         nb = baseline_size(n, settings)
-        why = _left_out(models, model, len(mine) - len(use))
+        why = _left_out(models, model, zero, len(mine) - zero - len(use))
         if n < nb + 1:
             short.append({"robot": robot, "axis": axis, "flagged": False, "first_flagged": None, "n_logs": n,
                           "note": f"too few logs ({n}; a baseline of {nb} and at least one more are needed)"
@@ -155,10 +156,11 @@ def _axes(rows: Sequence[dict], settings: WearSettings) -> tuple[list[_Axis], li
     return out, short
 
 
-def _left_out(models: Sequence[str], model: str, zero: int) -> str:
+def _left_out(models: Sequence[str], model: str, zero: int, same_day: int = 0) -> str:
     """Why some of an axis's fitted rows (their friction ``models``) are not used: those of another
-    friction model than ``model`` (its most common), and ``zero`` of ``model`` with Fc or Fv on its
-    bound 0 (their logarithm is compared); "" when none is left out for those reasons."""
+    friction model than ``model`` (its most common), ``zero`` of ``model`` with Fc or Fv on its
+    bound 0 (their logarithm is compared), and ``same_day`` more logs of a day that has one already
+    (one log a day: the first in the table's order); "" when none is left out for those reasons."""
     other = Counter(m for m in models if m != model)
     parts = []
     if other:
@@ -168,6 +170,9 @@ def _left_out(models: Sequence[str], model: str, zero: int) -> str:
                      "every log with one model)")
     if zero:
         parts.append(f"{zero} with Fc or Fv at 0 (on its bound: no relative change to follow)")
+    if same_day:
+        parts.append(f"{same_day} more {'log' if same_day == 1 else 'logs'} of a day already logged (one log a day: "
+                     "the first by path)")
     return "; ".join(parts)
 
 
