@@ -28,12 +28,12 @@ def test_on_a_foreign_plant_nothing_moves_by_itself_and_a_push_moves_the_axis():
 
 
 def test_people_guide_the_foreign_plant_and_nothing_moves_after_they_let_go():
-    """``--people`` on seeds 0 and 1 (a soft, an ordinary and a firm grip each, D 50 and adaptive, 24 and
-    12 ms): every run completes, ends within 30 % of the move from the person's goal, and detects
-    nothing after the release."""
+    """``--people`` on seed 0 (a soft, an ordinary and a firm grip, D 50 and adaptive, 24 and 12 ms):
+    every run completes, ends within 30 % of the move from the person's goal, and detects nothing
+    after the release."""
     out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "admittance_foreign_plant.py"), "--people", "--seeds",
-                          "0-1", "--json"], capture_output=True, text=True, check=True, cwd=ROOT)
+                          "0", "--json"], capture_output=True, text=True, check=True, cwd=ROOT)
     runs = json.loads(out.stdout)["runs"]
-    assert len(runs) == 24
+    assert len(runs) == 12
     bad = [r for r in runs if r["status"] != "completed" or r["end_error"] > 0.3 or r["after_release"]]
     assert not bad, bad
