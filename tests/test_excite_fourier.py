@@ -93,6 +93,10 @@ def test_krl_for_all_axes(traj):
     assert np.allclose(first, np.degrees(six.q[i]), atol=1e-4)
     vel = [int(line.rsplit("=", 1)[1]) for line in dat.splitlines() if line.strip().startswith("VEL_PCT[")]
     assert 1 <= min(vel) and max(vel) <= 100
+    from test_excite_krl import _check_override   # the operator's override: scaled, never raised, given back
+
+    code = [ln for ln in (x.split(";")[0].strip() for x in src.splitlines()) if ln]
+    _check_override(code, [line.rsplit("=", 1)[1] for line in dat.splitlines() if line.strip().startswith("OVR_PCT[")])
 
 
 def test_krl_refuses_a_speed_above_the_limit(traj):

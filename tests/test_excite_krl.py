@@ -55,7 +55,24 @@ def _check_structure(src: str, dat: str, name: str) -> int:
         assert re.search(rf"\b{var}\b", src)
     # KRL names: at most 24 characters
     assert len(name) <= 24
+    _check_override(code, arrays["OVR_PCT"].values())
     return n
+
+
+def _check_override(code: list[str], ovr_pct) -> None:
+    """Trial 19: the program set $OV_PRO to its own values (up to 27 % with the operator's 10 % in T1) and
+    left the last one in force. It now reads the operator's override first, scales its own by it (KRL's
+    INT arithmetic, as below: never above the operator's) and gives it back at the end."""
+    writes = [ln for ln in code if ln.startswith("$OV_PRO")]
+    assert writes == ["$OV_PRO = OVR_SET", "$OV_PRO = OVR_USER"], writes
+    assert code.index("OVR_USER = $OV_PRO") < code.index("$OV_PRO = OVR_SET")
+    assert code[-2:] == ["$OV_PRO = OVR_USER", "END"]
+    assert "OVR_SET = (OVR_PCT[I] * OVR_USER) / 100" in code and "IF (OVR_SET < 1) AND (OVR_USER > 0) THEN" in code
+    for user in (0, 1, 10, 100):
+        for pct in (int(v) for v in ovr_pct):
+            ovr_set = (pct * user) // 100
+            ovr_set = 1 if ovr_set < 1 and user > 0 else ovr_set
+            assert ovr_set <= user
 
 
 @pytest.mark.parametrize("kind", KINDS)

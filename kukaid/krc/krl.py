@@ -9,7 +9,8 @@ when it starts (their positions are read from ``$AXIS_ACT``):
 * the ``.dat`` holds the via points as ``E6AXIS`` aggregates of the moving axis (degrees) and,
   per point, the axis velocity (``$VEL_AXIS``, % of the maximum), the program override
   (``$OV_PRO``, %; used for speeds below 1 % of the maximum, since ``$VEL_AXIS`` is an integer
-  percentage), the acceleration (``$ACC_AXIS``, %) and the dwell after the point (s);
+  percentage; scaled by the operator's override at the start, never raised above it, given back
+  at the end), the acceleration (``$ACC_AXIS``, %) and the dwell after the point (s);
 * the ``.src`` moves to the start with a slow exact ``PTP``, then loops over the points with
   ``PTP ... C_PTP`` (approximated) inside a moving stretch and an exact ``PTP`` + ``WAIT SEC``
   at each standstill.  The override only changes at a standstill (after ``WAIT SEC``, an
@@ -41,13 +42,38 @@ _TAKEN = frozenset("""AND B_AND B_EXOR B_NOT B_OR BOOL BRAKE C_DIS C_ORI C_PTP C
     CONTINUE DECL DEF DEFAULT DEFDAT DEFFCT DELAY DO ELSE END ENDDAT ENDFCT ENDFOR ENDIF ENDLOOP ENDSWITCH ENDWHILE
     ENUM EXIT EXOR EXT EXTFCT FALSE FOR GLOBAL GOTO HALT IF IMPORT INT INTERRUPT IS LIN LIN_REL LOOP NOT OR PRIO PTP
     PTP_REL PUBLIC REAL REPEAT RESUME RETURN SEC SIGNAL STEP STRUC SWITCH THEN TO TRIGGER TRUE UNTIL WAIT WHEN WHILE
-    E6AXIS AXIS BAS P I OVR_NOW N_PTS WAIT_START Q_START XP VEL_PCT ACC_PCT OVR_PCT WAIT_S""".split())
+    E6AXIS AXIS BAS P I OVR_NOW OVR_USER OVR_SET N_PTS WAIT_START Q_START XP VEL_PCT ACC_PCT OVR_PCT WAIT_S""".split())
+
+
+_OVERRIDE_NOTE = ("; The speeds are at $OV_PRO 100 %: a lower override scales them; below 1 % of the maximum the",
+                  "; program lowers $OV_PRO further (never above the operator's) and gives it back at the end.")
+
+
+def _override_loop_start() -> list[str]:
+    """After the move to the start: the operator's override kept, and at each point the program's
+    override scaled by it (changed at standstill only). The points' speeds are at 100 %: a lower
+    override scales them, as it does any KRL program's, and the program never raises it (it did, to
+    up to 27 % in T1 at 10 %: new-user trial 19); :func:`_override_restore` gives it back at the end."""
+    return ["  OVR_USER = $OV_PRO ; the operator's override: the points' speeds are scaled by it, never raised",
+            "  OVR_NOW = OVR_USER", "  WAIT SEC WAIT_START", "  FOR I = 1 TO N_PTS",
+            "    OVR_SET = (OVR_PCT[I] * OVR_USER) / 100",
+            "    IF (OVR_SET < 1) AND (OVR_USER > 0) THEN",
+            "      OVR_SET = 1",
+            "    ENDIF",
+            "    IF OVR_SET <> OVR_NOW THEN",
+            "      WAIT SEC 0 ; advance-run stop: change the override at standstill only",
+            "      $OV_PRO = OVR_SET", "      OVR_NOW = OVR_SET", "    ENDIF"]
+
+
+def _override_restore() -> list[str]:
+    return ["  $OV_PRO = OVR_USER ; the operator's override back"]
 
 
 
 def _program_start(apo_pct: float) -> list[str]:
     """The declarations and set-up of an excitation program, up to reading the start pose into P."""
-    return ["  DECL E6AXIS P", "  DECL INT I", "  DECL INT OVR_NOW", "  BAS (#INITMOV, 0)", "  $ADVANCE = 3",
+    return ["  DECL E6AXIS P", "  DECL INT I", "  DECL INT OVR_NOW", "  DECL INT OVR_USER", "  DECL INT OVR_SET",
+            "  BAS (#INITMOV, 0)", "  $ADVANCE = 3",
             f"  $APO.CPTP = {int(apo_pct)}", "  ; move to the start point, exact stop", "  P = $AXIS_ACT"]
 
 def via_points(t: np.ndarray, q: np.ndarray, tol: float, still: float = 1e-9) -> list[int]:
@@ -213,19 +239,12 @@ def krl_program(traj: Any, name: str | None = None, limits: Any = None, tol_deg:
         f"; {ax} moves alone; the other axes stay at their positions at program start.",
         f"; Assumes {ax} maximum speed {limits.qd_max / _DEG:.1f} deg/s and acceleration "
         f"{limits.qdd_max / _DEG:.1f} deg/s^2 ($VEL_AXIS_MA/$ACC_AXIS_MA); run in T1 first.",
-        "; Sets $OV_PRO for speeds below 1 % of the maximum.",
+        *_OVERRIDE_NOTE,
         *_program_start(apo_pct),
         f"  P.{ax} = Q_START.{ax}",
         f"  $VEL_AXIS[{axis}] = {int(start_vel_pct)}",
         "  PTP P",
-        "  OVR_NOW = $OV_PRO",
-        "  WAIT SEC WAIT_START",
-        "  FOR I = 1 TO N_PTS",
-        "    IF OVR_PCT[I] <> OVR_NOW THEN",
-        "      WAIT SEC 0 ; advance-run stop: change the override at standstill only",
-        "      $OV_PRO = OVR_PCT[I]",
-        "      OVR_NOW = OVR_PCT[I]",
-        "    ENDIF",
+        *_override_loop_start(),
         f"    $VEL_AXIS[{axis}] = VEL_PCT[I]",
         f"    $ACC_AXIS[{axis}] = ACC_PCT[I]",
         f"    P.{ax} = XP[I].{ax}",
@@ -237,6 +256,7 @@ def krl_program(traj: Any, name: str | None = None, limits: Any = None, tol_deg:
         "    ENDIF",
         "  ENDFOR",
         "  PTP P",
+        *_override_restore(),
         "END",
         "",
     ])
@@ -352,19 +372,17 @@ def krl_program_robot(traj: Any, name: str | None = None, tol_deg: float = 0.05,
         f"{traj.duration:.2f} s",
         "; Assumes each axis's maximum speed and acceleration ($VEL_AXIS_MA/$ACC_AXIS_MA) equal the limits",
         f"; in {name}.dat; check them, check the motion for collisions, and run in T1 first.",
+        *_OVERRIDE_NOTE,
         *_program_start(apo_pct),
     ]
     src += [f"  P.{x} = Q_START.{x}" for x in names]
     src += [f"  $VEL_AXIS[{a}] = {int(start_vel_pct)}" for a in axes]
-    src += ["  PTP P", "  OVR_NOW = $OV_PRO", "  WAIT SEC WAIT_START", "  FOR I = 1 TO N_PTS",
-            "    IF OVR_PCT[I] <> OVR_NOW THEN",
-            "      WAIT SEC 0 ; advance-run stop: change the override at standstill only",
-            "      $OV_PRO = OVR_PCT[I]", "      OVR_NOW = OVR_PCT[I]", "    ENDIF"]
+    src += ["  PTP P", *_override_loop_start()]
     src += [f"    $VEL_AXIS[{a}] = VEL_PCT[I,{k}]" for k, a in enumerate(axes, 1)]
     src += [f"    $ACC_AXIS[{a}] = ACC_PCT[I,{k}]" for k, a in enumerate(axes, 1)]
     src += [f"    P.{x} = XP[I].{x}" for x in names]
     src += ["    IF WAIT_S[I] > 0.0 THEN", "      PTP P", "      WAIT SEC WAIT_S[I]", "    ELSE", "      PTP P C_PTP",
-            "    ENDIF", "  ENDFOR", "  PTP P", "END", ""]
+            "    ENDIF", "  ENDFOR", "  PTP P", *_override_restore(), "END", ""]
 
     def e6(x: np.ndarray) -> str:
         return "{" + ", ".join(f"{nm} {v / _DEG:.5f}" for nm, v in zip(names, x)) + "}"
