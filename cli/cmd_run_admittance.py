@@ -431,6 +431,7 @@ def command(params_path: Path, output: Path, report: Path | None, as_json: bool,
             except click.BadParameter:
                 client.close()
                 raise
+        be.window = (cfg.limits.q_min, cfg.limits.q_max)  # standing outside it, nothing is switched on
         attrs.update(host=host, port=port)
         axis_id = axis
 

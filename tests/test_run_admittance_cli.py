@@ -13,7 +13,7 @@ import pytest
 from click.testing import CliRunner
 
 from kukaid.control.runlog import read_run
-from kukaid.krc.krl_follower import STOP_BY_PC, STOP_STALE, FollowerConfig
+from kukaid.krc.krl_follower import STOP_BY_PC, STOP_OUTSIDE, STOP_STALE, FollowerConfig, krl_follower_files
 from kukaid.params import save_params
 from kukaid.sim import SimConfig, VirtualKRC4
 from kukaid.krc.sim_source import SimSource
@@ -412,6 +412,39 @@ def test_kvp_window_beyond_the_controllers_software_limit_switches_is_refused(fi
     r = _run(args)
     assert r.exit_code == 2 and "300 degrees is beyond the range of motion of A3 (its software limit switches" in r.output
     assert not out.exists() and client.read("KID_RUN") == "FALSE"
+
+
+def test_kvp_run_with_the_axis_outside_its_window_switches_nothing_on(files, kvp_robot, tmp_path):
+    """Trial 19: the follower's first target is where the axis stands, clamped into the window: an axis
+    standing outside it was driven to the window's edge as soon as KID_RUN went TRUE (and the PC's own
+    check of the start came after it had switched the follower on). The PC now refuses before
+    switching anything on, and the follower program refuses too (KID_STOP 3, nothing moves)."""
+    port, client, _ = kvp_robot
+    q0 = client.read_axis("$AXIS_ACT_MEAS")["A3"]
+    out = tmp_path / "outside.h5"
+    args = [a if a != "10" else "35" for a in _kvp_args(files, port, out)]   # the axis stands at 30
+    r = _run(args)
+    assert r.exit_code == 1 and "A3 stands at 30 degrees, outside the window [35, 55] degrees: nothing switched on" \
+        in r.output, r.output
+    assert not out.exists() and client.read("KID_RUN") == "FALSE"
+    assert abs(client.read_axis("$AXIS_ACT_MEAS")["A3"] - q0) < 0.01
+
+
+def test_follower_program_refuses_an_axis_outside_its_window():
+    sim = VirtualKRC4(SimConfig().replace(**TRUTH), seed=2)
+    sim.reset(math.radians(30.0))
+    with SimSource(sim, follower=FollowerConfig(q_min_deg=40.0, q_max_deg=60.0, stale_ms=150)) as src:
+        assert src.write("KID_HB", "1") and src.write("KID_RUN", "TRUE")
+        assert src.read("KID_STOP") == str(STOP_OUTSIDE)
+        assert src.write("KID_TGT", "50.0")
+        for hb in range(2, 20):
+            src.write("KID_HB", str(hb))
+            wait_sim(src, 0.02)
+        assert abs(math.degrees(sim.q) - 30.0) < 0.05 and src.read("KID_STOP") == str(STOP_OUTSIDE)
+    src = krl_follower_files(FollowerConfig(q_min_deg=40.0, q_max_deg=60.0))["KUKAID_FOLLOW.SRC"].splitlines()
+    check = src.index("IF (KID_TGT>60.0000) OR (KID_TGT<40.0000) THEN")
+    assert src[check + 1].startswith(f"  KID_STOP={STOP_OUTSIDE}") and src[check + 2] == "ELSE"
+    assert check < src.index("WAIT FOR KID_RUN") and src[-2:] == ["ENDIF", "END"]
 
 
 def test_kvp_controller_that_stops_answering_stops_the_run_and_keeps_the_log(files, kvp_robot, tmp_path):

@@ -10,7 +10,7 @@ declared in ``KUKAID_FOLLOW.DAT``):
 - ``KID_RUN`` BOOL: set TRUE by the PC once the first target and heartbeat are written; set
   FALSE by the PC to stop, or by the program itself when the heartbeat goes stale;
 - ``KID_STOP`` INT: why the program stopped (0 running or not started, 1 stopped by the PC,
-  2 heartbeat stale);
+  2 heartbeat stale, 3 the axis stood outside the window when it started: nothing moved);
 - ``KID_CLAMP`` INT: how many targets fell outside the window and were clamped.
 
 Safety on the controller, independent of the PC: the target is clamped to the position window
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from kukaid.errors import KukaidError
 
 #: stop reasons written to KID_STOP
-STOP_BY_PC, STOP_STALE = 1, 2
+STOP_BY_PC, STOP_STALE, STOP_OUTSIDE = 1, 2, 3
 
 
 @dataclass(frozen=True)
@@ -103,6 +103,9 @@ def krl_follower_files(cfg: FollowerConfig, name: str = "KUKAID_FOLLOW") -> dict
            "KID_GOAL=$AXIS_ACT",
            "PTP KID_GOAL ;exact stop where the axis stands",
            f"KID_TGT=KID_GOAL.A{a}",
+           f"IF (KID_TGT>{cfg.q_max_deg:.4f}) OR (KID_TGT<{cfg.q_min_deg:.4f}) THEN",
+           f"  KID_STOP={STOP_OUTSIDE} ;the axis stands outside the window: nothing moves (the clamp would drive it in)",
+           "ELSE",
            "WAIT FOR KID_RUN",
            "KID_HBL=KID_HB",
            "KID_HBT=$ROB_TIMER",
@@ -133,5 +136,6 @@ def krl_follower_files(cfg: FollowerConfig, name: str = "KUKAID_FOLLOW") -> dict
            "ENDIF",
            "KID_GOAL=$AXIS_ACT",
            "PTP KID_GOAL ;exact stop",
+           "ENDIF",
            "END", ""]
     return {f"{n}.DAT": "\n".join(dat), f"{n}.SRC": "\n".join(src)}

@@ -15,7 +15,7 @@ import threading
 import time
 from typing import Any
 
-from kukaid.krc.krl_follower import STOP_BY_PC, STOP_STALE
+from kukaid.krc.krl_follower import STOP_BY_PC, STOP_OUTSIDE, STOP_STALE
 from kukaid.krc.kvp import format_e6axis, format_real, parse_bool, parse_int, parse_real
 
 _DEG = 180.0 / math.pi
@@ -224,8 +224,8 @@ class SimSource:
     def _follower_watch(self) -> None:
         """The follower program's heartbeat check (called with the lock held)."""
         f = self.follower
-        if f is None or self.globals["KID_RUN"] != "TRUE":
-            return
+        if f is None or self.globals["KID_RUN"] != "TRUE" or self.globals["KID_STOP"] == str(STOP_OUTSIDE):
+            return  # not running (the program ended at the start when it found the axis outside its window)
         if (float(self.sim.t) - self._hb_t) * 1000.0 > f.stale_ms:
             self.globals["KID_RUN"] = "FALSE"
             self.globals["KID_STOP"] = str(STOP_STALE)
@@ -244,7 +244,7 @@ class SimSource:
         try:
             if key == "KID_TGT":
                 q, clamped = self.follower.clamp(parse_real(value, key))
-                if g["KID_RUN"] == "TRUE":
+                if g["KID_RUN"] == "TRUE" and g["KID_STOP"] != str(STOP_OUTSIDE):
                     self._target(q / _DEG)
                     g["KID_CLAMP"] = str(int(g["KID_CLAMP"]) + int(clamped))
             elif key == "KID_HB":
@@ -253,7 +253,11 @@ class SimSource:
                     self._hb_t = self._sim_now()
             elif key == "KID_RUN":
                 run = parse_bool(value, key)
-                if run and g["KID_RUN"] != "TRUE":
+                q_now, outside = self.follower.clamp(float(self.sim.q) * _DEG)
+                if run and g["KID_RUN"] != "TRUE" and outside:
+                    # the program found the axis outside its window when it started and ended: nothing moves
+                    g["KID_STOP"] = str(STOP_OUTSIDE)
+                elif run and g["KID_RUN"] != "TRUE":
                     self._hb_t = self._sim_now()
                     g["KID_STOP"] = "0"
                     if self._on_run is not None:

@@ -41,8 +41,11 @@ class KvpRobot:
     name = "kvp"
 
     def __init__(self, client: Any, axis: int = 3, target: str = "KID_TGT", heartbeat: str = "KID_HB",
-                 run: str = "KID_RUN", sample_time: float = 0.012, n_axes: int = 0) -> None:
+                 run: str = "KID_RUN", sample_time: float = 0.012, n_axes: int = 0,
+                 window: tuple[float, float] | None = None) -> None:
         self.client = client
+        #: the position window (rad) the axis must stand in for :meth:`start` to switch the follower on
+        self.window = window
         self.axis = int(axis)
         self.n_axes = int(n_axes)
         self.target, self.heartbeat, self.run = target, heartbeat, run
@@ -108,6 +111,12 @@ class KvpRobot:
         s = self._read()
         if not s:
             raise ControllerError("kvp: cannot read $AXIS_ACT_MEAS / $TORQUE_AXIS_ACT at start")
+        q = s[-1].q
+        if self.window is not None and not self.window[0] <= q <= self.window[1]:
+            # the follower would clamp its first target (where the axis stands) into the window, and drive there
+            raise ControllerError(f"kvp: A{self.axis} stands at {math.degrees(q):.4g} degrees, outside the window "
+                                  f"[{math.degrees(self.window[0]):.4g}, {math.degrees(self.window[1]):.4g}] degrees: "
+                                  "nothing switched on; move it inside the window first")
         from kukaid.krc.kvp import KvpVariableError
 
         try:
