@@ -75,3 +75,16 @@ def test_each_swrite_of_the_logger_takes_at_most_ten_variables(axes):
     assert "".join(fmts) == "%d" + ",%.4f" * n + ",%.3f" * n + ",%.1f" * n + ";"
     assert sum(args, []) == (["$ROB_TIMER"] + [f"$AXIS_ACT_MEAS.A{a}" for a in axes]
                              + [f"$TORQUE_AXIS_ACT[{a}]" for a in axes] + [f"$MOT_TEMP[{a}]" for a in axes])
+
+
+def test_the_loggers_string_functions_have_their_results_assigned():
+    """Trial 19: StrClear and StrCopy are KRL functions (they return BOOL); the logger called them as
+    statements (`StrClear(KID_CUR[])`), which KRL takes only inside an expression. Their results now
+    go to a declared BOOL."""
+    import re
+
+    files = krl_logger_files(RingLayout(axes=(1, 2, 3), nb=4, bs=2))
+    sub, dat = files["KUKAID_LOG.SUB"], files["KUKAID_LOG.DAT"]
+    calls = [ln.strip() for ln in sub.splitlines() if re.search(r"\bStr(Clear|Copy)\(", ln)]
+    assert len(calls) == 5 and all(re.match(r"^KID_OK=Str(Clear|Copy)\(", c) for c in calls), calls
+    assert re.search(r"^DECL BOOL KID_OK\b", dat, re.M)

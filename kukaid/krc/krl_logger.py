@@ -171,6 +171,7 @@ def krl_logger_files(layout: RingLayout, name: str = "KUKAID_LOG") -> dict[str, 
            "DECL INT KID_LAST=0",
            "DECL INT KID_OFS=0",
            "DECL STATE_T KID_ST",
+           "DECL BOOL KID_OK ;StrClear and StrCopy are functions: their result is assigned",
            f"DECL CHAR KID_CUR[{slot}]"]
     dat += [f"DECL GLOBAL CHAR KID_B{i}[{slot}]" for i in range(1, layout.nb + 1)]
     dat += ["ENDDAT", ""]
@@ -195,7 +196,7 @@ def krl_logger_files(layout: RingLayout, name: str = "KUKAID_LOG") -> dict[str, 
            "",
            "DEF KID_NEWBLOCK()",
            "  KID_OFS=0",
-           "  StrClear(KID_CUR[])",
+           "  KID_OK=StrClear(KID_CUR[])",
            "  SWRITE(KID_CUR[],KID_ST,KID_OFS,\"%d|\",KID_WR+1)",
            "END",
            "",
@@ -214,7 +215,7 @@ def krl_logger_files(layout: RingLayout, name: str = "KUKAID_LOG") -> dict[str, 
            f"    IF (KID_WR-KID_RD)<{layout.nb} THEN",
            f"      SWITCH (KID_WR MOD {layout.nb})+1"]
     for i in range(1, layout.nb + 1):
-        sub += [f"      CASE {i}", f"        StrCopy(KID_B{i}[],KID_CUR[])"]
+        sub += [f"      CASE {i}", f"        KID_OK=StrCopy(KID_B{i}[],KID_CUR[])"]
     sub += ["      ENDSWITCH",
             "      KID_WR=KID_WR+1",
             "    ELSE",
