@@ -38,7 +38,7 @@ from kukaid_cli._util import progress as progress_bar
 # kvp
 @click.option("--host", default="127.0.0.1", show_default=True, help="kvp: KUKAVARPROXY host.")
 @PORT
-@click.option("--axis", "axes", type=AXIS, multiple=True, help="kvp: axis to record; repeatable [3].")
+@click.option("--axis", "axes", type=AXIS, multiple=True, help="kvp: axis to record; repeatable [3; with TRAJECTORY, the axes it moves].")
 @click.option("--duration", type=FloatRange(0.0, 7 * 86400.0, min_open=True),
               help="kvp: seconds to record (Ctrl-C before then: an interrupted capture).")
 @click.option("--until-interrupt", is_flag=True, help="kvp: record until Ctrl-C / SIGTERM (not with --duration).")
@@ -103,6 +103,14 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
 
             traj = load_trajectory(trajectory)
             attrs = {"experiment": traj.kind, "trajectory": traj.params, "trajectory_file": str(trajectory)}
+            # the log is of the axes the trajectory moves: the default A3 recorded a standing axis as its experiment
+            moved = tuple(traj.axes) if hasattr(traj, "axes") else (traj.axis,)
+            if axes and sorted(axes) != sorted(moved):
+                names = ", ".join(f"A{a}" for a in moved)
+                raise click.UsageError(f"option --axis {' --axis '.join(str(a) for a in axes)} does not match "
+                                       f"{trajectory}: its experiment moves {names}, the axes a capture of it "
+                                       "records (leave out --axis)")
+            axes = axes or moved
         be = KvpCapture(host=host, port=port, axes=axes or (3,), duration=duration, until_interrupt=until_interrupt,
                         mode=mode, attrs=attrs)
 

@@ -150,6 +150,35 @@ def test_ring_capture_refuses_axes_the_logger_does_not_record(virtual_krc4, tmp_
         capture_kvp(tmp_path / "x.h5", "127.0.0.1", srv.port, [2, 3], 0.5, False, "ring", None)
 
 
+def test_cli_capture_of_a_trajectory_records_the_axis_it_moves(virtual_krc4, tmp_path):
+    """`capture TRAJ.json --backend kvp` without --axis recorded A3 whatever axis TRAJ moves: the
+    log of an A2 experiment (its KRL program running) held the standing A3, labelled with that
+    experiment.  It now records the trajectory's axis; an --axis other than it is a usage error."""
+    from click.testing import CliRunner
+
+    from kukaid.excite import Trajectory
+    from kukaid_cli.main import cli
+
+    srv, _ = virtual_krc4()
+    ex = _excitation(8.0)
+    traj = tmp_path / "inertia_a2.json"
+    Trajectory(t=ex.t, q=ex.q, axis=2, kind="inertia").to_json(traj)
+    out = tmp_path / "a2.h5"
+    r = CliRunner().invoke(cli, ["capture", str(traj), "-o", str(out), "--backend", "kvp", "--port", str(srv.port),
+                                 "--duration", "0.5"])
+    assert r.exit_code == 0, r.output
+    log = read_hdf5(out)
+    assert list(log.axes) == [2] and log.attrs["experiment"] == "inertia"
+    bad = tmp_path / "a3.h5"
+    r = CliRunner().invoke(cli, ["capture", str(traj), "-o", str(bad), "--backend", "kvp", "--port", str(srv.port),
+                                 "--duration", "0.5", "--axis", "3"])
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert r.exit_code == 2 and len(lines) == 1, r.output
+    assert lines[0].startswith(f"kukaid: error: capture: option --axis 3 does not match {traj}: its experiment "
+                               "moves A2"), r.output
+    assert not bad.exists()
+
+
 def test_dropped_connection_resumes_and_marks_gap(virtual_krc4, tmp_path):
     """The link drops during poll 60 (the controller is away 0.5 s, its clock goes on); the capture
     reconnects and is stopped 60 polls later.  Driven by polls (the simulator takes a sample at
