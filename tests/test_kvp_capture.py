@@ -203,6 +203,26 @@ def test_dropped_connection_resumes_and_marks_gap(virtual_krc4, tmp_path):
     _match_truth(log, src.truth())  # samples on both sides intact
 
 
+@pytest.mark.parametrize("mode, count, stepped", [("poll", "$AXIS_ACT_MEAS", True), ("ring", "KID_WR", False)])
+def test_a_stop_while_the_link_is_down_ends_the_capture_cleanly(virtual_krc4, tmp_path, mode, count, stepped):
+    """Ctrl-C / SIGTERM while capture waited for the controller to come back was reported as a
+    failure ('could not reconnect within 30 s', exit 1, stopped_by error) a moment after the signal,
+    and `--until-interrupt`, whose normal end is that interrupt, failed.  The stop now ends the
+    capture as it does with the link up: the samples recorded are the log."""
+    import time
+
+    srv, _ = virtual_krc4(count=count, stepped=stepped)  # poll: a new sample at every poll, at any speed
+    stop = threading.Event()
+    srv.reads.at(20, lambda: (srv.go_down(60.0), threading.Timer(0.5, stop.set).start()))
+    out = tmp_path / f"down_{mode}.h5"
+    t = time.monotonic()
+    s = capture_kvp(out, "127.0.0.1", srv.port, [3], None, True, mode, None, reconnect_wait=30.0, stop_event=stop)
+    assert time.monotonic() - t < 20.0  # ended by the stop, not by the reconnection's limit
+    assert s["stopped_by"] == "stop-event" and s["n_reconnects"] == 0
+    log = read_hdf5(out)
+    assert log.n_samples == s["n_samples"] >= 2 and log.attrs["stopped_by"] == "stop-event"
+
+
 def test_garbage_mid_capture_is_survived_and_persistent_garbage_is_a_clear_error(virtual_krc4, tmp_path):
     srv, src = virtual_krc4(stepped=True)  # a new sample at every poll, at any speed of the machine
     stop = threading.Event()

@@ -295,13 +295,28 @@ def _reconnect_wait(reconnect_wait: float, t0: float, duration: float | None) ->
     return min(reconnect_wait, max(t0 + duration - time.monotonic(), 0.0))
 
 
+def _reconnect(client: KvpClient, stop: _Stop, max_wait: float) -> bool:
+    """Reconnect with back-off; False when Ctrl-C / SIGTERM (or the stop event) ended the attempts.
+
+    A stop asked for while the link is down ends the capture as it would with the link up (the
+    samples recorded are the log), not as a failure to reconnect."""
+    try:
+        client.reconnect(max_wait=max_wait, should_stop=stop)
+    except KvpConnectionError:
+        if stop():
+            return False
+        raise
+    return True
+
+
 def _recover(client: KvpClient, rec: _Recorder, writer, gaps: list, stop: _Stop, t0: float,
              reconnect_wait: float, err: KvpError) -> None:
     """The link failed: keep what we have, reconnect with back-off, mark the gap."""
     gap_start = rec.t_last if math.isfinite(rec.t_last) else time.monotonic() - t0
     rec.flush()
     client.close()
-    client.reconnect(max_wait=reconnect_wait, should_stop=stop)
+    if not _reconnect(client, stop, reconnect_wait):
+        return  # stopped: the loop ends at its next check; the log ends at its last sample
     gap_end = time.monotonic() - t0
     writer.mark_gap(gap_start, gap_end)
     gaps.append([float(gap_start), float(gap_end)])
@@ -438,7 +453,7 @@ def _poll_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
                     gap_start = rec.t_last if math.isfinite(rec.t_last) else 0.0
                 rec.flush()
                 client.close()
-                client.reconnect(max_wait=_reconnect_wait(reconnect_wait, t0, duration), should_stop=stop)
+                _reconnect(client, stop, _reconnect_wait(reconnect_wait, t0, duration))
             else:
                 _recover(client, rec, writer, gaps, stop, t0, _reconnect_wait(reconnect_wait, t0, duration), e)
             continue
@@ -513,7 +528,7 @@ def _ring_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
             # unacknowledged blocks stay in the ring: only an overflow loses samples (seen in the stamps)
             rec.flush()
             client.close()
-            client.reconnect(max_wait=_reconnect_wait(reconnect_wait, t0, duration), should_stop=stop)
+            _reconnect(client, stop, _reconnect_wait(reconnect_wait, t0, duration))
             continue
         except (KvpVariableError, KvpValueError) as e:
             raise KvpError(str(e)) from None
