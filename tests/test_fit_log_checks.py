@@ -118,6 +118,29 @@ def test_a_log_that_skips_samples_is_refused(logs, kukaid_cmd, tmp_path):
     check_even_samples(one_gap, "reconnect.h5")
 
 
+def test_a_ring_capture_that_skips_samples_is_not_told_to_use_ring_mode(logs, kukaid_cmd, tmp_path):
+    """A ring-mode capture whose PC fell behind (KUKAVARPROXY replies 150 ms late: 33 overflows,
+    2 % of the steps skipped) was refused with 'record with capture --mode ring', the mode it was
+    recorded in.  The line now names the ring's overflows and the longer ring of krl-logger."""
+    from kukaid.identify.filtering import check_even_samples
+
+    lg = read_log(logs[1]["inertia"])
+    keep = np.ones(lg.n_samples, bool)
+    keep[10:-10:50] = False
+    attrs = dict(lg.attrs, source="kukavarproxy", capture_mode="ring", ring_overflows=33)
+    path = tmp_path / "ring.h5"
+    write_hdf5(AxisLog(lg.time[keep], lg.q[keep], lg.tau[keep], axes=lg.axes, attrs=attrs), path)
+    out = tmp_path / "r.json"
+    r = subprocess.run([*kukaid_cmd, "fit", "--inertia", str(path), "-o", str(out)], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 1 and len(r.stderr.splitlines()) == 1, r.stderr
+    assert f"{path}: 2.1 % of the steps between samples skip samples" in r.stderr
+    assert "33 ring overflows" in r.stderr and "krl-logger --blocks" in r.stderr and "--mode ring" not in r.stderr
+    assert not out.exists()
+    with pytest.raises(FitError, match="poll capture .* --mode ring"):  # a poll capture keeps its advice
+        check_even_samples(lg.time[keep], "poll.h5", dict(attrs, capture_mode="poll"))
+
+
 def test_a_run_admittance_log_is_warned_by_fit_validate_and_diagnose(logs, kukaid_cmd, tmp_path):
     """A run log's torque holds the person's push: the demo's run validated at 32 % relative error and
     diagnosed at 50 x the noise floor without a word on why; fit, validate and diagnose now say so."""

@@ -69,7 +69,7 @@ def prepare(log: Any, axis: int | None = None, cutoff: float | None = None, orde
         axis = log.axes[0]
     where = log.attrs.get("source_file", name or "log")
     j = log.index(axis)
-    check_even_samples(log.time, str(where))  # the filters take the samples as evenly spaced
+    check_even_samples(log.time, str(where), log.attrs)  # the filters take the samples as evenly spaced
     log = evenly_sampled(log)[0]
     t = np.asarray(log.time, dtype=float)
     q_raw = np.asarray(log.q[:, j], dtype=float)

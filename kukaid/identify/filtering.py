@@ -253,8 +253,11 @@ def _controller_step(d: np.ndarray) -> float:
     return quartile if np.mean(d > 1.75 * quartile) > 0.25 else float(np.median(d))
 
 
-def check_even_samples(time: np.ndarray, where: str) -> None:
+def check_even_samples(time: np.ndarray, where: str, attrs: dict | None = None) -> None:
     """Refuse a log whose samples skip many controller samples (FitError naming it).
+
+    ``attrs`` (the log's attributes) says how it was recorded: a ring capture that skips samples
+    lost them to ring overflows, and the remedy is a longer ring or a faster reader, not ring mode.
 
     The low-pass filters treat the samples as evenly spaced. Jitter in the stamps (the LWR4+'s, at
     most 1.4 x the step) and a gap or two (a reconnect, a ring overflow) are not refused; a log where
@@ -267,11 +270,19 @@ def check_even_samples(time: np.ndarray, where: str) -> None:
     step = _controller_step(d)
     share = float(np.mean(d > 1.75 * step))
     if share > MAX_SKIPPED_SHARE:
+        attrs = attrs or {}
+        if attrs.get("capture_mode") == "ring":
+            ovf = attrs.get("ring_overflows")
+            why = ("a ring capture loses samples when the PC does not read the ring in time"
+                   + (f" ({int(ovf)} ring overflows in this one)" if ovf is not None else "")
+                   + ": give the logger a longer ring (kukaid krl-logger --blocks, --block-samples) or read it "
+                     "over a faster link, and capture again")
+        else:
+            why = ("a KUKAVARPROXY poll capture misses samples when a poll takes longer than a cycle; record with "
+                   "capture --mode ring (the program of kukaid krl-logger)")
         raise FitError(f"{where}: {100 * share:.2g} % of the steps between samples skip samples (steps up to "
                        f"{1e3 * float(d.max()):.4g} ms, the log's step {1e3 * step:.4g} ms; at most "
-                       f"{100 * MAX_SKIPPED_SHARE:g} % can be filtered as evenly spaced): a KUKAVARPROXY poll "
-                       "capture misses samples when a poll takes longer than a cycle; record with capture "
-                       "--mode ring (the program of kukaid krl-logger)")
+                       f"{100 * MAX_SKIPPED_SHARE:g} % can be filtered as evenly spaced): {why}")
 
 
 #: the time-base judgements of the logs seen last: (id of its time, of its positions, columns) ->
@@ -372,7 +383,7 @@ def preprocess(log: Any, axis: int | None = None, cutoff: float | None = None, o
             raise FitError(f"{where}: channel '{name}' of A{axis} is not finite (NaN or inf) at row {bad[0]}")
     if log.time.size < 8:
         raise FitError(f"{where}: only {log.time.size} samples; too short to filter and differentiate")
-    check_even_samples(log.time, where)
+    check_even_samples(log.time, where, log.attrs)
     log, time_base = evenly_sampled(log)
     t = np.asarray(log.time, dtype=float)
     q = np.asarray(log.q[:, col], dtype=float)

@@ -367,7 +367,7 @@ def motion(log: AxisLog, n: int, settings: RobotFitSettings, drive: DriveModel |
 
     cols = _joint_columns(log, n)
     where = log.attrs.get("source_file", "axis log")
-    check_even_samples(log.time, where)
+    check_even_samples(log.time, where, log.attrs)
     fs = 1.0 / log.sample_time
     fc = _cutoff(settings, fs)
     if fc >= 0.45 * fs:  # as the one-axis fit: a Butterworth this close to Nyquist hardly filters
