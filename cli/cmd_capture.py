@@ -168,6 +168,13 @@ def command(trajectory: Path | None, output: Path, backend: str, force: bool, as
                    "complete": result.complete})
     click.echo(f"{result.output}: {result.n_samples} samples, {result.duration:.2f} s "
                f"({be.name}{', seed ' + str(seed) if backend == 'sim' else ''})", err=True)
+    gaps, ovf = result.info.get("gaps") or [], int(result.info.get("ring_overflows") or 0)
+    if gaps or ovf:  # samples the controller took are not in the log: said now, not first by fit's refusal
+        lost = sum(float(g1) - float(g0) for g0, g1 in gaps)
+        why = (f"the ring overflowed {ovf} times: the PC read it too slowly (a longer ring: kukaid krl-logger "
+               "--blocks)" if ovf else "the link dropped")
+        click.echo(f"kukaid: warning: capture: {len(gaps)} gap(s) in {result.output}, {lost:.3g} s without samples: "
+                   f"{why}; the gaps are in its dataset 'gaps'", err=True)
     from kukaid.capture import FOLLOWING_WARN
 
     follow = float(result.info.get("following_error_max") or 0.0)

@@ -382,6 +382,27 @@ def test_ring_mode_rides_out_an_outage_shorter_than_the_ring(virtual_krc4, tmp_p
     _match_truth(log, src.truth(), min_pair_fraction=1.0, q_tol_deg=5.1e-5, tau_tol=5.1e-4)
 
 
+def test_cli_capture_says_when_the_ring_overflowed(virtual_krc4, tmp_path):
+    """A ring capture whose PC read the ring too slowly (replies 50 ms late, a ring of 48 ms) lost
+    samples and ended with only '... samples, ... s (kvp)', exit 0: the loss was first heard of when
+    fit refused the log.  A warning line now says how many gaps and overflows there were."""
+    from click.testing import CliRunner
+
+    from kukaid_cli.main import cli
+
+    srv, _ = virtual_krc4(ring=RingLayout(axes=(3,), nb=2, bs=2), count="KID_WR")
+    srv.faults.delay = 0.05
+    out = tmp_path / "ovf.h5"
+    r = CliRunner().invoke(cli, ["capture", "-o", str(out), "--backend", "kvp", "--port", str(srv.port),
+                                 "--mode", "ring", "--duration", "1.5"])
+    assert r.exit_code == 0, r.output
+    log = read_hdf5(out)
+    assert log.attrs["ring_overflows"] > 0 and log.attrs["n_gaps"] > 0
+    warn = [ln for ln in r.output.splitlines() if ln.startswith("kukaid: warning: capture:")]
+    assert len(warn) == 1 and f"{log.attrs['n_gaps']} gap(s) in {out}" in warn[0], r.output
+    assert f"the ring overflowed {log.attrs['ring_overflows']} times" in warn[0]
+
+
 def test_rob_timer_is_read_across_its_rollover():
     """$ROB_TIMER rolls over after 2**31 ms (taken to restart at 0, as both capture modes assume);
     the capture's time goes on."""
