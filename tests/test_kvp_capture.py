@@ -223,6 +223,31 @@ def test_a_stop_while_the_link_is_down_ends_the_capture_cleanly(virtual_krc4, tm
     assert log.n_samples == s["n_samples"] >= 2 and log.attrs["stopped_by"] == "stop-event"
 
 
+@pytest.mark.parametrize("mode, count", [("poll", "$AXIS_ACT_MEAS"), ("ring", "KID_WR")])
+def test_a_controller_that_restarts_mid_capture_stops_it_with_the_samples_kept(virtual_krc4, tmp_path, mode, count):
+    """Trial 20: a controller restarted during a capture ($ROB_TIMER from its start again). Poll mode
+    dropped its samples without a word until the clock caught up and joined the rest on; ring mode took
+    the restarted logger's counter as read, never acknowledged its blocks, and recorded nothing more
+    (exit 0). The capture now stops there, naming the restart, the samples before it kept."""
+    from kukaid.sim import SimConfig, VirtualKRC4
+
+    srv, _ = virtual_krc4(count=count, stepped=True)
+    again = SimSource(VirtualKRC4(SimConfig().replace(noise_sigma=0.3), seed=12, axis=3), axis=3,
+                      trajectory=_excitation(8.0), ring=RingLayout(axes=(3,)))
+
+    def restart():   # the controller comes back with its clock, and its logger, from the start
+        srv.reads.source, srv.reads.step = again, (lambda: again.step(0.012))
+        srv.drop_clients()
+
+    srv.reads.at(60, restart)
+    out = tmp_path / f"restart_{mode}.h5"
+    with pytest.raises(ControllerError, match=r"capture stopped after \d+ samples \(kept in .*\): the controller's clock "
+                                              r"\(\$ROB_TIMER\) went back by .* it restarted"):
+        capture_kvp(out, "127.0.0.1", srv.port, [3], 20.0, False, mode, None, reconnect_wait=5.0)
+    log = read_hdf5(out)
+    assert log.n_samples >= 2 and np.all(np.diff(log.time) > 0)
+
+
 def test_garbage_mid_capture_is_survived_and_persistent_garbage_is_a_clear_error(virtual_krc4, tmp_path):
     srv, src = virtual_krc4(stepped=True)  # a new sample at every poll, at any speed of the machine
     stop = threading.Event()
@@ -405,12 +430,16 @@ def test_cli_capture_says_when_the_ring_overflowed(virtual_krc4, tmp_path):
 
 def test_rob_timer_is_read_across_its_rollover():
     """$ROB_TIMER rolls over after 2**31 ms (taken to restart at 0, as both capture modes assume);
-    the capture's time goes on."""
+    the capture's time goes on. Going back by more than 0.1 s otherwise is a restart of the controller."""
     from kukaid.krc.kvp_capture import _RobTimer
 
     clock = _RobTimer()
     raws = [2**31 - 24, 2**31 - 12, 0, 12]
     assert [clock(r) for r in raws] == [0.0, 12.0, 24.0, 36.0]
+    clock = _RobTimer()
+    assert [clock(r) for r in (1_002_000, 1_002_012, 1_001_950)] == [0.0, 12.0, -50.0]   # a sample read late
+    with pytest.raises(ControllerError, match=r"went back by 0.950 s: it restarted"):
+        clock(1_001_000)
 
 
 def test_poll_keeps_each_controller_sample_once():

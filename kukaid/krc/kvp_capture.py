@@ -333,6 +333,11 @@ def _has_timer(client: KvpClient) -> bool:
         return False  # the link: the poll loop reconnects; stamped on the PC meanwhile
 
 
+#: ms a reading of ``$ROB_TIMER`` may lie before the last one without the controller having restarted
+#: (the timer counts milliseconds exactly: further back is a restart, not a sample read again)
+CLOCK_BACK_MS = 100
+
+
 class _RobTimer:
     """``$ROB_TIMER`` readings (ms, a 32-bit INT that rolls over) as ms since the capture's first one."""
 
@@ -346,6 +351,10 @@ class _RobTimer:
         if self._last is not None and t < self._last - 2**30:  # rolled over
             self._unwrap += 2**31
             t += 2**31
+        elif self._last is not None and t < self._last - CLOCK_BACK_MS:
+            # a restart: its samples were dropped until the clock caught up, and the rest joined on as one log
+            raise ControllerError(f"the controller's clock ($ROB_TIMER) went back by {(self._last - t) / 1000:.3f} s: "
+                                  "it restarted, and what it records now is another session; capture again")
         if self._first is None:
             self._first = t
         self._last = t
@@ -498,8 +507,8 @@ def _ring_loop(client: KvpClient, axes, rec: _Recorder, writer, latencies, gaps,
             return why
         try:
             wr = parse_int(rd("KID_WR"), "KID_WR")
-            if wr < done:  # the logger restarted
-                done = wr
+            if wr < done:  # the logger restarted (KID_RD with it): every block it wrote since is new, unread;
+                done = 0     # skipped, its ring stayed full and nothing was recorded again (trial 20)
             for k in range(done + 1, wr + 1):
                 arr = parse_block(parse_string(rd(slot_name(k, layout)), slot_name(k, layout)), k, layout)
                 for row in arr:
