@@ -87,6 +87,9 @@ def files(tmp_path_factory):
     (["serve-sim", "--port", "0", "--duration", "1", "--q0", "300"],
      ["--q0", "300 degrees is outside the range of motion of the virtual KR C4's A3", "-120 to 156 degrees"]),
     (["serve-sim", "--port", "0", "--duration", "1", "--axis", "2", "--q0", "60"], ["--q0", "A2", "-190 to 45"]),
+    # trial 20: a follower's window beyond the simulated axis's range was taken (exit 0)
+    (["serve-sim", "--port", "0", "--duration", "1", "--follower", "0", "300"],
+     ["--follower", "300 degrees is outside the range of motion of the virtual KR C4's A3"]),
     # options of serve-sim that did nothing, without a word: a simulated A3 served for --axis 4, a
     # grip or start of a hand that is not there, a heartbeat timeout of no follower
     (["serve-sim", "--port", "0", "--duration", "1", "--axis", "4", "--trajectory", "{traj}"],
