@@ -193,7 +193,8 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
         t_adm = (cfg.init_time if cfg.init_move else 0.0) + cfg.init_rest
         metrics["stability_log"] = [{**e, "time": e["time"] + t_adm} for e in events[:20]]
     if grip is not None:
-        metrics["grip_stiffness"] = grip.K_est
+        # no grip seen (no rebound of a hand): none estimated, not a stiffness of 0 (the report's table: —)
+        metrics["grip_stiffness"] = grip.K_est if grip.K_est > 0 else math.nan
         metrics["loop_delay"] = grip.T_est
         metrics["robot_lag"] = grip.robot_lag
     if est.ignored_effects:
