@@ -19,7 +19,7 @@ def test_logger_text_declares_the_handshake_and_samples_every_ipo_cycle():
         assert "DECL GLOBAL" in dat and g in dat
     assert "KID_B5[" not in dat
     assert 'KID_CFG[]="kukaid-ring/1 axes=2,3 nb=4 bs=5"' in dat
-    assert "$ROB_TIMER-KID_LAST)<12" in sub
+    assert "IF (KID_NOW-KID_LAST)<12 THEN" in sub
     assert "$AXIS_ACT_MEAS.A2,$AXIS_ACT_MEAS.A3,$TORQUE_AXIS_ACT[2],$TORQUE_AXIS_ACT[3],$MOT_TEMP[2],$MOT_TEMP[3]" in sub
     assert '"%d,%.4f,%.4f,%.3f,%.3f,%.1f,%.1f;"' in sub
     assert sub.count("CASE ") == 4 and "KID_OVF=KID_OVF+1" in sub
@@ -88,3 +88,43 @@ def test_the_loggers_string_functions_have_their_results_assigned():
     calls = [ln.strip() for ln in sub.splitlines() if re.search(r"\bStr(Clear|Copy)\(", ln)]
     assert len(calls) == 5 and all(re.match(r"^KID_OK=Str(Clear|Copy)\(", c) for c in calls), calls
     assert re.search(r"^DECL BOOL KID_OK\b", dat, re.M)
+
+
+def _int32(x: int) -> int:
+    """KRL INT arithmetic, taken to stop on an overflow (the safe assumption)."""
+    assert -2**31 <= x < 2**31, f"INT overflow: {x}"
+    return x
+
+
+def test_the_krl_programs_time_stays_right_across_the_timer_rollover():
+    """Trial 19: $ROB_TIMER (an INT of milliseconds) rolls over after about 24.8 days of uptime; the
+    logger's `$ROB_TIMER-KID_LAST` and the follower's `$ROB_TIMER-KID_HBT` then subtract across it (an INT
+    overflow). Both now read the timer once, restart their reference at a rollover and subtract only
+    values in order. Their logic, run here in checked 32-bit arithmetic across the rollover: no
+    overflow, a sample every 12 ms, the heartbeat watch going on."""
+    from kukaid.krc.krl_follower import FollowerConfig, krl_follower_files
+
+    sub = krl_logger_files(RingLayout(axes=(3,)))["KUKAID_LOG.SUB"]
+    fol = krl_follower_files(FollowerConfig(q_min_deg=0.0, q_max_deg=60.0))["KUKAID_FOLLOW.SRC"]
+    for text in (sub, fol):
+        assert "$ROB_TIMER-" not in text and "KID_NOW=$ROB_TIMER" in text
+    assert "IF KID_NOW<KID_LAST THEN" in sub and "IF (KID_HB<>KID_HBL) OR (KID_NOW<KID_HBT) THEN" in fol
+    last, taken = 2**31 - 120, []                  # the logger's KID_SAMPLE, every 4 ms of controller time
+    for t in range(2**31 - 122, 2**31 + 120, 4):
+        now = t - 2**32 if t >= 2**31 else t
+        if now < last:
+            last = now
+        elif _int32(now - last) < 12:
+            continue
+        else:
+            last = now if _int32(now - last) >= 24 else _int32(last + 12)
+        taken.append(now)
+    steps = np.diff(np.array(taken, dtype=np.int64) % 2**32)
+    assert len(taken) >= 20 and set(steps.tolist()) <= {4, 8, 12}   # a sample a 12 ms cycle; at the rollover one early
+    hbt, stale = 2**31 - 100, False                # the follower's watch, the heartbeat last seen there
+    for t in range(2**31 - 100, 2**31 + 400, 12):
+        now = t - 2**32 if t >= 2**31 else t
+        if now < hbt:
+            hbt = now
+        stale = stale or _int32(now - hbt) > 200
+    assert stale                                   # no heartbeat for 500 ms: still seen, across the rollover

@@ -576,7 +576,7 @@ def test_krl_follower_program(tmp_path):
     src = raw.decode()
     dat = (tmp_path / "KUKAID_FOLLOW.DAT").read_text()
     for piece in ("WAIT FOR KID_RUN", "IF KID_Q>45.0000 THEN", "IF KID_Q<-10.0000 THEN", "$VEL_AXIS[3]=5", "$ACC_AXIS[3]=30",
-                  "KID_GOAL.A3=KID_Q", "PTP KID_GOAL C_PTP", "($ROB_TIMER-KID_HBT)>200"):
+                  "KID_GOAL.A3=KID_Q", "PTP KID_GOAL C_PTP", "(KID_NOW-KID_HBT)>200"):
         assert piece in src, piece
     for g in ("DECL GLOBAL REAL KID_TGT", "DECL GLOBAL INT KID_HB", "DECL GLOBAL BOOL KID_RUN"):
         assert g in dat
