@@ -40,6 +40,21 @@ def check_writable(path: str | os.PathLike) -> Path:
     return target
 
 
+def make_folder(folder: Path) -> list[Path]:
+    """Make ``folder`` and its missing parents; returns those it made (outermost first), for
+    :func:`remove_folders` to take away again when the command that wanted them fails."""
+    made = [p for p in reversed([folder, *folder.parents]) if not p.exists()]
+    folder.mkdir(parents=True, exist_ok=True)
+    return made
+
+
+def remove_folders(made: list[Path]) -> None:
+    """Remove the folders :func:`make_folder` made, deepest first, each only if it is (still) empty."""
+    for f in reversed(made):
+        with contextlib.suppress(OSError):
+            f.rmdir()
+
+
 @contextlib.contextmanager
 def atomic_paths(*paths: str | os.PathLike) -> Iterator[tuple[Path, ...]]:
     """Yield one temporary path per target, in the target's folder (created if missing); rename
@@ -59,8 +74,7 @@ def atomic_paths(*paths: str | os.PathLike) -> Iterator[tuple[Path, ...]]:
     for target in targets:
         folder = target.parent if str(target.parent) else Path(".")
         try:
-            made += [p for p in reversed([folder, *folder.parents]) if not p.exists()]
-            folder.mkdir(parents=True, exist_ok=True)
+            made += make_folder(folder)
             fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
         except OSError as e:
             _remove(tmps, made)
@@ -90,9 +104,7 @@ def _remove(paths: list[Path], folders: list[Path] = ()) -> None:
     for p in paths:
         with contextlib.suppress(FileNotFoundError):
             p.unlink()
-    for f in reversed(list(folders)):
-        with contextlib.suppress(OSError):
-            f.rmdir()
+    remove_folders(list(folders))
 
 
 @contextlib.contextmanager

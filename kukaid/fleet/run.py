@@ -233,14 +233,12 @@ def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, 
     checkpoint_s : s between atomic rewrites of the table while the run goes on.
     client : a Dask client to use instead of opening one (``workers`` and ``scheduler`` then unused).
     """
-    from kukaid.atomic import check_output
+    from kukaid.atomic import check_output, make_folder, remove_folders
 
     t_start = time.perf_counter()
     table = check_output(table)
-    folder = table.parent  # made as every command makes its output's folder; removed again if the run fails empty
-    made = [p for p in reversed([folder, *folder.parents]) if not p.exists()]
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
+    try:  # made as every command makes its output's folder; removed again if the run fails with it empty
+        made = make_folder(table.parent)
     except OSError as e:
         raise KukaidError(f"{table}: cannot write: {e.strerror or e}") from None
     try:
@@ -248,9 +246,7 @@ def run_tasks(entries: Sequence[Entry], table: str | Path, task: Callable[[Job, 
             return _run_locked(entries, table, task, options, settings, kind, workers, scheduler, progress,
                                checkpoint_s, client, t_start)
     except BaseException:
-        for f in reversed(made):  # deepest first, each only if empty (a journal kept keeps its folder)
-            with contextlib.suppress(OSError):
-                f.rmdir()
+        remove_folders(made)  # a journal kept keeps its folder
         raise
 
 
