@@ -128,15 +128,14 @@ class RobotTorqueModel:
         (the estimate it predicts with), per-joint friction, offset and spring, rotor inertias: the
         same terms as :func:`kukaid.identify.robot_fit.predict_robot`."""
         from kukaid.models.urdf import load_model, robot_urdf, urdf_sha256
+        from kukaid.params.robot import check_fitted_urdf
 
         if params.get("effects"):      # a file refined by kukaid diagnose -o: not modelled here yet
             raise ParamFileError(f"{where}: its effects ({', '.join(params['effects'])}, named by kukaid diagnose) "
                                  "are not in the real-time torque model yet; use the file without them")
         try:
-            urdf, sha = robot_urdf(params["robot"]["urdf"]), params["robot"].get("sha256")
-            if sha and urdf_sha256(urdf) != sha:  # edited since the fit: not the robot the file describes
-                raise ParamFileError(f"{urdf}: this URDF is not the one the parameters were fitted with (sha256 "
-                                     f"{urdf_sha256(urdf)[:12]}... against {sha[:12]}...)")
+            urdf = robot_urdf(params["robot"]["urdf"])
+            check_fitted_urdf(params, urdf_sha256(urdf), urdf)  # edited since the fit: not the robot the file describes
             model = load_model(params["robot"]["urdf"])
             n = model.nv
             bp = params["base_parameters"]

@@ -90,6 +90,7 @@ import numpy as np
 from kukaid.diagnose.robot_candidates import Context, RobotCandidate, robot_candidates
 from kukaid.errors import KukaidError
 from kukaid.identify.adequacy import smooth_at_source
+from kukaid.params.robot import check_fitted_urdf
 
 #: a candidate must lower the held-out relative error of the joints it acts on by this share
 MARGIN = 0.05
@@ -1186,9 +1187,7 @@ def _diagnose_robot(params: dict, logs: Sequence[Any], robot=None, *, max_steps:
     from kukaid.models.robot import RobotModel
 
     robot = robot or RobotModel(params["robot"]["urdf"])
-    sha = params["robot"].get("sha256")
-    if sha and sha != robot.sha256:
-        raise KukaidError(f"{robot.path}: this URDF is not the one the parameters were fitted with")
+    check_fitted_urdf(params, robot.sha256, robot.path)
     if not logs:
         raise KukaidError("diagnose: no logs")
     logs, fitted_on = _unseen(params, logs)

@@ -39,7 +39,7 @@ from kukaid.identify.solve_interrupt import interruptible_solve
 from kukaid.identify.uncertainty import correlation_factor
 from kukaid.logs import AxisLog, check_each_recording_once, log_fingerprint
 from kukaid.params.robot import SCHEMA as ROBOT_SCHEMA
-from kukaid.params.robot import validate_robot_params
+from kukaid.params.robot import check_fitted_urdf, validate_robot_params
 from kukaid.models import robot_effects
 from kukaid.models.urdf import BUNDLED
 from kukaid.models.robot import (FRICTION_MODELS, LINK_PARAMS, DriveModel, RobotModel, consistency,
@@ -1647,10 +1647,7 @@ def predict_robot(params: dict, log: AxisLog, robot: RobotModel | None = None,
     the raw measured torques by the caller (:meth:`kukaid.identify.fitted.RobotFile.predict`)."""
     validate_robot_params(params, where)
     robot = robot or RobotModel(params["robot"]["urdf"])
-    sha = params["robot"].get("sha256")
-    if sha and sha != robot.sha256:
-        raise ParamFileError(f"{robot.path}: this URDF is not the one the parameters were fitted with "
-                             f"(sha256 {robot.sha256[:12]}... against {sha[:12]}...)")
+    check_fitted_urdf(params, robot.sha256, robot.path)
     if robot.n != len(params["axes"]):
         raise ParamFileError(f"{robot.path}: {robot.n} joints, the parameter file has {len(params['axes'])} axes")
     check_torque_scale(log, robot)
@@ -1857,18 +1854,18 @@ def format_robot_table(params: dict) -> str:
     std = params.get("standard_parameters")
     mb = st.get("mass_bounds")
     if std and rob.get("urdf"):
+        why = "not found: --urdf PATH"
         try:
             urdf = RobotModel(rob["urdf"])
             if rob.get("sha256") and urdf.sha256 != rob["sha256"]:  # edited since the fit: its masses are others
-                raise ParamFileError(f"{rob['urdf']} is not the URDF the file was fitted with (sha256)")
+                why = "is not the one the file was fitted with (its sha256): --urdf PATH of that one"
+                raise ParamFileError(why)
             nominal = urdf.pi_nominal[0::10]
             ratio = [std[lk]["m"] / m0 if m0 > 0 else float("nan") for lk, m0 in zip(rob.get("links", std), nominal)]
             flag = lambda r: "*" if mb and (r <= mb[0] * 1.001 or r >= mb[1] * 0.999) else ""  # noqa: E731
             lines.append("link masses / URDF: " + " ".join(f"{r:.2f}{flag(r)}" for r in ratio)
                          + (f" (bounds {mb[0]:g}-{mb[1]:g}x, * on a bound)" if mb else " (no bounds)"))
-        except Exception as e:  # noqa: BLE001 (the URDF moved or was edited: the masses alone)
-            why = ("is not the one the file was fitted with (its sha256): --urdf PATH of that one" if "(sha256)" in str(e)
-                   else "not found: --urdf PATH")
+        except Exception:  # noqa: BLE001 (the URDF moved or was edited: the masses alone)
             lines.append("link masses kg: " + " ".join(table_number(std[lk]["m"]) for lk in std)
                          + f" (its URDF {rob['urdf']} {why} gives them as multiples of the URDF's)")
     mcheck = ch.get("mass_bounds")

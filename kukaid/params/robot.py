@@ -229,6 +229,16 @@ def load_robot_params(path: str | Path) -> dict:
     return validate_robot_params(read_json(path, ParamFileError), str(path))
 
 
+def check_fitted_urdf(d: dict, sha256: str, path: Any) -> None:
+    """Refuse a URDF (at ``path``, its ``sha256``) other than the one the robot parameter file ``d`` was
+    fitted with (its ``robot.sha256``; a file without one is taken as it is): edited since the fit, it
+    describes another robot than the parameters do."""
+    sha = d["robot"].get("sha256")
+    if sha and sha != sha256:
+        raise ParamFileError(f"{path}: this URDF is not the one the parameters were fitted with "
+                             f"(sha256 {sha256[:12]}... against {sha[:12]}...)")
+
+
 def find_urdf(d: dict, path: str | Path, urdf: str | Path | None = None, required: bool = True) -> dict:
     """``d``, a robot parameter file read from ``path``, with ``robot.urdf`` a URDF that is there:
     ``urdf`` when given (``--urdf``); else the stored one (a bundled robot, or a path that exists);
