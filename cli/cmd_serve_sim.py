@@ -118,15 +118,13 @@ def command(host: str, port: int, axis: int, traj_path: Path | None, robot: str 
                        str(traj_path) if traj is not None else f"--axis {axis}") or axis
     if q0 is not None and traj is not None:
         raise click.UsageError("--q0 is for a robot without --trajectory (it starts where the trajectory does)")
-    from kukaid.models.limits import AxisLimits
+    from kukaid.capture import simulated_range
 
-    rng = AxisLimits.kr6_r700_sixx(axis)  # the virtual robot has no hard stops: beyond them it simulates no robot
+    lo, hi, text = simulated_range(axis)
     for name, values in (("--q0", () if q0 is None else (q0,)), ("--follower", follower_window or ())):
-        for v in values:  # a follower's window beyond them was taken (trial 20)
-            if not rng.q_min - 1e-9 <= math.radians(v) <= rng.q_max + 1e-9:
-                raise click.BadParameter(f"{v:g} degrees is outside the range of motion of the virtual KR C4's A{axis} "
-                                         f"(a KR 6 R700 sixx), {math.degrees(rng.q_min):.4g} to "
-                                         f"{math.degrees(rng.q_max):.4g} degrees", param_hint=name)
+        for v in values:  # a follower's window beyond it was taken (trial 20)
+            if not lo - 1e-9 <= math.radians(v) <= hi + 1e-9:
+                raise click.BadParameter(f"{v:g} degrees is outside {text}", param_hint=name)
     sim = VirtualKRC4(cfg, seed=seed, axis=axis)
     if q0 is not None:
         sim.reset(math.radians(q0))

@@ -353,23 +353,30 @@ def check_limits(traj: Any, where: str = "trajectory") -> None:
         raise LimitError(f"{where}: {e}") from None
 
 
-def check_simulated_range(traj: Any, where: str = "trajectory") -> None:
-    """Refuse a one-axis trajectory beyond the range of motion of the virtual KR C4's axis (a KR 6 R700
-    sixx's): the simulator has no hard stops, so beyond them it would record a robot that is not there
-    (``excite --q-max-deg`` may describe another, real robot; the sim runs this one)."""
-    from kukaid.errors import LimitError
+def simulated_range(axis: int) -> tuple[float, float, str]:
+    """The range of motion (rad) of the virtual KR C4's axis ``axis``, a KR 6 R700 sixx's (the simulator has
+    no hard stops: beyond them it simulates no robot), and how to name it."""
     from kukaid.models.limits import AxisLimits
+
+    rng = AxisLimits.kr6_r700_sixx(axis)
+    return rng.q_min, rng.q_max, (f"the range of motion of the virtual KR C4's A{axis} (a KR 6 R700 sixx), "
+                                  f"{math.degrees(rng.q_min):.4g} to {math.degrees(rng.q_max):.4g} degrees")
+
+
+def check_simulated_range(traj: Any, where: str = "trajectory") -> None:
+    """Refuse a one-axis trajectory beyond :func:`simulated_range`: the simulator would record a robot
+    that is not there (``excite --q-max-deg`` may describe another, real robot; the sim runs this one)."""
+    from kukaid.errors import LimitError
 
     axis = int(getattr(traj, "axis", 3))
     if hasattr(traj, "axes") or not 1 <= axis <= 6 or getattr(traj, "joint", "revolute") == "prismatic":
         return
-    rng = AxisLimits.kr6_r700_sixx(axis)
+    q_min, q_max, text = simulated_range(axis)
     lo, hi = float(np.min(traj.q)), float(np.max(traj.q))
-    if lo < rng.q_min - 1e-9 or hi > rng.q_max + 1e-9:
-        raise LimitError(f"{where}: reaches {math.degrees(lo):.4g} to {math.degrees(hi):.4g} degrees, beyond the range "
-                         f"of motion of the virtual KR C4's A{axis} (a KR 6 R700 sixx), {math.degrees(rng.q_min):.4g} "
-                         f"to {math.degrees(rng.q_max):.4g} degrees: the simulator has no robot there; excite within "
-                         "it, or capture on the robot the trajectory is for (--backend kvp)")
+    if lo < q_min - 1e-9 or hi > q_max + 1e-9:
+        raise LimitError(f"{where}: reaches {math.degrees(lo):.4g} to {math.degrees(hi):.4g} degrees, beyond {text}: "
+                         "the simulator has no robot there; excite within it, or capture on the robot the trajectory "
+                         "is for (--backend kvp)")
 
 
 def parse_effect(spec: str) -> tuple[str, float | None]:

@@ -253,7 +253,7 @@ class SimSource:
                     self._hb_t = self._sim_now()
             elif key == "KID_RUN":
                 run = parse_bool(value, key)
-                q_now, outside = self.follower.clamp(float(self.sim.q) * _DEG)
+                outside = self.follower.clamp(float(self.sim.q) * _DEG)[1]
                 if run and g["KID_RUN"] != "TRUE" and outside:
                     # the program found the axis outside its window when it started and ended: nothing moves
                     g["KID_STOP"] = str(STOP_OUTSIDE)
