@@ -196,7 +196,8 @@ def main() -> int:
 
     settings = RobotFitSettings(**json.loads(a.settings))
 
-    tmp = Path(tempfile.mkdtemp(prefix="kukaid_heavy_"))
+    scratch = tempfile.TemporaryDirectory(prefix="kukaid_heavy_")  # removed at exit (each test-suite run made one)
+    tmp = Path(scratch.name)
     urdf_nominal = heavy_urdf(tmp / "heavy_nominal.urdf")
     urdf_true = heavy_urdf(tmp / "heavy_true.urdf", [1.0 / f for f in MASS_ERROR])   # nominal = truth x error
     nominal = RobotModel(urdf_nominal)

@@ -486,22 +486,33 @@ class _NoTimer:
         return self.source.write(name, value)
 
 
-def test_poll_without_controller_clock_drops_held_repeats(tmp_path):
+def test_poll_without_controller_clock_drops_held_repeats(tmp_path, monkeypatch):
+    """Polled every 2 ms of the capture's clock, a controller that gives a new 12 ms sample every sixth
+    poll: both clocks are the test's (one poll moves the PC clock 2 ms; every sixth steps the
+    simulator), so what is kept does not depend on how fast the machine is (a real-time simulator
+    thread starved by a busy machine held its values for two cycles, and one repeat was kept)."""
+    import kukaid.krc.kvp_capture as kc
     from kukaid.sim import SimConfig, VirtualKRC4
 
+    clock = SimpleNamespace(t=0.0)
+    monkeypatch.setattr(kc, "time", SimpleNamespace(monotonic=lambda: clock.t, time=lambda: clock.t))
     sim = VirtualKRC4(SimConfig().replace(noise_sigma=0.3), seed=11, axis=3)
-    src = SimSource(sim, axis=3, trajectory=_excitation(8.0)).start()
-    reads = CountingSource(_NoTimer(src))
+    src = SimSource(sim, axis=3, trajectory=_excitation(8.0))
+
+    def poll():
+        clock.t += 0.002
+        if reads.n % 6 == 0:
+            src.step(0.012)
+    reads = CountingSource(_NoTimer(src), step=poll)
     srv = KvpServer(reads, port=0).start()
     try:
         out = tmp_path / "pc.h5"
         s = capture_kvp(out, "127.0.0.1", srv.port, [3], 1.0, False, "poll", None)
     finally:
         srv.stop()
-        src.stop()
     log = read_hdf5(out)
     assert log.attrs["time_source"] == "pc-monotonic"
-    # never a held repeat; a sample arriving between the position and the torque request may add one
-    # mixed row (no clock tells it apart): at most two rows a 12 ms sample, against ~100 before
-    assert held_share(log) == 0.0 and 2 <= log.n_samples < reads.n / 5 and s["rate_hz"] < 2 / 0.012
+    # never a held repeat, and every sample once: 500 polls, a new sample every sixth
+    assert held_share(log) == 0.0 and reads.n >= 500 and abs(log.n_samples - reads.n / 6) <= 1
+    assert s["rate_hz"] < 2 / 0.012
     _match_truth(log, src.truth())
