@@ -733,3 +733,23 @@ def test_an_initiation_move_too_short_to_set_the_elements_is_refused_before_anyt
     err = res.stderr.strip().splitlines()
     assert len(err) == 1 and str(f) in err[0] and "--init-move of at least" in err[0], err
     assert not out.exists() and not list(tmp_path.glob("*.partial.h5"))
+
+
+@pytest.mark.parametrize("cutoff", ["0.05", "1"])
+def test_an_estimator_cut_off_so_low_that_a_push_is_read_after_the_release_is_refused(tmp_path, cutoff):
+    """New-user trial 21: `--cutoff 0.05 --operator pull` delayed Γr by seconds: the push was detected 5.3 s
+    late, and after the release the axis ran on by itself for 886 cycles to the window's edge (89 degrees)
+    while the run said "completed", exit 0; at 1 Hz every pull and human run tried still detected a push
+    after the release.  A cut-off below 2 Hz is now a usage error before anything moves."""
+    f = tmp_path / "p.json"
+    f.write_text(json.dumps(SimConfig().truth_params()))
+    out = tmp_path / "run.h5"
+    res = CliRunner().invoke(cli, ["run-admittance", "--params", str(f), "--operator", "pull", "--duration", "1",
+                                   "--cutoff", cutoff, "-o", str(out)])
+    assert res.exit_code == 2, res.output
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and "cut-off" in err[0] and "below 2 Hz" in err[0], err
+    assert not out.exists() and not list(tmp_path.glob("*.partial.h5"))
+    with pytest.raises(KukaidError, match="below 2 Hz"):
+        LoopConfig(cutoff=1.9)
+    LoopConfig(cutoff=2.0)  # the lowest allowed

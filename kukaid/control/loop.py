@@ -45,6 +45,13 @@ PHASE_INIT, PHASE_REST, PHASE_ADMITTANCE, PHASE_STOPPED = 0, 1, 2, 3
 #: is 0.4 s, the adaptive law's default floor 0.3 x that 1.3 s
 MAX_COAST = 2.0
 
+#: the lowest cut-off (Hz) of the estimator's low-pass: its 3rd-order Butterworth delays Γr by about
+#: 2 / (2 pi fc) (0.32 s at 1 Hz), and a push read that late is still read after the hand let go (new-user
+#: trial 21: at 1 Hz every one of eight pull and human runs detected a push after the release, at 0.05 Hz
+#: the axis ran 89 degrees to the window's edge, 10.6 s of it with nobody there, and the run "completed";
+#: at 2 Hz none of the eight did)
+MIN_CUTOFF = 2.0
+
 
 @dataclass(frozen=True)
 class LoopConfig:
@@ -102,6 +109,11 @@ class LoopConfig:
         if not (math.isfinite(self.cutoff) and 0 < self.cutoff < 0.5 / self.sample_time):
             raise KukaidError(f"run-admittance: the estimator's cut-off {self.cutoff} Hz must be in (0, "
                               f"{0.5 / self.sample_time:g}) Hz (half the sampling rate)")
+        if self.cutoff < MIN_CUTOFF:
+            raise KukaidError(f"run-admittance: the estimator's cut-off {self.cutoff:g} Hz is below {MIN_CUTOFF:g} Hz: "
+                              f"its low-pass would delay Γr by {2 / (2 * math.pi * self.cutoff):.2g} s, so a push "
+                              "is still read after the hand lets go and the axis moves on by itself (the paper's "
+                              "5 Hz delays it 0.064 s)")
         if not (math.isfinite(self.duration) and self.duration > 0):
             raise KukaidError(f"run-admittance: duration must be > 0 s, got {self.duration}")
         if self.damping == "adaptive":
