@@ -753,3 +753,25 @@ def test_an_estimator_cut_off_so_low_that_a_push_is_read_after_the_release_is_re
     with pytest.raises(KukaidError, match="below 2 Hz"):
         LoopConfig(cutoff=1.9)
     LoopConfig(cutoff=2.0)  # the lowest allowed
+
+
+def test_a_start_at_the_windows_edge_does_not_skip_the_check_of_the_file(tmp_path):
+    """New-user trial 21: a file with gravity's sign flipped is stopped before control from 30 degrees in the
+    window [-60, 90]; from 30 in [-60, 30] the initiation move (+1 degree) was cut to nothing, so the file was
+    never checked: the run guided it, the axis ran 90 degrees to the window's other edge (a push detected with
+    nobody touching) and the run said "completed", exit 0.  Now a move the window cuts below what sets the
+    elements is refused before anything moves, naming the way that has room."""
+    params = SimConfig().truth_params()
+    params["inertial"]["Mx"] *= -1.0
+    f = tmp_path / "flipped.json"
+    f.write_text(json.dumps(params))
+    out = tmp_path / "run.h5"
+    args = ["run-admittance", "--params", str(f), "--operator", "pull", "--seed", "1", "--duration", "3",
+            "--q-min", "-60", "--q-max", "30", "-o", str(out)]
+    res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 1, res.output
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and "would be cut by the position window" in err[0] and "--init-move -1" in err[0], err
+    assert not out.exists() and not list(tmp_path.glob("*.partial.h5"))
+    res = CliRunner().invoke(cli, args + ["--init-move", "-1"])  # the other way: the move checks the file
+    assert res.exit_code == 3 and "stopped: before control" in res.stderr, res.output

@@ -174,6 +174,7 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
             raise KukaidError("run-admittance: no measurement from the backend at start")
         for s in samples:
             r = est.update(*_measured(s, est))
+        check_init_room(model, cfg, samples[-1].q)
         limiter = ReferenceLimiter(cfg.limits, cfg.cycle, samples[-1].q)
         stab = cfg.stability
         if cfg.damping == "adaptive" and cfg.coupling.enabled:
@@ -248,6 +249,36 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
 
 
+def init_move_needed(model: Any) -> float:
+    """The shortest initiation move (rad) that saturates every Maxwell-slip element of a one-axis ``model``
+    from any state: twice the largest break-away displacement (0 for a model without elements)."""
+    ms = getattr(model, "maxwell_slip", None)
+    return 2.0 * float(np.max(ms.breakaway)) if ms is not None and len(ms.k) else 0.0
+
+
+def check_init_room(model: Any, cfg: LoopConfig, q_start: float) -> None:
+    """Refuse, before anything moves, a one-axis run whose initiation move from ``q_start`` (rad) the position
+    window would cut below :func:`init_move_needed`: the move is the loop's check of the parameter file, and a
+    start at the window's edge skipped it (new-user trial 21: a file with gravity's sign flipped, stopped before
+    control from 30 degrees in [-60, 90], was guided from 30 in [-60, 30] and ran the axis 90 degrees to the
+    window's other edge with nobody there, "completed")."""
+    if isinstance(model, RobotTorqueModel) or not cfg.init_move:
+        return
+    need = init_move_needed(model)
+    lo, hi = cfg.limits.q_min, cfg.limits.q_max
+    reach = min(max(q_start + cfg.init_move, lo), hi) - q_start
+    if abs(reach) < need or reach * cfg.init_move < 0:
+        room = q_start - lo if cfg.init_move > 0 else hi - q_start
+        other = (f"move the other way (--init-move {-math.degrees(cfg.init_move):+g}; "
+                 f"{math.degrees(room):.3g} deg of room there), or " if room >= max(need, 0.0) and room > 0 else "")
+        raise KukaidError(f"run-admittance: the initiation move ({math.degrees(cfg.init_move):+g} deg, --init-move) "
+                          f"from {math.degrees(q_start):.4g} deg would be cut by the position window "
+                          f"[{math.degrees(lo):.4g}, {math.degrees(hi):.4g}] deg after {math.degrees(reach):+.3g} deg, "
+                          f"less than the {math.degrees(need):.3g} deg that set the file's Maxwell-slip elements: the move "
+                          "is the check of the parameter file before control, and without it a wrong file moves the "
+                          f"axis by itself; nothing moved; {other}start farther from the window's edge")
+
+
 #: the default detection threshold, N·m (the paper's), and, on an axis with more friction, its share of the
 #: file's Coulomb friction (on every axis of the paper's A3's size, Coulomb friction up to 19.6 N·m, below 5)
 THRESHOLD, THRESHOLD_SHARE = 5.0, 0.25
@@ -290,7 +321,7 @@ def check_guidable(model: Any, no_rest_model: bool = False, init_move: float | N
                           "friction cannot be told from a push and the axis would move by itself; fit them from a "
                           "pre-sliding experiment (kukaid excite presliding, kukaid capture, then kukaid fit ... "
                           "--presliding LOG)")
-    need = 2.0 * float(np.max(ms.breakaway))
+    need = init_move_needed(model)
     if init_move is not None and abs(init_move) < need:
         raise KukaidError(f"run-admittance: an initiation move of {math.degrees(init_move):g} deg (--init-move) is "
                           f"shorter than {math.degrees(need):.3g} deg, twice the largest break-away displacement of the "
