@@ -775,3 +775,25 @@ def test_a_start_at_the_windows_edge_does_not_skip_the_check_of_the_file(tmp_pat
     assert not out.exists() and not list(tmp_path.glob("*.partial.h5"))
     res = CliRunner().invoke(cli, args + ["--init-move", "-1"])  # the other way: the move checks the file
     assert res.exit_code == 3 and "stopped: before control" in res.stderr, res.output
+
+
+
+@pytest.mark.parametrize("limit, said", [(["--qd-max", "0.001"], "speed and acceleration limits"),
+                                         (["--qdd-max", "0.01"], "speed and acceleration limits"),
+                                         (["--qd-max", "0.05"], "below the parameter file's dynamic-mode speed")])
+def test_reference_limits_too_slow_for_the_initiation_move_are_refused(tmp_path, limit, said):
+    """New-user trial 21: with --qd-max 0.03 deg/s the initiation move stayed below the file's dynamic-mode speed
+    (qd_thr, 0.097 deg/s), so a file with gravity's sign flipped, stopped before control at the default
+    --qd-max, was guided ("completed"); and the run warned that the move "was cut by the position window",
+    which it was not.  Now refused before anything moves, saying which limit."""
+    params = SimConfig().truth_params()
+    params["inertial"]["Mx"] *= -1.0
+    f = tmp_path / "flipped.json"
+    f.write_text(json.dumps(params))
+    out = tmp_path / "run.h5"
+    res = CliRunner().invoke(cli, ["run-admittance", "--params", str(f), "--operator", "pull", "--seed", "1",
+                                   "--duration", "3", "-o", str(out), *limit])
+    assert res.exit_code == 1, res.output
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and said in err[0] and "nothing moved" in err[0], err
+    assert not out.exists()

@@ -257,26 +257,47 @@ def init_move_needed(model: Any) -> float:
 
 
 def check_init_room(model: Any, cfg: LoopConfig, q_start: float) -> None:
-    """Refuse, before anything moves, a one-axis run whose initiation move from ``q_start`` (rad) the position
-    window would cut below :func:`init_move_needed`: the move is the loop's check of the parameter file, and a
-    start at the window's edge skipped it (new-user trial 21: a file with gravity's sign flipped, stopped before
-    control from 30 degrees in [-60, 90], was guided from 30 in [-60, 30] and ran the axis 90 degrees to the
-    window's other edge with nobody there, "completed")."""
+    """Refuse, before anything moves, a one-axis run whose initiation move from ``q_start`` (rad) the reference
+    limits (the position window, ``qd_max``, ``qdd_max``) would cut below :func:`init_move_needed`: the move is
+    the loop's check of the parameter file, and a move cut to nothing skipped it (new-user trial 21: a file with
+    gravity's sign flipped, stopped before control from 30 degrees in [-60, 90], was guided from 30 in [-60, 30]
+    and ran the axis 90 degrees to the window's other edge with nobody there, "completed"; with --qd-max 0.03 the
+    same file was guided too).  The move and the rest after it are run through the limiter as the loop runs them."""
     if isinstance(model, RobotTorqueModel) or not cfg.init_move:
         return
     need = init_move_needed(model)
+    lim = ReferenceLimiter(cfg.limits, cfg.cycle, q_start)
+    reach = peak = 0.0
+    for k in range(int(math.ceil((cfg.init_time + cfg.init_rest) / cfg.cycle))):
+        x = min((k + 1) * cfg.cycle / cfg.init_time, 1.0)
+        q, _ = lim.apply(q_start + cfg.init_move * x ** 3 * (10 - 15 * x + 6 * x * x))
+        reach = max(reach, (q - q_start) * math.copysign(1.0, cfg.init_move))
+        peak = max(peak, abs(lim.v))
+    qd_thr = float(getattr(model, "qd_thr", 0.0))
+    if reach >= need and peak >= qd_thr:
+        return
     lo, hi = cfg.limits.q_min, cfg.limits.q_max
-    reach = min(max(q_start + cfg.init_move, lo), hi) - q_start
-    if abs(reach) < need or reach * cfg.init_move < 0:
-        room = q_start - lo if cfg.init_move > 0 else hi - q_start
-        other = (f"move the other way (--init-move {-math.degrees(cfg.init_move):+g}; "
-                 f"{math.degrees(room):.3g} deg of room there), or " if room >= max(need, 0.0) and room > 0 else "")
+    edge = hi if cfg.init_move > 0 else lo
+    if reach >= need:  # far enough, but never as fast as the file's dynamic mode: its sliding model goes unchecked
         raise KukaidError(f"run-admittance: the initiation move ({math.degrees(cfg.init_move):+g} deg, --init-move) "
-                          f"from {math.degrees(q_start):.4g} deg would be cut by the position window "
-                          f"[{math.degrees(lo):.4g}, {math.degrees(hi):.4g}] deg after {math.degrees(reach):+.3g} deg, "
-                          f"less than the {math.degrees(need):.3g} deg that set the file's Maxwell-slip elements: the move "
-                          "is the check of the parameter file before control, and without it a wrong file moves the "
-                          f"axis by itself; nothing moved; {other}start farther from the window's edge")
+                          f"would reach at most {math.degrees(peak):.3g} deg/s, below the parameter file's dynamic-mode "
+                          f"speed (mode_switch.qd_thr {qd_thr:.3g} rad/s = {math.degrees(qd_thr):.3g} deg/s): the move "
+                          "is the check of the file before control, and below that speed its sliding model (gravity, "
+                          "friction) goes unchecked; nothing moved; raise --qd-max/--qdd-max, or give a longer "
+                          "--init-move (its speed grows with its length), or check the file's qd_thr (kukaid show)")
+    if abs(edge - q_start) < need:  # the window's edge
+        room = q_start - lo if cfg.init_move > 0 else hi - q_start
+        fix = (f"move the other way (--init-move {-math.degrees(cfg.init_move):+g}; {math.degrees(room):.3g} deg of "
+               "room there), or start farther from the window's edge" if room >= need else
+               "start farther from the window's edge")
+        what = f"the position window [{math.degrees(lo):.4g}, {math.degrees(hi):.4g}] deg"
+    else:
+        what, fix = "the reference's speed and acceleration limits (--qd-max, --qdd-max)", "raise them"
+    raise KukaidError(f"run-admittance: the initiation move ({math.degrees(cfg.init_move):+g} deg, --init-move) from "
+                      f"{math.degrees(q_start):.4g} deg would be cut by {what} after {math.degrees(reach):+.3g} deg, "
+                      f"less than the {math.degrees(need):.3g} deg that set the file's Maxwell-slip elements: the move "
+                      "is the check of the parameter file before control, and without it a wrong file moves the axis "
+                      f"by itself; nothing moved; {fix}")
 
 
 #: the default detection threshold, N·m (the paper's), and, on an axis with more friction, its share of the
@@ -635,12 +656,21 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
                             f"beyond the threshold {cfg.threshold:g} N·m (not taken for a push: the threshold at "
                             "rest had risen, or the axis was starting or stopping)")
     cut = np.flatnonzero(np.asarray(data.get("clipped", False), bool) & (data["phase"] == PHASE_INIT))
-    if cut.size:  # the window stopped the initiation move short (a start near its edge)
+    at_edge = cut.size and min(abs(data["q_cmd"][cut[0]] - cfg.limits.q_min),
+                               abs(data["q_cmd"][cut[0]] - cfg.limits.q_max)) < 1e-9
+    if cut.size and not at_edge:  # the speed and acceleration limits slowed it (the window did not cut it)
+        init_rows = data["phase"] < PHASE_ADMITTANCE
+        moved = float(np.max(np.abs(data["q_cmd"][init_rows] - data["q"][0])))
+        warnings.append(f"the initiation move ({math.degrees(cfg.init_move):+g} deg, --init-move) was slowed by the "
+                        f"reference's speed and acceleration limits (--qd-max, --qdd-max) and moved "
+                        f"{math.degrees(moved):.3g} deg before control")
+    elif cut.size:  # the window stopped the initiation move short (a start near its edge)
         edge, moved = data["q_cmd"][cut[0]], data["q_cmd"][cut[0]] - data["q"][0]
         warnings.append(f"the initiation move ({math.degrees(cfg.init_move):+g} deg, --init-move) was cut by the "
                         f"position window at {math.degrees(edge):g} deg after {math.degrees(moved):+.3g} deg: the "
                         "Maxwell-slip elements are set by it only if that passes their break-away (eq. 12); start "
-                        "farther from the window's edge, or move the other way (a negative --init-move)")
+                        "farther from the window's edge, or move the other way "
+                        f"(--init-move {-math.degrees(cfg.init_move):+g})")
     init = data["phase"] < PHASE_ADMITTANCE
     if init.any():  # the loop's own move and rest: nobody touches the axis, Γr is the model's error there
         out["init_residual_max"] = float(np.max(np.abs(gr[init])))
