@@ -83,7 +83,7 @@ def command(params_path: Path, logs: tuple[Path, ...], axis: int | None, as_json
 
 
 def _mismatch(result, params_path: Path) -> list[str]:
-    """As validate warns: an axis the file's model predicts with a relative error of 100 % or more (worse
+    """As validate warns: an axis the file's model predicts with a relative error of 98 % or more (no better
     than predicting no torque: a model of another robot or axis, or torques in another unit), whose
     effects this diagnosis would otherwise go on to look for."""
     from kukaid.diagnose.validate import MISMATCH
@@ -93,7 +93,8 @@ def _mismatch(result, params_path: Path) -> list[str]:
     else:
         pairs = [(result.joints()[0]["axis"], result.rel_before)]
     return [f"the model of {params_path} does not describe these logs on A{a}: its relative error is "
-            f"{100 * r:.0f} %, worse than predicting no torque; is it of another robot or axis, or in another unit? "
+            f"{100 * r:.3g} %, {'worse than' if r >= 1.0 else 'no better than'} predicting no torque; is it of another "
+            "robot or axis, or in another unit? "
             "(kukaid validate names the log)" for a, r in pairs if r >= MISMATCH]
 
 

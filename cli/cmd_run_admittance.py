@@ -136,7 +136,7 @@ def _check_axis_kind(params: dict, params_path: Path, axis: int, where: str, hin
               help="Control cycle, s (KRC sample time 0.012; the paper's ~0.024 also works).")
 @click.option("--cutoff", type=float, default=5.0, show_default=True,
               help="Low-pass of the torque estimate, Hz (the paper's 5 Hz; higher: less loop delay, so firm grips "
-                   "need less damping, but a noisier Γr).")
+                   "need less damping, but a noisier Γr; at least 2 Hz: a lower one reads a push after the hand let go).")
 @click.option("--init-move", type=FloatRange(-10.0, 10.0), default=1.0, show_default=True,
               help="Initiation move before control, degrees, either way: it saturates the Maxwell-slip elements "
                    "(eq. 12) and checks the parameter file with nobody touching, so a one-axis file needs at least "

@@ -18,7 +18,7 @@ from kukaid_cli._util import AXIS, URDF
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
 @click.option("--strict", is_flag=True,
               help="Exit with status 4 after the figures when there were warnings: above all a model that does not "
-                   "describe the logs (an axis's relative error 100 % or more: another robot or axis, or another "
+                   "describe the logs (an axis's relative error 98 % or more: another robot or axis, or another "
                    "unit), also a measured torque that does not vary (an empty torque column), a log it was "
                    "fitted on, other axes moving, a log pushed by hand.")
 @URDF
@@ -28,7 +28,7 @@ def command(params_path: Path, logs: tuple[Path, ...], log_opts: tuple[Path, ...
     --params on LOGS (pooled), pre-processed as its fit was.  Give logs the model was not fitted on,
     as LOGS or each with --log (as diagnose and report take them).
 
-    An axis whose relative error is 100 % or more (the model's error as large as the torque itself:
+    An axis whose relative error is 98 % or more (the model's error as large as the torque itself:
     a model of another robot or axis, or torques in another unit) is warned about first; with
     --strict that, and any other warning, is exit status 4."""
     import json

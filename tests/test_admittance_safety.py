@@ -733,3 +733,67 @@ def test_an_initiation_move_too_short_to_set_the_elements_is_refused_before_anyt
     err = res.stderr.strip().splitlines()
     assert len(err) == 1 and str(f) in err[0] and "--init-move of at least" in err[0], err
     assert not out.exists() and not list(tmp_path.glob("*.partial.h5"))
+
+
+@pytest.mark.parametrize("cutoff", ["0.05", "1"])
+def test_an_estimator_cut_off_so_low_that_a_push_is_read_after_the_release_is_refused(tmp_path, cutoff):
+    """New-user trial 21: `--cutoff 0.05 --operator pull` delayed Γr by seconds: the push was detected 5.3 s
+    late, and after the release the axis ran on by itself for 886 cycles to the window's edge (89 degrees)
+    while the run said "completed", exit 0; at 1 Hz every pull and human run tried still detected a push
+    after the release.  A cut-off below 2 Hz is now a usage error before anything moves."""
+    f = tmp_path / "p.json"
+    f.write_text(json.dumps(SimConfig().truth_params()))
+    out = tmp_path / "run.h5"
+    res = CliRunner().invoke(cli, ["run-admittance", "--params", str(f), "--operator", "pull", "--duration", "1",
+                                   "--cutoff", cutoff, "-o", str(out)])
+    assert res.exit_code == 2, res.output
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and "cut-off" in err[0] and "below 2 Hz" in err[0], err
+    assert not out.exists() and not list(tmp_path.glob("*.partial.h5"))
+    with pytest.raises(KukaidError, match="below 2 Hz"):
+        LoopConfig(cutoff=1.9)
+    LoopConfig(cutoff=2.0)  # the lowest allowed
+
+
+def test_a_start_at_the_windows_edge_does_not_skip_the_check_of_the_file(tmp_path):
+    """New-user trial 21: a file with gravity's sign flipped is stopped before control from 30 degrees in the
+    window [-60, 90]; from 30 in [-60, 30] the initiation move (+1 degree) was cut to nothing, so the file was
+    never checked: the run guided it, the axis ran 90 degrees to the window's other edge (a push detected with
+    nobody touching) and the run said "completed", exit 0.  Now a move the window cuts below what sets the
+    elements is refused before anything moves, naming the way that has room."""
+    params = SimConfig().truth_params()
+    params["inertial"]["Mx"] *= -1.0
+    f = tmp_path / "flipped.json"
+    f.write_text(json.dumps(params))
+    out = tmp_path / "run.h5"
+    args = ["run-admittance", "--params", str(f), "--operator", "pull", "--seed", "1", "--duration", "3",
+            "--q-min", "-60", "--q-max", "30", "-o", str(out)]
+    res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 1, res.output
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and "would be cut by the position window" in err[0] and "--init-move -1" in err[0], err
+    assert not out.exists() and not list(tmp_path.glob("*.partial.h5"))
+    res = CliRunner().invoke(cli, args + ["--init-move", "-1"])  # the other way: the move checks the file
+    assert res.exit_code == 3 and "stopped: before control" in res.stderr, res.output
+
+
+
+@pytest.mark.parametrize("limit, said", [(["--qd-max", "0.001"], "speed and acceleration limits"),
+                                         (["--qdd-max", "0.01"], "speed and acceleration limits"),
+                                         (["--qd-max", "0.05"], "below the parameter file's dynamic-mode speed")])
+def test_reference_limits_too_slow_for_the_initiation_move_are_refused(tmp_path, limit, said):
+    """New-user trial 21: with --qd-max 0.03 deg/s the initiation move stayed below the file's dynamic-mode speed
+    (qd_thr, 0.097 deg/s), so a file with gravity's sign flipped, stopped before control at the default
+    --qd-max, was guided ("completed"); and the run warned that the move "was cut by the position window",
+    which it was not.  Now refused before anything moves, saying which limit."""
+    params = SimConfig().truth_params()
+    params["inertial"]["Mx"] *= -1.0
+    f = tmp_path / "flipped.json"
+    f.write_text(json.dumps(params))
+    out = tmp_path / "run.h5"
+    res = CliRunner().invoke(cli, ["run-admittance", "--params", str(f), "--operator", "pull", "--seed", "1",
+                                   "--duration", "3", "-o", str(out), *limit])
+    assert res.exit_code == 1, res.output
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and said in err[0] and "nothing moved" in err[0], err
+    assert not out.exists()

@@ -283,3 +283,24 @@ def test_when_the_backward_step_would_drop_every_effect_the_last_one_stands():
     res = diagnose(params, [read_log(lwr4 / f"lwr4_{k}.csv") for k in (2, 3)], axis=4)
     assert [s.name for s in res.steps] == ["coupling"], [s.name for s in res.steps]
     assert "coupling" in (res.params.get("effects") or {})
+
+
+def test_a_presliding_log_alone_is_one_line_naming_it(tmp_path):
+    """New-user trial 21: `diagnose --params p.json --log presliding.h5` printed a warning that the log's
+    1.02 degrees looked like radians under a degree header (the pre-sliding experiment moves that little by
+    design), then `kukaid: error: fewer than 50 dynamic-mode samples in the logs: ...` naming no log.  Now
+    one line that names it and says which logs to give."""
+    from kukaid import excite
+    from kukaid.logs import write_hdf5
+    from kukaid.params import save_params
+    from kukaid.sim import SimConfig, VirtualKRC4
+
+    log = VirtualKRC4(SimConfig(), seed=3).run(excite.generate("presliding", hold=2.0, final_hold=2.0))
+    write_hdf5(log, tmp_path / "presliding.h5")
+    save_params(tmp_path / "p.json", SimConfig().truth_params())
+    r = CliRunner().invoke(cli, ["diagnose", "--params", str(tmp_path / "p.json"), "--log",
+                                 str(tmp_path / "presliding.h5")])
+    assert r.exit_code == 1, r.output
+    err = r.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"kukaid: error: {tmp_path / 'presliding.h5'}: fewer than 50"), err
+    assert "kukaid excite" in err[0]

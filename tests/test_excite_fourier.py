@@ -160,3 +160,17 @@ def test_krl_for_a_robot_of_seven_joints_is_refused_before_the_optimiser(tmp_pat
     assert r.exit_code == 1, r.output
     assert "--krl writes a KR C4 program, which moves A1..A6; this robot has 7 joints" in r.output
     assert sorted(p.name for p in tmp_path.iterdir()) == ["chain7.urdf"]
+
+
+def test_one_harmonic_that_cannot_excite_the_robot_is_one_line_not_an_internal_error(tmp_path):
+    """New-user trial 21: `excite fourier --robot kr6-r700-sixx --harmonics 1 --period 2 --repeat 1
+    --iterations 1` ended in `internal error (OverflowError: math range error)`, exit 70: the regressor was
+    singular at every start, and exp() of the objective's sentinel overflowed.  Now one line naming the
+    option, exit status 2, nothing written."""
+    out = tmp_path / "f.json"
+    r = CliRunner().invoke(cli, ["excite", "fourier", "--robot", "kr6-r700-sixx", "--harmonics", "1", "--period",
+                                 "2", "--repeat", "1", "--iterations", "0", "-o", str(out)])
+    assert r.exit_code == 2, r.output
+    err = r.stderr.strip().splitlines()
+    assert len(err) == 1 and "--harmonics 2 or more" in err[0] and "internal error" not in err[0], err
+    assert not out.exists()

@@ -245,3 +245,16 @@ def test_a_model_that_does_not_describe_the_log_is_warned_about_as_validate_does
         assert r.exit_code == 0, r.output
         said = [ln for ln in r.stderr.splitlines() if "does not describe this log" in ln]
         assert len(said) == int(warned), r.stderr
+
+
+def test_a_presliding_log_given_as_presliding_is_not_taken_for_radians_under_degrees(fitted):
+    """New-user trial 21: `make demo`'s report warned `presliding.h5: the position of A3 spans only 1.02
+    degrees ... radians written under a degree header?` for the pre-sliding log given as --presliding,
+    whose experiment moves a fraction of a degree by design (fit says nothing about it in that role)."""
+    d, p, _, _ = fitted
+    out = d / "psl.pdf"
+    r = _run(["--params", p["params"], "--presliding", p["presliding"], "-o", out])
+    assert r.exit_code == 0, r.output
+    assert "degree header" not in r.stderr, r.stderr
+    r = _run(["--params", p["params"], "--log", p["presliding"], "-o", d / "psl_log.pdf"])
+    assert r.exit_code == 0 and "degree header" not in r.stderr, r.stderr  # the log says it is a pre-sliding one

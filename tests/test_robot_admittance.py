@@ -299,3 +299,46 @@ def test_a_robot_file_whose_urdf_was_edited_since_the_fit_is_refused_before_anyt
         f"kukaid: error: {urdf}: this URDF is not the one the parameters were fitted with (sha256 "
         f"{RobotModel(str(urdf)).sha256[:12]}... against {json.loads((tmp_path / 'robot.json').read_text())['robot']['sha256'][:12]}...)"]
     assert not out.exists() and not list(tmp_path.glob("*.partial.h5"))
+
+
+def test_kvp_robot_stops_when_the_follower_program_has_stopped():
+    """New-user trial 21: with `serve-sim --follower 0 60 --stale-ms 12` the follower's heartbeat watchdog
+    ended the program at once; run-admittance --backend kvp went on for the whole run, the person's pull
+    detected for 294 cycles and the reference driven 31 degrees to the window's edge while the axis stood
+    (displacement 3e-05 rad), and said "completed", settled, exit 0.  KID_STOP is now read every few
+    cycles, and a stopped follower ends the run with a reason."""
+    from kukaid.errors import ControllerError
+    from kukaid.robot.kvp import FOLLOWER_CHECK, KvpRobot
+
+    class Client:
+        def __init__(self):
+            self.k = 0
+            self.written = {}
+            self.stop = 0
+
+        def read_axis(self, name):
+            self.k += 1
+            return {"A3": 30.0 + 0.001 * self.k}
+
+        def read_real(self, name):
+            return 10.0 + self.k
+
+        def read_int(self, name):
+            assert name == "KID_STOP"
+            return self.stop
+
+        def write(self, name, value):
+            self.written[name] = value
+
+        def close(self):
+            pass
+
+    c = Client()
+    be = KvpRobot(c, axis=3, sample_time=0.001)
+    be.start()
+    for _ in range(3 * FOLLOWER_CHECK):  # a running follower: nothing said
+        be.cycle(math.radians(30.0), 0.001)
+    c.stop = 2  # the program's watchdog ended it
+    with pytest.raises(ControllerError, match=r"KRL follower program has stopped \(KID_STOP 2: its heartbeat"):
+        for _ in range(FOLLOWER_CHECK):
+            be.cycle(math.radians(30.0), 0.001)

@@ -148,6 +148,24 @@ def test_report_gives_validates_warnings(fitted):
     assert "in-sample" in said[0][1] and "other axes (A2) move" in said[0][0]
 
 
+@pytest.mark.parametrize("command", ["validate", "diagnose"])
+def test_a_log_in_n_mm_under_n_m_is_warned_about_as_a_mismatch(fitted, tmp_path, command):
+    """New-user trial 21: a log whose torques were 1000 x the model's (N·mm under an N·m column) scored a
+    relative error of 99.90 % and validate and diagnose said nothing, exit 0 (--strict too): torques k times
+    the model's score 1 - 1/k, never the 100 % the warning waited for."""
+    from kukaid.logs import AxisLog
+
+    lg = sine_log(5, 0.2)
+    big = AxisLog(lg.time, lg.q, 1000.0 * lg.tau, axes=lg.axes, attrs={"source_file": "big"})
+    write_hdf5(big, tmp_path / "big.h5")
+    args = ["--log", tmp_path / "big.h5"] if command == "diagnose" else [tmp_path / "big.h5", "--strict"]
+    r = _run(command, "--params", fitted / "p.json", *args)
+    said = " ".join(_warnings(r))
+    assert "does not describe" in said and "no better than predicting" in said and "another unit" in said, r.output
+    if command == "validate":
+        assert r.exit_code == 4, r.output
+
+
 def test_a_model_that_does_not_describe_the_log_is_warned_about_first_and_strict_fails(fitted, tmp_path):
     """A one-axis file validated on another robot's log scored 2226 % with no word (new-user trial 6):
     now an axis whose error is at least its measured torque is the first warning, --strict exits 4."""

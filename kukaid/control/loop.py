@@ -45,6 +45,13 @@ PHASE_INIT, PHASE_REST, PHASE_ADMITTANCE, PHASE_STOPPED = 0, 1, 2, 3
 #: is 0.4 s, the adaptive law's default floor 0.3 x that 1.3 s
 MAX_COAST = 2.0
 
+#: the lowest cut-off (Hz) of the estimator's low-pass: its 3rd-order Butterworth delays Γr by about
+#: 2 / (2 pi fc) (0.32 s at 1 Hz), and a push read that late is still read after the hand let go (new-user
+#: trial 21: at 1 Hz every one of eight pull and human runs detected a push after the release, at 0.05 Hz
+#: the axis ran 89 degrees to the window's edge, 10.6 s of it with nobody there, and the run "completed";
+#: at 2 Hz none of the eight did)
+MIN_CUTOFF = 2.0
+
 
 @dataclass(frozen=True)
 class LoopConfig:
@@ -102,6 +109,11 @@ class LoopConfig:
         if not (math.isfinite(self.cutoff) and 0 < self.cutoff < 0.5 / self.sample_time):
             raise KukaidError(f"run-admittance: the estimator's cut-off {self.cutoff} Hz must be in (0, "
                               f"{0.5 / self.sample_time:g}) Hz (half the sampling rate)")
+        if self.cutoff < MIN_CUTOFF:
+            raise KukaidError(f"run-admittance: the estimator's cut-off {self.cutoff:g} Hz is below {MIN_CUTOFF:g} Hz: "
+                              f"its low-pass would delay Γr by {2 / (2 * math.pi * self.cutoff):.2g} s, so a push "
+                              "is still read after the hand lets go and the axis moves on by itself (the paper's "
+                              "5 Hz delays it 0.064 s)")
         if not (math.isfinite(self.duration) and self.duration > 0):
             raise KukaidError(f"run-admittance: duration must be > 0 s, got {self.duration}")
         if self.damping == "adaptive":
@@ -162,6 +174,7 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
             raise KukaidError("run-admittance: no measurement from the backend at start")
         for s in samples:
             r = est.update(*_measured(s, est))
+        check_init_room(model, cfg, samples[-1].q)
         limiter = ReferenceLimiter(cfg.limits, cfg.cycle, samples[-1].q)
         stab = cfg.stability
         if cfg.damping == "adaptive" and cfg.coupling.enabled:
@@ -236,6 +249,57 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
 
 
+def init_move_needed(model: Any) -> float:
+    """The shortest initiation move (rad) that saturates every Maxwell-slip element of a one-axis ``model``
+    from any state: twice the largest break-away displacement (0 for a model without elements)."""
+    ms = getattr(model, "maxwell_slip", None)
+    return 2.0 * float(np.max(ms.breakaway)) if ms is not None and len(ms.k) else 0.0
+
+
+def check_init_room(model: Any, cfg: LoopConfig, q_start: float) -> None:
+    """Refuse, before anything moves, a one-axis run whose initiation move from ``q_start`` (rad) the reference
+    limits (the position window, ``qd_max``, ``qdd_max``) would cut below :func:`init_move_needed`: the move is
+    the loop's check of the parameter file, and a move cut to nothing skipped it (new-user trial 21: a file with
+    gravity's sign flipped, stopped before control from 30 degrees in [-60, 90], was guided from 30 in [-60, 30]
+    and ran the axis 90 degrees to the window's other edge with nobody there, "completed"; with --qd-max 0.03 the
+    same file was guided too).  The move and the rest after it are run through the limiter as the loop runs them."""
+    if isinstance(model, RobotTorqueModel) or not cfg.init_move:
+        return
+    need = init_move_needed(model)
+    lim = ReferenceLimiter(cfg.limits, cfg.cycle, q_start)
+    reach = peak = 0.0
+    for k in range(int(math.ceil((cfg.init_time + cfg.init_rest) / cfg.cycle))):
+        x = min((k + 1) * cfg.cycle / cfg.init_time, 1.0)
+        q, _ = lim.apply(q_start + cfg.init_move * x ** 3 * (10 - 15 * x + 6 * x * x))
+        reach = max(reach, (q - q_start) * math.copysign(1.0, cfg.init_move))
+        peak = max(peak, abs(lim.v))
+    qd_thr = float(getattr(model, "qd_thr", 0.0))
+    if reach >= need and peak >= qd_thr:
+        return
+    lo, hi = cfg.limits.q_min, cfg.limits.q_max
+    edge = hi if cfg.init_move > 0 else lo
+    if reach >= need:  # far enough, but never as fast as the file's dynamic mode: its sliding model goes unchecked
+        raise KukaidError(f"run-admittance: the initiation move ({math.degrees(cfg.init_move):+g} deg, --init-move) "
+                          f"would reach at most {math.degrees(peak):.3g} deg/s, below the parameter file's dynamic-mode "
+                          f"speed (mode_switch.qd_thr {qd_thr:.3g} rad/s = {math.degrees(qd_thr):.3g} deg/s): the move "
+                          "is the check of the file before control, and below that speed its sliding model (gravity, "
+                          "friction) goes unchecked; nothing moved; raise --qd-max/--qdd-max, or give a longer "
+                          "--init-move (its speed grows with its length), or check the file's qd_thr (kukaid show)")
+    if abs(edge - q_start) < need:  # the window's edge
+        room = q_start - lo if cfg.init_move > 0 else hi - q_start
+        fix = (f"move the other way (--init-move {-math.degrees(cfg.init_move):+g}; {math.degrees(room):.3g} deg of "
+               "room there), or start farther from the window's edge" if room >= need else
+               "start farther from the window's edge")
+        what = f"the position window [{math.degrees(lo):.4g}, {math.degrees(hi):.4g}] deg"
+    else:
+        what, fix = "the reference's speed and acceleration limits (--qd-max, --qdd-max)", "raise them"
+    raise KukaidError(f"run-admittance: the initiation move ({math.degrees(cfg.init_move):+g} deg, --init-move) from "
+                      f"{math.degrees(q_start):.4g} deg would be cut by {what} after {math.degrees(reach):+.3g} deg, "
+                      f"less than the {math.degrees(need):.3g} deg that set the file's Maxwell-slip elements: the move "
+                      "is the check of the parameter file before control, and without it a wrong file moves the axis "
+                      f"by itself; nothing moved; {fix}")
+
+
 #: the default detection threshold, N·m (the paper's), and, on an axis with more friction, its share of the
 #: file's Coulomb friction (on every axis of the paper's A3's size, Coulomb friction up to 19.6 N·m, below 5)
 THRESHOLD, THRESHOLD_SHARE = 5.0, 0.25
@@ -278,7 +342,7 @@ def check_guidable(model: Any, no_rest_model: bool = False, init_move: float | N
                           "friction cannot be told from a push and the axis would move by itself; fit them from a "
                           "pre-sliding experiment (kukaid excite presliding, kukaid capture, then kukaid fit ... "
                           "--presliding LOG)")
-    need = 2.0 * float(np.max(ms.breakaway))
+    need = init_move_needed(model)
     if init_move is not None and abs(init_move) < need:
         raise KukaidError(f"run-admittance: an initiation move of {math.degrees(init_move):g} deg (--init-move) is "
                           f"shorter than {math.degrees(need):.3g} deg, twice the largest break-away displacement of the "
@@ -592,12 +656,21 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
                             f"beyond the threshold {cfg.threshold:g} N·m (not taken for a push: the threshold at "
                             "rest had risen, or the axis was starting or stopping)")
     cut = np.flatnonzero(np.asarray(data.get("clipped", False), bool) & (data["phase"] == PHASE_INIT))
-    if cut.size:  # the window stopped the initiation move short (a start near its edge)
+    at_edge = cut.size and min(abs(data["q_cmd"][cut[0]] - cfg.limits.q_min),
+                               abs(data["q_cmd"][cut[0]] - cfg.limits.q_max)) < 1e-9
+    if cut.size and not at_edge:  # the speed and acceleration limits slowed it (the window did not cut it)
+        init_rows = data["phase"] < PHASE_ADMITTANCE
+        moved = float(np.max(np.abs(data["q_cmd"][init_rows] - data["q"][0])))
+        warnings.append(f"the initiation move ({math.degrees(cfg.init_move):+g} deg, --init-move) was slowed by the "
+                        f"reference's speed and acceleration limits (--qd-max, --qdd-max) and moved "
+                        f"{math.degrees(moved):.3g} deg before control")
+    elif cut.size:  # the window stopped the initiation move short (a start near its edge)
         edge, moved = data["q_cmd"][cut[0]], data["q_cmd"][cut[0]] - data["q"][0]
         warnings.append(f"the initiation move ({math.degrees(cfg.init_move):+g} deg, --init-move) was cut by the "
                         f"position window at {math.degrees(edge):g} deg after {math.degrees(moved):+.3g} deg: the "
                         "Maxwell-slip elements are set by it only if that passes their break-away (eq. 12); start "
-                        "farther from the window's edge, or move the other way (a negative --init-move)")
+                        "farther from the window's edge, or move the other way "
+                        f"(--init-move {-math.degrees(cfg.init_move):+g})")
     init = data["phase"] < PHASE_ADMITTANCE
     if init.any():  # the loop's own move and rest: nobody touches the axis, Γr is the model's error there
         out["init_residual_max"] = float(np.max(np.abs(gr[init])))

@@ -239,7 +239,10 @@ def diagnose_signals(params: dict, sigs: Sequence[LogSignals], *, alpha: float =
     if not sigs:
         raise KukaidError("diagnose needs at least one log")
     if sum(s.rows.size for s in sigs) < 50:
-        raise FitError("fewer than 50 dynamic-mode samples in the logs: the axis barely moves; nothing to diagnose")
+        names = ", ".join(dict.fromkeys(s.name for s in sigs))
+        raise FitError(f"{names}: fewer than 50 dynamic-mode samples in the logs ({sum(s.rows.size for s in sigs)}): "
+                       "the axis barely moves; nothing to diagnose (give logs of an excitation: kukaid excite friction, "
+                       "inertia or validation)")
     joint = sigs[0].joint
     stage("comparing the model with the data, refitting it as it is")
     given = model_from_params(params, joint).within_bounds()

@@ -291,6 +291,10 @@ class FourierDesign:
         return self.centre + self.scale * (d - self.mid), self.scale * qd, self.scale * qdd
 
 
+#: the objective of :func:`design` (the log of the condition number) for a singular regressor
+SINGULAR = 1e3
+
+
 def design(model, limits: Sequence[AxisLimits], harmonics: int = 5, period: float = 10.0, margin: float = 0.9,
            span: float = 0.6, centre: np.ndarray | None = None, seed: int = 0, iterations: int = 10,
            n_eval: int = 100, starts: int = 16, progress: Callable[[float], None] | None = None) -> FourierDesign:
@@ -341,7 +345,7 @@ def design(model, limits: Sequence[AxisLimits], harmonics: int = 5, period: floa
         a, b, s, m = scaled(x)
         d, qd, qdd = fourier_series(te, a, b, wf)
         c = cond(cen + s * (d - m), s * qd, s * qdd)
-        return math.log(c) if math.isfinite(c) else 1e3
+        return math.log(c) if math.isfinite(c) else SINGULAR
 
     rng = np.random.default_rng(seed)
     decay = np.tile(1.0 / np.arange(1, L + 1), 2 * n)  # favour low harmonics at the start
@@ -353,6 +357,10 @@ def design(model, limits: Sequence[AxisLimits], harmonics: int = 5, period: floa
         res = minimize(objective, x0, method="L-BFGS-B", options={"maxiter": int(iterations), "eps": 1e-4})
         if res.fun < fx:
             x, fx = res.x, float(res.fun)
+    if not fx < SINGULAR:  # every start and step left a base parameter unexcited (exp(1e3) overflowed: exit 70)
+        raise TrajectoryError(f"fourier: with {L} harmonic(s) no motion found excites every base parameter of the "
+                              "robot (the regressor is singular at every start and step); give more harmonics "
+                              "(--harmonics 2 or more)")
     a, b, s, m = scaled(x)
     if progress is not None:
         progress(1.0)

@@ -293,11 +293,12 @@ def unit_warnings(log: Any, axis: int, name: str | None = None) -> list[str]:
     """A warning when revolute axis ``axis`` of ``log`` moves over less than :data:`MIN_MOTION` in all:
     radians written under a degree header (the reader's ``position_columns`` names it) read 57 x too
     small, and so do the speeds, while Izz and Fv come out 57 x too large, with no other sign.  A
-    warning, never a refusal: an axis can move that little."""
+    warning, never a refusal: an axis can move that little; none for a log that records the pre-sliding
+    experiment (attribute ``experiment``), which moves that little by design."""
     k = log.index(axis)
     span = float(np.ptp(np.asarray(log.q[:, k], dtype=float)))
-    if log.joint[k] != "revolute" or span >= MIN_MOTION:
-        return []
+    if log.joint[k] != "revolute" or span >= MIN_MOTION or log.attrs.get("experiment") == "presliding":
+        return []  # the pre-sliding experiment (the log says it records it) moves a fraction of a degree
     name = name or str(log.attrs.get("source_file", "log"))
     col = (log.attrs.get("position_columns") or {}).get(str(axis))
     col = f"column {col}" if col else f"the position of A{axis}"

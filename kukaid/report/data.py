@@ -163,7 +163,13 @@ def load_report_data(params: dict | str | Path, friction: Sequence[Any] = (), in
         check_model_of(par, source, joint=log.joint[log.index(axis)])
     given = [*friction, *inertia, *logs] + ([presliding] if presliding is not None else [])  # the order of every
     names = [x if isinstance(x, (str, Path)) else log.attrs.get("source_file", "log") for x, (log, _) in zip(given, every)]
-    data.warnings.extend(use_warnings(data.model, names, [log for log, _ in every]))  # validate's
+    said = use_warnings(data.model, names, [log for log, _ in every])  # validate's
+    if data.presliding:  # the pre-sliding experiment moves a fraction of a degree (as fit: no unit warning)
+        from kukaid.identify.adequacy import unit_warnings
+
+        small = set(unit_warnings(data.presliding[0], axis, str(names[-1])))
+        said = [w for w in said if w not in small]
+    data.warnings.extend(said)
     fitted = in_sample(par, names, source, [log for log, _ in every])
     data.fitted_on = {id(log) for n, (log, _) in zip(names, every) if n in fitted}
     for log, _ in every:

@@ -16,6 +16,10 @@ from kukaid.errors import ControllerError
 from kukaid.robot.interface import Block, Sample
 
 
+#: every this many cycles (about 0.1 s at 12 ms) :meth:`KvpRobot.cycle` reads the follower's ``KID_STOP``
+FOLLOWER_CHECK = 8
+
+
 class KvpRobot:
     """A KR C4 over KUKAVARPROXY (``client`` a connected :class:`kukaid.krc.kvp.KvpClient`), with the
     KRL follower program of :mod:`kukaid.krc.krl_follower` running on the controller.
@@ -23,7 +27,9 @@ class KvpRobot:
     Every cycle writes the reference (``KID_TGT``, degrees) and the heartbeat (``KID_HB``), then
     reads ``$AXIS_ACT_MEAS`` and ``$TORQUE_AXIS_ACT[axis]``; :meth:`start` enables the follower
     (``KID_RUN`` TRUE) once the first target is where the axis stands, :meth:`hold` disables it.
-    Nothing else on the robot is written.
+    Nothing else on the robot is written.  Every :data:`FOLLOWER_CHECK` cycles ``KID_STOP`` is read: a
+    follower program that stopped by itself (its heartbeat watchdog) ends the run with a
+    :class:`ControllerError` instead of guiding a reference the axis no longer follows.
 
     The controller updates both variables once per interpolation cycle (``sample_time``, 12 ms)
     and the PC's cycle is not locked to it: a reading identical to the previous one is the same
@@ -41,14 +47,14 @@ class KvpRobot:
     name = "kvp"
 
     def __init__(self, client: Any, axis: int = 3, target: str = "KID_TGT", heartbeat: str = "KID_HB",
-                 run: str = "KID_RUN", sample_time: float = 0.012, n_axes: int = 0,
+                 run: str = "KID_RUN", stop: str = "KID_STOP", sample_time: float = 0.012, n_axes: int = 0,
                  window: tuple[float, float] | None = None) -> None:
         self.client = client
         #: the position window (rad) the axis must stand in for :meth:`start` to switch the follower on
         self.window = window
         self.axis = int(axis)
         self.n_axes = int(n_axes)
-        self.target, self.heartbeat, self.run = target, heartbeat, run
+        self.target, self.heartbeat, self.run, self.stop = target, heartbeat, run, stop
         self.sample_time = float(sample_time)
         self._t0 = time.monotonic()
         self._beat = 0
@@ -57,6 +63,7 @@ class KvpRobot:
         self._k: int | None = None
         self._repeats = 0  # readings that repeated the previous controller sample
         self._t_next: float | None = None
+        self._cycles = 0  # cycles since start(), for the follower check every FOLLOWER_CHECK cycles
 
     def now(self) -> float:
         return time.monotonic() - self._t0
@@ -137,6 +144,9 @@ class KvpRobot:
         self._t_next = nxt if nxt > now else now + dt
         if q_cmd is not None:
             self._send(q_cmd)
+        self._cycles += 1
+        if self._enabled and self._cycles % FOLLOWER_CHECK == 0:
+            self._check_follower()
         repeats = self._repeats
         out = self._read()
         if self._repeats > repeats:
@@ -147,6 +157,27 @@ class KvpRobot:
         if wait > 0:
             time.sleep(wait)
         return out
+
+    def _check_follower(self) -> None:
+        """Raise :class:`ControllerError` when the KRL follower program has stopped (``KID_STOP`` not 0: its
+        heartbeat watchdog, the axis outside its window at its start, or a stop left from an earlier run
+        of a program not started again): the axis no longer follows the reference.  A reading that fails
+        is left to the measurement watchdog."""
+        from kukaid.krc.krl_follower import STOP_BY_PC, STOP_OUTSIDE, STOP_STALE
+
+        try:
+            code = int(self.client.read_int(self.stop))
+        except (ControllerError, AttributeError, ValueError, TypeError):
+            return
+        if code == 0:
+            return
+        why = {STOP_STALE: "its heartbeat watchdog found KID_HB stale (krl-follower --stale-ms)",
+               STOP_OUTSIDE: "it found the axis outside its own window when it started",
+               STOP_BY_PC: "it was stopped by the PC (a stop left from an earlier run: start the program again)"}
+        self._enabled = False  # nothing to switch off: the program ended
+        raise ControllerError(f"kvp: the KRL follower program has stopped ({self.stop} {code}: "
+                              f"{why.get(code, 'an unknown reason')}), so A{self.axis} no longer follows the "
+                              "reference; start the program again before the next run")
 
     def hold(self) -> None:
         """Stop the follower (``KID_RUN`` FALSE); if that write fails too, the follower's own
