@@ -79,21 +79,37 @@ def test_guided_axis_detects_a_push_and_follows_it():
     assert d["q"][-1] - d["q"][before][-1] > 0.05    # the axis moved with the push (positive Γr: positive q)
 
 
+def _off_by(offset: float):
+    class _Off(RobotTorqueModel):  # off by ``offset`` N·m on the guided axis, as static friction reads at rest
+        def __call__(self, q, qd, qdd):
+            out = super().__call__(q, qd, qdd)
+            out[..., AXIS - 1] += offset
+            return out
+    return _Off
+
+
 def test_a_robot_models_error_at_rest_is_not_blamed_on_its_fit():
     """New-user trial 14: a robot file fitted on the very robot it guided warned "Γr reached 7.32 N·m
     ... refit it on a recent log" after the initiation move: a robot model has no friction model at
     rest, so its static friction reads as Γr there, and a refit does not remove it; the advice names
-    what does (a higher --threshold, or a one-axis file with Maxwell-slip elements)."""
-    class _Off(RobotTorqueModel):  # off by 4 N·m on the guided axis at rest, as static friction reads
-        def __call__(self, q, qd, qdd):
-            out = super().__call__(q, qd, qdd)
-            out[..., AXIS - 1] += 4.0
-            return out
-
-    run = _run(_Off, push=False)
+    what does (a higher --threshold, or a one-axis file with Maxwell-slip elements).  Off by 4 N·m against
+    the initiation move: a warning; along it (the next test), the run is stopped with the same advice."""
+    run = _run(_off_by(-4.0), push=False)
+    assert run.status == "completed"
     w = [x for x in run.metrics["warnings"] if "initiation move" in x]
     assert w and "no friction model at rest" in w[0] and "raise --threshold" in w[0], run.metrics["warnings"]
     assert "refit it on a recent log" not in w[0]
+
+
+def test_a_model_error_along_the_initiation_move_near_the_threshold_stops_before_control():
+    """The model's error pushing along the loop's own move by 0.85 x the threshold or more (4 N·m, threshold 3)
+    would hold a detection whenever the axis moves: before this check the run "completed" with the guided
+    axis run 0.48 rad (28 degrees) with nobody touching it.  Now nothing is guided."""
+    run = _run(_off_by(4.0), push=False)
+    assert run.status.startswith("stopped: before control") and "pushed along the initiation move by" in run.status
+    assert "no friction model at rest" in run.status and "refit it on a recent log" not in run.status
+    d = run.data
+    assert not np.any(d["phase"] == PHASE_ADMITTANCE) or np.ptp(d["q"][d["phase"] == PHASE_ADMITTANCE]) < 1e-3
 
 
 def test_robot_model_needs_every_axis():

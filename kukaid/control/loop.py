@@ -300,6 +300,17 @@ def check_init_room(model: Any, cfg: LoopConfig, q_start: float) -> None:
                       f"by itself; nothing moved; {fix}")
 
 
+#: the fewest dynamic-mode samples of the initiation move whose mean Γr along it the loop judges (the
+#: default 1 degree move gives about 40 at 12 ms)
+MIN_ALONG = 10
+
+#: the most Γr may push along the loop's own initiation move (its mean while read as moving), as a share of the
+#: start threshold, before the run is stopped before control.  Measured (stop 43) with the people, rest and foreign
+#: benchmarks' own fitted files: at most 0.81 (99th percentile 0.78, 1080 people runs; 0.77 at rest, 0.26 on
+#: the foreign plant); the demo's file with Fc, Fs and Fv scaled 1.3 x (0.91-1.10, 64 runs) detected after a
+#: release in 4 runs, one of them 12.8 degrees, the first at 0.934; 1.2 x (0.61-0.80) in none
+RUNAWAY_SHARE = 0.85
+
 #: the default detection threshold, N·m (the paper's), and, on an axis with more friction, its share of the
 #: file's Coulomb friction (on every axis of the paper's A3's size, Coulomb friction up to 19.6 N·m, below 5)
 THRESHOLD, THRESHOLD_SHARE = 5.0, 0.25
@@ -393,6 +404,7 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
     # the most a model's error at rest may be: what the start threshold at rest can rise to
     init_cap = getattr(est, "floor_cap", 3.0) * cfg.threshold
     init_max = abs(r.gamma_r)  # Γr's largest size during the loop's own move and rest, N·m
+    along: list[float] = []  # Γr along the initiation move while the estimator reads it as moving, N·m
     for k in range(n_cycles):
         tr = (k + 1) * cfg.cycle  # time since start at the end of this cycle
         if tr <= t_adm:  # initiation move (eq. 12), then rest while Γu settles
@@ -415,6 +427,18 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
                              f"({init_cap / cfg.threshold:g} x the threshold, the most the threshold at rest can rise "
                              "to): guided with this parameter file the axis would move by itself, so nothing was "
                              f"guided; {_init_advice(cfg)}")
+            pushes_on = float(np.mean(along)) if len(along) >= MIN_ALONG else 0.0
+            if phase != PHASE_ADMITTANCE and pushes_on >= RUNAWAY_SHARE * cfg.threshold:
+                # with nobody touching, the model's error pushed along the loop's own move by most of the start
+                # threshold (a file whose friction exceeds the axis's: new-user trial 21, Fc, Fs and Fv 1.5 x the
+                # plant's, 8.8 N·m here, ran the axis 71 degrees after a release): guided, that error alone holds a
+                # detection while the axis moves, and it runs on by itself after the person lets go
+                backend.hold()
+                return log, (f"stopped: before control, with nobody touching the axis, the model's error pushed along "
+                             f"the initiation move by {pushes_on:.3g} N·m on average, {pushes_on / cfg.threshold:.2f} x "
+                             f"the threshold {cfg.threshold:g} N·m (at most {RUNAWAY_SHARE:g} x; a model whose friction "
+                             "exceeds the axis's, e.g. fitted on a colder drive): guided, that error alone would keep the "
+                             f"axis moving after a release, so nothing was guided; {_init_advice(cfg)}")
             if phase != PHASE_ADMITTANCE and hasattr(est, "nobody_was_there"):
                 est.nobody_was_there()  # the loop's own move and rest: nothing read there was a hand
             phase = PHASE_ADMITTANCE
@@ -487,6 +511,8 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
         if stop is None and phase == PHASE_ADMITTANCE and abs(r.gamma_r) > cfg.limits.tau_max:
             stop = (f"external torque Γr {r.gamma_r:.1f} N·m (the model's torque minus the measured {last.tau:.1f} "
                     f"N·m) beyond the limit {cfg.limits.tau_max:g} N·m at t = {last.t - t0:.3f} s")
+        if phase == PHASE_INIT and r.mode == DYNAMIC:  # the cycle's row (run_metrics' init_push_along)
+            along.append(r.gamma_r * math.copysign(1.0, cfg.init_move))
         t_row = last.t
         if stop is not None:
             backend.hold()
@@ -569,7 +595,8 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
       push the controller did not see, or a simulation that went wrong) — or a push still on at
       the end; a detection with nobody touching (before the first push or after the release); Γr
       beyond the threshold with nobody touching (not taken for a push), also during the initiation move
-      and rest (``init_residual_max`` N·m: nothing detected there drives the axis); the initiation move
+      and rest (``init_residual_max`` N·m: nothing detected there drives the axis; ``init_push_along`` N·m,
+      Γr's mean along the initiation move while read as moving, which the loop refuses at the threshold); the initiation move
       cut short by the position window.  :func:`run_admittance`
       adds one when the threshold at rest had to rise by over 20 % (the model's friction at rest is off).
     """
@@ -674,6 +701,9 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     init = data["phase"] < PHASE_ADMITTANCE
     if init.any():  # the loop's own move and rest: nobody touches the axis, Γr is the model's error there
         out["init_residual_max"] = float(np.max(np.abs(gr[init])))
+        along = (data["phase"] == PHASE_INIT) & np.asarray(data["dynamic"], bool)
+        if np.count_nonzero(along) >= MIN_ALONG:
+            out["init_push_along"] = float(np.mean(gr[along])) * math.copysign(1.0, cfg.init_move)
         if out["init_residual_max"] >= cfg.threshold:
             warnings.append(f"during the initiation move and rest Γr reached {out['init_residual_max']:.3g} N·m, beyond "
                             f"the threshold {cfg.threshold:g} N·m, with nobody touching the axis (not taken for a push): "
