@@ -822,3 +822,18 @@ def test_reference_limits_too_slow_for_the_initiation_move_are_refused(tmp_path,
     err = res.stderr.strip().splitlines()
     assert len(err) == 1 and said in err[0] and "nothing moved" in err[0], err
     assert not out.exists()
+
+
+def test_a_push_never_detected_is_said():
+    """New-user trial 21: `--threshold 99 --operator human` guided nothing (the person pushed up to 63 N·m) and the
+    run said "completed", settled, with no warning."""
+    p = plant("gms", seed=2)
+    cfg = LoopConfig(damping="constant", D=50.0, cycle=0.012, duration=4.0, threshold=30.0)
+    run = run_admittance(SimRobot(VirtualKRC4(p.cfg, seed=2), Q0, PushOperator(15.0, 2.5, 1.0)),
+                         model_from_params(p.params), cfg)
+    assert run.status == "completed"
+    w = [x for x in run.metrics["warnings"] if "no push was detected" in x]
+    assert w and "--threshold" in w[0] and "15" in w[0], run.metrics["warnings"]
+    ok = run_admittance(SimRobot(VirtualKRC4(p.cfg, seed=2), Q0, PushOperator(15.0, 2.5, 1.0)),
+                        model_from_params(p.params), dataclasses.replace(cfg, threshold=5.0))
+    assert not any("no push was detected" in x for x in ok.metrics["warnings"])

@@ -258,6 +258,9 @@ def test_no_progress_bar_in_a_pipe(files, tmp_path, kukaid_cmd):
     (["excite", "friction", "-o", "x.json", "--n-speeds", "0"], ["--n-speeds"]),
     (["excite", "friction", "-o", "x.json", "--q-min-deg", "50", "--q-max-deg", "10"], ["50 deg", "10 deg"]),
     (["krl-follower", "--q-min", "50", "--q-max", "10", "-o", "krl"], ["window"]),
+    # new-user trial 21: a heartbeat timeout of one cycle stopped the follower at once
+    (["krl-follower", "--q-min", "0", "--q-max", "10", "-o", "krl", "--stale-ms", "12"], ["stale_ms = 12", "60 to 5000"]),
+    (["serve-sim", "--port", "0", "--duration", "1", "--follower", "0", "60", "--stale-ms", "12"], ["60 to 5000"]),
     (["fit", "{d}/inertia.h5", "-o", "p.json", "--bound", "vs=0.2:0.1"], ["--bound", "lower 0.2 is above upper 0.1"]),
     (["fit", "{d}/inertia.h5", "-o", "p.json", "--bound", "nope=0:1"], ["--bound", "no such parameter"]),
     (["fit", "-o", "p.json"], ["no logs to fit"]),

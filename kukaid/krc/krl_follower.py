@@ -34,6 +34,12 @@ from kukaid.errors import KukaidError
 STOP_BY_PC, STOP_STALE, STOP_OUTSIDE = 1, 2, 3
 
 
+#: the shortest heartbeat timeout, ms: run-admittance writes KID_HB once a control cycle (12 or 24 ms), not locked
+#: to the IPO clock, so a heartbeat up to two of its cycles old (plus the link's latency) is normal; 12 ms stopped
+#: the follower at once (new-user trial 21), and the run then guided a reference the axis no longer followed
+MIN_STALE_MS = 60
+
+
 @dataclass(frozen=True)
 class FollowerConfig:
     """The follower's settings: ``axis`` (1-6), position window ``q_min_deg``/``q_max_deg``
@@ -58,8 +64,10 @@ class FollowerConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v == int(v) and 1 <= v <= 100):  # an INT on the KRC: 8.33 would be rounded
                 raise KukaidError(f"KRL follower: {name} = {v} must be a whole number 1 to 100 %")
-        if not 12 <= int(self.stale_ms) <= 5000:
-            raise KukaidError(f"KRL follower: stale_ms = {self.stale_ms} must be 12 to 5000 ms")
+        if not MIN_STALE_MS <= int(self.stale_ms) <= 5000:
+            raise KukaidError(f"KRL follower: stale_ms = {self.stale_ms} must be {MIN_STALE_MS} to 5000 ms (the PC "
+                              "writes KID_HB once a control cycle, 12 or 24 ms, not locked to the controller's clock: "
+                              "a heartbeat two of its cycles old is a working link)")
 
     def clamp(self, q_deg: float) -> tuple[float, bool]:
         """The target the program moves to, and whether it was clamped."""
