@@ -92,13 +92,17 @@ def test_a_robot_models_error_at_rest_is_not_blamed_on_its_fit():
     """New-user trial 14: a robot file fitted on the very robot it guided warned "Γr reached 7.32 N·m
     ... refit it on a recent log" after the initiation move: a robot model has no friction model at
     rest, so its static friction reads as Γr there, and a refit does not remove it; the advice names
-    what does (a higher --threshold, or a one-axis file with Maxwell-slip elements).  Off by 4 N·m against
-    the initiation move: a warning; along it (the next test), the run is stopped with the same advice."""
-    run = _run(_off_by(-4.0), push=False)
+    what does (a higher --threshold, or a one-axis file with Maxwell-slip elements).  Off by 2.5 N·m (threshold 3,
+    Γr beyond it while the axis starts and stops): a warning.  Off by 4 N·m against the move, the run stopped
+    before control (it ran the axis 0.52 rad with nobody there: an error standing beyond the threshold at the end
+    of the rest starts control by moving the axis); along the move (the next test), stopped too; the same advice."""
+    run = _run(_off_by(-2.5), push=False)
     assert run.status == "completed"
     w = [x for x in run.metrics["warnings"] if "initiation move" in x]
     assert w and "no friction model at rest" in w[0] and "raise --threshold" in w[0], run.metrics["warnings"]
     assert "refit it on a recent log" not in w[0]
+    stop = _run(_off_by(-4.0), push=False).status
+    assert stop.startswith("stopped: before control") and "stood at -4" in stop and "no friction model at rest" in stop
 
 
 def test_a_model_error_along_the_initiation_move_near_the_threshold_stops_before_control():

@@ -405,6 +405,7 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
     init_cap = getattr(est, "floor_cap", 3.0) * cfg.threshold
     init_max = abs(r.gamma_r)  # Γr's largest size during the loop's own move and rest, N·m
     along: list[float] = []  # Γr along the initiation move while the estimator reads it as moving, N·m
+    rest_end: list[float] = []  # Γr over the last 0.2 s of the rest after it, N·m
     for k in range(n_cycles):
         tr = (k + 1) * cfg.cycle  # time since start at the end of this cycle
         if tr <= t_adm:  # initiation move (eq. 12), then rest while Γu settles
@@ -439,6 +440,15 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
                              f"the threshold {cfg.threshold:g} N·m (at most {RUNAWAY_SHARE:g} x; a model whose friction "
                              "exceeds the axis's, e.g. fitted on a colder drive): guided, that error alone would keep the "
                              f"axis moving after a release, so nothing was guided; {_init_advice(cfg)}")
+            standing = float(np.mean(rest_end)) if rest_end else 0.0
+            if phase != PHASE_ADMITTANCE and cfg.no_rest_model and abs(standing) >= cfg.threshold:
+                # a model with no friction model at rest (a robot file run with --no-rest-model) whose error stands
+                # beyond the threshold at the end of the loop's own rest: control would start by moving the axis
+                # (an offset of 4 N·m against the move, threshold 3, ran it 0.52 rad with nobody there)
+                backend.hold()
+                return log, (f"stopped: before control, with nobody touching the axis, Γr stood at {standing:.3g} N·m "
+                             f"at the end of the rest, beyond the threshold {cfg.threshold:g} N·m: control would start "
+                             f"by moving the axis, so nothing was guided; {_init_advice(cfg)}")
             if phase != PHASE_ADMITTANCE and hasattr(est, "nobody_was_there"):
                 est.nobody_was_there()  # the loop's own move and rest: nothing read there was a hand
             phase = PHASE_ADMITTANCE
@@ -513,6 +523,9 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
                     f"N·m) beyond the limit {cfg.limits.tau_max:g} N·m at t = {last.t - t0:.3f} s")
         if phase == PHASE_INIT and r.mode == DYNAMIC:  # the cycle's row (run_metrics' init_push_along)
             along.append(r.gamma_r * math.copysign(1.0, cfg.init_move))
+        if phase == PHASE_REST:  # the rest's last 0.2 s
+            rest_end.append(r.gamma_r)
+            del rest_end[:-max(1, int(round(0.2 / cfg.cycle)))]
         t_row = last.t
         if stop is not None:
             backend.hold()
