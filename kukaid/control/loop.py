@@ -419,36 +419,11 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             adm.reset(q_cmd)
             sd = 0.0
         else:
-            if phase != PHASE_ADMITTANCE and init_max > init_cap:
-                # with nobody touching, the model missed the loop's own move and rest by more than the threshold
-                # at rest can ever rise to: guided, the axis would move by itself (a file in N·mm, a gravity sign)
+            why = _unguidable(init_max, init_cap, along, rest_end, cfg) if phase != PHASE_ADMITTANCE else None
+            if why:
                 backend.hold()
-                return log, (f"stopped: before control, with nobody touching the axis, the model's error during the "
-                             f"initiation move and rest reached {init_max:.3g} N·m, beyond {init_cap:.3g} N·m "
-                             f"({init_cap / cfg.threshold:g} x the threshold, the most the threshold at rest can rise "
-                             "to): guided with this parameter file the axis would move by itself, so nothing was "
-                             f"guided; {_init_advice(cfg)}")
-            pushes_on = float(np.mean(along)) if len(along) >= MIN_ALONG else 0.0
-            if phase != PHASE_ADMITTANCE and pushes_on >= RUNAWAY_SHARE * cfg.threshold:
-                # with nobody touching, the model's error pushed along the loop's own move by most of the start
-                # threshold (a file whose friction exceeds the axis's: new-user trial 21, Fc, Fs and Fv 1.5 x the
-                # plant's, 8.8 N·m here, ran the axis 71 degrees after a release): guided, that error alone holds a
-                # detection while the axis moves, and it runs on by itself after the person lets go
-                backend.hold()
-                return log, (f"stopped: before control, with nobody touching the axis, the model's error pushed along "
-                             f"the initiation move by {pushes_on:.3g} N·m on average, {pushes_on / cfg.threshold:.2f} x "
-                             f"the threshold {cfg.threshold:g} N·m (at most {RUNAWAY_SHARE:g} x; a model whose friction "
-                             "exceeds the axis's, e.g. fitted on a colder drive): guided, that error alone would keep the "
-                             f"axis moving after a release, so nothing was guided; {_init_advice(cfg)}")
-            standing = float(np.mean(rest_end)) if rest_end else 0.0
-            if phase != PHASE_ADMITTANCE and cfg.no_rest_model and abs(standing) >= cfg.threshold:
-                # a model with no friction model at rest (a robot file run with --no-rest-model) whose error stands
-                # beyond the threshold at the end of the loop's own rest: control would start by moving the axis
-                # (an offset of 4 N·m against the move, threshold 3, ran it 0.52 rad with nobody there)
-                backend.hold()
-                return log, (f"stopped: before control, with nobody touching the axis, Γr stood at {standing:.3g} N·m "
-                             f"at the end of the rest, beyond the threshold {cfg.threshold:g} N·m: control would start "
-                             f"by moving the axis, so nothing was guided; {_init_advice(cfg)}")
+                return log, (f"stopped: before control, with nobody touching the axis, {why}, so nothing was guided; "
+                             f"{_init_advice(cfg)}")
             if phase != PHASE_ADMITTANCE and hasattr(est, "nobody_was_there"):
                 est.nobody_was_there()  # the loop's own move and rest: nothing read there was a hand
             phase = PHASE_ADMITTANCE
@@ -609,7 +584,8 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
       the end; a detection with nobody touching (before the first push or after the release); Γr
       beyond the threshold with nobody touching (not taken for a push), also during the initiation move
       and rest (``init_residual_max`` N·m: nothing detected there drives the axis; ``init_push_along`` N·m,
-      Γr's mean along the initiation move while read as moving, which the loop refuses at the threshold); the initiation move
+      Γr's mean along the initiation move while read as moving, which stops the loop from ``RUNAWAY_SHARE`` x the
+      threshold); the initiation move
       cut short by the position window.  :func:`run_admittance`
       adds one when the threshold at rest had to rise by over 20 % (the model's friction at rest is off).
     """
@@ -728,6 +704,33 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     out["warnings"] = warnings
     out["D_range"] = [float(np.min(data["D"][ph])), float(np.max(data["D"][ph]))]
     return out
+
+
+def _unguidable(init_max: float, init_cap: float, along: list[float], rest_end: list[float],
+                cfg: LoopConfig) -> str | None:
+    """Why the model's error on the loop's own initiation move and rest (nobody touching: ``init_max`` its
+    largest size, ``along`` it along the move while read as moving, ``rest_end`` over the rest's last 0.2 s,
+    N·m) says that, guided, the axis would move by itself; None when it does not."""
+    if init_max > init_cap:  # beyond what the threshold at rest can ever rise to: a file in N·mm, a gravity sign
+        return (f"the model's error during the initiation move and rest reached {init_max:.3g} N·m, beyond "
+                f"{init_cap:.3g} N·m ({init_cap / cfg.threshold:g} x the threshold, the most the threshold at rest can "
+                "rise to): guided with this parameter file the axis would move by itself")
+    pushes_on = float(np.mean(along)) if len(along) >= MIN_ALONG else 0.0
+    if pushes_on >= RUNAWAY_SHARE * cfg.threshold:
+        # a file whose friction exceeds the axis's (new-user trial 21: Fc, Fs and Fv 1.5 x the plant's, 8.8 N·m
+        # here, ran the axis 71 degrees after a release): guided, that error alone holds a detection while the
+        # axis moves, and it runs on by itself after the person lets go
+        return (f"the model's error pushed along the initiation move by {pushes_on:.3g} N·m on average, "
+                f"{pushes_on / cfg.threshold:.2f} x the threshold {cfg.threshold:g} N·m (at most {RUNAWAY_SHARE:g} x; a "
+                "model whose friction exceeds the axis's, e.g. fitted on a colder drive): guided, that error alone "
+                "would keep the axis moving after a release")
+    standing = float(np.mean(rest_end)) if rest_end else 0.0
+    if cfg.no_rest_model and abs(standing) >= cfg.threshold:
+        # no friction model at rest (a robot file run with --no-rest-model): an offset of 4 N·m against the move,
+        # threshold 3, ran the axis 0.52 rad with nobody there
+        return (f"Γr stood at {standing:.3g} N·m at the end of the rest, beyond the threshold {cfg.threshold:g} N·m: "
+                "control would start by moving the axis")
+    return None
 
 
 def _init_advice(cfg: LoopConfig) -> str:
