@@ -13,6 +13,7 @@ from kukaid.control.safety import ReferenceLimiter, SafetyLimits, Watchdog, chec
 from kukaid.control.torque_residual import TorqueResidual
 from kukaid.errors import KukaidError
 from kukaid.params import model_from_params
+from kukaid.sim.operator import PushOperator
 from kukaid.sim import SimConfig, VirtualKRC4
 
 
@@ -52,7 +53,8 @@ def test_stale_reading_stops_motion():
             out = super().cycle(q_cmd, dt)
             return out if self.sim.t < 2.0 else []  # readings stop arriving at 2 s
 
-    be = Stale(VirtualKRC4(SimConfig(), seed=1), 0.5, 15.0)
+    # pushed from after the loop's own move and rest (a push during them is read as the model's error)
+    be = Stale(VirtualKRC4(SimConfig(), seed=1), 0.5, PushOperator(15.0, 1.3, 10.0))
     run = run_admittance(be, model_from_params(SimConfig().truth_params()), LoopConfig(duration=5.0))
     assert run.status.startswith("stopped: measurement stale")
     assert run.data["time"][-1] < 2.2

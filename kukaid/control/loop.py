@@ -662,7 +662,8 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
         after = ph & (np.arange(t.size) > touched[-1] + int(round(0.3 / cfg.cycle))) if touched.size else ph
         out["false_after_release"] = int(np.sum(det & after)) if touched.size else 0
         untouched = ph & (np.abs(te) < 1.0) & ~det
-        if touched.size and not np.any(det[ph]):  # a person pushed and nothing was guided (trial 21: --threshold 99)
+        if touched.size and not np.any(det[ph]) and np.max(np.abs(te[ph])) < cfg.threshold:
+            # a person pushed, never as hard as the threshold, and nothing was guided (trial 21: --threshold 99)
             warnings.append(f"the operator pushed (true external torque up to {np.max(np.abs(te[ph])):.3g} N·m) and no "
                             f"push was detected, so nothing was guided: the threshold {cfg.threshold:g} N·m "
                             "(--threshold) is above what they pushed")
