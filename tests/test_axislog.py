@@ -94,6 +94,9 @@ BAD_CSV = {
     "nan": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,nan,3\n", "not a finite number (NaN or inf) at line 3"),
     "duplicated_time": ("time_s,A3_deg,A3_Nm\n0,1,2\n0,2,3\n", "duplicated) at line 3"),
     "decreasing_time": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.02,2,3\n0.01,2,3\n", "decreasing) at line 4"),
+    # new-user trial 22: the line read again for the NaN: its numbers in quotes are numbers, the NaN is
+    # named (it said line 2: '"0"' is not a number)
+    "nan_among_numbers_in_quotes": ('time_s,A3_deg,A3_Nm\n"0","1","2"\n0.012,nan,3\n', "(NaN or inf) at line 3"),
     "empty": ("", "empty file"),
     "header_only": ("time_s,A3_deg,A3_Nm\n", "no data rows"),
     "ragged": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2\n", "line 3 has 2 fields"),

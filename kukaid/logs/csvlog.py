@@ -121,7 +121,7 @@ def _body(path: Path, width: int) -> np.ndarray:
         for k, ln in enumerate(f, start=2):
             if not ln.strip():
                 continue
-            parts = ln.rstrip("\r\n").split(",")
+            parts = [_unquote(p) for p in ln.rstrip("\r\n").split(",")]  # numbers in quotes, as pandas reads them
             if len(parts) != width:
                 raise LogFormatError(f"{path}: line {k} has {len(parts)} fields, the header has {width}")
             try:
@@ -132,6 +132,11 @@ def _body(path: Path, width: int) -> np.ndarray:
     if not rows:
         raise LogFormatError(f"{path}: no data rows after the header")
     return np.asarray(rows, dtype=float)
+
+
+def _unquote(field: str) -> str:
+    f = field.strip()
+    return f[1:-1] if len(f) >= 2 and f[0] == f[-1] == '"' else field
 
 
 def _is_float(s: str) -> bool:
