@@ -97,6 +97,10 @@ BAD_CSV = {
     # new-user trial 22: the line read again for the NaN: its numbers in quotes are numbers, the NaN is
     # named (it said line 2: '"0"' is not a number)
     "nan_among_numbers_in_quotes": ('time_s,A3_deg,A3_Nm\n"0","1","2"\n0.012,nan,3\n', "(NaN or inf) at line 3"),
+    # new-user trial 22: a blank line above shifted the line named by one
+    "nan_after_blank_line": ("time_s,A3_deg,A3_Nm\n0,1,2\n\n0.012,nan,3\n", "(NaN or inf) at line 4"),
+    "duplicated_time_after_blank_lines": ("time_s,A3_deg,A3_Nm\n0,1,2\n\n\r\n0.012,2,3\n0.012,2,3\n",
+                                          "duplicated) at line 6"),
     "empty": ("", "empty file"),
     "header_only": ("time_s,A3_deg,A3_Nm\n", "no data rows"),
     "ragged": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2\n", "line 3 has 2 fields"),

@@ -210,24 +210,30 @@ class AxisLog:
 
 
 def check_samples(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: Iterable[int],
-                  where: str, row_offset: int = 0, row_word: str = "row") -> None:
+                  where: str, row_offset: int = 0, row_word: str = "row",
+                  row_lines: Sequence[int] | None = None) -> None:
     """Validate sample values: enough samples, finite, strictly increasing time.
 
-    ``row_offset`` and ``row_word`` let a reader report file lines ("line 7") instead of rows.
+    ``row_offset`` and ``row_word`` let a reader report file lines ("line 7") instead of rows;
+    ``row_lines`` gives each row's line instead of the offset when they do not follow evenly (the
+    blank lines of a CSV file).
     """
     axes = list(axes)
+
+    def at(r: int) -> int:
+        return int(row_lines[r]) if row_lines is not None else int(r) + row_offset
     if time.size < 2:
         raise LogFormatError(f"{where}: too few samples ({time.size}); a log needs at least 2")
     bad = np.flatnonzero(~np.isfinite(time))
     if bad.size:
-        raise LogFormatError(f"{where}: time is not a finite number at {row_word} {bad[0] + row_offset}")
+        raise LogFormatError(f"{where}: time is not a finite number at {row_word} {at(bad[0])}")
     dt = np.diff(time)
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         i = bad[0] + 1
         kind = "duplicated" if dt[bad[0]] == 0 else "decreasing"
         raise LogFormatError(
-            f"{where}: time is not strictly increasing ({kind}) at {row_word} {i + row_offset}: "
+            f"{where}: time is not strictly increasing ({kind}) at {row_word} {at(i)}: "
             f"{time[i]:.6g} s after {time[i - 1]:.6g} s"
         )
     for name, x in channels.items():
@@ -238,7 +244,7 @@ def check_samples(time: np.ndarray, channels: dict[str, np.ndarray | None], axes
             r, c = bad[0]
             raise LogFormatError(
                 f"{where}: channel '{name}' of axis A{axes[c]} is not a finite number (NaN or inf) "
-                f"at {row_word} {r + row_offset}"
+                f"at {row_word} {at(r)}"
             )
 
 

@@ -77,7 +77,7 @@ def read_csv(path: str | Path) -> AxisLog:
                 suffix = (("m" if need == "q" else "N") if joint_of.get(a) == "prismatic" else "Nm" if need == "tau"
                           else rev_q[min(rev_q)] if rev_q else "deg")  # as the log's other revolute positions
                 raise LogFormatError(f"{path}: missing column A{a}_{suffix} (axis A{a} has no '{need}')")
-    arr = _body(path, len(header))
+    arr, lines = _body(path, len(header))
     data: dict[str, np.ndarray | None] = {}
     for chan in CHANNELS:
         present = [(a, chan) in cols for a in axes]
@@ -89,7 +89,7 @@ def read_csv(path: str | Path) -> AxisLog:
             raise LogFormatError(f"{path}: channel '{chan}' is present for some axes but not A{missing[0]}")
         data[chan] = np.column_stack([arr[:, cols[(a, chan)][0]] * cols[(a, chan)][1] for a in axes])
     time = arr[:, 0]
-    check_samples(time, data, axes, str(path), row_offset=2, row_word="line")
+    check_samples(time, data, axes, str(path), row_offset=2, row_word="line", row_lines=lines)
     joint = tuple(joint_of.get(a, "revolute") for a in axes)
     labels: dict[Any, str] = {(chan, a): header[j] for (a, chan), (j, _) in cols.items()}
     check_units(time, data, axes, joint, str(path), labels={**labels, "time": "time_s"})
@@ -99,23 +99,26 @@ def read_csv(path: str | Path) -> AxisLog:
                                                                      "position_columns": positions}, **data)
 
 
-def _body(path: Path, width: int) -> np.ndarray:
-    """The data rows under the header, (n, width) floats.  pandas' C parser reads them (a 1-hour 200 Hz
+def _body(path: Path, width: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """The data rows under the header, (n, width) floats, and each row's line in the file (None when row
+    r is line r + 2).  pandas' C parser reads them (a 1-hour 200 Hz
     six-axis log, 170 MB: 0.9 s CPU and 0.4 GB, where Python line by line took 5.1 s and 1 GB:
     ``benchmarks/log_read_speed.py``); what it cannot read as ``width`` numbers a row (a short row, which it
-    fills with NaN, a word, a line of spaces) is read again line by line, for the line and field to name."""
+    fills with NaN, a word, a line of spaces, a blank line) is read again line by line, for the line and
+    field to name (a blank line read by pandas shifted every later row's line: a NaN on line 53 was
+    named at line 52)."""
     import pandas as pd
 
     try:
         with _os_errors(path, "cannot read"):
             arr = pd.read_csv(path, skiprows=1, header=None, names=range(width), dtype=float, engine="c",
                               encoding="utf-8-sig", encoding_errors="replace",
-                              skip_blank_lines=True).to_numpy()
+                              skip_blank_lines=False).to_numpy()
     except ValueError:  # pandas' ParserError and EmptyDataError are ValueErrors
         arr = None
     if arr is not None and arr.shape[0] and not np.isnan(arr).any():
-        return arr
-    rows = []
+        return arr, None
+    rows, lines = [], []
     with _os_errors(path, "cannot read"), open(path, encoding="utf-8-sig", errors="replace") as f:
         next(f)
         for k, ln in enumerate(f, start=2):
@@ -126,12 +129,13 @@ def _body(path: Path, width: int) -> np.ndarray:
                 raise LogFormatError(f"{path}: line {k} has {len(parts)} fields, the header has {width}")
             try:
                 rows.append([float(p) for p in parts])
+                lines.append(k)
             except ValueError:
                 bad = next(p for p in parts if not _is_float(p))
                 raise LogFormatError(f"{path}: line {k}: '{bad.strip()}' is not a number") from None
     if not rows:
         raise LogFormatError(f"{path}: no data rows after the header")
-    return np.asarray(rows, dtype=float)
+    return np.asarray(rows, dtype=float), np.asarray(lines)
 
 
 def _unquote(field: str) -> str:
