@@ -341,12 +341,17 @@ UNIT_MISTAKES = {
     "command_millidegrees": ("time_s,A3_deg,A3_Nm,A3_cmd_deg\n0,45,1,-45000\n0.012,45,2,-45000\n",
                              "A3_cmd_deg reaches -45000 degrees"),
     "milliseconds": ("time_s,A3_deg,A3_Nm\n0,45,1\n12,45.1,2\n24,45.2,3\n",
-                     "time_s has a median sample interval of 12 s; 1 s or more: milliseconds written as seconds?"),
+                     "time_s has a median sample interval of 12 s; about 1 s or more: milliseconds written as seconds?"),
     # new-user trial 10: a 1 kHz drive log with its time in ms is exactly 1 "s" apart, and was taken
     # for a 1 Hz log (fit then asked for a cut-off below 0.45 Hz)
     "milliseconds_at_1kHz": ("time_s,A3_deg,A3_Nm\n0,45,1\n1,45.1,2\n2,45.2,3\n3,45.3,4\n",
-                             "time_s has a median sample interval of 1 s; 1 s or more: milliseconds written as "
+                             "time_s has a median sample interval of 1 s; about 1 s or more: milliseconds written as "
                              "seconds?"),
+    # new-user trial 22: a drive's clock a little off (EMPS: 0.99998 ms a sample), its time in ms, loaded as a 1 Hz
+    # log of 24840 s
+    "milliseconds_at_1kHz_clock_off": ("time_s,A3_deg,A3_Nm\n0,45,1\n0.99998,45.1,2\n1.99996,45.2,3\n2.99994,45.3,4\n",
+                                       "time_s has a median sample interval of 0.99998 s; about 1 s or more: "
+                                       "milliseconds written as seconds?"),
 }
 
 

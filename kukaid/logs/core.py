@@ -35,6 +35,9 @@ MAX_PRISMATIC_M = 100.0
 #: Median sample interval, s, from which on the times are probably milliseconds (a drive's 1 ms
 #: samples written in ms are exactly 1 "s" apart).
 MAX_SAMPLE_INTERVAL_S = 1.0
+#: ... less this fraction: a drive's clock a little off (EMPS's 1 kHz samples are 0.99998 ms apart, in
+#: milliseconds 0.99998 "s", and loaded as a 1 Hz log of 6.9 hours)
+SAMPLE_INTERVAL_CLOCK_TOL = 0.01
 #: Median sample interval, s, below which the times are probably seconds divided by 1000 (a 12, 4
 #: or 1 ms controller log scaled as if in ms: 12, 4 or 1 µs); no controller's trace samples faster
 #: than 20 kHz (a drive's finest, 125 µs)
@@ -271,9 +274,9 @@ def check_units(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: 
     fixes = {k: f"; {v}" for k, v in (fixes or {}).items()}
     if time.size >= 2:
         dt = float(np.median(np.diff(time)))
-        if dt >= MAX_SAMPLE_INTERVAL_S:
+        if dt >= MAX_SAMPLE_INTERVAL_S * (1 - SAMPLE_INTERVAL_CLOCK_TOL):
             raise LogFormatError(
-                f"{where}: {labels.get('time', 'time')} has a median sample interval of {dt:.6g} s; "
+                f"{where}: {labels.get('time', 'time')} has a median sample interval of {dt:.6g} s; about "
                 f"{MAX_SAMPLE_INTERVAL_S:g} s or more: milliseconds written as seconds?{fixes.get('time', '')}"
             )
         if 0 < dt < MIN_SAMPLE_INTERVAL_S:
