@@ -112,18 +112,26 @@ BAD_CSV = {
 }
 
 
-@pytest.mark.parametrize("case", sorted(BAD_CSV))
+# new-user trial 22: a file that is not UTF-8 text had its header printed in the error, NUL bytes and all
+BAD_CSV_BYTES = {
+    "utf16": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2,3\n".encode("utf-16"), "is UTF-16 text"),
+    "xlsx": (b"PK\x03\x04\x14\x00\x06\x00" + bytes(64), "is a binary file (a ZIP archive: an Excel workbook"),
+    "binary": (b"\x89\x00\x01garbage\x00" * 8, "is a binary file, not CSV text"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_CSV) + sorted(BAD_CSV_BYTES))
 def test_malformed_csv_gives_one_line_and_no_output(tmp_path, case):
-    text, msg = BAD_CSV[case]
+    text, msg = BAD_CSV[case] if case in BAD_CSV else BAD_CSV_BYTES[case]
     src = tmp_path / "bad.csv"
-    src.write_text(text)
+    src.write_bytes(text) if isinstance(text, bytes) else src.write_text(text)
     out = tmp_path / "out.h5"
     r = CliRunner().invoke(cli, ["load", str(src), "-o", str(out)])
     assert r.exit_code != 0
     err = r.stderr if hasattr(r, "stderr") else r.output
     assert msg in err, err
     assert err.startswith("kukaid: error: ") and str(src) in err
-    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err and "\x00" not in err
     assert not out.exists() and list(tmp_path.iterdir()) == [src]
 
 

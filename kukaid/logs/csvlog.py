@@ -34,6 +34,8 @@ def read_csv(path: str | Path) -> AxisLog:
     path = Path(path)
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
+    with _os_errors(path, "cannot read"), open(path, "rb") as f:
+        _check_text(path, f.read(4096))
     # Excel's 'CSV UTF-8' begins with a byte order mark
     with _os_errors(path, "cannot read"), open(path, encoding="utf-8-sig", errors="replace") as f:
         first = f.readline().rstrip("\r\n")
@@ -97,6 +99,17 @@ def read_csv(path: str | Path) -> AxisLog:
     positions = {str(a): labels[("q", a)] for a in axes}
     return AxisLog(time=time, axes=tuple(axes), joint=joint, attrs={"source_file": str(path),
                                                                      "position_columns": positions}, **data)
+
+
+def _check_text(path: Path, head: bytes) -> None:
+    """Refuse a file that is not UTF-8 text with one line saying what it is (its header, read as UTF-8,
+    was printed with NUL bytes and replacement characters in the error: new-user trial 22)."""
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise LogFormatError(f"{path}: is UTF-16 text (Excel's 'Unicode Text', a Windows PowerShell redirect); "
+                             "save it as UTF-8 ('CSV UTF-8')")
+    if b"\x00" in head:
+        what = " (a ZIP archive: an Excel workbook .xlsx?)" if head.startswith(b"PK\x03\x04") else ""
+        raise LogFormatError(f"{path}: is a binary file{what}, not CSV text; export the log as CSV")
 
 
 def _body(path: Path, width: int) -> tuple[np.ndarray, np.ndarray | None]:
