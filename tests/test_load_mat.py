@@ -369,3 +369,20 @@ def test_a_mat_file_without_time_given_to_fit_names_kukaid_load(tmp_path):
     _one_line_error(r, f"kukaid load {tmp_path / 'n.mat'} --time VAR (or --sample-time S) -o LOG.h5, and give "
                     "LOG.h5; variables: q, tau")
     assert sorted(os.listdir(tmp_path)) == ["n.mat"]
+
+
+def test_an_empty_mat_file_or_variable_is_said_so(tmp_path):
+    """New-user trial 22: an empty variable said "has shape (0, 0): 0 axes, but --axis lists 1 (1); give one
+    axis number per column", and a 0-byte .mat "Mat file appears to be truncated"."""
+    from scipy.io import savemat
+
+    path = tmp_path / "e.mat"
+    savemat(path, {"t": np.arange(10) * 0.01, "q": np.zeros(0), "tau": np.zeros(10)})
+    r = CliRunner().invoke(cli, ["load", str(path), "--time", "t", "--q", "q", "--tau", "tau", "--joint", "revolute",
+                                 "-o", str(tmp_path / "o.h5")])
+    err = _one_line_error(r, f"{path}: variable 'q' (position) is empty: no samples")
+    assert "axes" not in err and not (tmp_path / "o.h5").exists()
+    (tmp_path / "z.mat").write_bytes(b"")
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "z.mat"), "-o", str(tmp_path / "o.h5")])
+    _one_line_error(r, f"{tmp_path / 'z.mat'}: empty file")
+    assert not (tmp_path / "o.h5").exists()

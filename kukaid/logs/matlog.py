@@ -178,6 +178,8 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
                                                                     time_scale, sample_time)
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
+    if path.stat().st_size == 0:  # as the other readers say it (scipy: "Mat file appears to be truncated")
+        raise LogFormatError(f"{path}: empty file")
     v, not_numeric = _load_vars(path)
     # a struct is listed with its fields: a MATLAB recording is often one struct, whose fields are named with dots
     names = sorted(k for k in v if "." not in k)
@@ -193,7 +195,10 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
             raise LogFormatError(f"{path}: no variable '{name}' for {role} (variables: {', '.join(names)})")
         if name in not_numeric:
             raise LogFormatError(f"{path}: variable '{name}' ({role}) is not numeric: it holds {not_numeric[name]}")
-        return np.asarray(v[name], dtype=float)
+        x = np.asarray(v[name], dtype=float)
+        if x.size == 0:  # it said "shape (0, 0): 0 axes, but --axis lists 1"
+            raise LogFormatError(f"{path}: variable '{name}' ({role}) is empty: no samples")
+        return x
 
     def vector(name: str, role: str) -> np.ndarray:
         x = np.atleast_1d(lookup(name, role).squeeze())
