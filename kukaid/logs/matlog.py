@@ -269,7 +269,7 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
         hints.extend(_unit_hints(path, v, qn, tn, joint_said, tau_scale is not None or tau_scale_var is not None))
     chans = {"q": qa, "tau": ta, **extra}
     joints = (joint,) * n_ax
-    check_samples(t, chans, axes, str(path))
+    check_samples(t, chans, axes, str(path), row_offset=1, row_word="MATLAB index")  # q(101) is row 100 from 0
     # the scales that correct them are kukaid load's options (the other commands read a MAT file with the defaults)
     fixes = {"q": f"kukaid load {path} --q-scale 0.0174533 reads degrees (1.74533e-05 millidegrees)",
              **({"time": f"kukaid load {path} --time-scale 0.001 reads milliseconds"} if tn_name else {})}
