@@ -101,6 +101,9 @@ BAD_CSV = {
     "nan_after_blank_line": ("time_s,A3_deg,A3_Nm\n0,1,2\n\n0.012,nan,3\n", "(NaN or inf) at line 4"),
     "duplicated_time_after_blank_lines": ("time_s,A3_deg,A3_Nm\n0,1,2\n\n\r\n0.012,2,3\n0.012,2,3\n",
                                           "duplicated) at line 6"),
+    # new-user trial 22: numbers in quotes with ',' as the decimal mark were "line 2 has 6 fields, the header has 3"
+    "comma_decimals_in_quotes": ('time_s,A3_deg,A3_Nm\n"0,000","1,5","2,0"\n"0,012","1,6","2,1"\n',
+                                 "line 2: '0,000' is not a number (',' as the decimal mark: kukaid reads '.'"),
     "empty": ("", "empty file"),
     "header_only": ("time_s,A3_deg,A3_Nm\n", "no data rows"),
     "ragged": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2\n", "line 3 has 2 fields"),

@@ -1,6 +1,7 @@
 """Axis logs as CSV: one row per sample, degrees and N·m as the KRC gives them."""
 from __future__ import annotations
 
+import csv
 import re
 from pathlib import Path
 from typing import Any
@@ -137,7 +138,8 @@ def _body(path: Path, width: int) -> tuple[np.ndarray, np.ndarray | None]:
         for k, ln in enumerate(f, start=2):
             if not ln.strip():
                 continue
-            parts = [_unquote(p) for p in ln.rstrip("\r\n").split(",")]  # numbers in quotes, as pandas reads them
+            # numbers in quotes, as pandas reads them (a comma inside the quotes is no separator)
+            parts = [_unquote(p) for p in next(csv.reader([ln.rstrip("\r\n")]), [""])]
             if len(parts) != width:
                 raise LogFormatError(f"{path}: line {k} has {len(parts)} fields, the header has {width}")
             try:
@@ -145,7 +147,9 @@ def _body(path: Path, width: int) -> tuple[np.ndarray, np.ndarray | None]:
                 lines.append(k)
             except ValueError:
                 bad = next(p for p in parts if not _is_float(p))
-                raise LogFormatError(f"{path}: line {k}: '{bad.strip()}' is not a number") from None
+                comma = (" (',' as the decimal mark: kukaid reads '.', as in '1.5')"
+                         if re.fullmatch(r"\s*[-+]?\d*,\d+\s*", bad) else "")
+                raise LogFormatError(f"{path}: line {k}: '{bad.strip()}' is not a number{comma}") from None
     if not rows:
         raise LogFormatError(f"{path}: no data rows after the header")
     return np.asarray(rows, dtype=float), np.asarray(lines)
