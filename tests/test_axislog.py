@@ -78,6 +78,14 @@ def test_csv_radians_and_prismatic(tmp_path):
     assert (tmp_path / "p2.csv").read_text().splitlines()[0] == "time_s,A1_m,A1_N"
 
 
+def test_csv_with_every_field_in_quotes_is_read(tmp_path):
+    """New-user trial 22: a CSV quoting every field (csv.QUOTE_ALL, many loggers) was refused at its header,
+    "first column must be 'time_s', found '"time_s"'", though numbers in quotes are read."""
+    (tmp_path / "q.csv").write_text('"time_s","A3_deg","A3_Nm"\n"0","1.5","2"\n"0.012","2","3"\n')
+    log = read_csv(tmp_path / "q.csv")
+    assert np.allclose(np.degrees(log.q[:, 0]), [1.5, 2.0]) and np.allclose(log.tau[:, 0], [2.0, 3.0])
+
+
 def test_csv_numbers_in_quotes_lines_of_spaces_and_windows_line_ends_are_read(tmp_path):
     (tmp_path / "q.csv").write_bytes(b'\xef\xbb\xbftime_s,A3_deg,A3_Nm\r\n0,"1.5",2\r\n   \r\n0.012, 2 ,3\r\n')
     log = read_csv(tmp_path / "q.csv")

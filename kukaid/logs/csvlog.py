@@ -42,7 +42,7 @@ def read_csv(path: str | Path) -> AxisLog:
         first = f.readline().rstrip("\r\n")
     if not first.strip():
         raise LogFormatError(f"{path}: empty file (expected a header row)")
-    header = [h.strip() for h in first.split(",")]
+    header = [_unquote(h).strip() for h in next(csv.reader([first]), [""])]  # names in quotes, as numbers in quotes
     if header[0] != "time_s":
         sep = next((c for c in (";", "\t") if c in header[0]), None) if len(header) == 1 else None
         if sep is not None:  # a spreadsheet's export where the comma is the decimal mark
