@@ -127,6 +127,10 @@ BAD_CSV = {
 BAD_CSV_BYTES = {
     "utf16": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2,3\n".encode("utf-16"), "is UTF-16 text"),
     "xlsx": (b"PK\x03\x04\x14\x00\x06\x00" + bytes(64), "is a binary file (a ZIP archive: an Excel workbook"),
+    # a log cut short by a power cut: its end is NUL bytes (it said "line 4 has 1 fields, the header has 3")
+    "nul_tail": (b"time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2,3\n" + bytes(5000),
+                 "line 4 holds NUL bytes, not text: the file was cut short while written (a crash, a power cut?); "
+                 "the 2 lines of data above it can be kept by removing line 4 and after"),
     "binary": (b"\x89\x00\x01garbage\x00" * 8, "is a binary file, not CSV text"),
 }
 

@@ -108,7 +108,7 @@ def _check_text(path: Path, head: bytes) -> None:
     if head.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise LogFormatError(f"{path}: is UTF-16 text (Excel's 'Unicode Text', a Windows PowerShell redirect); "
                              "save it as UTF-8 ('CSV UTF-8')")
-    if b"\x00" in head:
+    if b"\x00" in head.split(b"\n", 1)[0]:  # NUL bytes after the header: a log cut short (_body says it)
         what = " (a ZIP archive: an Excel workbook .xlsx?)" if head.startswith(b"PK\x03\x04") else ""
         raise LogFormatError(f"{path}: is a binary file{what}, not CSV text; export the log as CSV")
 
@@ -138,6 +138,10 @@ def _body(path: Path, width: int) -> tuple[np.ndarray, np.ndarray | None]:
         for k, ln in enumerate(f, start=2):
             if not ln.strip():
                 continue
+            if "\x00" in ln:  # a file extended but never written: a writer killed, a power cut
+                raise LogFormatError(f"{path}: line {k} holds NUL bytes, not text: the file was cut short while "
+                                     f"written (a crash, a power cut?); the {k - 2} lines of data above it can be kept "
+                                     f"by removing line {k} and after")
             # numbers in quotes, as pandas reads them (a comma inside the quotes is no separator)
             parts = [_unquote(p) for p in next(csv.reader([ln.rstrip("\r\n")]), [""])]
             if len(parts) != width:
