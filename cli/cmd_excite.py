@@ -235,7 +235,7 @@ def command(kind: str, output: Path, krl_dir: Path | None, krl_name: str | None,
 
 #: what sets the size of each kind's motion (a position limit it breaks names them)
 _POSITION_HINT = {"friction": "--span-deg [90]", "inertia": "--amplitude-deg [45.8]",
-                  "validation": "--amplitude-deg [34.4] and --moves-deg", "presliding": "--step-deg [1]"}
+                  "validation": "--amplitude-deg [34.4] and --moves-deg", "presliding": "--step-deg [1] and --reversals-deg [0.03,...]"}
 
 
 def _krl_figures(krl_dir: Path, summary: dict) -> dict:

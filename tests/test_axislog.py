@@ -78,6 +78,14 @@ def test_csv_radians_and_prismatic(tmp_path):
     assert (tmp_path / "p2.csv").read_text().splitlines()[0] == "time_s,A1_m,A1_N"
 
 
+def test_csv_with_every_field_in_quotes_is_read(tmp_path):
+    """New-user trial 22: a CSV quoting every field (csv.QUOTE_ALL, many loggers) was refused at its header,
+    "first column must be 'time_s', found '"time_s"'", though numbers in quotes are read."""
+    (tmp_path / "q.csv").write_text('"time_s","A3_deg","A3_Nm"\n"0","1.5","2"\n"0.012","2","3"\n')
+    log = read_csv(tmp_path / "q.csv")
+    assert np.allclose(np.degrees(log.q[:, 0]), [1.5, 2.0]) and np.allclose(log.tau[:, 0], [2.0, 3.0])
+
+
 def test_csv_numbers_in_quotes_lines_of_spaces_and_windows_line_ends_are_read(tmp_path):
     (tmp_path / "q.csv").write_bytes(b'\xef\xbb\xbftime_s,A3_deg,A3_Nm\r\n0,"1.5",2\r\n   \r\n0.012, 2 ,3\r\n')
     log = read_csv(tmp_path / "q.csv")
@@ -94,6 +102,16 @@ BAD_CSV = {
     "nan": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,nan,3\n", "not a finite number (NaN or inf) at line 3"),
     "duplicated_time": ("time_s,A3_deg,A3_Nm\n0,1,2\n0,2,3\n", "duplicated) at line 3"),
     "decreasing_time": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.02,2,3\n0.01,2,3\n", "decreasing) at line 4"),
+    # new-user trial 22: the line read again for the NaN: its numbers in quotes are numbers, the NaN is
+    # named (it said line 2: '"0"' is not a number)
+    "nan_among_numbers_in_quotes": ('time_s,A3_deg,A3_Nm\n"0","1","2"\n0.012,nan,3\n', "(NaN or inf) at line 3"),
+    # new-user trial 22: a blank line above shifted the line named by one
+    "nan_after_blank_line": ("time_s,A3_deg,A3_Nm\n0,1,2\n\n0.012,nan,3\n", "(NaN or inf) at line 4"),
+    "duplicated_time_after_blank_lines": ("time_s,A3_deg,A3_Nm\n0,1,2\n\n\r\n0.012,2,3\n0.012,2,3\n",
+                                          "duplicated) at line 6"),
+    # new-user trial 22: numbers in quotes with ',' as the decimal mark were "line 2 has 6 fields, the header has 3"
+    "comma_decimals_in_quotes": ('time_s,A3_deg,A3_Nm\n"0,000","1,5","2,0"\n"0,012","1,6","2,1"\n',
+                                 "line 2: '0,000' is not a number (',' as the decimal mark: kukaid reads '.'"),
     "empty": ("", "empty file"),
     "header_only": ("time_s,A3_deg,A3_Nm\n", "no data rows"),
     "ragged": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2\n", "line 3 has 2 fields"),
@@ -105,18 +123,30 @@ BAD_CSV = {
 }
 
 
-@pytest.mark.parametrize("case", sorted(BAD_CSV))
+# new-user trial 22: a file that is not UTF-8 text had its header printed in the error, NUL bytes and all
+BAD_CSV_BYTES = {
+    "utf16": ("time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2,3\n".encode("utf-16"), "is UTF-16 text"),
+    "xlsx": (b"PK\x03\x04\x14\x00\x06\x00" + bytes(64), "is a binary file (a ZIP archive: an Excel workbook"),
+    # a log cut short by a power cut: its end is NUL bytes (it said "line 4 has 1 fields, the header has 3")
+    "nul_tail": (b"time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2,3\n" + bytes(5000),
+                 "line 4 holds NUL bytes, not text: the file was cut short while written (a crash, a power cut?); "
+                 "the 2 lines of data above it can be kept by removing line 4 and after"),
+    "binary": (b"\x89\x00\x01garbage\x00" * 8, "is a binary file, not CSV text"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_CSV) + sorted(BAD_CSV_BYTES))
 def test_malformed_csv_gives_one_line_and_no_output(tmp_path, case):
-    text, msg = BAD_CSV[case]
+    text, msg = BAD_CSV[case] if case in BAD_CSV else BAD_CSV_BYTES[case]
     src = tmp_path / "bad.csv"
-    src.write_text(text)
+    src.write_bytes(text) if isinstance(text, bytes) else src.write_text(text)
     out = tmp_path / "out.h5"
     r = CliRunner().invoke(cli, ["load", str(src), "-o", str(out)])
     assert r.exit_code != 0
     err = r.stderr if hasattr(r, "stderr") else r.output
     assert msg in err, err
     assert err.startswith("kukaid: error: ") and str(src) in err
-    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err and "\x00" not in err
     assert not out.exists() and list(tmp_path.iterdir()) == [src]
 
 
@@ -334,12 +364,17 @@ UNIT_MISTAKES = {
     "command_millidegrees": ("time_s,A3_deg,A3_Nm,A3_cmd_deg\n0,45,1,-45000\n0.012,45,2,-45000\n",
                              "A3_cmd_deg reaches -45000 degrees"),
     "milliseconds": ("time_s,A3_deg,A3_Nm\n0,45,1\n12,45.1,2\n24,45.2,3\n",
-                     "time_s has a median sample interval of 12 s; 1 s or more: milliseconds written as seconds?"),
+                     "time_s has a median sample interval of 12 s; about 1 s or more: milliseconds written as seconds?"),
     # new-user trial 10: a 1 kHz drive log with its time in ms is exactly 1 "s" apart, and was taken
     # for a 1 Hz log (fit then asked for a cut-off below 0.45 Hz)
     "milliseconds_at_1kHz": ("time_s,A3_deg,A3_Nm\n0,45,1\n1,45.1,2\n2,45.2,3\n3,45.3,4\n",
-                             "time_s has a median sample interval of 1 s; 1 s or more: milliseconds written as "
+                             "time_s has a median sample interval of 1 s; about 1 s or more: milliseconds written as "
                              "seconds?"),
+    # new-user trial 22: a drive's clock a little off (EMPS: 0.99998 ms a sample), its time in ms, loaded as a 1 Hz
+    # log of 24840 s
+    "milliseconds_at_1kHz_clock_off": ("time_s,A3_deg,A3_Nm\n0,45,1\n0.99998,45.1,2\n1.99996,45.2,3\n2.99994,45.3,4\n",
+                                       "time_s has a median sample interval of 0.99998 s; about 1 s or more: "
+                                       "milliseconds written as seconds?"),
 }
 
 

@@ -94,3 +94,12 @@ def test_a_broken_position_limit_names_what_sets_the_motions_size(tmp_path, kind
     assert code == 1 and "breaks the position limit of A3" in text
     assert f"the motion's size is {option}, its place --centre-deg" in text
     assert list(tmp_path.iterdir()) == []
+
+
+def test_presliding_reversals_beyond_the_limit_name_their_option(tmp_path):
+    """New-user trial 22: `excite presliding --reversals-deg 500` broke the position limit and the hint named
+    only --step-deg [1], an option the user had not touched."""
+    code, text = run("excite", "presliding", "-o", str(tmp_path / "p.json"), "--reversals-deg", "500")
+    assert code == 1 and "breaks the position limit of A3" in text
+    assert "the motion's size is --step-deg [1] and --reversals-deg [0.03,...], its place --centre-deg" in text
+    assert list(tmp_path.iterdir()) == []

@@ -96,6 +96,19 @@ def test_bad_manifest_is_one_clear_error(tmp_path, text, phrase):
         read_manifest(p)
 
 
+@pytest.mark.parametrize("content, phrase", [
+    (b"PAR1" + bytes(range(128, 256)) + b"PAR1", "is a Parquet table (kukaid fleet), not a fleet manifest (CSV"),
+    (b"time_s,A3_deg,A3_Nm\n0,1,2\n0.012,2,3\n", "is an axis log (CSV), not a fleet manifest (CSV"),
+])
+def test_another_file_given_as_the_manifest_is_named(tmp_path, content, phrase):
+    """New-user trial 22: `fleet validate table.parquet --table table.parquet` said "not a text CSV file" of the
+    fleet table given where the manifest belongs; a log given there, that it lacked the manifest's columns."""
+    p = tmp_path / "in.csv"
+    p.write_bytes(content)
+    with pytest.raises(ManifestError, match=phrase.replace("(", r"\(").replace(")", r"\)")):
+        read_manifest(p)
+
+
 def test_a_folder_date_that_is_no_day_is_one_clear_error(tmp_path):
     """A folder named like a date that does not exist stops the command before any work, as a
     manifest's does (it was fitted, then `fleet wear` failed on it with an internal error)."""

@@ -369,3 +369,37 @@ def test_a_mat_file_without_time_given_to_fit_names_kukaid_load(tmp_path):
     _one_line_error(r, f"kukaid load {tmp_path / 'n.mat'} --time VAR (or --sample-time S) -o LOG.h5, and give "
                     "LOG.h5; variables: q, tau")
     assert sorted(os.listdir(tmp_path)) == ["n.mat"]
+
+
+def test_an_empty_mat_file_or_variable_is_said_so(tmp_path):
+    """New-user trial 22: an empty variable said "has shape (0, 0): 0 axes, but --axis lists 1 (1); give one
+    axis number per column", and a 0-byte .mat "Mat file appears to be truncated"."""
+    from scipy.io import savemat
+
+    path = tmp_path / "e.mat"
+    savemat(path, {"t": np.arange(10) * 0.01, "q": np.zeros(0), "tau": np.zeros(10)})
+    r = CliRunner().invoke(cli, ["load", str(path), "--time", "t", "--q", "q", "--tau", "tau", "--joint", "revolute",
+                                 "-o", str(tmp_path / "o.h5")])
+    err = _one_line_error(r, f"{path}: variable 'q' (position) is empty: no samples")
+    assert "axes" not in err and not (tmp_path / "o.h5").exists()
+    (tmp_path / "z.mat").write_bytes(b"")
+    r = CliRunner().invoke(cli, ["load", str(tmp_path / "z.mat"), "-o", str(tmp_path / "o.h5")])
+    _one_line_error(r, f"{tmp_path / 'z.mat'}: empty file")
+    assert not (tmp_path / "o.h5").exists()
+
+
+def test_a_bad_sample_of_a_mat_file_is_named_by_its_matlab_index(tmp_path):
+    """New-user trial 22: a NaN at q(101) was named "at row 100" (the index from 0), where MATLAB shows a
+    finite number; the samples of a MAT file are named by MATLAB's index, from 1."""
+    from scipy.io import savemat
+
+    t, q = np.arange(300) * 0.004, np.zeros(300)
+    q[100] = np.nan  # MATLAB's q(101)
+    savemat(tmp_path / "n.mat", {"t": t, "q": q, "tau": np.ones(300)})
+    t2 = t.copy()
+    t2[100] = t2[99]  # t(101) == t(100)
+    savemat(tmp_path / "d.mat", {"t": t2, "q": np.zeros(300), "tau": np.ones(300)})
+    with pytest.raises(LogFormatError, match=r"not a finite number \(NaN or inf\) at MATLAB index 101$"):
+        read_log(tmp_path / "n.mat", time="t", joint="revolute")
+    with pytest.raises(LogFormatError, match=r"\(duplicated\) at MATLAB index 101: 0.396 s after 0.396 s"):
+        read_log(tmp_path / "d.mat", time="t", joint="revolute")

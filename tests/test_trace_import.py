@@ -288,6 +288,21 @@ def test_a_trace_set_missing_a_channel_says_what_the_log_left_out(tmp_path):
         f"{dat}: no motor temperature (Motortemperatur) in the log, for any axis: the recording has none for A5"]
     for w in got["warnings"]:
         assert f"kukaid: warning: load: {w}" in r.stderr
+    # new-user trial 22: a drive module not copied with the others (its .dat and .r64 gone) left its axis out
+    # without a word, though the KRCIpo module has its setpoints
+    (tmp_path / "gone").mkdir()
+    write_kr_c4_set(tmp_path / "gone", duration=0.2)
+    for f in (tmp_path / "gone").glob("Rec_NextGenDrive#4.*"):
+        f.unlink()
+    dat = tmp_path / "gone" / "Rec_NextGenDrive#1.dat"
+    r = CliRunner().invoke(cli, ["load", str(dat), "--gear-ratio", RATIOS, "--json", "-o", str(tmp_path / "gone.h5")])
+    assert r.exit_code == 0, r.output
+    got = json.loads(r.stdout)
+    assert got["axes"] == [1, 2, 3, 5, 6]
+    assert got["warnings"] == [
+        f"{dat}: A4 is not in the log: the recording has its commanded position (KRCIpo setpoint) but no measured "
+        "position (Istposition) and no torque (Istmoment) channel (its drive module, NextGenDrive#4, missing?)"]
+    assert f"kukaid: warning: load: {got['warnings'][0]}" in r.stderr
     (tmp_path / "whole").mkdir()
     write_kr_c4_set(tmp_path / "whole", duration=0.2)  # a whole recording: nothing to say
     r = CliRunner().invoke(cli, ["load", str(tmp_path / "whole" / "Rec_NextGenDrive#1.dat"), "--gear-ratio", RATIOS,

@@ -80,6 +80,18 @@ def _date(text: str, where: str) -> str:
     return text
 
 
+def _other_kind(path: Path) -> str | None:
+    """"is a Parquet table (kukaid fleet), not a fleet manifest (CSV) ..." when ``path`` is another of the
+    toolkit's files (the fleet table given as the input said "not a text CSV file": new-user trial 22)."""
+    from kukaid.jsonfile import file_kind
+
+    kind = file_kind(path)
+    if kind is None or kind.startswith("a fleet manifest"):
+        return None
+    return (f"is {kind}, not a fleet manifest (CSV with the columns {','.join(MANIFEST_COLUMNS)}) or a folder "
+            "of logs")
+
+
 def read_manifest(path: str | Path) -> list[Entry]:
     """Entries of a manifest CSV with a header ``robot,axis,date,path`` (paths relative to the manifest).
 
@@ -93,12 +105,15 @@ def read_manifest(path: str | Path) -> list[Entry]:
         with open(path, newline="", encoding="utf-8-sig") as f:  # Excel's 'CSV UTF-8' begins with a mark
             rows = list(csv.reader(f))
     except UnicodeDecodeError:
-        raise ManifestError(f"{path}: not a text CSV file") from None
+        raise ManifestError(f"{path}: {_other_kind(path) or 'not a text CSV file'}") from None
     if not rows:
         raise ManifestError(f"{path}: empty manifest; expected a header row {','.join(MANIFEST_COLUMNS)}")
     head = [h.strip().lower() for h in rows[0]]
     missing = [c for c in MANIFEST_COLUMNS if c not in head]
     if missing:
+        other = _other_kind(path)  # an axis log given for the manifest
+        if other is not None:
+            raise ManifestError(f"{path}: {other}")
         sep = next((c for c in ";\t|" if len(rows[0]) == 1 and c in rows[0][0]), None)
         raise ManifestError(f"{path}: manifest lacks column(s) {', '.join(missing)} "
                             f"(header must name {','.join(MANIFEST_COLUMNS)})"

@@ -35,6 +35,9 @@ MAX_PRISMATIC_M = 100.0
 #: Median sample interval, s, from which on the times are probably milliseconds (a drive's 1 ms
 #: samples written in ms are exactly 1 "s" apart).
 MAX_SAMPLE_INTERVAL_S = 1.0
+#: ... less this fraction: a drive's clock a little off (EMPS's 1 kHz samples are 0.99998 ms apart, in
+#: milliseconds 0.99998 "s", and loaded as a 1 Hz log of 6.9 hours)
+SAMPLE_INTERVAL_CLOCK_TOL = 0.01
 #: Median sample interval, s, below which the times are probably seconds divided by 1000 (a 12, 4
 #: or 1 ms controller log scaled as if in ms: 12, 4 or 1 µs); no controller's trace samples faster
 #: than 20 kHz (a drive's finest, 125 µs)
@@ -210,24 +213,30 @@ class AxisLog:
 
 
 def check_samples(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: Iterable[int],
-                  where: str, row_offset: int = 0, row_word: str = "row") -> None:
+                  where: str, row_offset: int = 0, row_word: str = "row",
+                  row_lines: Sequence[int] | None = None) -> None:
     """Validate sample values: enough samples, finite, strictly increasing time.
 
-    ``row_offset`` and ``row_word`` let a reader report file lines ("line 7") instead of rows.
+    ``row_offset`` and ``row_word`` let a reader report file lines ("line 7") instead of rows;
+    ``row_lines`` gives each row's line instead of the offset when they do not follow evenly (the
+    blank lines of a CSV file).
     """
     axes = list(axes)
+
+    def at(r: int) -> int:
+        return int(row_lines[r]) if row_lines is not None else int(r) + row_offset
     if time.size < 2:
         raise LogFormatError(f"{where}: too few samples ({time.size}); a log needs at least 2")
     bad = np.flatnonzero(~np.isfinite(time))
     if bad.size:
-        raise LogFormatError(f"{where}: time is not a finite number at {row_word} {bad[0] + row_offset}")
+        raise LogFormatError(f"{where}: time is not a finite number at {row_word} {at(bad[0])}")
     dt = np.diff(time)
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         i = bad[0] + 1
         kind = "duplicated" if dt[bad[0]] == 0 else "decreasing"
         raise LogFormatError(
-            f"{where}: time is not strictly increasing ({kind}) at {row_word} {i + row_offset}: "
+            f"{where}: time is not strictly increasing ({kind}) at {row_word} {at(i)}: "
             f"{time[i]:.6g} s after {time[i - 1]:.6g} s"
         )
     for name, x in channels.items():
@@ -238,7 +247,7 @@ def check_samples(time: np.ndarray, channels: dict[str, np.ndarray | None], axes
             r, c = bad[0]
             raise LogFormatError(
                 f"{where}: channel '{name}' of axis A{axes[c]} is not a finite number (NaN or inf) "
-                f"at {row_word} {r + row_offset}"
+                f"at {row_word} {at(r)}"
             )
 
 
@@ -265,9 +274,9 @@ def check_units(time: np.ndarray, channels: dict[str, np.ndarray | None], axes: 
     fixes = {k: f"; {v}" for k, v in (fixes or {}).items()}
     if time.size >= 2:
         dt = float(np.median(np.diff(time)))
-        if dt >= MAX_SAMPLE_INTERVAL_S:
+        if dt >= MAX_SAMPLE_INTERVAL_S * (1 - SAMPLE_INTERVAL_CLOCK_TOL):
             raise LogFormatError(
-                f"{where}: {labels.get('time', 'time')} has a median sample interval of {dt:.6g} s; "
+                f"{where}: {labels.get('time', 'time')} has a median sample interval of {dt:.6g} s; about "
                 f"{MAX_SAMPLE_INTERVAL_S:g} s or more: milliseconds written as seconds?{fixes.get('time', '')}"
             )
         if 0 < dt < MIN_SAMPLE_INTERVAL_S:

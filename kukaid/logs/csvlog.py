@@ -1,6 +1,7 @@
 """Axis logs as CSV: one row per sample, degrees and N·m as the KRC gives them."""
 from __future__ import annotations
 
+import csv
 import re
 from pathlib import Path
 from typing import Any
@@ -34,12 +35,14 @@ def read_csv(path: str | Path) -> AxisLog:
     path = Path(path)
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
+    with _os_errors(path, "cannot read"), open(path, "rb") as f:
+        _check_text(path, f.read(4096))
     # Excel's 'CSV UTF-8' begins with a byte order mark
     with _os_errors(path, "cannot read"), open(path, encoding="utf-8-sig", errors="replace") as f:
         first = f.readline().rstrip("\r\n")
     if not first.strip():
         raise LogFormatError(f"{path}: empty file (expected a header row)")
-    header = [h.strip() for h in first.split(",")]
+    header = [_unquote(h).strip() for h in next(csv.reader([first]), [""])]  # names in quotes, as numbers in quotes
     if header[0] != "time_s":
         sep = next((c for c in (";", "\t") if c in header[0]), None) if len(header) == 1 else None
         if sep is not None:  # a spreadsheet's export where the comma is the decimal mark
@@ -77,7 +80,7 @@ def read_csv(path: str | Path) -> AxisLog:
                 suffix = (("m" if need == "q" else "N") if joint_of.get(a) == "prismatic" else "Nm" if need == "tau"
                           else rev_q[min(rev_q)] if rev_q else "deg")  # as the log's other revolute positions
                 raise LogFormatError(f"{path}: missing column A{a}_{suffix} (axis A{a} has no '{need}')")
-    arr = _body(path, len(header))
+    arr, lines = _body(path, len(header))
     data: dict[str, np.ndarray | None] = {}
     for chan in CHANNELS:
         present = [(a, chan) in cols for a in axes]
@@ -89,7 +92,7 @@ def read_csv(path: str | Path) -> AxisLog:
             raise LogFormatError(f"{path}: channel '{chan}' is present for some axes but not A{missing[0]}")
         data[chan] = np.column_stack([arr[:, cols[(a, chan)][0]] * cols[(a, chan)][1] for a in axes])
     time = arr[:, 0]
-    check_samples(time, data, axes, str(path), row_offset=2, row_word="line")
+    check_samples(time, data, axes, str(path), row_offset=2, row_word="line", row_lines=lines)
     joint = tuple(joint_of.get(a, "revolute") for a in axes)
     labels: dict[Any, str] = {(chan, a): header[j] for (a, chan), (j, _) in cols.items()}
     check_units(time, data, axes, joint, str(path), labels={**labels, "time": "time_s"})
@@ -99,39 +102,66 @@ def read_csv(path: str | Path) -> AxisLog:
                                                                      "position_columns": positions}, **data)
 
 
-def _body(path: Path, width: int) -> np.ndarray:
-    """The data rows under the header, (n, width) floats.  pandas' C parser reads them (a 1-hour 200 Hz
+def _check_text(path: Path, head: bytes) -> None:
+    """Refuse a file that is not UTF-8 text with one line saying what it is (its header, read as UTF-8,
+    was printed with NUL bytes and replacement characters in the error: new-user trial 22)."""
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise LogFormatError(f"{path}: is UTF-16 text (Excel's 'Unicode Text', a Windows PowerShell redirect); "
+                             "save it as UTF-8 ('CSV UTF-8')")
+    if b"\x00" in head.split(b"\n", 1)[0]:  # NUL bytes after the header: a log cut short (_body says it)
+        what = " (a ZIP archive: an Excel workbook .xlsx?)" if head.startswith(b"PK\x03\x04") else ""
+        raise LogFormatError(f"{path}: is a binary file{what}, not CSV text; export the log as CSV")
+
+
+def _body(path: Path, width: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """The data rows under the header, (n, width) floats, and each row's line in the file (None when row
+    r is line r + 2).  pandas' C parser reads them (a 1-hour 200 Hz
     six-axis log, 170 MB: 0.9 s CPU and 0.4 GB, where Python line by line took 5.1 s and 1 GB:
     ``benchmarks/log_read_speed.py``); what it cannot read as ``width`` numbers a row (a short row, which it
-    fills with NaN, a word, a line of spaces) is read again line by line, for the line and field to name."""
+    fills with NaN, a word, a line of spaces, a blank line) is read again line by line, for the line and
+    field to name (a blank line read by pandas shifted every later row's line: a NaN on line 53 was
+    named at line 52)."""
     import pandas as pd
 
     try:
         with _os_errors(path, "cannot read"):
             arr = pd.read_csv(path, skiprows=1, header=None, names=range(width), dtype=float, engine="c",
                               encoding="utf-8-sig", encoding_errors="replace",
-                              skip_blank_lines=True).to_numpy()
+                              skip_blank_lines=False).to_numpy()
     except ValueError:  # pandas' ParserError and EmptyDataError are ValueErrors
         arr = None
     if arr is not None and arr.shape[0] and not np.isnan(arr).any():
-        return arr
-    rows = []
+        return arr, None
+    rows, lines = [], []
     with _os_errors(path, "cannot read"), open(path, encoding="utf-8-sig", errors="replace") as f:
         next(f)
         for k, ln in enumerate(f, start=2):
             if not ln.strip():
                 continue
-            parts = ln.rstrip("\r\n").split(",")
+            if "\x00" in ln:  # a file extended but never written: a writer killed, a power cut
+                raise LogFormatError(f"{path}: line {k} holds NUL bytes, not text: the file was cut short while "
+                                     f"written (a crash, a power cut?); the {k - 2} lines of data above it can be kept "
+                                     f"by removing line {k} and after")
+            # numbers in quotes, as pandas reads them (a comma inside the quotes is no separator)
+            parts = [_unquote(p) for p in next(csv.reader([ln.rstrip("\r\n")]), [""])]
             if len(parts) != width:
                 raise LogFormatError(f"{path}: line {k} has {len(parts)} fields, the header has {width}")
             try:
                 rows.append([float(p) for p in parts])
+                lines.append(k)
             except ValueError:
                 bad = next(p for p in parts if not _is_float(p))
-                raise LogFormatError(f"{path}: line {k}: '{bad.strip()}' is not a number") from None
+                comma = (" (',' as the decimal mark: kukaid reads '.', as in '1.5')"
+                         if re.fullmatch(r"\s*[-+]?\d*,\d+\s*", bad) else "")
+                raise LogFormatError(f"{path}: line {k}: '{bad.strip()}' is not a number{comma}") from None
     if not rows:
         raise LogFormatError(f"{path}: no data rows after the header")
-    return np.asarray(rows, dtype=float)
+    return np.asarray(rows, dtype=float), np.asarray(lines)
+
+
+def _unquote(field: str) -> str:
+    f = field.strip()
+    return f[1:-1] if len(f) >= 2 and f[0] == f[-1] == '"' else field
 
 
 def _is_float(s: str) -> bool:

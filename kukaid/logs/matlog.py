@@ -178,6 +178,8 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
                                                                     time_scale, sample_time)
     if not path.exists():
         raise LogFormatError(f"{path}: no such file")
+    if path.stat().st_size == 0:  # as the other readers say it (scipy: "Mat file appears to be truncated")
+        raise LogFormatError(f"{path}: empty file")
     v, not_numeric = _load_vars(path)
     # a struct is listed with its fields: a MATLAB recording is often one struct, whose fields are named with dots
     names = sorted(k for k in v if "." not in k)
@@ -193,7 +195,10 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
             raise LogFormatError(f"{path}: no variable '{name}' for {role} (variables: {', '.join(names)})")
         if name in not_numeric:
             raise LogFormatError(f"{path}: variable '{name}' ({role}) is not numeric: it holds {not_numeric[name]}")
-        return np.asarray(v[name], dtype=float)
+        x = np.asarray(v[name], dtype=float)
+        if x.size == 0:  # it said "shape (0, 0): 0 axes, but --axis lists 1"
+            raise LogFormatError(f"{path}: variable '{name}' ({role}) is empty: no samples")
+        return x
 
     def vector(name: str, role: str) -> np.ndarray:
         x = np.atleast_1d(lookup(name, role).squeeze())
@@ -264,7 +269,7 @@ def read_mat(path: str | Path, time: str | None = None, q: str | None = None, ta
         hints.extend(_unit_hints(path, v, qn, tn, joint_said, tau_scale is not None or tau_scale_var is not None))
     chans = {"q": qa, "tau": ta, **extra}
     joints = (joint,) * n_ax
-    check_samples(t, chans, axes, str(path))
+    check_samples(t, chans, axes, str(path), row_offset=1, row_word="MATLAB index")  # q(101) is row 100 from 0
     # the scales that correct them are kukaid load's options (the other commands read a MAT file with the defaults)
     fixes = {"q": f"kukaid load {path} --q-scale 0.0174533 reads degrees (1.74533e-05 millidegrees)",
              **({"time": f"kukaid load {path} --time-scale 0.001 reads milliseconds"} if tn_name else {})}

@@ -222,6 +222,10 @@ def _left_out(path: Path, mapped: dict, axes: list[int]) -> list[str]:
             miss = "tau" if have == ["q"] else "q"
             out.append(f"{path}: A{a} is not in the log: the recording has its {_WHAT[have[0]]} but no {_WHAT[miss]} "
                        "channel")
+        else:  # only its setpoint or temperature: its drive module is not there (not copied with the rest)
+            what = " and ".join(_WHAT[x] for x in ("q_cmd", "temp") if (x, a) in mapped)
+            out.append(f"{path}: A{a} is not in the log: the recording has its {what} but no {_WHAT['q']} and no "
+                       f"{_WHAT['tau']} channel (its drive module, NextGenDrive#{a}, missing?)")
     for qty in ("q_cmd", "temp"):
         lack = [a for a in axes if (qty, a) not in mapped]
         if 0 < len(lack) < len(axes):
