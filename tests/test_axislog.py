@@ -482,3 +482,18 @@ def test_write_csv_unwritable_folder_is_one_line(tmp_path, monkeypatch):
     monkeypatch.setattr(tempfile, "mkstemp", refuse)
     with pytest.raises(KukaidError, match=r"o.csv: cannot write: Read-only file system$"):
         write_csv(make_log(), tmp_path / "o.csv")
+
+
+def test_an_hdf5_file_of_another_tool_is_named_as_such(tmp_path):
+    """New-user trial 22: an HDF5 file written by another tool was told only "missing dataset 'time'"."""
+    import h5py
+
+    p = tmp_path / "other.h5"
+    with h5py.File(p, "w") as f:
+        f["t"] = np.arange(10.0)
+        f["joint_pos"] = np.zeros((10, 6))
+    with pytest.raises(LogFormatError) as e:
+        read_hdf5(p)
+    msg = str(e.value)
+    assert "missing dataset 'time'" in msg and "not a kukaid axis log" in msg and "joint_pos, t" in msg
+    assert "\n" not in msg

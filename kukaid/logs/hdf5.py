@@ -108,7 +108,10 @@ def read_hdf5(path: str | Path, whole: bool = False) -> AxisLog:
                                      f"(not a kukaid axis log, or another version)")
             for name in ("time", "q", "tau"):
                 if name not in f:
-                    raise LogFormatError(f"{path}: missing dataset '{name}'")
+                    other = ("" if fmt is not None else f" (and no 'format' attribute: not a kukaid axis log? Another "
+                             "tool's data come in through kukaid load from CSV or MAT, docs/formats.md; its datasets: "
+                             f"{', '.join(sorted(f.keys())[:6]) or 'none'})")
+                    raise LogFormatError(f"{path}: missing dataset '{name}'{other}")
             if "axes" not in f.attrs:
                 raise LogFormatError(f"{path}: missing attribute 'axes'")
             data = {}
