@@ -111,7 +111,7 @@ def _report(summary, output: Path, what: str) -> None:
     with the first error, exit status 1 (the table is written, its error column says why per log)."""
     parts = [f"{summary.ran} {what}", _n(summary.errors, "error row")]
     if summary.duplicates:
-        parts.append(_n(summary.duplicates, "duplicate"))
+        parts.append(f"{_n(summary.duplicates, 'duplicate')} among them")  # duplicates are error rows too
     if summary.skipped:
         parts.append(f"{summary.skipped} already in the table")
     if summary.repeated:

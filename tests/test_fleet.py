@@ -256,7 +256,7 @@ def test_the_summary_line_says_one_row_not_one_rows(capsys):
     from kukaid_cli.cmd_fleet import _report
 
     _report(RunSummary(ran=0, errors=1, duplicates=1, rows=1, wall_s=2.0, workers=1), Path("t.parquet"), "fitted")
-    assert capsys.readouterr().err == "t.parquet: 1 row (0 fitted, 1 error row, 1 duplicate) in 2.0 s on 1 worker\n"
+    assert capsys.readouterr().err == "t.parquet: 1 row (0 fitted, 1 error row, 1 duplicate among them) in 2.0 s on 1 worker\n"
     _report(RunSummary(ran=2, errors=2, rows=3, wall_s=2.0, workers=2), Path("t.parquet"), "fitted")
     assert capsys.readouterr().err == "t.parquet: 3 rows (2 fitted, 2 error rows) in 2.0 s on 2 workers\n"
 
