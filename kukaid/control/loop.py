@@ -249,6 +249,12 @@ def run_admittance(backend: Any, model: Any, config: LoopConfig | None = None, z
     return AdmittanceRun(data=data, metrics=metrics, status=status, config=cfg)
 
 
+def init_reference(cfg: LoopConfig, q_start: float, x: float) -> float:
+    """The initiation move's reference (rad) at ``x`` (0 to 1) of its duration: a quintic from ``q_start``
+    to ``q_start + init_move`` (eq. 12's move), as the loop runs it and :func:`check_init_room` checks it."""
+    return q_start + cfg.init_move * x ** 3 * (10 - 15 * x + 6 * x * x)
+
+
 def init_move_needed(model: Any) -> float:
     """The shortest initiation move (rad) that saturates every Maxwell-slip element of a one-axis ``model``
     from any state: twice the largest break-away displacement (0 for a model without elements)."""
@@ -270,7 +276,7 @@ def check_init_room(model: Any, cfg: LoopConfig, q_start: float) -> None:
     reach = peak = 0.0
     for k in range(int(math.ceil((cfg.init_time + cfg.init_rest) / cfg.cycle))):
         x = min((k + 1) * cfg.cycle / cfg.init_time, 1.0)
-        q, _ = lim.apply(q_start + cfg.init_move * x ** 3 * (10 - 15 * x + 6 * x * x))
+        q, _ = lim.apply(init_reference(cfg, q_start, x))
         reach = max(reach, (q - q_start) * math.copysign(1.0, cfg.init_move))
         peak = max(peak, abs(lim.v))
     qd_thr = float(getattr(model, "qd_thr", 0.0))
@@ -411,7 +417,7 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
         if tr <= t_adm:  # initiation move (eq. 12), then rest while Γu settles
             x = min(tr / cfg.init_time, 1.0) if cfg.init_move else 1.0
             phase = PHASE_INIT if tr <= t_init_end else PHASE_REST
-            q_ref = q_start + cfg.init_move * x ** 3 * (10 - 15 * x + 6 * x * x)
+            q_ref = init_reference(cfg, q_start, x)
             if phase == PHASE_REST:
                 q_hold = rest.step(q_hold, last.q, moving=r.mode == DYNAMIC, contact=r.detected)
                 q_ref = q_hold
