@@ -166,8 +166,8 @@ class KvpRobot:
         from kukaid.krc.krl_follower import STOP_BY_PC, STOP_OUTSIDE, STOP_STALE
 
         try:
-            code = int(self.client.read_int(self.stop))
-        except (ControllerError, AttributeError, ValueError, TypeError):
+            code = self.client.read_int(self.stop)
+        except ControllerError:  # the link, or a reply that is no INT (KvpError): the watchdog's to judge
             return
         if code == 0:
             return
