@@ -410,8 +410,6 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
     # the most a model's error at rest may be: what the start threshold at rest can rise to
     init_cap = getattr(est, "floor_cap", 3.0) * cfg.threshold
     init_max = abs(r.gamma_r)  # Γr's largest size during the loop's own move and rest, N·m
-    along: list[float] = []  # Γr along the initiation move while the estimator reads it as moving, N·m
-    rest_end: list[float] = []  # Γr over the last 0.2 s of the rest after it, N·m
     for k in range(n_cycles):
         tr = (k + 1) * cfg.cycle  # time since start at the end of this cycle
         if tr <= t_adm:  # initiation move (eq. 12), then rest while Γu settles
@@ -425,7 +423,7 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
             adm.reset(q_cmd)
             sd = 0.0
         else:
-            why = _unguidable(init_max, init_cap, along, rest_end, cfg) if phase != PHASE_ADMITTANCE else None
+            why = _unguidable(init_max, init_cap, log, cfg) if phase != PHASE_ADMITTANCE else None
             if why:
                 backend.hold()
                 return log, (f"stopped: before control, with nobody touching the axis, {why}, so nothing was guided; "
@@ -502,11 +500,6 @@ def _loop(backend: Any, est: TorqueResidual, r: Any, limiter: ReferenceLimiter, 
         if stop is None and phase == PHASE_ADMITTANCE and abs(r.gamma_r) > cfg.limits.tau_max:
             stop = (f"external torque Γr {r.gamma_r:.1f} N·m (the model's torque minus the measured {last.tau:.1f} "
                     f"N·m) beyond the limit {cfg.limits.tau_max:g} N·m at t = {last.t - t0:.3f} s")
-        if phase == PHASE_INIT and r.mode == DYNAMIC:  # the cycle's row (run_metrics' init_push_along)
-            along.append(r.gamma_r * math.copysign(1.0, cfg.init_move))
-        if phase == PHASE_REST:  # the rest's last 0.2 s
-            rest_end.append(r.gamma_r)
-            del rest_end[:-max(1, int(round(0.2 / cfg.cycle)))]
         t_row = last.t
         if stop is not None:
             backend.hold()
@@ -701,9 +694,9 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     init = data["phase"] < PHASE_ADMITTANCE
     if init.any():  # the loop's own move and rest: nobody touches the axis, Γr is the model's error there
         out["init_residual_max"] = float(np.max(np.abs(gr[init])))
-        along = (data["phase"] == PHASE_INIT) & np.asarray(data["dynamic"], bool)
-        if np.count_nonzero(along) >= MIN_ALONG:
-            out["init_push_along"] = float(np.mean(gr[along])) * math.copysign(1.0, cfg.init_move)
+        along = push_along(data["phase"], data["dynamic"], gr, cfg.init_move)
+        if along is not None:
+            out["init_push_along"] = along
         if out["init_residual_max"] >= cfg.threshold:
             warnings.append(f"during the initiation move and rest Γr reached {out['init_residual_max']:.3g} N·m, beyond "
                             f"the threshold {cfg.threshold:g} N·m, with nobody touching the axis (not taken for a push): "
@@ -713,16 +706,24 @@ def run_metrics(data: dict[str, np.ndarray], cfg: LoopConfig) -> dict[str, Any]:
     return out
 
 
-def _unguidable(init_max: float, init_cap: float, along: list[float], rest_end: list[float],
-                cfg: LoopConfig) -> str | None:
+def push_along(phase: Any, dynamic: Any, gamma_r: Any, init_move: float) -> float | None:
+    """Γr's mean (N·m) along the initiation move over the cycles it was read as moving (None: fewer than
+    :data:`MIN_ALONG`), from a run's per-cycle ``phase``, ``dynamic`` and ``gamma_r``."""
+    rows = (np.asarray(phase) == PHASE_INIT) & np.asarray(dynamic, bool)
+    if np.count_nonzero(rows) < MIN_ALONG:
+        return None
+    return float(np.mean(np.asarray(gamma_r, float)[rows])) * math.copysign(1.0, init_move)
+
+
+def _unguidable(init_max: float, init_cap: float, log: dict[str, list], cfg: LoopConfig) -> str | None:
     """Why the model's error on the loop's own initiation move and rest (nobody touching: ``init_max`` its
-    largest size, ``along`` it along the move while read as moving, ``rest_end`` over the rest's last 0.2 s,
-    N·m) says that, guided, the axis would move by itself; None when it does not."""
+    largest size; the rows so far in ``log``: Γr along the move, :func:`push_along`, and over the rest's last
+    0.2 s) says that, guided, the axis would move by itself; None when it does not."""
     if init_max > init_cap:  # beyond what the threshold at rest can ever rise to: a file in N·mm, a gravity sign
         return (f"the model's error during the initiation move and rest reached {init_max:.3g} N·m, beyond "
                 f"{init_cap:.3g} N·m ({init_cap / cfg.threshold:g} x the threshold, the most the threshold at rest can "
                 "rise to): guided with this parameter file the axis would move by itself")
-    pushes_on = float(np.mean(along)) if len(along) >= MIN_ALONG else 0.0
+    pushes_on = push_along(log["phase"], log["dynamic"], log["gamma_r"], cfg.init_move) or 0.0
     if pushes_on >= RUNAWAY_SHARE * cfg.threshold:
         # a file whose friction exceeds the axis's (new-user trial 21: Fc, Fs and Fv 1.5 x the plant's, 8.8 N·m
         # here, ran the axis 71 degrees after a release): guided, that error alone holds a detection while the
@@ -731,7 +732,9 @@ def _unguidable(init_max: float, init_cap: float, along: list[float], rest_end: 
                 f"{pushes_on / cfg.threshold:.2f} x the threshold {cfg.threshold:g} N·m (at most {RUNAWAY_SHARE:g} x; a "
                 "model whose friction exceeds the axis's, e.g. fitted on a colder drive): guided, that error alone "
                 "would keep the axis moving after a release")
-    standing = float(np.mean(rest_end)) if rest_end else 0.0
+    rest = np.asarray(log["gamma_r"], float)[np.asarray(log["phase"]) == PHASE_REST]
+    rest_end = rest[-max(1, round(0.2 / cfg.cycle)):]
+    standing = float(np.mean(rest_end)) if rest_end.size else 0.0
     if cfg.no_rest_model and abs(standing) >= cfg.threshold:
         # no friction model at rest (a robot file run with --no-rest-model): an offset of 4 N·m against the move,
         # threshold 3, ran the axis 0.52 rad with nobody there
